@@ -1,0 +1,40 @@
+//! Library errors. Only I/O and user input fail; every error names the file and, where there is
+//! one, the element (DESIGN §1). The binary maps these to messages and exit codes.
+
+use std::path::{Path, PathBuf};
+
+/// Everything the library can fail with.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The input is malformed; `element` says where (e.g. "vertex 17", "accessor 3").
+    #[error("{path}: {element}: {message}")]
+    Invalid { path: PathBuf, element: String, message: String },
+    /// The input parsed but holds nothing to bake.
+    #[error("{path}: {message}")]
+    Empty { path: PathBuf, message: String },
+    /// The file type is not one we read.
+    #[error("{path}: unsupported input format (expected .obj, .gltf or .glb)")]
+    Format { path: PathBuf },
+    /// Parameters out of range.
+    #[error("invalid parameters: {0}")]
+    Params(String),
+}
+
+impl Error {
+    pub(crate) fn io(path: &Path, source: std::io::Error) -> Error {
+        Error::Io { path: path.to_path_buf(), source }
+    }
+
+    pub(crate) fn invalid(path: &Path, element: impl Into<String>, message: impl Into<String>) -> Error {
+        Error::Invalid { path: path.to_path_buf(), element: element.into(), message: message.into() }
+    }
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,181 @@
+//! shellbake: bakes shell-textured fur, grass, carpet and moss into standard glTF.
+//!
+//! The pipeline, top to bottom — [`bake`] reads the same way:
+//!
+//! | stage | module | verb |
+//! |---|---|---|
+//! | load | [`load`] | [`load::load`] |
+//! | weld | [`weld`] | [`weld::weld`] |
+//! | frames | [`frames`] | [`frames::extrusion_frames`] |
+//! | clamp | `clamp` (not yet; skipped) | — |
+//! | strands | [`strands`] | [`strands::bake_mask`] |
+//! | shells | [`shells`] | [`shells::build_shells`] |
+//! | cull, lod | (not yet; skipped) | — |
+//! | pack | [`pack`] | [`pack::pack`] |
+//! | write | [`write`] | [`write::write_glb`] |
+//!
+//! Each stage runs only when the parameters call for it and the [`report::Report`] lists every
+//! stage as run or skipped.
+
+pub mod error;
+pub mod frames;
+pub mod load;
+pub mod mesh;
+pub mod pack;
+pub mod params;
+pub mod procedural;
+pub mod report;
+pub mod shells;
+pub mod strands;
+pub mod weld;
+pub mod write;
+
+use std::time::Instant;
+
+use glam::Vec2;
+
+pub use error::{Error, Result};
+use mesh::{Mesh, Scene};
+use pack::Packed;
+use params::BakeParams;
+use report::Report;
+use shells::ShellStack;
+use strands::Mask;
+
+/// Everything a bake produced, for the writer, the report and the tests.
+pub struct Baked {
+    /// The GLB file.
+    pub glb: Vec<u8>,
+    /// The glTF JSON inside it.
+    pub json: serde_json::Value,
+    pub report: Report,
+    /// The render mesh that was packed (welded-degenerate triangles removed, normals filled).
+    pub mesh: Mesh,
+    pub shells: ShellStack,
+    pub mask: Mask,
+    pub packed: Packed,
+    /// Mask tiles per UV unit.
+    pub tiles_per_uv: Vec2,
+}
+
+/// Bakes a loaded scene. Never fails: the scene was checked by `load`, the parameters by
+/// [`BakeParams::check`] (asserted here).
+pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
+    if let Err(e) = params.check() {
+        panic!("bake called with unchecked parameters: {e}");
+    }
+    let start = Instant::now();
+    let mut report = Report { warnings: scene.warnings.clone(), ..Default::default() };
+
+    let mut mesh = report.run("merge", || scene.merged());
+    report.count("meshes", scene.meshes.len() as f64);
+    report.count("vertices", mesh.vertex_count() as f64);
+    report.count("triangles", mesh.triangle_count() as f64);
+    if mesh.uvs.is_none() || mesh::uv_area(&mesh) <= 0.0 {
+        report.warnings.push("texture coordinates have no area; generated a per-face box projection".into());
+        load::generate_box_uvs(&mut mesh);
+    }
+
+    let welded = report.run("weld", || weld::weld(&mesh.positions, &mesh.indices));
+    report.count("welded_vertices", welded.positions.len() as f64);
+    report.count("collapsed_triangles", (mesh.triangle_count() - welded.source_triangle.len()) as f64);
+    mesh.indices = welded
+        .source_triangle
+        .iter()
+        .flat_map(|&t| mesh.indices[3 * t as usize..3 * t as usize + 3].to_vec())
+        .collect();
+
+    let frames = report.run("frames", || frames::extrusion_frames(&welded, mesh.normals.as_deref()));
+    for (rule, n) in ["angle_weighted", "area_weighted", "largest_face", "input_normal", "plus_y"]
+        .iter()
+        .zip(frames.fallbacks)
+    {
+        report.count(rule, n as f64);
+    }
+    if mesh.normals.is_none() {
+        report.warnings.push("no normals in the input; shading with the extrusion directions".into());
+        mesh.normals = Some(frames.direction.clone());
+    }
+
+    report.skip("clamp", "not requested (collision clamp not enabled)");
+
+    let diagonal = mesh.diagonal();
+    let height = params.resolved_height(diagonal);
+    let density = params.resolved_density(diagonal);
+    let mask = report.run("strands", || strands::bake_mask(&params.strands));
+    let tiles_per_uv = strands::tiles_per_uv(&mesh, density, mask.cells_per_tile);
+    report.count("mask_texels", (mask.size * mask.size) as f64);
+    report.count("cells_per_tile", mask.cells_per_tile as f64);
+
+    let shells = report.run("shells", || {
+        shells::build_shells(&frames.direction, None, height, &params.shells, &params.shade)
+    });
+    report.count("layers", shells.t.len() as f64);
+
+    report.skip("cull", "not requested");
+    report.skip("lod", "not requested");
+
+    let input = pack::PackInput {
+        mesh: &mesh,
+        shells: &shells,
+        mask: &mask,
+        tiles_per_uv,
+        roughness: params.shade.roughness,
+    };
+    let packed = report.run("pack", || pack::pack(&input, &params.pack));
+    report.count("float_uvs", if packed.float_uvs { 1.0 } else { 0.0 });
+    let (json, glb) = report.run("write", || {
+        let (doc, bin) = write::gltf_json(&packed, &shells);
+        let glb = write::glb_bytes(&doc, &bin);
+        (doc, glb)
+    });
+
+    fill_report(&mut report, &packed, &json, &glb, &shells, &mesh, height, density, tiles_per_uv, params);
+    report.total_ms = start.elapsed().as_secs_f64() * 1e3;
+    Baked { glb, json, report, mesh, shells, mask, packed, tiles_per_uv }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn fill_report(
+    report: &mut Report,
+    packed: &Packed,
+    json: &serde_json::Value,
+    glb: &[u8],
+    shells: &ShellStack,
+    mesh: &Mesh,
+    height: f32,
+    density: f32,
+    tiles: Vec2,
+    params: &BakeParams,
+) {
+    report.layout = match packed.layout {
+        params::Layout::Compact => "compact".into(),
+        params::Layout::SingleDraw => "single-draw".into(),
+    };
+    report.resolved.insert("height".into(), height as f64);
+    report.resolved.insert("density".into(), density as f64);
+    report.resolved.insert("diagonal".into(), mesh.diagonal() as f64);
+    report.resolved.insert("mask_size".into(), params.strands.mask_size as f64);
+    report.resolved.insert("tiles_per_uv_u".into(), tiles.x as f64);
+    report.resolved.insert("tiles_per_uv_v".into(), tiles.y as f64);
+    report.resolved.insert("position_step".into(), packed.scale);
+    report.base_vertices = packed.base_vertices;
+    report.base_triangles = mesh.triangle_count();
+    report.layers = shells.t.len();
+    report.draw_calls = packed.primitives.len();
+    report.triangles_drawn = packed.primitives.iter().map(|p| packed.accessors[p.indices].count / 3).sum();
+    report.total_bytes = glb.len();
+    report.bytes_per_base_vertex = glb.len() as f64 / packed.base_vertices.max(1) as f64;
+    for v in &packed.views {
+        *report.streams.entry(v.name.to_string()).or_default() += v.bytes.len();
+    }
+    let json_len = serde_json::to_vec(json).map_or(0, |b| b.len());
+    report.streams.insert("json".into(), json_len);
+    report.bytes_per_layer = match packed.layout {
+        params::Layout::Compact => write::json_bytes_per_layer(json),
+        params::Layout::SingleDraw => {
+            let vertex_bytes: usize = packed.views.iter().filter(|v| v.vertex.is_some()).map(|v| v.bytes.len()).sum();
+            vec![vertex_bytes / shells.t.len().max(1); shells.t.len()]
+        }
+    };
+}

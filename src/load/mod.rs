@@ -1,0 +1,141 @@
+//! Input: OBJ (tobj) and glTF/GLB (gltf) into [`Scene`]. No tobj or gltf type leaves this module.
+//!
+//! Everything is checked here, at the boundary, so the stages can assert instead of fail: a
+//! non-finite coordinate, an index past the vertex count, an unreadable or empty file is an
+//! [`Error`] naming the file and the element. Polygons are triangulated (fan, by tobj), points
+//! and lines are ignored, node transforms are applied (glTF) in `f64`.
+//!
+//! Missing UVs: a **per-face box projection** is generated — each triangle is projected on the
+//! axis plane most facing its normal, with coordinates in units of the bounding-box diagonal, and
+//! vertices are split where neighbouring faces pick different planes. It is seamless inside each
+//! of the six regions, never stretches more than √3 : 1, and is isotropic in world units, which
+//! is what strands-per-world-unit density needs. Seams between regions show as a break in the
+//! strand pattern, never as a crack: shells are extruded on the position-welded topology
+//! (`weld.rs`). Rejected: spherical/cylindrical projection (poles collapse strands to a point),
+//! a real unwrap (xatlas-class work belongs to the DCC tool). A warning says it happened.
+//!
+//! Missing normals are left `None`; the bake then shades with the extrusion directions.
+
+mod gltf;
+mod obj;
+
+use std::path::Path;
+
+use glam::{Vec2, Vec3};
+
+use crate::error::{Error, Result};
+use crate::mesh::{face_normal, Mesh, Scene};
+
+/// Reads an `.obj`, `.gltf` or `.glb` file. Fails with an error that names the file and the
+/// offending element; never returns a scene with no triangles.
+pub fn load(path: &Path) -> Result<Scene> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    load_bytes(path, &bytes)
+}
+
+/// Like [`load`] on bytes already in memory; `path` names the input in errors and resolves
+/// relative glTF URIs.
+pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Scene> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let mut scene = match ext.as_deref() {
+        Some("obj") => obj::load(path, bytes)?,
+        Some("gltf") | Some("glb") => gltf::load(path, bytes)?,
+        _ => return Err(Error::Format { path: path.to_path_buf() }),
+    };
+    scene.meshes.retain(|m| !m.indices.is_empty());
+    if scene.meshes.is_empty() {
+        return Err(Error::Empty { path: path.to_path_buf(), message: "no triangles to bake".into() });
+    }
+    let mut generated = 0;
+    for m in &mut scene.meshes {
+        if m.uvs.is_none() {
+            generate_box_uvs(m);
+            generated += 1;
+        }
+    }
+    if generated > 0 {
+        scene.warnings.push(format!(
+            "{}: {generated} mesh(es) have no UVs; generated a per-face box projection",
+            path.display()
+        ));
+    }
+    Ok(scene)
+}
+
+/// Replaces `mesh.uvs` with a per-face box projection (see the module doc), splitting vertices
+/// where faces project on different planes. Deterministic: new vertices are appended in triangle
+/// order.
+pub fn generate_box_uvs(mesh: &mut Mesh) {
+    let scale = 1.0 / mesh.diagonal().max(f32::MIN_POSITIVE);
+    let n = mesh.positions.len();
+    // slot[v][axis] = output vertex for (input vertex v, projection axis)
+    let mut slot = vec![[u32::MAX; 3]; n];
+    let mut positions = Vec::with_capacity(n);
+    let mut normals = mesh.normals.as_ref().map(|_| Vec::with_capacity(n));
+    let mut uvs = Vec::with_capacity(n);
+    let mut indices = Vec::with_capacity(mesh.indices.len());
+    for tri in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize]);
+        let (fnrm, _) = face_normal(a, b, c);
+        let axis = dominant_axis(fnrm);
+        for &v in tri {
+            let s = &mut slot[v as usize][axis];
+            if *s == u32::MAX {
+                *s = positions.len() as u32;
+                let p = mesh.positions[v as usize];
+                positions.push(p);
+                if let (Some(out), Some(src)) = (&mut normals, &mesh.normals) {
+                    out.push(src[v as usize]);
+                }
+                let (u, w) = match axis {
+                    0 => (p.z, p.y),
+                    1 => (p.x, p.z),
+                    _ => (p.x, p.y),
+                };
+                uvs.push(Vec2::new(u, -w) * scale);
+            }
+            indices.push(*s);
+        }
+    }
+    mesh.positions = positions;
+    mesh.normals = normals;
+    mesh.uvs = Some(uvs);
+    mesh.indices = indices;
+}
+
+fn dominant_axis(n: Vec3) -> usize {
+    let a = n.abs();
+    if a.x > a.y && a.x > a.z {
+        0
+    } else if a.z > a.y {
+        2
+    } else {
+        1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_uvs_split_a_cube_corner_three_ways() {
+        // Three faces of a cube meeting at the origin, sharing vertex 0.
+        let mut m = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            indices: vec![0, 1, 2, 0, 2, 3, 0, 3, 1],
+            ..Default::default()
+        };
+        generate_box_uvs(&mut m);
+        assert_eq!(m.indices.len(), 9);
+        // vertex 0 used by three planes, vertices 1..3 by two each
+        assert_eq!(m.positions.len(), 3 + 2 * 3);
+        m.validate();
+    }
+
+    #[test]
+    fn unknown_extension_is_refused() {
+        let e = load_bytes(Path::new("x.stl"), b"solid").unwrap_err();
+        assert!(e.to_string().contains("x.stl"), "{e}");
+    }
+}

@@ -1,0 +1,181 @@
+//! The `shellbake` command line. Arguments are parsed in two tiers: clap structs close to the
+//! flags, then [`BakeArgs::params`] turns them into the library's `BakeParams` (preset first,
+//! flags override). Library errors are mapped to messages and exit codes here and only here:
+//! 0 success, 1 bad input or I/O, 2 bad usage or parameters.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::Context as _;
+use clap::{Args, Parser, Subcommand};
+use shellbake::params::{BakeParams, Layout, Preset};
+
+#[derive(Parser)]
+#[command(name = "shellbake", version, about = "Bakes shell-textured fur, grass, carpet and moss into standard glTF")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Bake a mesh (OBJ, glTF, GLB) into a shelled GLB.
+    Bake(BakeArgs),
+    /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
+    #[command(hide = true)]
+    Fixtures { dir: PathBuf },
+}
+
+/// Flags shared by every command that bakes.
+#[derive(Args, Clone, Debug)]
+struct BakeArgs {
+    /// Input mesh: .obj, .gltf or .glb.
+    input: PathBuf,
+    /// Output GLB [default: out/<input stem>.glb].
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Parameter preset.
+    #[arg(long, value_enum, default_value = "fur")]
+    preset: Preset,
+    /// Layers including the base (1–239) [default: the preset's].
+    #[arg(long)]
+    layers: Option<u32>,
+    /// Shell height in world units [default: a preset fraction of the bounding-box diagonal].
+    #[arg(long)]
+    height: Option<f32>,
+    /// Strand density in strands per world unit [default: a preset count per diagonal].
+    #[arg(long)]
+    density: Option<f32>,
+    /// Noise seed.
+    #[arg(long)]
+    seed: Option<u32>,
+    /// Output layout.
+    #[arg(long, value_enum, default_value = "compact")]
+    layout: Layout,
+    /// Write the JSON report here.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Print nothing but errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+impl BakeArgs {
+    /// Second tier: the preset, then each flag that was given.
+    fn params(&self) -> anyhow::Result<BakeParams> {
+        let mut p = BakeParams::preset(self.preset);
+        if let Some(n) = self.layers {
+            p.shells.layers = n;
+        }
+        if let Some(h) = self.height {
+            p.shells.height = Some(h);
+        }
+        if let Some(d) = self.density {
+            p.strands.density = Some(d);
+        }
+        if let Some(s) = self.seed {
+            p.strands.seed = s;
+        }
+        p.pack.layout = self.layout;
+        p.check().map_err(|e| anyhow::anyhow!(shellbake::Error::Params(e)))?;
+        Ok(p)
+    }
+
+    fn output(&self) -> PathBuf {
+        self.output.clone().unwrap_or_else(|| default_output(&self.input))
+    }
+}
+
+fn default_output(input: &Path) -> PathBuf {
+    let stem = input.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    Path::new("out").join(format!("{stem}.glb"))
+}
+
+fn bake(args: &BakeArgs) -> anyhow::Result<()> {
+    let params = args.params()?;
+    let out = args.output();
+    let spinner = (!args.quiet).then(|| {
+        let pb = indicatif::ProgressBar::new_spinner();
+        pb.set_message(format!("baking {}", args.input.display()));
+        pb.enable_steady_tick(Duration::from_millis(120));
+        pb
+    });
+    let scene = shellbake::load::load(&args.input)?;
+    let mut baked = shellbake::bake(&scene, &params);
+    if let Some(pb) = spinner {
+        pb.finish_and_clear();
+    }
+    shellbake::write::write_glb(&out, &baked.glb)?;
+    baked.report.input = args.input.display().to_string();
+    baked.report.output = out.display().to_string();
+    if let Some(path) = &args.report {
+        shellbake::write::write_atomic(path, baked.report.to_json().as_bytes())
+            .with_context(|| format!("writing the report {}", path.display()))?;
+    }
+    if !args.quiet {
+        print!("{}", baked.report.summary());
+    }
+    Ok(())
+}
+
+fn fixtures(dir: &Path) -> anyhow::Result<()> {
+    for (name, mesh) in shellbake::procedural::fixtures() {
+        let text = shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
+        shellbake::write::write_atomic(&dir.join(format!("{name}.obj")), text.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Bake(args) => bake(args),
+        Command::Fixtures { dir } => fixtures(dir),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            let usage = matches!(e.downcast_ref::<shellbake::Error>(), Some(shellbake::Error::Params(_)));
+            ExitCode::from(if usage { 2 } else { 1 })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> BakeArgs {
+        let cli = Cli::try_parse_from(std::iter::once("shellbake").chain(args.iter().copied())).unwrap();
+        match cli.command {
+            Command::Bake(a) => a,
+            _ => unreachable!(),
+        }
+    }
+
+    #[test]
+    fn output_defaults_to_out_stem_glb() {
+        assert_eq!(parse(&["bake", "fixtures/bunny.obj"]).output(), PathBuf::from("out/bunny.glb"));
+        assert_eq!(parse(&["bake", "a.obj", "-o", "b.glb"]).output(), PathBuf::from("b.glb"));
+    }
+
+    #[test]
+    fn flags_override_the_preset() {
+        let p = parse(&["bake", "a.obj", "--preset", "grass", "--layers", "8", "--height", "0.5", "--density", "30", "--seed", "9", "--layout", "single-draw"]).params().unwrap();
+        assert_eq!(p.shells.layers, 8);
+        assert_eq!(p.shells.height, Some(0.5));
+        assert_eq!(p.strands.density, Some(30.0));
+        assert_eq!(p.strands.seed, 9);
+        assert_eq!(p.pack.layout, Layout::SingleDraw);
+        assert_eq!(p.shade, BakeParams::preset(Preset::Grass).shade);
+    }
+
+    #[test]
+    fn out_of_range_flags_are_refused() {
+        assert!(parse(&["bake", "a.obj", "--layers", "500"]).params().is_err());
+        assert!(parse(&["bake", "a.obj", "--density", "-1"]).params().is_err());
+        assert!(Cli::try_parse_from(["shellbake", "bake", "a.obj", "--preset", "hair"]).is_err());
+    }
+}

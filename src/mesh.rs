@@ -1,0 +1,228 @@
+//! The editable mesh: one array per attribute, positions relative to a world origin.
+//!
+//! Positions are stored as `f32` offsets from `origin` (an `f64` point, normally the
+//! bounding-box centre) so that a model placed 1e6 units from the world origin keeps the same
+//! relative precision as one at the origin (DESIGN §2). Loaders fill `origin`; every stage works
+//! in the relative frame; only `write` adds `origin` back (as the node translation, in `f64`).
+//!
+//! `Mesh` is the editable type. The GPU-ready, quantized form lives in `pack/` and is never
+//! mixed with this one.
+
+use glam::{DVec3, Vec2, Vec3};
+
+/// A triangle mesh. `indices.len()` is a multiple of 3; every index is `< positions.len()`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// World-space point the positions are relative to.
+    pub origin: DVec3,
+    /// Vertex positions relative to `origin`.
+    pub positions: Vec<Vec3>,
+    /// Shading normals, unit length, one per vertex. `None` when the input had none; the bake
+    /// then uses the extrusion directions.
+    pub normals: Option<Vec<Vec3>>,
+    /// Texture coordinates (glTF convention: v points down the image), one per vertex.
+    pub uvs: Option<Vec<Vec2>>,
+    /// Triangle list.
+    pub indices: Vec<u32>,
+}
+
+impl Mesh {
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// Axis-aligned bounds of the relative positions, `(min, max)`; zero box when empty.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        if self.positions.is_empty() {
+            return (Vec3::ZERO, Vec3::ZERO);
+        }
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for &p in &self.positions {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        (lo, hi)
+    }
+
+    /// Length of the bounding-box diagonal.
+    pub fn diagonal(&self) -> f32 {
+        let (lo, hi) = self.bounds();
+        (hi - lo).length()
+    }
+
+    /// Moves `origin` to the bounding-box centre, keeping world positions. Done in `f64` so no
+    /// precision is lost for far-away models.
+    pub fn recentre(&mut self) {
+        let (lo, hi) = self.bounds();
+        let c = (lo.as_dvec3() + hi.as_dvec3()) * 0.5;
+        for p in &mut self.positions {
+            *p = (p.as_dvec3() - c).as_vec3();
+        }
+        self.origin += c;
+    }
+
+    /// Appends `other`, re-expressed relative to `self.origin`. Both must have the same set of
+    /// attributes (asserted), unless `self` is empty.
+    pub fn append(&mut self, other: &Mesh) {
+        if self.positions.is_empty() && self.indices.is_empty() {
+            *self = other.clone();
+            return;
+        }
+        assert_eq!(self.normals.is_some(), other.normals.is_some());
+        assert_eq!(self.uvs.is_some(), other.uvs.is_some());
+        let base = self.positions.len() as u32;
+        let shift = other.origin - self.origin;
+        self.positions.extend(other.positions.iter().map(|p| (p.as_dvec3() + shift).as_vec3()));
+        if let (Some(a), Some(b)) = (&mut self.normals, &other.normals) {
+            a.extend_from_slice(b);
+        }
+        if let (Some(a), Some(b)) = (&mut self.uvs, &other.uvs) {
+            a.extend_from_slice(b);
+        }
+        self.indices.extend(other.indices.iter().map(|i| i + base));
+    }
+
+    /// Checks the invariants every stage relies on; panics with the broken one. Stages call this
+    /// under `debug_assertions`.
+    pub fn validate(&self) {
+        assert_eq!(self.indices.len() % 3, 0, "index count is not a multiple of 3");
+        let n = self.positions.len() as u32;
+        assert!(self.indices.iter().all(|&i| i < n), "index out of range");
+        assert!(self.positions.iter().all(|p| p.is_finite()), "non-finite position");
+        assert!(self.origin.is_finite(), "non-finite origin");
+        if let Some(ns) = &self.normals {
+            assert_eq!(ns.len(), self.positions.len(), "normal count");
+            assert!(ns.iter().all(|v| v.is_finite()), "non-finite normal");
+        }
+        if let Some(uv) = &self.uvs {
+            assert_eq!(uv.len(), self.positions.len(), "uv count");
+            assert!(uv.iter().all(|v| v.is_finite()), "non-finite uv");
+        }
+    }
+}
+
+/// What `load` returns: the meshes of one input file, world transforms applied.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    pub meshes: Vec<Mesh>,
+    /// Things the loader fixed up and the user should know (missing UVs, …).
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// All meshes as one, relative to the common bounding-box centre. Normals are kept only if
+    /// every mesh has them (the bake fills them otherwise); UVs likewise.
+    pub fn merged(&self) -> Mesh {
+        let all_normals = self.meshes.iter().all(|m| m.normals.is_some());
+        let all_uvs = self.meshes.iter().all(|m| m.uvs.is_some());
+        let mut out = Mesh::default();
+        for m in &self.meshes {
+            let mut m = m.clone();
+            if !all_normals {
+                m.normals = None;
+            }
+            if !all_uvs {
+                m.uvs = None;
+            }
+            out.append(&m);
+        }
+        out.recentre();
+        out
+    }
+}
+
+/// Unit face normal and doubled area of triangle `(a, b, c)`; zero normal for degenerate ones.
+pub fn face_normal(a: Vec3, b: Vec3, c: Vec3) -> (Vec3, f32) {
+    let n = (b - a).cross(c - a);
+    let len = n.length();
+    if len > 0.0 && len.is_finite() {
+        (n / len, len)
+    } else {
+        (Vec3::ZERO, 0.0)
+    }
+}
+
+/// Smallest of `Vec2` coordinates, used by UV quantization.
+pub fn uv_bounds(uvs: &[Vec2]) -> (Vec2, Vec2) {
+    let mut lo = Vec2::splat(f32::INFINITY);
+    let mut hi = Vec2::splat(f32::NEG_INFINITY);
+    for &u in uvs {
+        lo = lo.min(u);
+        hi = hi.max(u);
+    }
+    if uvs.is_empty() {
+        (Vec2::ZERO, Vec2::ZERO)
+    } else {
+        (lo, hi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recentre_keeps_world_positions_far_from_origin() {
+        let mut m = Mesh {
+            origin: DVec3::new(1e6, 0.0, 0.0),
+            positions: vec![Vec3::new(1.0, 0.0, 0.0), Vec3::new(3.0, 2.0, 0.0)],
+            indices: vec![],
+            ..Default::default()
+        };
+        m.recentre();
+        assert_eq!(m.origin, DVec3::new(1e6 + 2.0, 1.0, 0.0));
+        assert_eq!(m.positions, vec![Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)]);
+    }
+
+    #[test]
+    fn append_rebases_indices_and_positions() {
+        let a = Mesh {
+            origin: DVec3::ZERO,
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![0, 1, 2],
+            ..Default::default()
+        };
+        let mut b = a.clone();
+        b.origin = DVec3::new(10.0, 0.0, 0.0);
+        let mut m = a.clone();
+        m.append(&b);
+        assert_eq!(m.indices, vec![0, 1, 2, 3, 4, 5]);
+        assert_eq!(m.positions[4], Vec3::new(11.0, 0.0, 0.0));
+        m.validate();
+    }
+
+    #[test]
+    fn degenerate_face_normal_is_zero() {
+        assert_eq!(face_normal(Vec3::ZERO, Vec3::X, Vec3::X * 2.0), (Vec3::ZERO, 0.0));
+        let (n, a2) = face_normal(Vec3::ZERO, Vec3::X, Vec3::Y);
+        assert_eq!((n, a2), (Vec3::Z, 1.0));
+    }
+}
+
+/// Sum of the UV-space areas of the triangles (0 without UVs).
+pub fn uv_area(mesh: &Mesh) -> f64 {
+    let Some(uv) = &mesh.uvs else { return 0.0 };
+    mesh.indices
+        .chunks_exact(3)
+        .map(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
+            ((b - a).perp_dot(c - a) * 0.5).abs()
+        })
+        .sum()
+}
+
+/// Sum of the world-space areas of the triangles.
+pub fn world_area(mesh: &Mesh) -> f64 {
+    mesh.indices
+        .chunks_exact(3)
+        .map(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
+            (b - a).cross(c - a).length() * 0.5
+        })
+        .sum()
+}

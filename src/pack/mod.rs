@@ -1,0 +1,482 @@
+//! Pack: quantization, vertex ordering and the byte streams of the two layouts (DESIGN §4).
+//!
+//! `pack` turns the editable mesh and the shell stack into [`Packed`]: byte streams, accessors
+//! over them, primitives and materials — a neutral description that `write.rs` turns into glTF
+//! JSON. All byte encoding lives here; no JSON is written here.
+//!
+//! Order of work follows meshoptimizer's recommendation: index order for the vertex cache
+//! (`meshopt_optimizeVertexCache`), then vertex order for fetch (`optimizeVertexFetchRemap`),
+//! then quantization. Both are deterministic.
+//!
+//! - **compact**: one quantized geometry (POSITION u16, NORMAL i8, TEXCOORD_0 u16, morph target 0
+//!   = extrusion delta i16) shared by every layer; layer `j` is a primitive reusing the same
+//!   accessors with its own material (`MASK`, `alphaCutoff`, per-layer colour) and weight `t_j`.
+//!   The base layer is opaque and has no morph target. Adding a layer costs JSON only.
+//! - **single-draw**: every layer's vertices explicitly (positions quantized per layer), all in
+//!   one primitive with one material; `COLOR_0` (u16 normalized RGBA) carries the layer's shade
+//!   and `a_j = (BASE_CODE − ½)/(BASE_CODE + k_j − ½)` against the fixed cutoff
+//!   `(BASE_CODE − ½)/255`, which reproduces `s >= t_j` (see `strands.rs`). Indices run from the
+//!   inner to the outer layer.
+
+mod quantize;
+
+pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid};
+
+use glam::{DVec3, Vec2, Vec3};
+use image::ImageEncoder;
+
+use crate::mesh::Mesh;
+use crate::params::{Layout, PackParams};
+use crate::shells::ShellStack;
+use crate::strands::{Mask, BASE_CODE};
+use quantize::Bytes;
+
+/// glTF component types.
+pub mod component {
+    pub const BYTE: u32 = 5120;
+    pub const UNSIGNED_BYTE: u32 = 5121;
+    pub const SHORT: u32 = 5122;
+    pub const UNSIGNED_SHORT: u32 = 5123;
+    pub const UNSIGNED_INT: u32 = 5125;
+    pub const FLOAT: u32 = 5126;
+}
+
+/// A byte stream (glTF buffer view).
+#[derive(Clone, Debug)]
+pub struct View {
+    pub name: &'static str,
+    pub bytes: Vec<u8>,
+    /// Byte stride for vertex streams.
+    pub stride: Option<usize>,
+    /// `Some(true)` for vertex data, `Some(false)` for indices, `None` for images.
+    pub vertex: Option<bool>,
+}
+
+/// A typed window on a view (glTF accessor).
+#[derive(Clone, Debug)]
+pub struct Accessor {
+    pub view: usize,
+    pub offset: usize,
+    pub component: u32,
+    pub normalized: bool,
+    pub count: usize,
+    /// "SCALAR", "VEC2", "VEC3", "VEC4".
+    pub kind: &'static str,
+    pub min: Option<Vec<f64>>,
+    pub max: Option<Vec<f64>>,
+}
+
+/// How a layer's material tests alpha.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Alpha {
+    Opaque,
+    Mask(f32),
+}
+
+/// A material (glTF metallic-roughness, metallic 0).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: String,
+    pub base_color: [f32; 4],
+    pub alpha: Alpha,
+    /// Whether the mask texture is bound as the base colour texture.
+    pub textured: bool,
+    pub roughness: f32,
+}
+
+/// One drawn primitive (one mesh in the output).
+#[derive(Clone, Debug)]
+pub struct Primitive {
+    pub name: String,
+    pub position: usize,
+    pub normal: usize,
+    pub texcoord: usize,
+    pub color: Option<usize>,
+    pub indices: usize,
+    /// Morph target 0 (POSITION delta) and the mesh's default weight for it.
+    pub morph: Option<(usize, f32)>,
+    pub material: Material,
+}
+
+/// The packed asset.
+#[derive(Clone, Debug)]
+pub struct Packed {
+    pub layout: Layout,
+    pub views: Vec<View>,
+    pub accessors: Vec<Accessor>,
+    pub primitives: Vec<Primitive>,
+    /// View holding the mask PNG.
+    pub image_view: usize,
+    /// `KHR_texture_transform` offset and scale from the stored TEXCOORD_0 to mask tiles.
+    pub uv_offset: Vec2,
+    pub uv_scale: Vec2,
+    /// World translation and uniform scale of the node that dequantizes positions.
+    pub translation: DVec3,
+    pub scale: f64,
+    /// The position grid (relative coordinates), for tests and the report.
+    pub grid: PositionGrid,
+    /// Whether TEXCOORD_0 had to stay float (see `quantize.rs`).
+    pub float_uvs: bool,
+    /// Base vertices (render vertices of the input after degenerate removal).
+    pub base_vertices: usize,
+    /// Vertex order chosen by the optimizer: `order[new] = old`.
+    pub vertex_order: Vec<u32>,
+}
+
+/// What `pack` needs besides the mesh and the stack.
+pub struct PackInput<'a> {
+    pub mesh: &'a Mesh,
+    pub shells: &'a ShellStack,
+    pub mask: &'a Mask,
+    /// Mask tiles per UV unit (u and v).
+    pub tiles_per_uv: Vec2,
+    pub roughness: f32,
+}
+
+/// Packs the bake into byte streams for `params.layout`.
+pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
+    let mesh = input.mesh;
+    if cfg!(debug_assertions) {
+        mesh.validate();
+    }
+    assert!(mesh.normals.is_some() && mesh.uvs.is_some(), "pack needs normals and uvs");
+    assert_eq!(input.shells.delta.len(), mesh.vertex_count());
+
+    // meshopt: vertex cache order, then fetch order.
+    let nv = mesh.vertex_count();
+    let indices = if nv > 0 { meshopt::optimize_vertex_cache(&mesh.indices, nv) } else { Vec::new() };
+    let fetch = if nv > 0 { meshopt::optimize_vertex_fetch_remap(&indices, nv) } else { Vec::new() };
+    let mut order = vec![u32::MAX; nv];
+    let mut used = 0;
+    for (old, &new) in fetch.iter().enumerate() {
+        if new != u32::MAX {
+            order[new as usize] = old as u32;
+            used = used.max(new as usize + 1);
+        }
+    }
+    order.truncate(used);
+    let indices: Vec<u32> = indices.iter().map(|&i| fetch[i as usize]).collect();
+    let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
+    let positions = pick(&mesh.positions);
+    let normals = pick(mesh.normals.as_ref().unwrap());
+    let deltas = pick(&input.shells.delta);
+    let uvs: Vec<Vec2> = order.iter().map(|&o| mesh.uvs.as_ref().unwrap()[o as usize]).collect();
+
+    let grid = PositionGrid::fit(positions.iter().chain(&positions).enumerate().map(|(i, p)| {
+        if i < positions.len() {
+            *p
+        } else {
+            *p + deltas[i - positions.len()]
+        }
+    }), params.position_bits.min(15));
+    let uv_grid = UvGrid::fit(&uvs);
+    let tiles = input.tiles_per_uv;
+    let texel_error = (uv_grid.extent * tiles * input.mask.size as f32 / 65535.0).max_element();
+    let float_uvs = texel_error > 0.125;
+
+    let mut b = Builder::default();
+    let png = encode_mask_png(input.mask);
+    let image_view = b.view("mask", png, None, None);
+    let (uv_offset, uv_scale) = if float_uvs {
+        (Vec2::ZERO, tiles)
+    } else {
+        (uv_grid.lo * tiles, uv_grid.extent * tiles)
+    };
+
+    let primitives = match params.layout {
+        Layout::Compact => compact(&mut b, input, &grid, uv_grid, float_uvs, &positions, &normals, &uvs, &deltas, &indices),
+        Layout::SingleDraw => {
+            single_draw(&mut b, input, &grid, uv_grid, float_uvs, &positions, &normals, &uvs, &deltas, &indices)
+        }
+    };
+    Packed {
+        layout: params.layout,
+        views: b.views,
+        accessors: b.accessors,
+        primitives,
+        image_view,
+        uv_offset,
+        uv_scale,
+        translation: grid.min.as_dvec3() + mesh.origin,
+        scale: grid.step as f64,
+        grid,
+        float_uvs,
+        base_vertices: nv,
+        vertex_order: order,
+    }
+}
+
+#[derive(Default)]
+struct Builder {
+    views: Vec<View>,
+    accessors: Vec<Accessor>,
+}
+
+impl Builder {
+    fn view(&mut self, name: &'static str, bytes: Vec<u8>, stride: Option<usize>, vertex: Option<bool>) -> usize {
+        self.views.push(View { name, bytes, stride, vertex });
+        self.views.len() - 1
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn accessor(
+        &mut self,
+        view: usize,
+        component: u32,
+        normalized: bool,
+        count: usize,
+        kind: &'static str,
+        bounds: Option<(Vec<f64>, Vec<f64>)>,
+    ) -> usize {
+        let (min, max) = bounds.map_or((None, None), |(a, b)| (Some(a), Some(b)));
+        self.accessors.push(Accessor { view, offset: 0, component, normalized, count, kind, min, max });
+        self.accessors.len() - 1
+    }
+
+    /// POSITION stream (u16 × 3, stride 8) with exact integer bounds.
+    fn positions(&mut self, q: &[[u16; 3]]) -> usize {
+        let mut bytes = Bytes::default();
+        let (mut lo, mut hi) = ([u16::MAX; 3], [0u16; 3]);
+        for p in q {
+            bytes.u16s(p, 8);
+            for c in 0..3 {
+                lo[c] = lo[c].min(p[c]);
+                hi[c] = hi[c].max(p[c]);
+            }
+        }
+        let v = self.view("position", bytes.0, Some(8), Some(true));
+        let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
+        self.accessor(v, component::UNSIGNED_SHORT, false, q.len(), "VEC3", Some(bounds))
+    }
+
+    fn normals(&mut self, n: &[Vec3]) -> usize {
+        let mut bytes = Bytes::default();
+        for &v in n {
+            bytes.i8s(&quantize_normal(v), 4);
+        }
+        let v = self.view("normal", bytes.0, Some(4), Some(true));
+        self.accessor(v, component::BYTE, true, n.len(), "VEC3", None)
+    }
+
+    fn texcoords(&mut self, uvs: &[Vec2], grid: UvGrid, float: bool) -> usize {
+        let mut bytes = Bytes::default();
+        if float {
+            for uv in uvs {
+                bytes.f32s(&[uv.x, uv.y]);
+            }
+            let v = self.view("texcoord", bytes.0, Some(8), Some(true));
+            return self.accessor(v, component::FLOAT, false, uvs.len(), "VEC2", None);
+        }
+        for &uv in uvs {
+            bytes.u16s(&grid.quantize(uv), 4);
+        }
+        let v = self.view("texcoord", bytes.0, Some(4), Some(true));
+        self.accessor(v, component::UNSIGNED_SHORT, true, uvs.len(), "VEC2", None)
+    }
+
+    fn indices(&mut self, name: &'static str, ix: &[u32], vertex_count: usize) -> usize {
+        let mut bytes = Bytes::default();
+        // 65535 is the primitive-restart value of u16 and may not appear.
+        let (component, len) = if vertex_count <= 65535 {
+            let small: Vec<u16> = ix.iter().map(|&i| i as u16).collect();
+            bytes.u16s(&small, 0);
+            (component::UNSIGNED_SHORT, small.len() * 2)
+        } else {
+            bytes.u32s(ix);
+            (component::UNSIGNED_INT, ix.len() * 4)
+        };
+        while bytes.0.len() % 4 != 0 {
+            bytes.0.push(0);
+        }
+        let v = self.view(name, bytes.0, None, Some(false));
+        let _ = len;
+        self.accessor(v, component, false, ix.len(), "SCALAR", None)
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn compact(
+    b: &mut Builder,
+    input: &PackInput,
+    grid: &PositionGrid,
+    uv_grid: UvGrid,
+    float_uvs: bool,
+    positions: &[Vec3],
+    normals: &[Vec3],
+    uvs: &[Vec2],
+    deltas: &[Vec3],
+    indices: &[u32],
+) -> Vec<Primitive> {
+    let q: Vec<[u16; 3]> = positions.iter().map(|&p| grid.quantize(p)).collect();
+    let position = b.positions(&q);
+    let normal = b.normals(normals);
+    let texcoord = b.texcoords(uvs, uv_grid, float_uvs);
+    let dq: Vec<[i16; 3]> = deltas.iter().map(|&d| grid.quantize_delta(d)).collect();
+    let mut bytes = Bytes::default();
+    let (mut lo, mut hi) = ([i16::MAX; 3], [i16::MIN; 3]);
+    for d in &dq {
+        bytes.i16s(d, 8);
+        for c in 0..3 {
+            lo[c] = lo[c].min(d[c]);
+            hi[c] = hi[c].max(d[c]);
+        }
+    }
+    if dq.is_empty() {
+        (lo, hi) = ([0; 3], [0; 3]);
+    }
+    let dv = b.view("extrusion", bytes.0, Some(8), Some(true));
+    let delta = b.accessor(
+        dv,
+        component::SHORT,
+        false,
+        dq.len(),
+        "VEC3",
+        Some((lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec())),
+    );
+    let ix = b.indices("indices", indices, positions.len());
+    let shells = input.shells;
+    (0..shells.t.len())
+        .map(|j| {
+            let c = shells.color[j];
+            let base = j == 0;
+            Primitive {
+                name: format!("layer_{j:03}"),
+                position,
+                normal,
+                texcoord,
+                color: None,
+                indices: ix,
+                morph: (!base).then_some((delta, shells.t[j])),
+                material: Material {
+                    name: format!("layer_{j:03}"),
+                    base_color: [c[0], c[1], c[2], 1.0],
+                    alpha: if base { Alpha::Opaque } else { Alpha::Mask(shells.cutoff[j]) },
+                    textured: !base,
+                    roughness: input.roughness,
+                },
+            }
+        })
+        .collect()
+}
+
+/// `COLOR_0` alpha of a single-draw layer at height step `k`, as normalized u16.
+pub fn single_draw_alpha(k: u32) -> u16 {
+    let a = (BASE_CODE as f64 - 0.5) / (BASE_CODE as f64 + k as f64 - 0.5);
+    (a * 65535.0).round() as u16
+}
+
+/// The fixed alpha cutoff of the single-draw material.
+pub fn single_draw_cutoff() -> f32 {
+    (BASE_CODE as f32 - 0.5) / 255.0
+}
+
+#[allow(clippy::too_many_arguments)]
+fn single_draw(
+    b: &mut Builder,
+    input: &PackInput,
+    grid: &PositionGrid,
+    uv_grid: UvGrid,
+    float_uvs: bool,
+    positions: &[Vec3],
+    normals: &[Vec3],
+    uvs: &[Vec2],
+    deltas: &[Vec3],
+    indices: &[u32],
+) -> Vec<Primitive> {
+    let shells = input.shells;
+    let layers = shells.t.len();
+    let nv = positions.len();
+    let mut q = Vec::with_capacity(nv * layers);
+    let mut colors = Bytes::default();
+    for j in 0..layers {
+        let t = shells.t[j];
+        q.extend(positions.iter().zip(deltas).map(|(&p, &d)| grid.quantize(p + d * t)));
+        let c = shells.color[j];
+        let rgba = [
+            (c[0].clamp(0.0, 1.0) * 65535.0).round() as u16,
+            (c[1].clamp(0.0, 1.0) * 65535.0).round() as u16,
+            (c[2].clamp(0.0, 1.0) * 65535.0).round() as u16,
+            single_draw_alpha(shells.steps[j]),
+        ];
+        for _ in 0..nv {
+            colors.u16s(&rgba, 8);
+        }
+    }
+    let position = b.positions(&q);
+    let all_normals: Vec<Vec3> = (0..layers).flat_map(|_| normals.iter().copied()).collect();
+    let normal = b.normals(&all_normals);
+    let all_uvs: Vec<Vec2> = (0..layers).flat_map(|_| uvs.iter().copied()).collect();
+    let texcoord = b.texcoords(&all_uvs, uv_grid, float_uvs);
+    let cv = b.view("color", colors.0, Some(8), Some(true));
+    let color = b.accessor(cv, component::UNSIGNED_SHORT, true, nv * layers, "VEC4", None);
+    let all_ix: Vec<u32> =
+        (0..layers as u32).flat_map(|j| indices.iter().map(move |&i| i + j * nv as u32)).collect();
+    let ix = b.indices("indices", &all_ix, nv * layers);
+    vec![Primitive {
+        name: "shells".into(),
+        position,
+        normal,
+        texcoord,
+        color: Some(color),
+        indices: ix,
+        morph: None,
+        material: Material {
+            name: "shells".into(),
+            base_color: [1.0; 4],
+            alpha: Alpha::Mask(single_draw_cutoff()),
+            textured: true,
+            roughness: input.roughness,
+        },
+    }]
+}
+
+/// The mask as a grey+alpha PNG (grey = 255, alpha = survival code), deflated at the highest
+/// level with adaptive filtering. Deterministic.
+pub fn encode_mask_png(mask: &Mask) -> Vec<u8> {
+    let mut pixels = Vec::with_capacity(mask.code.len() * 2);
+    for &c in &mask.code {
+        pixels.push(255);
+        pixels.push(c);
+    }
+    let mut out = Vec::new();
+    let enc = image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Best,
+        image::codecs::png::FilterType::Adaptive,
+    );
+    enc.write_image(&pixels, mask.size, mask.size, image::ExtendedColorType::La8)
+        .expect("encoding a PNG into memory cannot fail");
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn single_draw_alpha_reproduces_every_layer_cutoff() {
+        // For every layer step k and every mask code m: m/255 · a_k >= c  ⇔  m >= BASE + k.
+        let c = single_draw_cutoff() as f64;
+        for k in 0..=crate::strands::HEIGHT_STEPS {
+            let a = single_draw_alpha(k) as f64 / 65535.0;
+            for m in BASE_CODE..=255 {
+                let shown = (m as f64 / 255.0) * a >= c;
+                assert_eq!(shown, m >= BASE_CODE + k, "k={k} m={m}");
+                // and with margin: f32 rounding on a GPU cannot flip it
+                let margin = ((m as f64 / 255.0) * a - c).abs() / c;
+                assert!(margin > 1e-4, "k={k} m={m} margin={margin}");
+            }
+        }
+    }
+
+    #[test]
+    fn png_is_deterministic_and_decodes_to_the_codes() {
+        let p = crate::params::BakeParams::default().strands;
+        let m = crate::strands::bake_mask(&crate::params::StrandParams { mask_size: 32, model: crate::params::StrandModel::Noise { threshold: 0.3 }, ..p });
+        let a = encode_mask_png(&m);
+        assert_eq!(a, encode_mask_png(&m));
+        let img = image::load_from_memory(&a).unwrap().to_luma_alpha8();
+        let alpha: Vec<u8> = img.pixels().map(|p| p.0[1]).collect();
+        assert_eq!(alpha, m.code);
+    }
+}

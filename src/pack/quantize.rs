@@ -1,0 +1,222 @@
+//! Quantization of vertex attributes (KHR_mesh_quantization) and their byte encoding.
+//!
+//! - POSITION: unsigned integers of `bits` (default 14) on a **uniform** grid over the box that
+//!   holds the base and the fully extruded surface; the node carrying the mesh scales by the grid
+//!   step and translates to the box corner. Uniform, not per-axis, so normals need no correction
+//!   (a non-uniform node scale would bend them). Error ≤ step/2 per component.
+//! - Extrusion delta (morph target): signed 16-bit integers on the same grid. Error ≤ step/2.
+//!   With `bits ≤ 15` every delta fits (|delta| ≤ box extent ≤ 2^bits − 1 steps).
+//! - NORMAL: normalized `i8`, searched in the 3×3×3 integer neighbourhood of the rounded value
+//!   for the vector closest to unit length, so dequantized normals are unit to ~1e-3.
+//! - TEXCOORD_0: normalized `u16` over the UV bounds, undone by `KHR_texture_transform`; float
+//!   when 16 bits would misplace a mask texel by more than 1/8 texel (huge tiling counts).
+//!
+//! So a layer vertex dequantizes to `T + S·(q + t·d)` and differs from the exact
+//! `base + t·delta` by at most one grid step `S` per component (`S/2` from `q`, `t·S/2` from `d`).
+
+use glam::{Vec2, Vec3};
+
+/// The position grid: `world_relative = min + step · q`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PositionGrid {
+    pub min: Vec3,
+    pub step: f32,
+    pub bits: u32,
+}
+
+impl PositionGrid {
+    /// Grid over the box holding `points` (relative coordinates).
+    pub fn fit(points: impl Iterator<Item = Vec3>, bits: u32) -> PositionGrid {
+        assert!((8..=15).contains(&bits));
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for p in points {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        if !lo.is_finite() {
+            return PositionGrid { min: Vec3::ZERO, step: 1.0, bits };
+        }
+        let extent = (hi - lo).max_element();
+        let levels = ((1u32 << bits) - 1) as f32;
+        let mut step = extent / levels;
+        if !(step > 0.0 && step.is_finite()) {
+            step = f32::max(extent.abs(), 1.0) / levels;
+        }
+        // Rounding of the division can push the top by an ulp; grow the step until it fits.
+        while ((hi - lo) / step).max_element().round() > levels {
+            step = f32::from_bits(step.to_bits() + 1);
+        }
+        PositionGrid { min: lo, step, bits }
+    }
+
+    pub fn max_level(&self) -> u32 {
+        (1 << self.bits) - 1
+    }
+
+    pub fn quantize(&self, p: Vec3) -> [u16; 3] {
+        let q = ((p - self.min) / self.step).round();
+        let top = self.max_level() as f32;
+        [q.x, q.y, q.z].map(|v| v.clamp(0.0, top) as u16)
+    }
+
+    pub fn quantize_delta(&self, d: Vec3) -> [i16; 3] {
+        let q = (d / self.step).round();
+        [q.x, q.y, q.z].map(|v| v.clamp(-32767.0, 32767.0) as i16)
+    }
+
+    pub fn dequantize(&self, q: [u16; 3]) -> Vec3 {
+        self.min + Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) * self.step
+    }
+}
+
+/// Unit normal as normalized `i8`, the closest-to-unit integer vector near the rounded value.
+pub fn quantize_normal(n: Vec3) -> [i8; 3] {
+    let n = n.normalize_or(Vec3::Y);
+    let base = (n * 127.0).round();
+    let mut best = [0i8; 3];
+    let mut best_err = f32::INFINITY;
+    for dz in -1..=1 {
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let c = base + Vec3::new(dx as f32, dy as f32, dz as f32);
+                if c.abs().max_element() > 127.0 {
+                    continue;
+                }
+                let v = c / 127.0;
+                // unit length first, direction second
+                let err = (v.length() - 1.0).abs() + 0.1 * (v.normalize_or_zero() - n).length();
+                if err < best_err {
+                    best_err = err;
+                    best = [c.x as i8, c.y as i8, c.z as i8];
+                }
+            }
+        }
+    }
+    best
+}
+
+pub fn dequantize_normal(q: [i8; 3]) -> Vec3 {
+    Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) / 127.0
+}
+
+/// Normalized `u16` texture coordinates over `[lo, lo + extent]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvGrid {
+    pub lo: Vec2,
+    pub extent: Vec2,
+}
+
+impl UvGrid {
+    pub fn fit(uvs: &[Vec2]) -> UvGrid {
+        let (lo, hi) = crate::mesh::uv_bounds(uvs);
+        let extent = (hi - lo).max(Vec2::splat(f32::MIN_POSITIVE));
+        let extent = Vec2::new(if hi.x > lo.x { extent.x } else { 1.0 }, if hi.y > lo.y { extent.y } else { 1.0 });
+        UvGrid { lo, extent }
+    }
+
+    pub fn quantize(&self, uv: Vec2) -> [u16; 2] {
+        let q = ((uv - self.lo) / self.extent * 65535.0).round().clamp(Vec2::ZERO, Vec2::splat(65535.0));
+        [q.x as u16, q.y as u16]
+    }
+
+    pub fn dequantize(&self, q: [u16; 2]) -> Vec2 {
+        self.lo + Vec2::new(q[0] as f32, q[1] as f32) / 65535.0 * self.extent
+    }
+}
+
+/// Little-endian byte writer for interleaved-free, padded attribute streams.
+#[derive(Default)]
+pub struct Bytes(pub Vec<u8>);
+
+impl Bytes {
+    pub fn u16s(&mut self, v: &[u16], pad_to: usize) {
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+        self.pad_element(v.len() * 2, pad_to);
+    }
+    pub fn i16s(&mut self, v: &[i16], pad_to: usize) {
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+        self.pad_element(v.len() * 2, pad_to);
+    }
+    pub fn i8s(&mut self, v: &[i8], pad_to: usize) {
+        self.0.extend(v.iter().map(|&x| x as u8));
+        self.pad_element(v.len(), pad_to);
+    }
+    pub fn f32s(&mut self, v: &[f32]) {
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    pub fn u32s(&mut self, v: &[u32]) {
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    fn pad_element(&mut self, written: usize, pad_to: usize) {
+        for _ in written..pad_to {
+            self.0.push(0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn position_round_trip_within_half_a_step() {
+        let pts = [Vec3::new(-1.0, 0.0, 2.0), Vec3::new(3.0, 0.5, -1.0), Vec3::new(0.123, 0.456, 0.789)];
+        let g = PositionGrid::fit(pts.iter().copied(), 14);
+        assert!((g.step - 4.0 / 16383.0).abs() < 1e-9);
+        for p in pts {
+            let back = g.dequantize(g.quantize(p));
+            assert!(((back - p).abs().max_element()) <= g.step * 0.5 + 1e-6, "{p} {back}");
+        }
+        let top = g.quantize(Vec3::new(3.0, 0.5, 2.0));
+        assert!(top.iter().all(|&q| q as u32 <= g.max_level()));
+    }
+
+    #[test]
+    fn degenerate_boxes_get_a_usable_step() {
+        let g = PositionGrid::fit([Vec3::ONE, Vec3::ONE].into_iter(), 14);
+        assert!(g.step > 0.0 && g.step.is_finite());
+        let g = PositionGrid::fit(std::iter::empty(), 14);
+        assert!(g.step > 0.0);
+    }
+
+    #[test]
+    fn delta_round_trip() {
+        let g = PositionGrid { min: Vec3::ZERO, step: 0.01, bits: 14 };
+        let d = Vec3::new(0.123, -0.456, 0.0);
+        let q = g.quantize_delta(d);
+        let back = Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) * g.step;
+        assert!((back - d).abs().max_element() <= 0.005 + 1e-7);
+    }
+
+    #[test]
+    fn normals_are_unit_after_quantization() {
+        let mut worst: f32 = 0.0;
+        for i in 0..2000 {
+            let a = i as f32 * 0.7;
+            let b = i as f32 * 0.13;
+            let n = Vec3::new(a.cos() * b.sin(), b.cos(), a.sin() * b.sin());
+            let q = dequantize_normal(quantize_normal(n));
+            worst = worst.max((q.length() - 1.0).abs());
+            assert!(q.normalize().dot(n.normalize()) > 0.999);
+        }
+        assert!(worst < 4e-3, "{worst}");
+    }
+
+    #[test]
+    fn uv_round_trip_outside_unit_square() {
+        let uvs = [Vec2::new(-3.0, 0.5), Vec2::new(5.0, 2.0)];
+        let g = UvGrid::fit(&uvs);
+        for &uv in &uvs {
+            assert!((g.dequantize(g.quantize(uv)) - uv).abs().max_element() < 8.0 / 65535.0);
+        }
+    }
+}

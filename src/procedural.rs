@@ -1,0 +1,185 @@
+//! Procedural test meshes — the plane, sphere, torus and split-normal cube fixtures — and an OBJ
+//! writer for them. `shellbake fixtures DIR` writes them; a test checks the committed copies in
+//! `fixtures/` are what this code generates.
+
+use std::f32::consts::{PI, TAU};
+use std::fmt::Write as _;
+
+use glam::{Vec2, Vec3};
+
+use crate::mesh::Mesh;
+
+/// A `size × size` plane in XZ facing +Y, `n × n` quads, UVs over [0, 1].
+pub fn plane(size: f32, n: u32) -> Mesh {
+    let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+            m.positions.push(Vec3::new((u - 0.5) * size, 0.0, (v - 0.5) * size));
+            m.normals.as_mut().unwrap().push(Vec3::Y);
+            m.uvs.as_mut().unwrap().push(Vec2::new(u, v));
+        }
+    }
+    grid_indices(&mut m, n, n, false);
+    m
+}
+
+/// A UV sphere of `radius` with `rings` latitude bands and `segments` longitude segments; the
+/// seam column is duplicated (a UV seam) and the poles are rings of coincident vertices.
+pub fn sphere(radius: f32, rings: u32, segments: u32) -> Mesh {
+    let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
+    for j in 0..=rings {
+        let v = j as f32 / rings as f32;
+        let theta = v * PI;
+        // exact poles: every pole vertex at the same position (welded), not scattered by rounding
+        let (st, ct) = if j == 0 { (0.0, 1.0) } else if j == rings { (0.0, -1.0) } else { theta.sin_cos() };
+        for i in 0..=segments {
+            let u = i as f32 / segments as f32;
+            let phi = u * TAU;
+            let n = Vec3::new(st * phi.cos(), ct, -st * phi.sin());
+            m.positions.push(n * radius);
+            m.normals.as_mut().unwrap().push(n);
+            m.uvs.as_mut().unwrap().push(Vec2::new(u, v));
+        }
+    }
+    grid_indices(&mut m, segments, rings, false);
+    m
+}
+
+/// A torus around Y: `major` radius of the ring, `minor` radius of the tube.
+pub fn torus(major: f32, minor: f32, rings: u32, segments: u32) -> Mesh {
+    let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
+    for j in 0..=rings {
+        let v = j as f32 / rings as f32;
+        let a = v * TAU;
+        for i in 0..=segments {
+            let u = i as f32 / segments as f32;
+            let b = u * TAU;
+            let centre = Vec3::new(b.cos(), 0.0, -b.sin()) * major;
+            let n = Vec3::new(a.cos() * b.cos(), a.sin(), -a.cos() * b.sin());
+            m.positions.push(centre + n * minor);
+            m.normals.as_mut().unwrap().push(n);
+            m.uvs.as_mut().unwrap().push(Vec2::new(u * 4.0, v));
+        }
+    }
+    grid_indices(&mut m, segments, rings, true);
+    m
+}
+
+/// A cube of side `size` with 24 vertices: every face has its own normals and UVs, so every
+/// corner is three render vertices at one position (the split-normal case).
+pub fn split_cube(size: f32) -> Mesh {
+    let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
+    let h = size * 0.5;
+    for axis in 0..3 {
+        for sign in [1.0f32, -1.0] {
+            let mut n = Vec3::ZERO;
+            n[axis] = sign;
+            let u_axis = Vec3::from(if axis == 1 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] });
+            let v_axis = n.cross(u_axis);
+            let base = m.positions.len() as u32;
+            for (du, dv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                m.positions.push((n + u_axis * du + v_axis * dv) * h);
+                m.normals.as_mut().unwrap().push(n);
+                m.uvs.as_mut().unwrap().push(Vec2::new((du + 1.0) * 0.5, (dv + 1.0) * 0.5));
+            }
+            // counter-clockwise seen from outside
+            let quad = [0, 1, 2, 0, 2, 3];
+            let outward = u_axis.cross(v_axis).dot(n) > 0.0;
+            for k in quad {
+                m.indices.push(base + k);
+            }
+            if !outward {
+                let t = m.indices.len();
+                for tri in m.indices[t - 6..].chunks_exact_mut(3) {
+                    tri.swap(1, 2);
+                }
+            }
+        }
+    }
+    m
+}
+
+fn grid_indices(m: &mut Mesh, nu: u32, nv: u32, flip: bool) {
+    let row = nu + 1;
+    for j in 0..nv {
+        for i in 0..nu {
+            let a = j * row + i;
+            let (b, c, d) = (a + 1, a + row, a + row + 1);
+            if flip {
+                m.indices.extend_from_slice(&[a, b, c, b, d, c]);
+            } else {
+                m.indices.extend_from_slice(&[a, c, b, b, c, d]);
+            }
+        }
+    }
+}
+
+/// The fixtures by name, as committed in `fixtures/`.
+pub fn fixtures() -> Vec<(&'static str, Mesh)> {
+    vec![
+        ("plane", plane(2.0, 16)),
+        ("sphere", sphere(1.0, 24, 48)),
+        ("torus", torus(1.0, 0.35, 24, 48)),
+        ("cube", split_cube(1.0)),
+    ]
+}
+
+/// Wavefront OBJ text of `m` (v, vt, vn, f; OBJ's v axis points up, so v is flipped).
+pub fn to_obj(m: &Mesh, comment: &str) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# {comment}");
+    for p in &m.positions {
+        let w = p.as_dvec3() + m.origin;
+        let _ = writeln!(s, "v {} {} {}", w.x as f32, w.y as f32, w.z as f32);
+    }
+    if let Some(uv) = &m.uvs {
+        for t in uv {
+            let _ = writeln!(s, "vt {} {}", t.x, 1.0 - t.y);
+        }
+    }
+    if let Some(ns) = &m.normals {
+        for n in ns {
+            let _ = writeln!(s, "vn {} {} {}", n.x, n.y, n.z);
+        }
+    }
+    for t in m.indices.chunks_exact(3) {
+        let c: Vec<String> = t
+            .iter()
+            .map(|&i| {
+                let i = i + 1;
+                match (m.uvs.is_some(), m.normals.is_some()) {
+                    (true, true) => format!("{i}/{i}/{i}"),
+                    (true, false) => format!("{i}/{i}"),
+                    (false, true) => format!("{i}//{i}"),
+                    (false, false) => format!("{i}"),
+                }
+            })
+            .collect();
+        let _ = writeln!(s, "f {}", c.join(" "));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::face_normal;
+
+    /// Every face of every fixture winds counter-clockwise seen from outside: its normal agrees
+    /// with the vertex normals.
+    #[test]
+    fn fixtures_wind_outward() {
+        for (name, m) in fixtures() {
+            m.validate();
+            let ns = m.normals.as_ref().unwrap();
+            for t in m.indices.chunks_exact(3) {
+                let (n, a) = face_normal(m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]);
+                if a > 1e-9 {
+                    let avg = ns[t[0] as usize] + ns[t[1] as usize] + ns[t[2] as usize];
+                    assert!(n.dot(avg) > 0.0, "{name}: inward face {t:?}");
+                }
+            }
+        }
+    }
+}

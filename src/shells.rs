@@ -1,0 +1,92 @@
+//! Shell layers (DESIGN §3–4): layer heights, per-layer shade, and the extrusion delta.
+//!
+//! Layer `j` of `N` (base included, `j = 0` is the base) sits at normalised height
+//! `t_j = k_j / HEIGHT_STEPS` with `k_j = round(j · HEIGHT_STEPS / N)`: evenly spaced to within
+//! half a step, and on the grid that makes the 8-bit mask exact (`strands.rs`). The top layer is
+//! at `t = (N−1)/N`, not 1: at `t = 1` every strand law has already vanished.
+//!
+//! The extrusion delta of a vertex is `direction × height × scale`, where `scale` is 1 or the
+//! clamp stage's per-vertex factor. Layer `j`'s position is `base + t_j × delta`; that is exactly
+//! what a morph target with weight `t_j` does, which is how the compact layout stores it.
+//!
+//! Shade: `colour(t) = lerp(root, tip, t) × lerp(1 − occlusion, 1, t)` in linear RGB.
+
+use glam::Vec3;
+
+use crate::params::{ShadeParams, ShellParams};
+use crate::strands::{layer_step, step_cutoff, step_height};
+
+/// The layers of a bake and the per-vertex extrusion.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ShellStack {
+    /// World-unit height at t = 1.
+    pub height: f32,
+    /// Height step of each layer.
+    pub steps: Vec<u32>,
+    /// Normalised height of each layer.
+    pub t: Vec<f32>,
+    /// glTF alpha cutoff of each layer.
+    pub cutoff: Vec<f32>,
+    /// Linear RGB shade of each layer.
+    pub color: Vec<[f32; 3]>,
+    /// Extrusion delta at t = 1, per render vertex.
+    pub delta: Vec<Vec3>,
+}
+
+/// Colour of a layer at normalised height `t`.
+pub fn layer_color(shade: &ShadeParams, t: f32) -> [f32; 3] {
+    let occ = (1.0 - shade.occlusion) + shade.occlusion * t;
+    [0, 1, 2].map(|c| (shade.root_color[c] + (shade.tip_color[c] - shade.root_color[c]) * t) * occ)
+}
+
+/// Builds the layer stack. `directions` are unit extrusion directions per render vertex;
+/// `scale` (from the clamp stage, in [0, 1]) shortens individual vertices.
+pub fn build_shells(
+    directions: &[Vec3],
+    scale: Option<&[f32]>,
+    height: f32,
+    shells: &ShellParams,
+    shade: &ShadeParams,
+) -> ShellStack {
+    assert!(height.is_finite() && height >= 0.0);
+    let steps: Vec<u32> = (0..shells.layers).map(|j| layer_step(j, shells.layers)).collect();
+    let t: Vec<f32> = steps.iter().map(|&k| step_height(k)).collect();
+    let delta = directions
+        .iter()
+        .enumerate()
+        .map(|(v, d)| *d * (height * scale.map_or(1.0, |s| s[v])))
+        .collect();
+    ShellStack {
+        height,
+        cutoff: steps.iter().map(|&k| step_cutoff(k)).collect(),
+        color: t.iter().map(|&t| layer_color(shade, t)).collect(),
+        steps,
+        t,
+        delta,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::BakeParams;
+
+    #[test]
+    fn layers_rise_evenly_and_deltas_scale() {
+        let p = BakeParams::default();
+        let shells = ShellParams { layers: 4, ..p.shells.clone() };
+        let s = build_shells(&[Vec3::Y, Vec3::X], Some(&[1.0, 0.5]), 2.0, &shells, &p.shade);
+        assert_eq!(s.steps, vec![0, 60, 120, 179]);
+        assert_eq!(s.t[0], 0.0);
+        assert!((s.t[2] - 0.5).abs() < 0.5 / 239.0 + 1e-6);
+        assert_eq!(s.delta, vec![Vec3::Y * 2.0, Vec3::X]);
+    }
+
+    #[test]
+    fn colour_is_occluded_root_to_tip_gradient() {
+        let shade = ShadeParams { root_color: [0.0; 3], tip_color: [1.0; 3], occlusion: 0.5, roughness: 0.5 };
+        assert_eq!(layer_color(&shade, 0.0), [0.0; 3]);
+        assert_eq!(layer_color(&shade, 1.0), [1.0; 3]);
+        assert_eq!(layer_color(&shade, 0.5), [0.5 * 0.75; 3]);
+    }
+}
