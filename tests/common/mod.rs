@@ -1,0 +1,135 @@
+//! Helpers shared by the integration tests: a small independent GLB reader (so tests check the
+//! bytes, not the packer's own bookkeeping) and the Node.js outside clients.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A scratch folder under the target directory, fresh for each call.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A parsed GLB: JSON document and binary chunk.
+pub struct Glb {
+    pub json: Value,
+    pub bin: Vec<u8>,
+}
+
+impl Glb {
+    pub fn parse(bytes: &[u8]) -> Glb {
+        assert_eq!(&bytes[0..4], b"glTF");
+        let total = u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize;
+        assert_eq!(total, bytes.len());
+        let jlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        assert_eq!(&bytes[16..20], b"JSON");
+        let json: Value = serde_json::from_slice(&bytes[20..20 + jlen]).unwrap();
+        let rest = &bytes[20 + jlen..];
+        let bin = if rest.len() >= 8 {
+            let blen = u32::from_le_bytes(rest[0..4].try_into().unwrap()) as usize;
+            assert_eq!(&rest[4..8], b"BIN\0");
+            rest[8..8 + blen].to_vec()
+        } else {
+            Vec::new()
+        };
+        Glb { json, bin }
+    }
+
+    /// Accessor `i` as rows of f64 components, dequantized if `normalized`.
+    pub fn accessor(&self, i: usize) -> Vec<Vec<f64>> {
+        let a = &self.json["accessors"][i];
+        let view = &self.json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
+        let comps = match a["type"].as_str().unwrap() {
+            "SCALAR" => 1,
+            "VEC2" => 2,
+            "VEC3" => 3,
+            "VEC4" => 4,
+            t => panic!("type {t}"),
+        };
+        let ct = a["componentType"].as_u64().unwrap();
+        let size = match ct {
+            5120 | 5121 => 1,
+            5122 | 5123 => 2,
+            5125 | 5126 => 4,
+            _ => panic!("componentType {ct}"),
+        };
+        let normalized = a["normalized"].as_bool().unwrap_or(false);
+        let stride = view["byteStride"].as_u64().map_or(comps * size, |s| s as usize);
+        let base = view["byteOffset"].as_u64().unwrap_or(0) as usize + a["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let count = a["count"].as_u64().unwrap() as usize;
+        (0..count)
+            .map(|k| {
+                (0..comps)
+                    .map(|c| {
+                        let o = base + k * stride + c * size;
+                        let b = &self.bin[o..o + size];
+                        let (v, scale) = match ct {
+                            5120 => (b[0] as i8 as f64, 127.0),
+                            5121 => (b[0] as f64, 255.0),
+                            5122 => (i16::from_le_bytes([b[0], b[1]]) as f64, 32767.0),
+                            5123 => (u16::from_le_bytes([b[0], b[1]]) as f64, 65535.0),
+                            5125 => (u32::from_le_bytes(b.try_into().unwrap()) as f64, 1.0),
+                            _ => (f32::from_le_bytes(b.try_into().unwrap()) as f64, 1.0),
+                        };
+                        if normalized {
+                            (v / scale).max(-1.0)
+                        } else {
+                            v
+                        }
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+}
+
+/// Runs a Node script from tests/js on `files`, one JSON line per file.
+pub fn node(script: &str, files: &[PathBuf]) -> Vec<Value> {
+    let js = repo().join("tests/js");
+    assert!(
+        js.join("node_modules/gltf-validator").exists() && js.join("node_modules/three").exists(),
+        "tests/js/node_modules is missing: run `bash tests/setup.sh` (the README's test command does)"
+    );
+    let out = Command::new("node")
+        .arg(js.join(script))
+        .args(files)
+        .output()
+        .expect("node must be installed (tests/setup.sh installs what the tests need)");
+    assert!(out.status.success(), "{script} failed: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with('{'))
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+/// Validator results for `files`; panics listing every file with an error or a warning.
+pub fn assert_valid(files: &[PathBuf]) {
+    let results = node("validate.mjs", files);
+    assert_eq!(results.len(), files.len());
+    let bad: Vec<String> = results
+        .iter()
+        .filter(|r| r["errors"].as_u64() != Some(0) || r["warnings"].as_u64() != Some(0))
+        .map(|r| r.to_string())
+        .collect();
+    assert!(bad.is_empty(), "glTF-Validator reported errors or warnings:\n{}", bad.join("\n"));
+}
+
+pub fn fixture(name: &str) -> PathBuf {
+    repo().join("fixtures").join(name)
+}
+
+pub fn path_str(p: &Path) -> String {
+    p.display().to_string()
+}
