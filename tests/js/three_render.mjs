@@ -1,0 +1,100 @@
+// Renders GLB files with three.js in headless Chromium (WebGL on SwiftShader) and writes PNGs.
+// Usage: node three_render.mjs JOBS.json
+// JOBS.json: [{ "glb": path, "png": path, "width": W, "height": H,
+//               "camera": { "eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fovy_deg": f,
+//                           "near": n, "far": f },
+//               "light": { "direction": [x,y,z] (towards the light), "intensity": i },
+//               "ambient": a, "background": [r,g,b] (linear) }, ...]
+// Files are served from a loopback HTTP server; Chromium is Debian's, driven by playwright-core.
+import { createServer } from 'node:http';
+import { readFile, writeFile } from 'node:fs/promises';
+import { dirname, join, resolve, extname } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { chromium } from 'playwright-core';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const jobs = JSON.parse(await readFile(process.argv[2], 'utf8'));
+const files = new Map(jobs.map((j, i) => [`/asset/${i}.glb`, resolve(j.glb)]));
+const types = { '.js': 'text/javascript', '.mjs': 'text/javascript', '.html': 'text/html', '.glb': 'model/gltf-binary' };
+
+const page_html = `<!doctype html><html><body style="margin:0">
+<script type="importmap">{"imports":{"three":"/node_modules/three/build/three.module.js","three/addons/":"/node_modules/three/examples/jsm/"}}</script>
+<script type="module">
+import * as THREE from 'three';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+window.renderJob = async (job, url) => {
+  const canvas = document.createElement('canvas');
+  canvas.width = job.width; canvas.height = job.height;
+  document.body.replaceChildren(canvas);
+  const renderer = new THREE.WebGLRenderer({ canvas, antialias: false, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(1);
+  renderer.setSize(job.width, job.height, false);
+  renderer.outputColorSpace = THREE.SRGBColorSpace;
+  renderer.toneMapping = THREE.NoToneMapping;
+  const scene = new THREE.Scene();
+  scene.background = new THREE.Color().setRGB(...job.background, THREE.LinearSRGBColorSpace);
+  const gltf = await new GLTFLoader().loadAsync(url);
+  scene.add(gltf.scene);
+  const c = job.camera;
+  const camera = new THREE.PerspectiveCamera(c.fovy_deg, job.width / job.height, c.near, c.far);
+  camera.position.set(...c.eye); camera.up.set(...c.up); camera.lookAt(...c.target);
+  const sun = new THREE.DirectionalLight(0xffffff, job.light.intensity);
+  sun.position.set(...job.light.direction); sun.target.position.set(0, 0, 0);
+  scene.add(sun); scene.add(sun.target);
+  scene.add(new THREE.AmbientLight(0xffffff, job.ambient));
+  renderer.render(scene, camera);
+  const data = canvas.toDataURL('image/png');
+  renderer.dispose();
+  return data;
+};
+window.ready = true;
+</script></body></html>`;
+
+const server = createServer(async (req, res) => {
+  try {
+    const url = new URL(req.url, 'http://127.0.0.1');
+    let path;
+    if (url.pathname === '/') {
+      res.writeHead(200, { 'content-type': 'text/html' });
+      return res.end(page_html);
+    } else if (files.has(url.pathname)) {
+      path = files.get(url.pathname);
+    } else if (url.pathname.startsWith('/node_modules/')) {
+      path = join(here, url.pathname);
+      if (!path.startsWith(join(here, 'node_modules'))) throw new Error('outside');
+    } else {
+      throw new Error('not found');
+    }
+    const body = await readFile(path);
+    res.writeHead(200, { 'content-type': types[extname(path)] || 'application/octet-stream' });
+    res.end(body);
+  } catch (e) {
+    res.writeHead(404); res.end(String(e));
+  }
+});
+await new Promise((r) => server.listen(0, '127.0.0.1', r));
+const port = server.address().port;
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+    '--disable-background-networking', '--disable-component-update', '--disable-sync',
+    '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist'],
+});
+try {
+  const page = await browser.newPage();
+  const logs = [];
+  page.on('console', (m) => logs.push(m.text()));
+  page.on('pageerror', (e) => logs.push(String(e)));
+  await page.goto(`http://127.0.0.1:${port}/`);
+  await page.waitForFunction(() => window.ready === true, null, { timeout: 30000 });
+  for (const [i, job] of jobs.entries()) {
+    const data = await page.evaluate(([j, u]) => window.renderJob(j, u), [job, `/asset/${i}.glb`]);
+    await writeFile(job.png, Buffer.from(data.split(',')[1], 'base64'));
+    console.log(JSON.stringify({ png: job.png, ok: true }));
+  }
+  if (logs.length) console.error(logs.join('\n'));
+} finally {
+  await browser.close();
+  server.close();
+}

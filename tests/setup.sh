@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Installs what the tests need, once; later runs find everything in place and do nothing.
+#  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js in a
+#    real browser), Xvfb (the window smoke test), Node.js if missing.
+#  - npm packages in tests/js: the Khronos glTF-Validator, three.js, playwright-core.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+packages=(mesa-vulkan-drivers libvulkan1 chromium xvfb xauth)
+command -v node >/dev/null 2>&1 || packages+=(nodejs npm)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  sudo=""
+  [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  $sudo apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+if [ ! -d tests/js/node_modules/gltf-validator ] || [ ! -d tests/js/node_modules/three ] \
+   || [ ! -d tests/js/node_modules/playwright-core ] || [ tests/js/package-lock.json -nt tests/js/node_modules ]; then
+  echo "setup: installing npm packages in tests/js"
+  (cd tests/js && npm ci --no-audit --no-fund --loglevel=error)
+  touch tests/js/node_modules
+fi
+
+# wgpu on lavapipe wants a private runtime folder.
+if [ -z "${XDG_RUNTIME_DIR:-}" ] || [ ! -d "${XDG_RUNTIME_DIR}" ]; then
+  echo "setup: note: export XDG_RUNTIME_DIR to a 0700 folder to silence a Vulkan loader warning"
+fi
