@@ -96,6 +96,10 @@ fn cli_bakes_with_report_and_summary() {
 /// A two-mesh glTF with a node hierarchy (translation, rotation, mirrored scale), one mesh with
 /// two primitives, normals and UVs on one and none on the other, in a `.gltf` + data URI.
 fn hierarchy_gltf() -> serde_json::Value {
+    hierarchy_parts().0
+}
+
+fn hierarchy_parts() -> (serde_json::Value, Vec<u8>) {
     let tri: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
     let nrm: [f32; 9] = [0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0];
     let uv: [f32; 6] = [0.0, 0.0, 1.0, 0.0, 0.0, 1.0];
@@ -104,7 +108,7 @@ fn hierarchy_gltf() -> serde_json::Value {
         bytes.extend_from_slice(&v.to_le_bytes());
     }
     let uri = format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
-    json!({
+    let doc = json!({
         "asset": {"version": "2.0"},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
@@ -130,7 +134,8 @@ fn hierarchy_gltf() -> serde_json::Value {
             {"buffer": 0, "byteOffset": 72, "byteLength": 24}
         ],
         "buffers": [{"byteLength": 96, "uri": uri}]
-    })
+    });
+    (doc, bytes)
 }
 
 #[test]
@@ -181,4 +186,20 @@ fn glb_input_round_trips_through_our_own_loader_rules() {
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
     let e = shellbake::load::load(&path).unwrap_err().to_string();
     assert!(e.contains("escape.gltf") && e.contains("refused"), "{e}");
+}
+
+#[test]
+fn glb_input_with_binary_chunk_loads() {
+    let dir = scratch("glb_input");
+    let (mut doc, bin) = hierarchy_parts();
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    let path = dir.join("h.glb");
+    std::fs::write(&path, shellbake::write::glb_bytes(&doc, &bin)).unwrap();
+    let scene = shellbake::load::load(&path).unwrap();
+    assert_eq!(scene.meshes.len(), 3);
+    // and a GLB with no binary chunk but a buffer that needs one is refused, naming the buffer
+    let path = dir.join("nobin.glb");
+    std::fs::write(&path, shellbake::write::glb_bytes(&doc, &[])).unwrap();
+    let e = shellbake::load::load(&path).unwrap_err().to_string();
+    assert!(e.contains("nobin.glb") && e.contains("buffer 0"), "{e}");
 }

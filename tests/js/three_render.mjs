@@ -2,7 +2,8 @@
 // Usage: node three_render.mjs JOBS.json
 // JOBS.json: [{ "glb": path, "png": path, "width": W, "height": H,
 //               "camera": { "eye": [x,y,z], "target": [x,y,z], "up": [x,y,z], "fovy_deg": f,
-//                           "near": n, "far": f },
+//                           "near": n, "far": f }
+//                      or { "auto": true, "yaw": deg, "pitch": deg, "distance": radii, "fovy_deg": f },
 //               "light": { "direction": [x,y,z] (towards the light), "intensity": i },
 //               "ambient": a, "background": [r,g,b] (linear) }, ...]
 // Files are served from a loopback HTTP server; Chromium is Debian's, driven by playwright-core.
@@ -35,7 +36,17 @@ window.renderJob = async (job, url) => {
   scene.background = new THREE.Color().setRGB(...job.background, THREE.LinearSRGBColorSpace);
   const gltf = await new GLTFLoader().loadAsync(url);
   scene.add(gltf.scene);
-  const c = job.camera;
+  let c = job.camera;
+  if (c.auto) {
+    // Frame the bounding sphere from yaw/pitch (degrees) at c.distance radii.
+    const sphere = new THREE.Box3().setFromObject(gltf.scene).getBoundingSphere(new THREE.Sphere());
+    const yaw = THREE.MathUtils.degToRad(c.yaw), pitch = THREE.MathUtils.degToRad(c.pitch);
+    const dir = [Math.sin(yaw) * Math.cos(pitch), Math.sin(pitch), Math.cos(yaw) * Math.cos(pitch)];
+    const d = sphere.radius * c.distance;
+    const t = sphere.center.toArray();
+    c = { eye: t.map((v, i) => v + dir[i] * d), target: t, up: [0, 1, 0], fovy_deg: c.fovy_deg,
+          near: d / 100, far: d * 4 };
+  }
   const camera = new THREE.PerspectiveCamera(c.fovy_deg, job.width / job.height, c.near, c.far);
   camera.position.set(...c.eye); camera.up.set(...c.up); camera.lookAt(...c.target);
   const sun = new THREE.DirectionalLight(0xffffff, job.light.intensity);
