@@ -7,7 +7,7 @@
 //! | load | [`load`] | [`load::load`] |
 //! | weld | [`weld`] | [`weld::weld`] |
 //! | frames | [`frames`] | [`frames::extrusion_frames`] |
-//! | clamp | `clamp` (not yet; skipped) | — |
+//! | clamp (only when asked) | [`clamp`] | [`clamp::clamp_heights`] |
 //! | strands | [`strands`] | [`strands::bake_mask`] |
 //! | shells | [`shells`] | [`shells::build_shells`] |
 //! | cull, lod | (not yet; skipped) | — |
@@ -17,6 +17,7 @@
 //! Each stage runs only when the parameters call for it and the [`report::Report`] lists every
 //! stage as run or skipped.
 
+pub mod clamp;
 pub mod error;
 pub mod frames;
 pub mod load;
@@ -97,18 +98,27 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         mesh.normals = Some(frames.direction.clone());
     }
 
-    report.skip("clamp", "not requested (collision clamp not enabled)");
-
     let diagonal = mesh.diagonal();
     let height = params.resolved_height(diagonal);
     let density = params.resolved_density(diagonal);
+
+    let clamp = if params.clamp.enabled {
+        let c = report.run("clamp", || clamp::clamp_heights(&welded, &frames, height, &params.clamp));
+        report.count("limited_by_inversion", c.limited_by_inversion as f64);
+        report.count("limited_by_collision", c.limited_by_collision as f64);
+        report.count("min_scale", c.welded_scale.iter().copied().fold(1.0f32, f32::min) as f64);
+        Some(c)
+    } else {
+        report.skip("clamp", "not requested (--clamp / scene effect `collision`)");
+        None
+    };
     let mask = report.run("strands", || strands::bake_mask(&params.strands));
     let tiles_per_uv = strands::tiles_per_uv(&mesh, density, mask.cells_per_tile);
     report.count("mask_texels", (mask.size * mask.size) as f64);
     report.count("cells_per_tile", mask.cells_per_tile as f64);
 
     let shells = report.run("shells", || {
-        shells::build_shells(&frames.direction, None, height, &params.shells, &params.shade)
+        shells::build_shells(&frames.direction, clamp.as_ref().map(|c| c.scale.as_slice()), height, &params.shells, &params.shade)
     });
     report.count("layers", shells.t.len() as f64);
 

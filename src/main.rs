@@ -53,6 +53,12 @@ struct BakeArgs {
     /// Output layout.
     #[arg(long, value_enum, default_value = "compact")]
     layout: Layout,
+    /// Run the clamp stage: shorten shells where they would invert or pass through the mesh.
+    #[arg(long)]
+    clamp: bool,
+    /// Refuse bakes whose output would exceed this size (bytes; K, M, G suffixes).
+    #[arg(long, default_value = "2G", value_parser = parse_size)]
+    max_output: u64,
     /// Write the JSON report here.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -78,6 +84,7 @@ impl BakeArgs {
             p.strands.seed = s;
         }
         p.pack.layout = self.layout;
+        p.clamp.enabled = self.clamp;
         p.check().map_err(|e| anyhow::anyhow!(shellbake::Error::Params(e)))?;
         Ok(p)
     }
@@ -85,6 +92,19 @@ impl BakeArgs {
     fn output(&self) -> PathBuf {
         self.output.clone().unwrap_or_else(|| default_output(&self.input))
     }
+}
+
+/// `123`, `64K`, `10M`, `2G` (binary multiples).
+fn parse_size(s: &str) -> Result<u64, String> {
+    let s = s.trim();
+    let (digits, mult) = match s.chars().last().map(|c| c.to_ascii_uppercase()) {
+        Some('K') => (&s[..s.len() - 1], 1u64 << 10),
+        Some('M') => (&s[..s.len() - 1], 1 << 20),
+        Some('G') => (&s[..s.len() - 1], 1 << 30),
+        _ => (s, 1),
+    };
+    let n: u64 = digits.parse().map_err(|_| format!("'{s}' is not a size like 512M or 2G"))?;
+    n.checked_mul(mult).ok_or_else(|| format!("'{s}' is too large"))
 }
 
 fn default_output(input: &Path) -> PathBuf {
@@ -102,6 +122,24 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         pb
     });
     let scene = shellbake::load::load(&args.input)?;
+    let (vertices, triangles) =
+        scene.meshes.iter().fold((0u64, 0u64), |(v, t), m| (v + m.vertex_count() as u64, t + m.triangle_count() as u64));
+    let estimate = shellbake::pack::estimate_bytes(
+        vertices,
+        triangles,
+        params.shells.layers as u64,
+        params.strands.mask_size as u64,
+        params.pack.layout,
+    );
+    if estimate > args.max_output {
+        anyhow::bail!(
+            "{}: the output would be about {} bytes ({:.1} MiB), above --max-output {} bytes; nothing was written",
+            args.input.display(),
+            estimate,
+            estimate as f64 / (1 << 20) as f64,
+            args.max_output
+        );
+    }
     let mut baked = shellbake::bake(&scene, &params);
     if let Some(pb) = spinner {
         pb.finish_and_clear();
@@ -170,6 +208,19 @@ mod tests {
         assert_eq!(p.strands.seed, 9);
         assert_eq!(p.pack.layout, Layout::SingleDraw);
         assert_eq!(p.shade, BakeParams::preset(Preset::Grass).shade);
+    }
+
+    #[test]
+    fn sizes_parse_with_suffixes() {
+        assert_eq!(parse_size("123"), Ok(123));
+        assert_eq!(parse_size("64k"), Ok(64 << 10));
+        assert_eq!(parse_size("2G"), Ok(2 << 30));
+        assert!(parse_size("lots").is_err());
+        assert!(parse_bool_flags(&["bake", "a.obj", "--clamp"]).clamp.enabled);
+    }
+
+    fn parse_bool_flags(args: &[&str]) -> BakeParams {
+        parse(args).params().unwrap()
     }
 
     #[test]

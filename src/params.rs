@@ -138,6 +138,7 @@ pub struct PackParams {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BakeParams {
+    pub clamp: crate::clamp::ClampParams,
     pub strands: StrandParams,
     pub shells: ShellParams,
     pub shade: ShadeParams,
@@ -174,8 +175,10 @@ impl BakeParams {
     /// The named preset.
     pub fn preset(preset: Preset) -> BakeParams {
         let pack = PackParams { layout: Layout::Compact, position_bits: 14 };
+        let clamp = crate::clamp::ClampParams::default();
         match preset {
             Preset::Fur => BakeParams {
+                clamp,
                 strands: StrandParams {
                     model: StrandModel::Cells { thickness: 0.9, min_length: 0.55, texels_per_cell: 8 },
                     density: None,
@@ -193,6 +196,7 @@ impl BakeParams {
                 pack,
             },
             Preset::Carpet => BakeParams {
+                clamp: clamp.clone(),
                 strands: StrandParams {
                     model: StrandModel::Noise { threshold: 0.3 },
                     density: None,
@@ -210,6 +214,7 @@ impl BakeParams {
                 pack,
             },
             Preset::Grass => BakeParams {
+                clamp: clamp.clone(),
                 strands: StrandParams {
                     model: StrandModel::Cells { thickness: 0.7, min_length: 0.3, texels_per_cell: 8 },
                     density: None,
@@ -227,6 +232,7 @@ impl BakeParams {
                 pack,
             },
             Preset::Moss => BakeParams {
+                clamp: clamp.clone(),
                 strands: StrandParams {
                     model: StrandModel::Noise { threshold: 0.2 },
                     density: None,
@@ -248,6 +254,10 @@ impl BakeParams {
 
     /// Checks ranges; the message names the parameter. Called at the CLI/scene boundary.
     pub fn check(&self) -> Result<(), String> {
+        let c = &self.clamp;
+        if !(c.ray_keep > 0.0 && c.ray_keep < 1.0) || !(c.inversion_keep > 0.0 && c.inversion_keep < 1.0) {
+            return Err("clamp ray_keep and inversion_keep must be in (0, 1)".into());
+        }
         let s = &self.shells;
         if s.layers == 0 || s.layers > MAX_LAYERS {
             return Err(format!("layers must be in 1..={MAX_LAYERS}, got {}", s.layers));

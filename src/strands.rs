@@ -159,19 +159,26 @@ pub fn survives(p: &StrandParams, x: u32, y: u32, t: f32) -> bool {
 
 /// Bakes the survival-height mask of one tile.
 pub fn bake_mask(p: &StrandParams) -> Mask {
+    use rayon::prelude::*;
     let size = p.mask_size;
-    let mut code = Vec::with_capacity((size * size) as usize);
-    for y in 0..size {
-        for x in 0..size {
-            // Both laws are monotone in t: count the steps above the base that survive.
-            let mut q = 0;
-            while q < HEIGHT_STEPS && survives(p, x, y, step_height(q + 1)) {
-                q += 1;
-            }
-            code.push((BASE_CODE + q) as u8);
-        }
-    }
-    Mask { size, code, cells_per_tile: cells_per_tile(p) }
+    // Rows in parallel; each texel depends only on its coordinates, and rows are collected in
+    // order, so the mask is the same for any thread count.
+    let rows: Vec<Vec<u8>> = (0..size)
+        .into_par_iter()
+        .map(|y| {
+            (0..size)
+                .map(|x| {
+                    // Both laws are monotone in t: count the steps above the base that survive.
+                    let mut q = 0;
+                    while q < HEIGHT_STEPS && survives(p, x, y, step_height(q + 1)) {
+                        q += 1;
+                    }
+                    (BASE_CODE + q) as u8
+                })
+                .collect()
+        })
+        .collect();
+    Mask { size, code: rows.concat(), cells_per_tile: cells_per_tile(p) }
 }
 
 #[cfg(test)]

@@ -361,6 +361,26 @@ fn compact(
         .collect()
 }
 
+/// Upper estimate of the GLB size for a mesh of `vertices` and `triangles`, made before any work
+/// so an oversize bake can be refused with the size it would have had. Counts every stream at its
+/// widest encoding (float UVs, u32 indices past 65535 vertices), the mask PNG uncompressed, and
+/// 600 bytes of JSON per layer.
+pub fn estimate_bytes(vertices: u64, triangles: u64, layers: u64, mask_size: u64, layout: Layout) -> u64 {
+    let png = mask_size * mask_size * 2 + 1024;
+    let json = 4096 + 600 * layers;
+    match layout {
+        Layout::Compact => {
+            let index = if vertices <= 65535 { 2 } else { 4 };
+            vertices * (8 + 4 + 8 + 8) + triangles * 3 * index + png + json
+        }
+        Layout::SingleDraw => {
+            let n = vertices * layers;
+            let index = if n <= 65535 { 2 } else { 4 };
+            n * (8 + 4 + 8 + 8) + triangles * layers * 3 * index + png + json
+        }
+    }
+}
+
 /// `COLOR_0` alpha of a single-draw layer at height step `k`, as normalized u16.
 pub fn single_draw_alpha(k: u32) -> u16 {
     let a = (BASE_CODE as f64 - 0.5) / (BASE_CODE as f64 + k as f64 - 0.5);
@@ -468,6 +488,20 @@ mod tests {
                 let margin = ((m as f64 / 255.0) * a - c).abs() / c;
                 assert!(margin > 1e-4, "k={k} m={m} margin={margin}");
             }
+        }
+    }
+
+    #[test]
+    fn estimate_is_an_upper_bound() {
+        let scene = crate::load::load(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny.obj"))).unwrap();
+        let m = scene.merged();
+        for layout in [Layout::Compact, Layout::SingleDraw] {
+            let mut p = crate::params::BakeParams::default();
+            p.pack.layout = layout;
+            let baked = crate::bake(&scene, &p);
+            let est = estimate_bytes(m.vertex_count() as u64, m.triangle_count() as u64, 32, 256, layout);
+            assert!(est >= baked.glb.len() as u64, "{est} < {}", baked.glb.len());
+            assert!(est < baked.glb.len() as u64 * 3, "estimate {est} too loose for {}", baked.glb.len());
         }
     }
 
