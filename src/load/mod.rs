@@ -26,6 +26,10 @@ use glam::{Vec2, Vec3};
 use crate::error::{Error, Result};
 use crate::mesh::{face_normal, Mesh, Scene};
 
+/// Largest accepted world coordinate. Beyond it, squared extents overflow `f32` and no shell
+/// height means anything; 1e15 is far past any real asset (a planet in millimetres is 1.3e10).
+pub const MAX_COORDINATE: f64 = 1e15;
+
 /// Reads an `.obj`, `.gltf` or `.glb` file. Fails with an error that names the file and the
 /// offending element; never returns a scene with no triangles.
 pub fn load(path: &Path) -> Result<Scene> {
@@ -42,6 +46,15 @@ pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Scene> {
         Some("gltf") | Some("glb") => gltf::load(path, bytes)?,
         _ => return Err(Error::Format { path: path.to_path_buf() }),
     };
+    for (k, m) in scene.meshes.iter().enumerate() {
+        if let Some(v) = m.positions.iter().position(|p| (m.origin + p.as_dvec3()).abs().max_element() > MAX_COORDINATE) {
+            return Err(Error::invalid(
+                path,
+                format!("mesh {k}"),
+                format!("vertex {v} lies outside the supported range of ±{MAX_COORDINATE:e} units"),
+            ));
+        }
+    }
     scene.meshes.retain(|m| !m.indices.is_empty());
     if scene.meshes.is_empty() {
         return Err(Error::Empty { path: path.to_path_buf(), message: "no triangles to bake".into() });
@@ -131,6 +144,12 @@ mod tests {
         // vertex 0 used by three planes, vertices 1..3 by two each
         assert_eq!(m.positions.len(), 3 + 2 * 3);
         m.validate();
+    }
+
+    #[test]
+    fn coordinates_beyond_the_range_are_refused() {
+        let e = load_bytes(Path::new("big.obj"), b"v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n").unwrap_err();
+        assert!(e.to_string().contains("vertex 1") && e.to_string().contains("big.obj"), "{e}");
     }
 
     #[test]

@@ -1,0 +1,24 @@
+//! Fuzz target: arbitrary bytes through `load` and, when they load, through `bake` with the
+//! clamp on. The first byte picks the format (even: OBJ, odd: GLB) and the layout. Nothing may
+//! panic; a bad input must come back as an error.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use shellbake::params::{BakeParams, Layout};
+
+fuzz_target!(|data: &[u8]| {
+    let Some((&selector, body)) = data.split_first() else { return };
+    let name = if selector & 1 == 0 { "fuzz.obj" } else { "fuzz.glb" };
+    let Ok(scene) = shellbake::load::load_bytes(std::path::Path::new(name), body) else { return };
+    let mut p = BakeParams::default();
+    p.shells.layers = 4;
+    p.strands.mask_size = 16;
+    p.clamp.enabled = true;
+    p.pack.layout = if selector & 2 == 0 { Layout::Compact } else { Layout::SingleDraw };
+    let (v, t) = scene.meshes.iter().fold((0u64, 0u64), |(v, t), m| (v + m.vertex_count() as u64, t + m.triangle_count() as u64));
+    if shellbake::pack::estimate_bytes(v, t, 4, 16, p.pack.layout) > 64 << 20 {
+        return;
+    }
+    let baked = shellbake::bake(&scene, &p);
+    assert!(baked.glb.len() > 12);
+});
