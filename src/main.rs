@@ -24,7 +24,12 @@ enum Command {
     Bake(BakeArgs),
     /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
     #[command(hide = true)]
-    Fixtures { dir: PathBuf },
+    Fixtures {
+        dir: PathBuf,
+        /// Also write `sphere-dense.obj`, 262 144 triangles, for timing the stages at scale.
+        #[arg(long)]
+        dense: bool,
+    },
 }
 
 /// Flags shared by every command that bakes.
@@ -157,8 +162,12 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn fixtures(dir: &Path) -> anyhow::Result<()> {
-    for (name, mesh) in shellbake::procedural::fixtures() {
+fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
+    let mut all = shellbake::procedural::fixtures();
+    if dense {
+        all.push(("sphere-dense", shellbake::procedural::sphere(1.0, 256, 512)));
+    }
+    for (name, mesh) in all {
         let text = shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
         shellbake::write::write_atomic(&dir.join(format!("{name}.obj")), text.as_bytes())?;
     }
@@ -169,7 +178,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Bake(args) => bake(args),
-        Command::Fixtures { dir } => fixtures(dir),
+        Command::Fixtures { dir, dense } => fixtures(dir, *dense),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -35,7 +35,7 @@ pub fn sphere(radius: f32, rings: u32, segments: u32) -> Mesh {
         let (st, ct) = if j == 0 { (0.0, 1.0) } else if j == rings { (0.0, -1.0) } else { theta.sin_cos() };
         for i in 0..=segments {
             let u = i as f32 / segments as f32;
-            let phi = u * TAU;
+            let phi = if i == segments { 0.0 } else { u * TAU }; // exact seam: welds
             let n = Vec3::new(st * phi.cos(), ct, -st * phi.sin());
             m.positions.push(n * radius);
             m.normals.as_mut().unwrap().push(n);
@@ -51,10 +51,10 @@ pub fn torus(major: f32, minor: f32, rings: u32, segments: u32) -> Mesh {
     let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
     for j in 0..=rings {
         let v = j as f32 / rings as f32;
-        let a = v * TAU;
+        let a = if j == rings { 0.0 } else { v * TAU };
         for i in 0..=segments {
             let u = i as f32 / segments as f32;
-            let b = u * TAU;
+            let b = if i == segments { 0.0 } else { u * TAU }; // exact seam: welds
             let centre = Vec3::new(b.cos(), 0.0, -b.sin()) * major;
             let n = Vec3::new(a.cos() * b.cos(), a.sin(), -a.cos() * b.sin());
             m.positions.push(centre + n * minor);
