@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::mesh::{Mesh, Scene};
 
 pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
-    let gltf = ::gltf::Gltf::from_slice(bytes).map_err(|e| Error::invalid(path, "gltf", e.to_string()))?;
+    let gltf = parse(path, bytes)?;
     let buffers = resolve_buffers(path, &gltf)?;
     let doc = &gltf.document;
     let mut scene = Scene::default();
@@ -59,6 +59,29 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
         }
     }
     Ok(scene)
+}
+
+/// Parses and validates the JSON. The gltf crate's validation indexes a primitive's POSITION
+/// accessor before checking that it exists (a panic on `"POSITION": 7` with no accessor 7, found
+/// by fuzzing), so attribute indices are checked here first.
+fn parse(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
+    let raw = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| Error::invalid(path, "gltf", e.to_string()))?;
+    let root = raw.document.into_json();
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (k, prim) in mesh.primitives.iter().enumerate() {
+            let bad = prim.attributes.values().map(|i| i.value()).chain(prim.indices.map(|i| i.value())).find(|&i| i >= accessors);
+            if let Some(i) = bad {
+                return Err(Error::invalid(
+                    path,
+                    format!("mesh {m} primitive {k}"),
+                    format!("refers to accessor {i}, but the file has {accessors}"),
+                ));
+            }
+        }
+    }
+    let document = ::gltf::Document::from_json(root).map_err(|e| Error::invalid(path, "gltf", e.to_string()))?;
+    Ok(::gltf::Gltf { document, blob: raw.blob })
 }
 
 fn read_primitive(
