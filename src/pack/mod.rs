@@ -185,11 +185,10 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
         (uv_grid.lo * tiles, uv_grid.extent * tiles)
     };
 
+    let ordered = Ordered { grid, uv_grid, float_uvs, positions, normals, uvs, deltas, indices };
     let primitives = match params.layout {
-        Layout::Compact => compact(&mut b, input, &grid, uv_grid, float_uvs, &positions, &normals, &uvs, &deltas, &indices),
-        Layout::SingleDraw => {
-            single_draw(&mut b, input, &grid, uv_grid, float_uvs, &positions, &normals, &uvs, &deltas, &indices)
-        }
+        Layout::Compact => compact(&mut b, input, &ordered),
+        Layout::SingleDraw => single_draw(&mut b, input, &ordered),
     };
     Packed {
         layout: params.layout,
@@ -206,6 +205,18 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
         base_vertices: nv,
         vertex_order: order,
     }
+}
+
+/// The mesh in optimized vertex order with its quantization grids: what both layouts encode.
+struct Ordered {
+    grid: PositionGrid,
+    uv_grid: UvGrid,
+    float_uvs: bool,
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    deltas: Vec<Vec3>,
+    indices: Vec<u32>,
 }
 
 #[derive(Default)]
@@ -296,19 +307,9 @@ impl Builder {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn compact(
-    b: &mut Builder,
-    input: &PackInput,
-    grid: &PositionGrid,
-    uv_grid: UvGrid,
-    float_uvs: bool,
-    positions: &[Vec3],
-    normals: &[Vec3],
-    uvs: &[Vec2],
-    deltas: &[Vec3],
-    indices: &[u32],
-) -> Vec<Primitive> {
+fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
+    let Ordered { grid, uv_grid, float_uvs, positions, normals, uvs, deltas, indices } = s;
+    let (grid, uv_grid, float_uvs) = (*grid, *uv_grid, *float_uvs);
     let q: Vec<[u16; 3]> = positions.iter().map(|&p| grid.quantize(p)).collect();
     let position = b.positions(&q);
     let normal = b.normals(normals);
@@ -392,19 +393,9 @@ pub fn single_draw_cutoff() -> f32 {
     (BASE_CODE as f32 - 0.5) / 255.0
 }
 
-#[allow(clippy::too_many_arguments)]
-fn single_draw(
-    b: &mut Builder,
-    input: &PackInput,
-    grid: &PositionGrid,
-    uv_grid: UvGrid,
-    float_uvs: bool,
-    positions: &[Vec3],
-    normals: &[Vec3],
-    uvs: &[Vec2],
-    deltas: &[Vec3],
-    indices: &[u32],
-) -> Vec<Primitive> {
+fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
+    let Ordered { grid, uv_grid, float_uvs, positions, normals, uvs, deltas, indices } = s;
+    let (grid, uv_grid, float_uvs) = (*grid, *uv_grid, *float_uvs);
     let shells = input.shells;
     let layers = shells.t.len();
     let nv = positions.len();
