@@ -22,6 +22,17 @@ struct Cli {
 enum Command {
     /// Bake a mesh (OBJ, glTF, GLB) into a shelled GLB.
     Bake(BakeArgs),
+    /// Draw a baked GLB to a PNG (headless).
+    Render(shellbake::view::cli::RenderArgs),
+    /// Open a baked GLB in a window: orbit camera, layer and LOD stepping, counters.
+    View(shellbake::view::cli::ViewArgs),
+    /// Bake, then render baked and runtime reference from several cameras and compare.
+    Verify {
+        #[command(flatten)]
+        bake: BakeArgs,
+        #[command(flatten)]
+        verify: shellbake::view::cli::VerifyArgs,
+    },
     /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
     #[command(hide = true)]
     Fixtures { dir: PathBuf },
@@ -132,6 +143,12 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Bake(args) => bake(args),
         Command::Fixtures { dir } => fixtures(dir),
+        Command::Render(args) => shellbake::view::cli::render(args).map_err(Into::into),
+        Command::View(args) => shellbake::view::cli::view(args).map_err(Into::into),
+        Command::Verify { bake, verify } => bake.params().and_then(|p| {
+            let out = bake.output.as_deref();
+            Ok(shellbake::view::cli::verify(&bake.input, &p, verify, out, bake.quiet)?)
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
