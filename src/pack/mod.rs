@@ -5,8 +5,9 @@
 //! JSON. All byte encoding lives here; no JSON is written here.
 //!
 //! Order of work follows meshoptimizer's recommendation: index order for the vertex cache
-//! (`meshopt_optimizeVertexCache`), then vertex order for fetch (`optimizeVertexFetchRemap`),
-//! then quantization. Both are deterministic.
+//! (`meshopt_optimizeVertexCache`), then vertex order for fetch (first use in the index buffer,
+//! as `optimizeVertexFetchRemap` does), then quantization. Both are deterministic. Vertices no
+//! triangle uses are dropped.
 //!
 //! - **compact**: one quantized geometry (POSITION u16, NORMAL i8, TEXCOORD_0 u16, morph target 0
 //!   = extrusion delta i16) shared by every layer; layer `j` is a primitive reusing the same
@@ -145,16 +146,17 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
     // meshopt: vertex cache order, then fetch order.
     let nv = mesh.vertex_count();
     let indices = if nv > 0 { meshopt::optimize_vertex_cache(&mesh.indices, nv) } else { Vec::new() };
-    let fetch = if nv > 0 { meshopt::optimize_vertex_fetch_remap(&indices, nv) } else { Vec::new() };
-    let mut order = vec![u32::MAX; nv];
-    let mut used = 0;
-    for (old, &new) in fetch.iter().enumerate() {
-        if new != u32::MAX {
-            order[new as usize] = old as u32;
-            used = used.max(new as usize + 1);
+    // Fetch order = first use in the cache-ordered index buffer (what meshopt's
+    // optimizeVertexFetchRemap computes; done here because the binding truncates its remap
+    // table when some vertices are unused). Unused vertices are dropped.
+    let mut fetch = vec![u32::MAX; nv];
+    let mut order = Vec::with_capacity(nv);
+    for &i in &indices {
+        if fetch[i as usize] == u32::MAX {
+            fetch[i as usize] = order.len() as u32;
+            order.push(i);
         }
     }
-    order.truncate(used);
     let indices: Vec<u32> = indices.iter().map(|&i| fetch[i as usize]).collect();
     let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
     let positions = pick(&mesh.positions);
