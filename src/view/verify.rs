@@ -31,11 +31,28 @@ pub const VIEWS: [NamedView; 4] = [NamedView::Front, NamedView::Side, NamedView:
 /// Side of the square pictures verify renders by default.
 pub const DEFAULT_SIZE: u32 = 256;
 
-/// Largest FLIP mean a view may show, set on llvmpipe (see the module notes).
-pub const MAX_FLIP_MEAN: f32 = 0.02;
+/// What a view may show between a correct bake and the reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tolerance {
+    /// Largest FLIP mean.
+    pub flip_mean: f32,
+    /// Largest fraction of differing pixels (see `compare::PIXEL_LEVELS`).
+    pub differing: f64,
+}
 
-/// Largest fraction of differing pixels a view may show, set on llvmpipe.
-pub const MAX_DIFFERING_FRACTION: f64 = 0.01;
+/// Tolerances per view, set on **llvmpipe** (Mesa lavapipe, Vulkan, LLVM 15) at 256×256 over the
+/// six fixtures × four presets × two layouts: about twice the worst figure seen for a correct
+/// bake (worst seen: front 0.0068 / 0.70 %, side 0.0056 / 0.39 %, close 0.0249 / 3.19 %, far
+/// 0.0017 / 0.10 %). The close view is the noisiest: strand texels about a pixel wide, seen
+/// through up to 48 layers, where a sub-pixel move of a layer edge changes a pixel.
+pub const fn tolerance(view: NamedView) -> Tolerance {
+    match view {
+        NamedView::Front | NamedView::Top => Tolerance { flip_mean: 0.012, differing: 0.012 },
+        NamedView::Side => Tolerance { flip_mean: 0.011, differing: 0.008 },
+        NamedView::Close => Tolerance { flip_mean: 0.045, differing: 0.055 },
+        NamedView::Far => Tolerance { flip_mean: 0.0035, differing: 0.002 },
+    }
+}
 
 /// One view's result.
 pub struct ViewResult {
@@ -47,20 +64,23 @@ pub struct ViewResult {
 
 impl ViewResult {
     pub fn passed(&self) -> bool {
-        self.comparison.flip_mean <= MAX_FLIP_MEAN && self.comparison.differing_fraction() <= MAX_DIFFERING_FRACTION
+        let t = tolerance(self.view);
+        self.comparison.flip_mean <= t.flip_mean && self.comparison.differing_fraction() <= t.differing
     }
 
     /// One line: view, FLIP mean, differing pixels, verdict.
     pub fn line(&self) -> String {
         let c = &self.comparison;
+        let t = tolerance(self.view);
         format!(
-            "{:<6} FLIP mean {:.5} (max {MAX_FLIP_MEAN})  differing pixels {:>5} of {} = {:.3}% (max {:.1}%; {} differ at all)  {}",
+            "{:<6} FLIP mean {:.5} (max {})  differing pixels {:>5} of {} = {:.3}% (max {:.1}%; {} differ at all)  {}",
             self.view.name(),
             c.flip_mean,
+            t.flip_mean,
             c.differing,
             c.pixels,
             100.0 * c.differing_fraction(),
-            100.0 * MAX_DIFFERING_FRACTION,
+            100.0 * t.differing,
             c.differing_any,
             if self.passed() { "ok" } else { "FAIL" }
         )
