@@ -192,7 +192,7 @@ mod tests {
     #[test]
     fn out_of_range_flags_are_refused() {
         assert!(parse(&["bake", "a.obj", "--layers", "500"]).params().is_err());
-        assert!(parse(&["bake", "a.obj", "--density", "-1"]).params().is_err());
+        assert!(parse(&["bake", "a.obj", "--density=-1"]).params().is_err());
         assert!(Cli::try_parse_from(["shellbake", "bake", "a.obj", "--preset", "hair"]).is_err());
     }
 }
