@@ -683,6 +683,24 @@ mod tests {
     }
 
     #[test]
+    fn msft_lod_levels_pick_the_alternatives() {
+        let doc = json!({
+            "scenes": [{ "nodes": [0] }],
+            "nodes": [
+                { "mesh": 0, "extensions": { "MSFT_lod": { "ids": [1, 2] } } },
+                { "mesh": 1 },
+                { "mesh": 2 }
+            ],
+            "meshes": vec![json!({ "primitives": [{ "attributes": { "POSITION": 0 } }] }); 3],
+            "accessors": [{ "componentType": 5126, "count": 1, "type": "VEC3" }]
+        });
+        let a = Asset::from_parts(doc, Vec::new()).unwrap();
+        assert_eq!(a.lod_levels(), 2);
+        let mesh_at = |lod| a.instances(lod).iter().map(|i| i.mesh).collect::<Vec<_>>();
+        assert_eq!([mesh_at(0), mesh_at(1), mesh_at(2), mesh_at(5)], [vec![0], vec![1], vec![2], vec![2]]);
+    }
+
+    #[test]
     fn texture_transform_matches_offset_and_scale() {
         let m = parse_material(&json!({
             "pbrMetallicRoughness": { "baseColorTexture": { "index": 0,
