@@ -43,7 +43,7 @@ fn golden(name: &str, actual: &RgbaImage) {
 
 /// Little-endian bytes appended to `bin`, 4-aligned; returns the buffer view JSON.
 fn push(bin: &mut Vec<u8>, bytes: &[u8], stride: Option<usize>) -> serde_json::Value {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let offset = bin.len();

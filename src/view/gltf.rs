@@ -3,8 +3,8 @@
 //!
 //! ## Resources
 //! Every accessor is decoded to `f32` and uploaded once, keyed by accessor index, so the compact
-//! layout's layers — thirty meshes sharing one POSITION/NORMAL/TEXCOORD_0/delta/index set — cost
-//! one upload. Per draw, a 256-byte slot of one uniform buffer (bound with a dynamic offset)
+//! layout's layers (one mesh per layer, all sharing one POSITION/NORMAL/TEXCOORD_0/delta/index
+//! set) cost one upload. Per draw, a 256-byte slot of one uniform buffer (bound with a dynamic offset)
 //! holds the model and normal matrices, the material factors, the `KHR_texture_transform` rows
 //! and the morph weights; per material, a bind group holds its base colour texture (`*Srgb`, so
 //! the sampler returns linear colour and untouched alpha) and sampler, or a 1×1 white texture.
