@@ -14,6 +14,9 @@
 //! | pack | [`pack`] | [`pack::pack`] |
 //! | write | [`write`] | [`write::write_glb`] |
 //!
+//! After the pipeline, [`view`] draws what was baked (wgpu), draws the runtime shell technique
+//! from the same input as a reference, and compares the two (`shellbake verify`).
+//!
 //! Each stage runs only when the parameters call for it and the [`report::Report`] lists every
 //! stage as run or skipped.
 
@@ -28,6 +31,8 @@ pub mod procedural;
 pub mod report;
 pub mod shells;
 pub mod strands;
+#[cfg(feature = "view")]
+pub mod view;
 pub mod weld;
 pub mod write;
 

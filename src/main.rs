@@ -22,6 +22,20 @@ struct Cli {
 enum Command {
     /// Bake a mesh (OBJ, glTF, GLB) into a shelled GLB.
     Bake(BakeArgs),
+    /// Draw a baked GLB to a PNG (headless).
+    #[cfg(feature = "view")]
+    Render(shellbake::view::cli::RenderArgs),
+    /// Open a baked GLB in a window: orbit camera, layer and LOD stepping, counters.
+    #[cfg(feature = "view")]
+    View(shellbake::view::cli::ViewArgs),
+    /// Bake, then render baked and runtime reference from several cameras and compare.
+    #[cfg(feature = "view")]
+    Verify {
+        #[command(flatten)]
+        bake: BakeArgs,
+        #[command(flatten)]
+        verify: shellbake::view::cli::VerifyArgs,
+    },
     /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
     #[command(hide = true)]
     Fixtures {
@@ -179,6 +193,15 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Bake(args) => bake(args),
         Command::Fixtures { dir, dense } => fixtures(dir, *dense),
+        #[cfg(feature = "view")]
+        Command::Render(args) => shellbake::view::cli::render(args).map_err(Into::into),
+        #[cfg(feature = "view")]
+        Command::View(args) => shellbake::view::cli::view(args).map_err(Into::into),
+        #[cfg(feature = "view")]
+        Command::Verify { bake, verify } => bake.params().and_then(|p| {
+            let out = bake.output.as_deref();
+            Ok(shellbake::view::cli::verify(&bake.input, &p, verify, out, bake.quiet)?)
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

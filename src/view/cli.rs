@@ -1,0 +1,179 @@
+//! The `render`, `view` and `verify` commands: their flags (first tier, close to clap) and the
+//! functions the binary dispatches to. `verify` takes the bake flags from the binary's
+//! `BakeArgs` (already turned into [`BakeParams`]) plus [`VerifyArgs`].
+
+use std::path::{Path, PathBuf};
+
+use super::camera::{Camera, NamedView, Orbit};
+use super::glb::Asset;
+use super::gltf::GltfRenderer;
+use super::gpu::{save_png, Gpu, Light, Result, ViewError};
+use super::reference::ReferenceInput;
+use super::verify;
+use crate::params::BakeParams;
+
+/// `WxH`, e.g. `512x512`.
+pub fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("expected WxH, got '{s}'"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("bad width in '{s}'"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("bad height in '{s}'"))?;
+    if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
+        return Err(format!("size must be within 1..=8192 on each side, got '{s}'"));
+    }
+    Ok((w, h))
+}
+
+/// Camera flags shared by `render` and `view`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct CameraArgs {
+    /// Named camera; --yaw/--pitch/--distance override its parts.
+    #[arg(long, value_enum, default_value = "front")]
+    pub view: NamedView,
+    /// Orbit angle about +Y in degrees (0 looks from +Z).
+    #[arg(long, allow_hyphen_values = true)]
+    pub yaw: Option<f64>,
+    /// Elevation in degrees, -89..89.
+    #[arg(long, allow_hyphen_values = true)]
+    pub pitch: Option<f64>,
+    /// Eye distance in multiples of the bounding radius [default: the view's, or fit].
+    #[arg(long)]
+    pub distance: Option<f64>,
+}
+
+impl CameraArgs {
+    /// Second tier: the named view, then each flag that was given.
+    pub fn orbit(&self) -> Orbit {
+        let mut o = self.view.orbit();
+        if let Some(y) = self.yaw {
+            o.yaw_deg = y;
+        }
+        if let Some(p) = self.pitch {
+            o.pitch_deg = p.clamp(-89.0, 89.0);
+        }
+        if let Some(d) = self.distance {
+            o.distance = Some(d);
+        }
+        o
+    }
+}
+
+/// `shellbake render`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct RenderArgs {
+    /// Baked GLB to draw.
+    pub input: PathBuf,
+    /// Output PNG.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Picture size.
+    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    pub size: (u32, u32),
+    #[command(flatten)]
+    pub camera: CameraArgs,
+}
+
+/// `shellbake view`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ViewArgs {
+    /// Baked GLB to open.
+    pub input: PathBuf,
+    /// Window size.
+    #[arg(long, default_value = "1024x768", value_parser = parse_size)]
+    pub size: (u32, u32),
+    #[command(flatten)]
+    pub camera: CameraArgs,
+    /// Render --frames frames, save the last one from the window surface to this PNG, exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Frames to render before the screenshot.
+    #[arg(long, default_value_t = 3)]
+    pub frames: u32,
+}
+
+/// `shellbake verify` flags besides the bake flags.
+#[derive(clap::Args, Clone, Debug)]
+pub struct VerifyArgs {
+    /// Folder for the reference, baked and difference pictures.
+    #[arg(long, default_value = "out/verify")]
+    pub out_dir: PathBuf,
+    /// Side of the square pictures.
+    #[arg(long, default_value_t = verify::DEFAULT_SIZE)]
+    pub size: u32,
+}
+
+/// Runs `render`.
+pub fn render(args: &RenderArgs) -> Result<()> {
+    let gpu = Gpu::new()?;
+    let mut r = GltfRenderer::new(&gpu, Asset::open(&args.input)?)?;
+    let (w, h) = args.size;
+    let camera = Camera::frame(r.bounds, args.camera.orbit(), w as f64 / h as f64);
+    let image = super::render_gltf(&gpu, &mut r, &camera, &Light::default(), args.size);
+    save_png(&image, &args.output)
+}
+
+/// Runs `view`.
+pub fn view(args: &ViewArgs) -> Result<()> {
+    let asset = Asset::open(&args.input)?;
+    let title = args.input.file_name().map_or("shellbake".into(), |n| n.to_string_lossy().into_owned());
+    super::window::run(
+        asset,
+        super::window::ViewOptions {
+            title,
+            size: args.size,
+            orbit: args.camera.orbit(),
+            screenshot: args.screenshot.clone(),
+            frames: args.frames,
+        },
+    )
+}
+
+/// Runs `verify`: bakes `input` with `params`, writes the GLB to `glb_out` when given, renders
+/// baked and reference, prints one line per view and fails when a view exceeds the tolerance.
+pub fn verify(input: &Path, params: &BakeParams, args: &VerifyArgs, glb_out: Option<&Path>, quiet: bool) -> Result<()> {
+    let scene = crate::load::load(input)?;
+    let baked = crate::bake(&scene, params);
+    if let Some(path) = glb_out {
+        crate::write::write_glb(path, &baked.glb)?;
+    }
+    let gpu = Gpu::new()?;
+    let result = verify::verify(&gpu, &baked.glb, ReferenceInput::from_baked(&baked, params), args.size)?;
+    let stem = input.file_stem().map_or("input".into(), |s| s.to_string_lossy().into_owned());
+    result.write_pictures(&args.out_dir, &stem)?;
+    if !quiet {
+        println!("verify {} on {} ({}x{})", input.display(), result.adapter, args.size, args.size);
+        for v in &result.views {
+            println!("  {}", v.line());
+        }
+        println!("  pictures in {}", args.out_dir.display());
+    }
+    if result.passed() {
+        Ok(())
+    } else {
+        let failed: Vec<&str> = result.views.iter().filter(|v| !v.passed()).map(|v| v.view.name()).collect();
+        Err(ViewError::Verify(format!(
+            "{}: baked and reference differ beyond the tolerance in view(s) {}",
+            input.display(),
+            failed.join(", ")
+        )))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_and_bad_sizes_are_refused() {
+        assert_eq!(parse_size("256x128"), Ok((256, 128)));
+        assert!(parse_size("256").is_err());
+        assert!(parse_size("0x5").is_err());
+        assert!(parse_size("axb").is_err());
+    }
+
+    #[test]
+    fn flags_override_the_named_view() {
+        let args = CameraArgs { view: NamedView::Side, yaw: None, pitch: Some(120.0), distance: Some(2.0) };
+        let o = args.orbit();
+        assert_eq!((o.yaw_deg, o.pitch_deg, o.distance), (90.0, 89.0, Some(2.0)));
+    }
+}

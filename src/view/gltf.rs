@@ -1,0 +1,610 @@
+//! The glTF renderer: draws a parsed [`Asset`] (the subset shellbake writes, and the general
+//! features listed in `glb.rs`) into a render pass.
+//!
+//! ## Resources
+//! Every accessor is decoded to `f32` and uploaded once, keyed by accessor index, so the compact
+//! layout's layers (one mesh per layer, all sharing one POSITION/NORMAL/TEXCOORD_0/delta/index
+//! set) cost one upload. Per draw, a 256-byte slot of one uniform buffer (bound with a dynamic offset)
+//! holds the model and normal matrices, the material factors, the `KHR_texture_transform` rows
+//! and the morph weights; per material, a bind group holds its base colour texture (`*Srgb`, so
+//! the sampler returns linear colour and untouched alpha) and sampler, or a 1×1 white texture.
+//!
+//! ## Pipelines
+//! One pipeline per (morph target count, COLOR_0 present, BLEND, culled, mirrored, target
+//! format), built on first use. The WGSL is specialised by text substitution rather than by
+//! binding zero streams for absent attributes: a primitive fetches only what it has, which keeps
+//! the GPU timings of the two layouts honest. Back faces are culled unless `doubleSided`; a
+//! world matrix with negative determinant flips the front face (glTF 3.7.4).
+//!
+//! ## Order
+//! OPAQUE draws first, then MASK, then BLEND (unsorted, no depth write — shellbake writes no
+//! BLEND materials, so no sorting was built), each class in file order. With depth test `Less`,
+//! alpha-tested layers give the same picture in any order except on exact depth ties, where file
+//! order (inner layer first) wins — the same order the runtime reference draws its instances in.
+//!
+//! ## Layers and LODs
+//! [`GltfRenderer::set_layer_limit`] shows layers `0..=k`: in a compact file layer `j` is the
+//! `j`-th child of the shellbake node; in a single-draw file (one primitive, indices ordered
+//! inner to outer, `extras.shellbake.layers` = L) it is the first `(k+1)/L` of the index range.
+//! [`GltfRenderer::set_lod`] selects `MSFT_lod` alternatives.
+
+use std::collections::HashMap;
+
+use glam::{DMat3, DMat4, DVec3};
+use wgpu::util::DeviceExt as _;
+
+use super::camera::{Camera, Sphere};
+use super::glb::{AlphaMode, Asset, Material, SamplerDesc, Wrap};
+use super::gpu::{self, Frame, Gpu, Light, Result};
+
+const DRAW_SLOT: u64 = 256;
+const WGSL: &str = include_str!("gltf.wgsl");
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DrawData {
+    model: [f32; 16],
+    normal_matrix: [f32; 16],
+    base_color: [f32; 4],
+    uv_row0: [f32; 4],
+    uv_row1: [f32; 4],
+    weights: [f32; 4],
+    material: [f32; 4],
+    emissive: [f32; 4],
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct Key {
+    targets: usize,
+    color: bool,
+    blend: bool,
+    cull: bool,
+    mirrored: bool,
+    format: wgpu::TextureFormat,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Class {
+    Opaque,
+    Mask,
+    Blend,
+}
+
+struct DrawCall {
+    world: DMat4,
+    weights: [f32; 4],
+    material: Material,
+    material_group: usize,
+    position: usize,
+    normal: Stream,
+    texcoord: Stream,
+    color: Option<usize>,
+    targets: Vec<usize>,
+    indices: Option<usize>,
+    /// Indices (or vertices when unindexed) of the whole primitive.
+    elements: u32,
+    class: Class,
+    layer: usize,
+}
+
+#[derive(Clone, Copy)]
+enum Stream {
+    Accessor(usize),
+    /// Absent: zeros of this many components for the vertex count.
+    Zeros(u64, usize),
+}
+
+/// Draws a glTF asset.
+pub struct GltfRenderer {
+    pub asset: Asset,
+    frame: Frame,
+    draw_layout: wgpu::BindGroupLayout,
+    pipeline_layout: wgpu::PipelineLayout,
+    shaders: HashMap<(usize, bool), wgpu::ShaderModule>,
+    pipelines: HashMap<Key, wgpu::RenderPipeline>,
+    buffers: HashMap<usize, wgpu::Buffer>,
+    zeros: HashMap<(u64, usize), wgpu::Buffer>,
+    index_buffers: HashMap<usize, wgpu::Buffer>,
+    material_groups: Vec<wgpu::BindGroup>,
+    draw_buffer: wgpu::Buffer,
+    draw_group: wgpu::BindGroup,
+    draws: Vec<DrawCall>,
+    lod: usize,
+    layer_limit: Option<usize>,
+    format: Option<wgpu::TextureFormat>,
+    /// Bounding sphere of LOD 0, morph extents included.
+    pub bounds: Sphere,
+}
+
+impl GltfRenderer {
+    /// Uploads `asset`.
+    pub fn new(gpu: &Gpu, asset: Asset) -> Result<GltfRenderer> {
+        let device = &gpu.device;
+        let frame = Frame::new(gpu);
+        let draw_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("draw"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<DrawData>() as u64),
+                },
+                count: None,
+            }],
+        });
+        let material_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("material"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("gltf"),
+            bind_group_layouts: &[Some(&frame.layout), Some(&draw_layout), Some(&material_layout)],
+            immediate_size: 0,
+        });
+
+        // Textures: one GPU texture per glTF texture, plus white for untextured materials.
+        let white = upload_texture(gpu, 1, 1, &[255; 4]);
+        let textures: Vec<(wgpu::TextureView, wgpu::Sampler)> = asset
+            .textures
+            .iter()
+            .map(|t| (upload_texture(gpu, t.width, t.height, &t.rgba), make_sampler(gpu, t.sampler)))
+            .collect();
+        let default_sampler = make_sampler(gpu, SamplerDesc::default());
+        let group = |view: &wgpu::TextureView, sampler: &wgpu::Sampler| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("material"),
+                layout: &material_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(view) },
+                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(sampler) },
+                ],
+            })
+        };
+        let mut material_groups: Vec<wgpu::BindGroup> = asset
+            .materials
+            .iter()
+            .map(|m| match m.texture {
+                Some(t) => group(&textures[t].0, &textures[t].1),
+                None => group(&white, &default_sampler),
+            })
+            .collect();
+        material_groups.push(group(&white, &default_sampler)); // the default material
+
+        let bounds = match asset.bounds()? {
+            Some((lo, hi)) => Sphere::around_box(lo, hi),
+            None => Sphere { center: DVec3::ZERO, radius: 1.0 },
+        };
+        let draw_buffer = make_draw_buffer(gpu, 1);
+        let draw_group = make_draw_group(gpu, &draw_layout, &draw_buffer);
+        let mut r = GltfRenderer {
+            asset,
+            frame,
+            draw_layout,
+            pipeline_layout,
+            shaders: HashMap::new(),
+            pipelines: HashMap::new(),
+            buffers: HashMap::new(),
+            zeros: HashMap::new(),
+            index_buffers: HashMap::new(),
+            material_groups,
+            draw_buffer,
+            draw_group,
+            draws: Vec::new(),
+            lod: 0,
+            layer_limit: None,
+            format: None,
+            bounds,
+        };
+        r.build_draws(gpu)?;
+        Ok(r)
+    }
+
+    /// Parses and uploads GLB bytes.
+    pub fn from_glb(gpu: &Gpu, glb: &[u8]) -> Result<GltfRenderer> {
+        GltfRenderer::new(gpu, Asset::from_glb(glb)?)
+    }
+
+    /// Number of shell layers (or top-level meshes) the layer limit steps through.
+    pub fn layer_count(&self) -> usize {
+        self.asset.shell_layers.unwrap_or_else(|| self.draws.iter().map(|d| d.layer + 1).max().unwrap_or(0))
+    }
+
+    /// Shows layers `0..=k` only (`None`: all).
+    pub fn set_layer_limit(&mut self, k: Option<usize>) {
+        self.layer_limit = k;
+    }
+
+    pub fn lod_levels(&self) -> usize {
+        self.asset.lod_levels()
+    }
+
+    /// Draws `MSFT_lod` level `lod` (0 = the full asset).
+    pub fn set_lod(&mut self, gpu: &Gpu, lod: usize) -> Result<()> {
+        self.lod = lod.min(self.lod_levels());
+        self.build_draws(gpu)
+    }
+
+    fn single_draw_layers(&self) -> Option<u32> {
+        let l = self.asset.shell_layers? as u32;
+        (self.draws.len() == 1 && l > 0 && self.draws[0].elements.is_multiple_of(3 * l)).then_some(l)
+    }
+
+    /// Elements drawn of each draw call under the current layer limit (0 = skipped).
+    fn visible_elements(&self) -> Vec<u32> {
+        let single = self.single_draw_layers();
+        self.draws
+            .iter()
+            .map(|d| match (self.layer_limit, single) {
+                (None, _) => d.elements,
+                (Some(k), Some(l)) => d.elements / l * (k as u32 + 1).min(l),
+                (Some(k), None) => {
+                    if d.layer <= k {
+                        d.elements
+                    } else {
+                        0
+                    }
+                }
+            })
+            .collect()
+    }
+
+    /// Triangles drawn per frame under the current layer limit and LOD.
+    pub fn triangles(&self) -> usize {
+        self.visible_elements().iter().map(|&e| e as usize / 3).sum()
+    }
+
+    /// Draw calls per frame under the current layer limit and LOD.
+    pub fn draw_calls(&self) -> usize {
+        self.visible_elements().iter().filter(|&&e| e > 0).count()
+    }
+
+    fn build_draws(&mut self, gpu: &Gpu) -> Result<()> {
+        let mut draws = Vec::new();
+        for inst in self.asset.instances(self.lod) {
+            let mesh = &self.asset.meshes[inst.mesh];
+            for prim in &mesh.primitives {
+                let material = prim.material.map(|m| self.asset.materials[m].clone()).unwrap_or_default();
+                let material_group = prim.material.unwrap_or(self.asset.materials.len());
+                let vertices = self.asset.floats(prim.position)?.count();
+                let mut accessors: Vec<usize> = vec![prim.position];
+                accessors.extend(prim.normal);
+                accessors.extend(prim.texcoord);
+                accessors.extend(prim.color);
+                accessors.extend(&prim.targets);
+                for a in accessors {
+                    if !self.buffers.contains_key(&a) {
+                        let f = self.asset.floats(a)?;
+                        let data = if a == prim.color.unwrap_or(usize::MAX) && f.components == 3 {
+                            // COLOR_0 VEC3: alpha 1
+                            f.data.chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 1.0]).collect()
+                        } else {
+                            f.data
+                        };
+                        self.buffers.insert(a, vertex_buffer(gpu, &data));
+                    }
+                }
+                let normal = match prim.normal {
+                    Some(a) => Stream::Accessor(a),
+                    None => Stream::Zeros(3, vertices),
+                };
+                let texcoord = match prim.texcoord {
+                    Some(a) => Stream::Accessor(a),
+                    None => Stream::Zeros(2, vertices),
+                };
+                for s in [normal, texcoord] {
+                    if let Stream::Zeros(c, n) = s {
+                        self.zeros.entry((c, n)).or_insert_with(|| vertex_buffer(gpu, &vec![0.0; c as usize * n.max(1)]));
+                    }
+                }
+                let elements = match prim.indices {
+                    Some(a) => {
+                        if !self.index_buffers.contains_key(&a) {
+                            let ix = self.asset.indices(a)?;
+                            if let Some(bad) = ix.iter().find(|&&i| i as usize >= vertices) {
+                                return Err(gpu::ViewError::Glb(super::glb::GlbError {
+                                    what: format!("index accessor {a}: index {bad} is out of range ({vertices} vertices)"),
+                                }));
+                            }
+                            let buf = gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                                label: Some("indices"),
+                                contents: bytemuck::cast_slice(&ix),
+                                usage: wgpu::BufferUsages::INDEX,
+                            });
+                            self.index_buffers.insert(a, buf);
+                        }
+                        self.asset.indices(a)?.len() as u32
+                    }
+                    None => vertices as u32,
+                };
+                let mut weights = [0.0; 4];
+                for (i, w) in weights.iter_mut().enumerate().take(prim.targets.len()) {
+                    *w = inst.weights.get(i).copied().unwrap_or(0.0);
+                }
+                let class = match material.alpha {
+                    AlphaMode::Opaque => Class::Opaque,
+                    AlphaMode::Mask(_) => Class::Mask,
+                    AlphaMode::Blend => Class::Blend,
+                };
+                draws.push(DrawCall {
+                    world: inst.world,
+                    weights,
+                    material,
+                    material_group,
+                    position: prim.position,
+                    normal,
+                    texcoord,
+                    color: prim.color,
+                    targets: prim.targets.clone(),
+                    indices: prim.indices,
+                    elements: elements - elements % 3,
+                    class,
+                    layer: inst.sibling,
+                });
+            }
+        }
+        draws.sort_by_key(|d| d.class);
+        if draws.len() as u64 * DRAW_SLOT > self.draw_buffer.size() {
+            self.draw_buffer = make_draw_buffer(gpu, draws.len());
+            self.draw_group = make_draw_group(gpu, &self.draw_layout, &self.draw_buffer);
+        }
+        self.draws = draws;
+        Ok(())
+    }
+
+    fn key(&self, d: &DrawCall, format: wgpu::TextureFormat) -> Key {
+        Key {
+            targets: d.targets.len(),
+            color: d.color.is_some(),
+            blend: d.class == Class::Blend,
+            cull: !d.material.double_sided,
+            mirrored: DMat3::from_mat4(d.world).determinant() < 0.0,
+            format,
+        }
+    }
+
+    /// Writes the camera, light and per-draw uniforms and builds the pipelines for `format`.
+    pub fn prepare(&mut self, gpu: &Gpu, camera: &Camera, light: &Light, format: wgpu::TextureFormat) {
+        self.frame.write(gpu, camera, light);
+        let anchor = DMat4::from_translation(-camera.anchor());
+        let mut bytes = vec![0u8; self.draws.len() * DRAW_SLOT as usize];
+        for (i, d) in self.draws.iter().enumerate() {
+            let model = anchor * d.world;
+            let normal = DMat4::from_mat3(DMat3::from_mat4(d.world).inverse().transpose());
+            let m = &d.material;
+            let (cutoff, mode) = match m.alpha {
+                AlphaMode::Opaque => (0.0, 0.0),
+                AlphaMode::Mask(c) => (c, 1.0),
+                AlphaMode::Blend => (0.0, 2.0),
+            };
+            let flat = matches!(d.normal, Stream::Zeros(..));
+            let data = DrawData {
+                model: model.as_mat4().to_cols_array(),
+                normal_matrix: normal.as_mat4().to_cols_array(),
+                base_color: m.base_color,
+                uv_row0: [m.uv_transform[0][0], m.uv_transform[0][1], m.uv_transform[0][2], 0.0],
+                uv_row1: [m.uv_transform[1][0], m.uv_transform[1][1], m.uv_transform[1][2], 0.0],
+                weights: d.weights,
+                material: [m.metallic, m.roughness, cutoff, mode],
+                emissive: [m.emissive[0], m.emissive[1], m.emissive[2], if flat { 1.0 } else { 0.0 }],
+            };
+            let o = i * DRAW_SLOT as usize;
+            bytes[o..o + std::mem::size_of::<DrawData>()].copy_from_slice(bytemuck::bytes_of(&data));
+        }
+        if !bytes.is_empty() {
+            gpu.queue.write_buffer(&self.draw_buffer, 0, &bytes);
+        }
+        for i in 0..self.draws.len() {
+            let key = self.key(&self.draws[i], format);
+            if !self.pipelines.contains_key(&key) {
+                let p = self.build_pipeline(gpu, key);
+                self.pipelines.insert(key, p);
+            }
+        }
+        self.format = Some(format);
+    }
+
+    fn build_pipeline(&mut self, gpu: &Gpu, key: Key) -> wgpu::RenderPipeline {
+        let module = self
+            .shaders
+            .entry((key.targets, key.color))
+            .or_insert_with(|| {
+                let mut inputs = String::new();
+                let mut morph = String::new();
+                if key.color {
+                    inputs.push_str("    @location(3) color: vec4<f32>,\n");
+                }
+                for t in 0..key.targets {
+                    inputs.push_str(&format!("    @location({}) target{t}: vec3<f32>,\n", 4 + t));
+                    morph.push_str(&format!("    p += in.target{t} * draw.weights[{t}];\n"));
+                }
+                let color = if key.color { "    out.color = in.color;\n" } else { "    out.color = vec4<f32>(1.0);\n" };
+                let src = format!(
+                    "{}\n{}",
+                    gpu::COMMON_WGSL,
+                    WGSL.replace("//INPUTS\n", &inputs).replace("//MORPH\n", &morph).replace("//COLOR\n", color)
+                );
+                gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("gltf"),
+                    source: wgpu::ShaderSource::Wgsl(src.into()),
+                })
+            })
+            .clone();
+        let attrs: Vec<[wgpu::VertexAttribute; 1]> = {
+            let mut v = vec![
+                [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 0 }],
+                [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 1 }],
+                [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x2, offset: 0, shader_location: 2 }],
+            ];
+            if key.color {
+                v.push([wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x4, offset: 0, shader_location: 3 }]);
+            }
+            for t in 0..key.targets {
+                v.push([wgpu::VertexAttribute {
+                    format: wgpu::VertexFormat::Float32x3,
+                    offset: 0,
+                    shader_location: 4 + t as u32,
+                }]);
+            }
+            v
+        };
+        let layouts: Vec<Option<wgpu::VertexBufferLayout>> = attrs
+            .iter()
+            .map(|a| {
+                let stride = match a[0].format {
+                    wgpu::VertexFormat::Float32x2 => 8,
+                    wgpu::VertexFormat::Float32x3 => 12,
+                    _ => 16,
+                };
+                Some(wgpu::VertexBufferLayout { array_stride: stride, step_mode: wgpu::VertexStepMode::Vertex, attributes: a })
+            })
+            .collect();
+        let blend = key.blend.then_some(wgpu::BlendState::ALPHA_BLENDING);
+        gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("gltf"),
+            layout: Some(&self.pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &layouts,
+            },
+            primitive: gpu::primitive_state(key.cull, key.mirrored),
+            depth_stencil: Some(gpu::depth_state(!key.blend)),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState { format: key.format, blend, write_mask: wgpu::ColorWrites::ALL })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    }
+
+    /// Records the draws into `pass` (after [`GltfRenderer::prepare`] for the pass's format).
+    pub fn record(&self, pass: &mut wgpu::RenderPass<'_>) {
+        let format = self.format.expect("prepare() before record()");
+        pass.set_bind_group(0, &self.frame.bind_group, &[]);
+        for (i, (d, elements)) in self.draws.iter().zip(self.visible_elements()).enumerate() {
+            if elements == 0 {
+                continue;
+            }
+            pass.set_pipeline(&self.pipelines[&self.key(d, format)]);
+            pass.set_bind_group(1, &self.draw_group, &[(i as u64 * DRAW_SLOT) as u32]);
+            pass.set_bind_group(2, &self.material_groups[d.material_group], &[]);
+            let stream = |s: Stream| match s {
+                Stream::Accessor(a) => &self.buffers[&a],
+                Stream::Zeros(c, n) => &self.zeros[&(c, n)],
+            };
+            pass.set_vertex_buffer(0, self.buffers[&d.position].slice(..));
+            pass.set_vertex_buffer(1, stream(d.normal).slice(..));
+            pass.set_vertex_buffer(2, stream(d.texcoord).slice(..));
+            let mut slot = 3;
+            if let Some(c) = d.color {
+                pass.set_vertex_buffer(slot, self.buffers[&c].slice(..));
+                slot += 1;
+            }
+            for t in &d.targets {
+                pass.set_vertex_buffer(slot, self.buffers[t].slice(..));
+                slot += 1;
+            }
+            match d.indices {
+                Some(a) => {
+                    pass.set_index_buffer(self.index_buffers[&a].slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..elements, 0, 0..1);
+                }
+                None => pass.draw(0..elements, 0..1),
+            }
+        }
+    }
+}
+
+fn vertex_buffer(gpu: &Gpu, data: &[f32]) -> wgpu::Buffer {
+    let data: &[f32] = if data.is_empty() { &[0.0; 4] } else { data };
+    gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("vertices"),
+        contents: bytemuck::cast_slice(data),
+        usage: wgpu::BufferUsages::VERTEX,
+    })
+}
+
+fn make_draw_buffer(gpu: &Gpu, draws: usize) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("draws"),
+        size: draws.max(1) as u64 * DRAW_SLOT,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+fn make_draw_group(gpu: &Gpu, layout: &wgpu::BindGroupLayout, buffer: &wgpu::Buffer) -> wgpu::BindGroup {
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("draws"),
+        layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer,
+                offset: 0,
+                size: wgpu::BufferSize::new(std::mem::size_of::<DrawData>() as u64),
+            }),
+        }],
+    })
+}
+
+/// Uploads RGBA8 pixels as an sRGB texture (base colour textures are sRGB in glTF).
+fn upload_texture(gpu: &Gpu, width: u32, height: u32, rgba: &[u8]) -> wgpu::TextureView {
+    let texture = gpu.device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("base colour"),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        rgba,
+    );
+    texture.create_view(&Default::default())
+}
+
+fn make_sampler(gpu: &Gpu, s: SamplerDesc) -> wgpu::Sampler {
+    let wrap = |w: Wrap| match w {
+        Wrap::Repeat => wgpu::AddressMode::Repeat,
+        Wrap::Clamp => wgpu::AddressMode::ClampToEdge,
+        Wrap::Mirror => wgpu::AddressMode::MirrorRepeat,
+    };
+    let filter = |nearest: bool| if nearest { wgpu::FilterMode::Nearest } else { wgpu::FilterMode::Linear };
+    gpu.device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("sampler"),
+        address_mode_u: wrap(s.wrap_u),
+        address_mode_v: wrap(s.wrap_v),
+        mag_filter: filter(s.mag_nearest),
+        min_filter: filter(s.min_nearest),
+        ..Default::default()
+    })
+}

@@ -1,0 +1,159 @@
+//! `verify` on every fixture × preset × layout (it must pass), and on deliberately wrong bakes
+//! (it must fail). Runs on whatever adapter wgpu finds; the tolerances were set on llvmpipe.
+//!
+//! On failure the reference, baked (`-actual`) and FLIP (`-difference`) pictures are written to
+//! `out/view-tests/` (git-ignored). `cargo test --test view_verify -- --nocapture` prints the
+//! figures of every view.
+
+#![cfg(feature = "view")]
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use shellbake::params::{BakeParams, Layout, Preset};
+use shellbake::view::verify::{self, Verification};
+use shellbake::view::{Gpu, ReferenceInput};
+
+const SIZE: u32 = 256;
+
+fn gpu() -> &'static Gpu {
+    static GPU: OnceLock<Gpu> = OnceLock::new();
+    GPU.get_or_init(|| Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)"))
+}
+
+fn bake(fixture: &str, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
+    let mut params = BakeParams::preset(preset);
+    params.pack.layout = layout;
+    let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).expect("fixture loads");
+    (shellbake::bake(&scene, &params), params)
+}
+
+fn layout_name(l: Layout) -> &'static str {
+    match l {
+        Layout::Compact => "compact",
+        Layout::SingleDraw => "single-draw",
+    }
+}
+
+fn save_failure(v: &Verification, name: &str) {
+    let dir = Path::new("out/view-tests");
+    for r in &v.views {
+        let f = |kind: &str| dir.join(format!("{name}-{}-{kind}.png", r.view.name()));
+        let _ = std::fs::create_dir_all(dir);
+        let _ = r.reference.save(f("reference"));
+        let _ = r.baked.save(f("actual"));
+        let _ = r.comparison.difference.save(f("difference"));
+    }
+}
+
+fn row(name: &str, v: &Verification) -> String {
+    let cells: Vec<String> = v
+        .views
+        .iter()
+        .map(|r| format!("{} {:.4} {:.2}%", r.view.name(), r.comparison.flip_mean, 100.0 * r.comparison.differing_fraction()))
+        .collect();
+    format!("{name:<28} {}", cells.join(" | "))
+}
+
+fn verify_fixture(fixture: &str) {
+    let mut failures = Vec::new();
+    for preset in Preset::ALL {
+        for layout in [Layout::Compact, Layout::SingleDraw] {
+            let (baked, params) = bake(fixture, preset, layout);
+            let v = verify::verify(gpu(), &baked.glb, ReferenceInput::from_baked(&baked, &params), SIZE).unwrap();
+            let name = format!("{fixture}-{}-{}", preset.name(), layout_name(layout));
+            println!("{}", row(&name, &v));
+            if !v.passed() {
+                save_failure(&v, &name);
+                failures.push(format!("{name}:\n  {}", v.views.iter().map(|r| r.line()).collect::<Vec<_>>().join("\n  ")));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "verify failed on {} bake(s):\n{}", failures.len(), failures.join("\n"));
+}
+
+#[test]
+fn verify_passes_on_plane() {
+    verify_fixture("plane");
+}
+
+#[test]
+fn verify_passes_on_sphere() {
+    verify_fixture("sphere");
+}
+
+#[test]
+fn verify_passes_on_torus() {
+    verify_fixture("torus");
+}
+
+#[test]
+fn verify_passes_on_cube() {
+    verify_fixture("cube");
+}
+
+#[test]
+fn verify_passes_on_bunny() {
+    verify_fixture("bunny");
+}
+
+#[test]
+fn verify_passes_on_teapot() {
+    verify_fixture("teapot");
+}
+
+/// The bake with every shell layer shown one layer too high: compact files get the next layer's
+/// `alphaCutoff`, single-draw files the next layer's `COLOR_0` alpha.
+fn off_by_one_layer(baked: &shellbake::Baked) -> Vec<u8> {
+    let (mut doc, mut bin) = shellbake::view::glb::split_glb(&baked.glb).unwrap();
+    let steps = &baked.shells.steps;
+    let next = |j: usize| if j + 1 < steps.len() { steps[j + 1] } else { 2 * steps[j] - steps[j - 1] };
+    match baked.packed.layout {
+        Layout::Compact => {
+            for (j, m) in doc["materials"].as_array_mut().unwrap().iter_mut().enumerate().skip(1) {
+                m["alphaCutoff"] = serde_json::json!(shellbake::strands::step_cutoff(next(j)));
+            }
+        }
+        Layout::SingleDraw => {
+            let color = doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"].as_u64().unwrap() as usize;
+            let view = doc["accessors"][color]["bufferView"].as_u64().unwrap() as usize;
+            let offset = doc["bufferViews"][view]["byteOffset"].as_u64().unwrap_or(0) as usize;
+            let per_layer = doc["accessors"][color]["count"].as_u64().unwrap() as usize / steps.len();
+            for j in 1..steps.len() {
+                let a = shellbake::pack::single_draw_alpha(next(j)).to_le_bytes();
+                for v in 0..per_layer {
+                    let o = offset + 8 * (j * per_layer + v) + 6;
+                    bin[o..o + 2].copy_from_slice(&a);
+                }
+            }
+        }
+    }
+    shellbake::write::glb_bytes(&doc, &bin)
+}
+
+#[test]
+fn verify_fails_when_the_bake_is_off_by_one_layer() {
+    for (fixture, preset) in [("bunny", Preset::Fur), ("sphere", Preset::Carpet), ("plane", Preset::Grass), ("torus", Preset::Moss)] {
+        for layout in [Layout::Compact, Layout::SingleDraw] {
+            let (baked, params) = bake(fixture, preset, layout);
+            let wrong = off_by_one_layer(&baked);
+            let v = verify::verify(gpu(), &wrong, ReferenceInput::from_baked(&baked, &params), SIZE).unwrap();
+            let name = format!("off-by-one-{fixture}-{}-{}", preset.name(), layout_name(layout));
+            println!("{}", row(&name, &v));
+            if v.passed() {
+                save_failure(&v, &name);
+            }
+            assert!(!v.passed(), "{name}: verify did not notice:\n  {}", v.views.iter().map(|r| r.line()).collect::<Vec<_>>().join("\n  "));
+        }
+    }
+}
+
+#[test]
+fn verify_fails_when_the_strands_come_from_another_seed() {
+    let (baked, params) = bake("sphere", Preset::Fur, Layout::Compact);
+    let mut other = params.clone();
+    other.strands.seed += 1;
+    let v = verify::verify(gpu(), &baked.glb, ReferenceInput::from_baked(&baked, &other), SIZE).unwrap();
+    println!("{}", row("other-seed-sphere-fur", &v));
+    assert!(!v.passed());
+}
