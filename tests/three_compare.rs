@@ -1,0 +1,127 @@
+//! An outside client: three.js (GLTFLoader + MeshStandardMaterial, stock) in headless Chromium
+//! renders the same baked files from the same cameras as the wgpu viewer; FLIP between the two
+//! must stay under [`THREE_FLIP`] and the share of differing pixels under [`THREE_PIXELS`]. This
+//! is what shows the output works in a viewer nobody here wrote.
+//!
+//! The lights are matched: three.js's direct term is `NdotL · I · (diffuse/π + specular)` and
+//! its ambient term `I_ambient · diffuse/π`, so the directional light gets the viewer's radiance
+//! scale and the ambient light π times the viewer's ambient. Remaining differences are the BRDFs'
+//! details (three.js uses a height-correlated Smith visibility and no `(1 − F)` on diffuse) and
+//! rasterization rules (SwiftShader vs llvmpipe).
+//!
+//! Thresholds set with Chromium's SwiftShader against wgpu on llvmpipe, about twice the worst
+//! figure seen. A bake with another strand seed must fail them (so the test can fail).
+
+#![cfg(feature = "view")]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{node, scratch};
+use image::RgbaImage;
+use serde_json::json;
+use shellbake::params::{BakeParams, Layout, Preset};
+use shellbake::view::{self, compare, NamedView};
+
+/// FLIP mean three.js may differ from the wgpu viewer by (set on SwiftShader vs llvmpipe).
+const THREE_FLIP: f32 = 0.065;
+/// Share of pixels that may differ by more than `compare::PIXEL_LEVELS`.
+const THREE_PIXELS: f64 = 0.05;
+const SIZE: (u32, u32) = (256, 256);
+
+struct Job {
+    name: String,
+    glb: PathBuf,
+    png: PathBuf,
+    wgpu: RgbaImage,
+}
+
+fn bake(dir: &Path, fixture: &str, preset: Preset, layout: Layout, seed: u32) -> (PathBuf, Vec<u8>) {
+    let scene = shellbake::load::load(&common::fixture(fixture)).unwrap();
+    let mut p = BakeParams::preset(preset);
+    p.pack.layout = layout;
+    p.strands.seed = seed;
+    let baked = shellbake::bake(&scene, &p);
+    let path = dir.join(format!("{}-{}-{layout:?}-{seed}.glb", fixture.trim_end_matches(".obj"), preset.name()));
+    std::fs::write(&path, &baked.glb).unwrap();
+    (path, baked.glb)
+}
+
+fn three_job(glb: &Path, png: &Path, camera: &view::Camera) -> serde_json::Value {
+    let light = view::gpu::Light::default();
+    let bg = view::gpu::CLEAR;
+    json!({
+        "glb": glb, "png": png, "width": SIZE.0, "height": SIZE.1,
+        "camera": {
+            "eye": camera.eye.to_array(), "target": camera.target.to_array(), "up": camera.up.to_array(),
+            "fovy_deg": camera.fov_y_deg, "near": camera.near, "far": camera.far,
+        },
+        "light": { "direction": light.direction.to_array(), "intensity": light.color.x },
+        "ambient": light.ambient.x * std::f32::consts::PI,
+        "background": [bg.r, bg.g, bg.b],
+    })
+}
+
+#[test]
+fn three_js_in_chromium_renders_what_the_viewer_renders() {
+    let dir = scratch("three_compare");
+    let cases = [
+        ("bunny.obj", Preset::Fur, Layout::Compact),
+        ("bunny.obj", Preset::Fur, Layout::SingleDraw),
+        ("torus.obj", Preset::Grass, Layout::Compact),
+        ("teapot.obj", Preset::Carpet, Layout::Compact),
+        ("sphere.obj", Preset::Moss, Layout::SingleDraw),
+    ];
+    let mut jobs = Vec::new();
+    let mut specs = Vec::new();
+    for (fixture, preset, layout) in cases {
+        let (glb_path, glb) = bake(&dir, fixture, preset, layout, 1);
+        for v in [NamedView::Front, NamedView::Close] {
+            let camera = view::camera_for_glb(&glb, v.orbit(), SIZE).unwrap();
+            let wgpu = view::render_glb_to_png(&glb, v.orbit(), SIZE).unwrap();
+            let name = format!("{}-{}-{layout:?}-{}", fixture.trim_end_matches(".obj"), preset.name(), v.name());
+            let png = dir.join(format!("{name}-three.png"));
+            specs.push(three_job(&glb_path, &png, &camera));
+            jobs.push(Job { name, glb: glb_path.clone(), png, wgpu });
+        }
+    }
+    // The control: three.js draws the seed-2 bunny, compared with the viewer's seed-1 bunny.
+    let (other, _) = bake(&dir, "bunny.obj", Preset::Fur, Layout::Compact, 2);
+    let control_wgpu = jobs[1].wgpu.clone();
+    let (_, glb1) = bake(&dir, "bunny.obj", Preset::Fur, Layout::Compact, 1);
+    let control_camera = view::camera_for_glb(&glb1, NamedView::Close.orbit(), SIZE).unwrap();
+    let control_png = dir.join("control-three.png");
+    specs.push(three_job(&other, &control_png, &control_camera));
+
+    let spec_file = dir.join("jobs.json");
+    std::fs::write(&spec_file, serde_json::to_vec(&specs).unwrap()).unwrap();
+    let done = node("three_render.mjs", &[spec_file]);
+    assert_eq!(done.len(), specs.len(), "three.js rendered {} of {} pictures", done.len(), specs.len());
+
+    let mut failures = Vec::new();
+    for job in &jobs {
+        let three = image::open(&job.png).unwrap().to_rgba8();
+        let c = compare::compare(&job.wgpu, &three);
+        println!(
+            "{:32} FLIP {:.4} (max {THREE_FLIP})  differing {:.2}% (max {:.0}%)",
+            job.name,
+            c.flip_mean,
+            c.differing_fraction() * 100.0,
+            THREE_PIXELS * 100.0
+        );
+        if c.flip_mean > THREE_FLIP || c.differing_fraction() > THREE_PIXELS {
+            job.wgpu.save(dir.join(format!("{}-actual.png", job.name))).unwrap();
+            c.difference.save(dir.join(format!("{}-difference.png", job.name))).unwrap();
+            failures.push(format!("{} ({}): FLIP {:.4}, {:.2}% differ", job.name, job.glb.display(), c.flip_mean, c.differing_fraction() * 100.0));
+        }
+    }
+    assert!(failures.is_empty(), "three.js and the viewer disagree (pictures in {}):\n{}", dir.display(), failures.join("\n"));
+
+    let control = compare::compare(&control_wgpu, &image::open(&control_png).unwrap().to_rgba8());
+    println!("control (other seed)            FLIP {:.4}  differing {:.2}%", control.flip_mean, control.differing_fraction() * 100.0);
+    assert!(
+        control.flip_mean > THREE_FLIP || control.differing_fraction() > THREE_PIXELS,
+        "a bake with another seed passed the comparison: the thresholds are too loose"
+    );
+}
