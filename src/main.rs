@@ -36,11 +36,20 @@ enum Command {
         #[command(flatten)]
         verify: shellbake::view::cli::VerifyArgs,
     },
+    /// Bake, then time the baked file against the runtime reference on the GPU.
+    #[cfg(feature = "view")]
+    Bench {
+        #[command(flatten)]
+        bake: BakeArgs,
+        #[command(flatten)]
+        bench: shellbake::view::cli::BenchArgs,
+    },
     /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
     #[command(hide = true)]
     Fixtures {
         dir: PathBuf,
-        /// Also write `sphere-dense.obj`, 262 144 triangles, for timing the stages at scale.
+        /// Also write `sphere-dense.obj` (261 120 triangles) and `field.obj` (a 100 × 100 plane,
+        /// 131 072 triangles), for timing at scale.
         #[arg(long)]
         dense: bool,
     },
@@ -180,6 +189,7 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
     let mut all = shellbake::procedural::fixtures();
     if dense {
         all.push(("sphere-dense", shellbake::procedural::sphere(1.0, 256, 512)));
+        all.push(("field", shellbake::procedural::plane(100.0, 256)));
     }
     for (name, mesh) in all {
         let text = shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
@@ -193,6 +203,10 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Bake(args) => bake(args),
         Command::Fixtures { dir, dense } => fixtures(dir, *dense),
+        #[cfg(feature = "view")]
+        Command::Bench { bake, bench } => {
+            bake.params().and_then(|p| Ok(shellbake::view::cli::bench(&bake.input, &p, bench)?))
+        }
         #[cfg(feature = "view")]
         Command::Render(args) => shellbake::view::cli::render(args).map_err(Into::into),
         #[cfg(feature = "view")]

@@ -110,6 +110,7 @@ fn read_primitive(
         }
         world_pos.push(world.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
     }
+    super::check_range(path, element, &world_pos)?;
     let indices: Vec<u32> = match reader.read_indices() {
         Some(ix) => ix.into_u32().collect(),
         None => (0..nv as u32).collect(),

@@ -30,6 +30,18 @@ use crate::mesh::{face_normal, Mesh, Scene};
 /// height means anything; 1e15 is far past any real asset (a planet in millimetres is 1.3e10).
 pub const MAX_COORDINATE: f64 = 1e15;
 
+/// Checks world coordinates (before they become `f32` offsets) against [`MAX_COORDINATE`].
+pub(crate) fn check_range(path: &Path, element: &str, world: &[glam::DVec3]) -> Result<()> {
+    match world.iter().position(|p| !(p.abs().max_element() <= MAX_COORDINATE)) {
+        Some(v) => Err(Error::invalid(
+            path,
+            element,
+            format!("vertex {v} lies outside the supported range of ±{MAX_COORDINATE:e} units"),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Reads an `.obj`, `.gltf` or `.glb` file. Fails with an error that names the file and the
 /// offending element; never returns a scene with no triangles.
 pub fn load(path: &Path) -> Result<Scene> {
@@ -47,12 +59,10 @@ pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Scene> {
         _ => return Err(Error::Format { path: path.to_path_buf() }),
     };
     for (k, m) in scene.meshes.iter().enumerate() {
-        if let Some(v) = m.positions.iter().position(|p| (m.origin + p.as_dvec3()).abs().max_element() > MAX_COORDINATE) {
-            return Err(Error::invalid(
-                path,
-                format!("mesh {k}"),
-                format!("vertex {v} lies outside the supported range of ±{MAX_COORDINATE:e} units"),
-            ));
+        // After recentring, every relative position must be finite (a NaN here means the
+        // loader let an out-of-range coordinate through).
+        if let Some(v) = m.positions.iter().position(|p| !p.is_finite()) {
+            return Err(Error::invalid(path, format!("mesh {k}"), format!("vertex {v} is not representable")));
         }
     }
     scene.meshes.retain(|m| !m.indices.is_empty());

@@ -38,6 +38,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
         }
         let world: Vec<DVec3> =
             m.positions.chunks_exact(3).map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).collect();
+        super::check_range(path, &element(), &world)?;
         let origin = world.first().copied().unwrap_or_default();
         let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
         let normals = (m.normals.len() == nv * 3 && nv > 0).then(|| {

@@ -101,6 +101,76 @@ pub struct VerifyArgs {
     pub size: u32,
 }
 
+/// `shellbake bench` flags besides the bake flags.
+#[derive(clap::Args, Clone, Debug)]
+pub struct BenchArgs {
+    /// Frames drawn per measurement (the mean is reported).
+    #[arg(long, default_value_t = 200)]
+    pub frames: u32,
+    /// Picture size.
+    #[arg(long, default_value = "1920x1080", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Write the figures as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// Runs `bench`: bakes `input`, then draws the baked file and the runtime reference
+/// `args.frames` times from the front, side, close and far views and prints the mean GPU time of
+/// a frame (timestamp queries; wall time where the adapter has none) and the triangles drawn.
+pub fn bench(input: &Path, params: &BakeParams, args: &BenchArgs) -> Result<()> {
+    let scene = crate::load::load(input)?;
+    let baked = crate::bake(&scene, params);
+    let gpu = Gpu::new()?;
+    let info = gpu.adapter.get_info();
+    let reference_triangles = baked.mesh.triangle_count() * baked.shells.t.len();
+    println!(
+        "bench {} on {} ({:?}), {}x{}, {} frames, {} layers, {} layout",
+        input.display(),
+        info.name,
+        info.backend,
+        args.size.0,
+        args.size.1,
+        args.frames,
+        baked.shells.t.len(),
+        baked.report.layout
+    );
+    println!(
+        "  baked: {} draw call(s), {} triangles; reference: 1 instanced draw, {} triangles",
+        baked.report.draw_calls, baked.report.triangles_drawn, reference_triangles
+    );
+    let ms = |t: &super::gpu::Timing| t.gpu_ms.unwrap_or(t.wall_ms);
+    let mut rows = Vec::new();
+    for v in [NamedView::Front, NamedView::Side, NamedView::Close, NamedView::Far] {
+        let camera = super::camera_for_glb(&baked.glb, v.orbit(), args.size)?;
+        let (_, tb) = super::render_baked(&gpu, &baked.glb, &camera, args.size, args.frames)?;
+        let input = ReferenceInput::from_baked(&baked, params);
+        let (_, tr) = super::render_reference(&gpu, input, &camera, args.size, args.frames);
+        println!(
+            "  {:6} baked {:8.3} ms   reference {:8.3} ms   ratio {:.2}{}",
+            v.name(),
+            ms(&tb),
+            ms(&tr),
+            ms(&tb) / ms(&tr),
+            if tb.gpu_ms.is_some() { "" } else { "  (wall time: no timestamp queries)" }
+        );
+        rows.push(serde_json::json!({
+            "view": v.name(), "baked_ms": ms(&tb), "reference_ms": ms(&tr),
+            "gpu_timestamps": tb.gpu_ms.is_some(),
+        }));
+    }
+    if let Some(path) = &args.json {
+        let doc = serde_json::json!({
+            "input": input.display().to_string(), "adapter": info.name, "size": [args.size.0, args.size.1],
+            "frames": args.frames, "layers": baked.shells.t.len(), "layout": baked.report.layout,
+            "baked_triangles": baked.report.triangles_drawn, "reference_triangles": reference_triangles,
+            "draw_calls": baked.report.draw_calls, "views": rows,
+        });
+        crate::write::write_atomic(path, serde_json::to_string_pretty(&doc).unwrap_or_default().as_bytes())?;
+    }
+    Ok(())
+}
+
 /// Runs `render`.
 pub fn render(args: &RenderArgs) -> Result<()> {
     let gpu = Gpu::new()?;
