@@ -21,3 +21,11 @@ jobs+="]"
 echo "$jobs" > out/gallery/jobs.json
 node tests/js/three_render.mjs out/gallery/jobs.json
 rm -f out/gallery/*.glb out/gallery/jobs.json
+
+# Baked against the runtime reference (wgpu, llvmpipe): the close view of the fur bunny.
+export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
+"$bin" verify fixtures/bunny.obj --preset fur --out-dir out/gallery/verify -q
+for kind in reference baked difference; do
+  cp "out/gallery/verify/bunny-close-$kind.png" "out/gallery/bunny-close-$kind.png"
+done
+rm -rf out/gallery/verify
