@@ -45,7 +45,6 @@ enum Command {
         bench: shellbake::view::cli::BenchArgs,
     },
     /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
-
     Fixtures {
         dir: PathBuf,
         /// Also write `sphere-dense.obj` (261 120 triangles) and `field.obj` (a 100 × 100 plane,
