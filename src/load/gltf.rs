@@ -91,11 +91,22 @@ fn read_primitive(
     buffers: &[Vec<u8>],
     world: DMat4,
 ) -> Result<Mesh> {
-    for (_, acc) in prim.attributes() {
+    use ::gltf::accessor::{DataType as T, Dimensions as D};
+    use ::gltf::Semantic as S;
+    for (semantic, acc) in prim.attributes() {
         check_accessor(path, element, &acc, buffers)?;
+        // The gltf crate's readers hit `unreachable!` on component types they do not expect
+        // (found by fuzzing); refuse those here with a message instead.
+        let allowed: &[(T, D)] = match semantic {
+            S::Positions | S::Normals => &[(T::F32, D::Vec3)],
+            S::TexCoords(0) => &[(T::F32, D::Vec2), (T::U8, D::Vec2), (T::U16, D::Vec2)],
+            _ => continue,
+        };
+        check_kind(path, element, &acc, allowed, &format!("{semantic:?}"))?;
     }
     if let Some(acc) = prim.indices() {
         check_accessor(path, element, &acc, buffers)?;
+        check_kind(path, element, &acc, &[(T::U8, D::Scalar), (T::U16, D::Scalar), (T::U32, D::Scalar)], "indices")?;
     }
     let reader = prim.reader(|b| buffers.get(b.index()).map(|v| v.as_slice()));
     let Some(pos) = reader.read_positions() else {
@@ -151,6 +162,24 @@ fn read_primitive(
     }
     mesh.recentre();
     Ok(mesh)
+}
+
+/// Refuses an accessor whose component type and dimensions are not among `allowed`.
+fn check_kind(
+    path: &Path,
+    element: &str,
+    acc: &::gltf::Accessor,
+    allowed: &[(::gltf::accessor::DataType, ::gltf::accessor::Dimensions)],
+    what: &str,
+) -> Result<()> {
+    if allowed.iter().any(|&(t, d)| acc.data_type() == t && acc.dimensions() == d) {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        path,
+        format!("{element}: accessor {}", acc.index()),
+        format!("{what} as {:?} {:?} is not supported (expected one of {allowed:?})", acc.data_type(), acc.dimensions()),
+    ))
 }
 
 /// Checks that an accessor's bytes lie inside its buffer (the gltf crate would silently stop
