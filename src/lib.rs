@@ -66,6 +66,15 @@ pub struct Baked {
 
 /// Bakes a loaded scene. Never fails: the scene was checked by `load`, the parameters by
 /// [`BakeParams::check`] (asserted here).
+///
+/// ```
+/// use shellbake::params::{BakeParams, Preset};
+/// let scene = shellbake::load::load(std::path::Path::new("fixtures/cube.obj")).unwrap();
+/// let baked = shellbake::bake(&scene, &BakeParams::preset(Preset::Carpet));
+/// assert_eq!(baked.shells.t.len(), 16);
+/// assert_eq!(&baked.glb[0..4], b"glTF");
+/// shellbake::write::write_glb(&std::env::temp_dir().join("cube-carpet.glb"), &baked.glb).unwrap();
+/// ```
 pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     if let Err(e) = params.check() {
         panic!("bake called with unchecked parameters: {e}");

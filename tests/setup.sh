@@ -26,8 +26,3 @@ if [ ! -d tests/js/node_modules/gltf-validator ] || [ ! -d tests/js/node_modules
   (cd tests/js && npm ci --no-audit --no-fund --loglevel=error)
   touch tests/js/node_modules
 fi
-
-# wgpu on lavapipe wants a private runtime folder.
-if [ -z "${XDG_RUNTIME_DIR:-}" ] || [ ! -d "${XDG_RUNTIME_DIR}" ]; then
-  echo "setup: note: export XDG_RUNTIME_DIR to a 0700 folder to silence a Vulkan loader warning"
-fi
