@@ -103,7 +103,7 @@ pub fn inversion_height(p: [Vec3; 3], d: [Vec3; 3]) -> Option<f64> {
     let e2 = c - a;
     let n = e1.cross(e2);
     let c0 = n.length();
-    if !(c0 > 0.0) || !c0.is_finite() {
+    if !(c0.is_finite() && c0 > 0.0) {
         return None;
     }
     let n0 = n / c0;

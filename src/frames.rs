@@ -11,6 +11,7 @@
 //! 2. the normal of the largest adjacent face (first one on ties);
 //! 3. the mean of the input shading normals of the render vertices at that position;
 //! 4. +Y.
+//!
 //! The result is always a finite unit vector. "Vanishes" means shorter than 1e-4 of the summed
 //! weights: a sum that cancelled to rounding noise must not pick a random direction.
 

@@ -162,6 +162,29 @@ pub fn uv_bounds(uvs: &[Vec2]) -> (Vec2, Vec2) {
     }
 }
 
+/// Sum of the UV-space areas of the triangles (0 without UVs).
+pub fn uv_area(mesh: &Mesh) -> f64 {
+    let Some(uv) = &mesh.uvs else { return 0.0 };
+    mesh.indices
+        .chunks_exact(3)
+        .map(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
+            ((b - a).perp_dot(c - a) * 0.5).abs()
+        })
+        .sum()
+}
+
+/// Sum of the world-space areas of the triangles.
+pub fn world_area(mesh: &Mesh) -> f64 {
+    mesh.indices
+        .chunks_exact(3)
+        .map(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
+            (b - a).cross(c - a).length() * 0.5
+        })
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -202,27 +225,4 @@ mod tests {
         let (n, a2) = face_normal(Vec3::ZERO, Vec3::X, Vec3::Y);
         assert_eq!((n, a2), (Vec3::Z, 1.0));
     }
-}
-
-/// Sum of the UV-space areas of the triangles (0 without UVs).
-pub fn uv_area(mesh: &Mesh) -> f64 {
-    let Some(uv) = &mesh.uvs else { return 0.0 };
-    mesh.indices
-        .chunks_exact(3)
-        .map(|t| {
-            let [a, b, c] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
-            ((b - a).perp_dot(c - a) * 0.5).abs()
-        })
-        .sum()
-}
-
-/// Sum of the world-space areas of the triangles.
-pub fn world_area(mesh: &Mesh) -> f64 {
-    mesh.indices
-        .chunks_exact(3)
-        .map(|t| {
-            let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
-            (b - a).cross(c - a).length() * 0.5
-        })
-        .sum()
 }

@@ -255,7 +255,8 @@ impl BakeParams {
     /// Checks ranges; the message names the parameter. Called at the CLI/scene boundary.
     pub fn check(&self) -> Result<(), String> {
         let c = &self.clamp;
-        if !(c.ray_keep > 0.0 && c.ray_keep < 1.0) || !(c.inversion_keep > 0.0 && c.inversion_keep < 1.0) {
+        let open_unit = |x: f32| x > 0.0 && x < 1.0;
+        if !open_unit(c.ray_keep) || !open_unit(c.inversion_keep) {
             return Err("clamp ray_keep and inversion_keep must be in (0, 1)".into());
         }
         let s = &self.shells;
@@ -295,7 +296,7 @@ impl BakeParams {
                 if !(0.0..=1.0).contains(&min_length) {
                     return Err(format!("min_length must be in [0, 1], got {min_length}"));
                 }
-                if !(2..=64).contains(&texels_per_cell) || st.mask_size % texels_per_cell != 0 {
+                if !(2..=64).contains(&texels_per_cell) || !st.mask_size.is_multiple_of(texels_per_cell) {
                     return Err(format!(
                         "texels_per_cell must be in 2..=64 and divide mask_size {}, got {texels_per_cell}",
                         st.mask_size

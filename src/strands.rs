@@ -60,7 +60,7 @@ impl Mask {
 
 /// Height step of layer `j` of `layers`: `round(j · HEIGHT_STEPS / layers)`.
 pub fn layer_step(j: u32, layers: u32) -> u32 {
-    assert!(layers >= 1 && layers <= HEIGHT_STEPS && j < layers);
+    assert!((1..=HEIGHT_STEPS).contains(&layers) && j < layers);
     ((j as u64 * HEIGHT_STEPS as u64 * 2 + layers as u64) / (2 * layers as u64)) as u32
 }
 

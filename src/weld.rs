@@ -43,7 +43,7 @@ fn key(p: Vec3) -> [u32; 3] {
 
 /// Welds `positions` by exact position and rewrites `indices` on the welded vertices.
 pub fn weld(positions: &[Vec3], indices: &[u32]) -> Welded {
-    debug_assert!(indices.len() % 3 == 0);
+    debug_assert!(indices.len().is_multiple_of(3));
     let mut ids: HashMap<[u32; 3], u32> = HashMap::with_capacity(positions.len());
     let mut out = Welded { remap: Vec::with_capacity(positions.len()), ..Default::default() };
     for &p in positions {

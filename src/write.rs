@@ -181,7 +181,7 @@ pub fn json_bytes_per_layer(doc: &Value) -> Vec<usize> {
 /// A GLB container around `doc` and `bin`.
 pub fn glb_bytes(doc: &Value, bin: &[u8]) -> Vec<u8> {
     let mut json = serde_json::to_vec(doc).expect("JSON values serialize");
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let total = 12 + 8 + json.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };

@@ -117,7 +117,7 @@ fn read_primitive(
     let mut world_pos = Vec::with_capacity(nv);
     for (i, p) in local.iter().enumerate() {
         if !p.iter().all(|v| v.is_finite()) {
-            return Err(Error::invalid(path, format!("{element}"), format!("vertex {i} has a non-finite coordinate")));
+            return Err(Error::invalid(path, element.to_string(), format!("vertex {i} has a non-finite coordinate")));
         }
         world_pos.push(world.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
     }

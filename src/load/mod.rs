@@ -32,7 +32,7 @@ pub const MAX_COORDINATE: f64 = 1e15;
 
 /// Checks world coordinates (before they become `f32` offsets) against [`MAX_COORDINATE`].
 pub(crate) fn check_range(path: &Path, element: &str, world: &[glam::DVec3]) -> Result<()> {
-    match world.iter().position(|p| !(p.abs().max_element() <= MAX_COORDINATE)) {
+    match world.iter().position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE) {
         Some(v) => Err(Error::invalid(
             path,
             element,

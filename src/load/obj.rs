@@ -19,7 +19,6 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let mut reader = std::io::BufReader::new(bytes);
     let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| {
@@ -37,7 +36,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             return Err(Error::invalid(path, element(), format!("index {i} out of range ({nv} vertices)")));
         }
         let world: Vec<DVec3> =
-            m.positions.chunks_exact(3).map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)).collect();
+            m.positions.chunks_exact(3).map(|p| DVec3::new(p[0], p[1], p[2])).collect();
         super::check_range(path, &element(), &world)?;
         let origin = world.first().copied().unwrap_or_default();
         let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
