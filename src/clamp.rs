@@ -33,7 +33,10 @@
 use std::time::Duration;
 
 use glam::{DVec3, Vec3, Vec3A};
-use obvhs::{cwbvh::builder::build_cwbvh_from_tris, ray::Ray, ray::RayHit, triangle::Triangle, BvhBuildParams};
+use obvhs::{
+    cwbvh::builder::build_cwbvh_from_tris, ray::Ray, ray::RayHit, triangle::Triangle,
+    BvhBuildParams,
+};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -55,7 +58,11 @@ pub struct ClampParams {
 
 impl Default for ClampParams {
     fn default() -> Self {
-        ClampParams { enabled: false, ray_keep: 0.45, inversion_keep: 0.9 }
+        ClampParams {
+            enabled: false,
+            ray_keep: 0.45,
+            inversion_keep: 0.9,
+        }
     }
 }
 
@@ -109,7 +116,13 @@ pub fn inversion_height(p: [Vec3; 3], d: [Vec3; 3]) -> Option<f64> {
     let n0 = n / c0;
     let mut best = f64::INFINITY;
     for mask in 1u32..8 {
-        let m = |bit: u32, v: DVec3| if mask & (1 << bit) != 0 { v } else { DVec3::ZERO };
+        let m = |bit: u32, v: DVec3| {
+            if mask & (1 << bit) != 0 {
+                v
+            } else {
+                DVec3::ZERO
+            }
+        };
         let g1 = m(1, db) - m(0, da);
         let g2 = m(2, dc) - m(0, da);
         let c1 = n0.dot(e1.cross(g2) + g1.cross(e2));
@@ -156,7 +169,11 @@ pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &Cla
     let collision = if tris.is_empty() || height <= 0.0 {
         vec![f64::INFINITY; welded.positions.len()]
     } else {
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
+        let bvh = build_cwbvh_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
         let reach = height / params.ray_keep;
         (0..welded.positions.len() as u32)
             .into_par_iter()
@@ -188,13 +205,22 @@ pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &Cla
 }
 
 /// The same clamp with a linear scan over all triangles per ray: the differential reference.
-pub fn clamp_heights_brute_force(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams) -> Clamp {
+pub fn clamp_heights_brute_force(
+    welded: &Welded,
+    frames: &Frames,
+    height: f32,
+    params: &ClampParams,
+) -> Clamp {
     let tris = triangles(welded);
     let reach = height / params.ray_keep;
     let collision = (0..welded.positions.len() as u32)
         .map(|v| {
-            let ray =
-                Ray::new(Vec3A::from(welded.positions[v as usize]), Vec3A::from(frames.welded[v as usize]), 0.0, reach);
+            let ray = Ray::new(
+                Vec3A::from(welded.positions[v as usize]),
+                Vec3A::from(frames.welded[v as usize]),
+                0.0,
+                reach,
+            );
             let t = (0..tris.len())
                 .filter(|&t| !incident(welded, t, v))
                 .map(|t| tris[t].intersect(&ray))
@@ -209,7 +235,13 @@ pub fn clamp_heights_brute_force(welded: &Welded, frames: &Frames, height: f32, 
     finish(welded, frames, height, params, collision)
 }
 
-fn finish(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams, collision: Vec<f64>) -> Clamp {
+fn finish(
+    welded: &Welded,
+    frames: &Frames,
+    height: f32,
+    params: &ClampParams,
+    collision: Vec<f64>,
+) -> Clamp {
     let inversion = inversion_limits(welded, frames, params.inversion_keep);
     let h = height as f64;
     let mut out = Clamp::default();
@@ -228,7 +260,11 @@ fn finish(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams, c
             }
         })
         .collect();
-    out.scale = welded.remap.iter().map(|&w| out.welded_scale[w as usize]).collect();
+    out.scale = welded
+        .remap
+        .iter()
+        .map(|&w| out.welded_scale[w as usize])
+        .collect();
     out
 }
 
@@ -241,13 +277,26 @@ mod tests {
     fn run(p: &[Vec3], ix: &[u32], height: f32) -> (Welded, Frames, Clamp) {
         let w = weld(p, ix);
         let f = extrusion_frames(&w, None);
-        let c = clamp_heights(&w, &f, height, &ClampParams { enabled: true, ..Default::default() });
+        let c = clamp_heights(
+            &w,
+            &f,
+            height,
+            &ClampParams {
+                enabled: true,
+                ..Default::default()
+            },
+        );
         (w, f, c)
     }
 
     #[test]
     fn flat_plane_is_never_limited() {
-        let p = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, -1.0)];
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(0.0, 0.0, -1.0),
+        ];
         let (_, _, c) = run(&p, &[0, 1, 2, 0, 2, 3], 10.0);
         assert_eq!(c.scale, vec![1.0; 4]);
     }
@@ -256,7 +305,8 @@ mod tests {
     fn converging_directions_invert_at_the_exact_height() {
         // A unit right triangle whose corners all move towards its centroid-ish: corner b moves
         // by -x. The triangle (0,0,0),(1,0,0),(0,1,0) with only b moving -x flips at h = 1.
-        let h = inversion_height([Vec3::ZERO, Vec3::X, Vec3::Y], [Vec3::Z, -Vec3::X, Vec3::Z]).unwrap();
+        let h =
+            inversion_height([Vec3::ZERO, Vec3::X, Vec3::Y], [Vec3::Z, -Vec3::X, Vec3::Z]).unwrap();
         assert!((h - 1.0).abs() < 1e-12, "{h}");
         // Parallel directions never invert.
         let h = inversion_height([Vec3::ZERO, Vec3::X, Vec3::Y], [Vec3::Z; 3]).unwrap();
@@ -269,8 +319,14 @@ mod tests {
         // Two parallel quads 1 apart, facing each other (the upper one larger, so every ray hits
         // a face interior): each may use 0.45 of the gap.
         let p = [
-            Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 0.0, 1.0),
-            Vec3::new(-0.5, 1.0, -0.5), Vec3::new(1.5, 1.0, -0.5), Vec3::new(1.5, 1.0, 1.5), Vec3::new(-0.5, 1.0, 1.5),
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(-0.5, 1.0, -0.5),
+            Vec3::new(1.5, 1.0, -0.5),
+            Vec3::new(1.5, 1.0, 1.5),
+            Vec3::new(-0.5, 1.0, 1.5),
         ];
         // lower plate faces +y, upper plate faces -y
         let ix = [0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7];
@@ -290,12 +346,17 @@ mod tests {
         // Bumps from a hash of the position, so seam and pole copies stay coincident.
         let mut m = crate::procedural::sphere(1.0, 12, 24);
         for p in m.positions.iter_mut() {
-            let h = crate::strands::mix32(p.x.to_bits() ^ p.y.to_bits().rotate_left(11) ^ p.z.to_bits().rotate_left(22));
+            let h = crate::strands::mix32(
+                p.x.to_bits() ^ p.y.to_bits().rotate_left(11) ^ p.z.to_bits().rotate_left(22),
+            );
             *p *= 1.0 + 0.15 * ((h % 13) as f32 / 13.0);
         }
         let w = weld(&m.positions, &m.indices);
         let f = extrusion_frames(&w, None);
-        let params = ClampParams { enabled: true, ..Default::default() };
+        let params = ClampParams {
+            enabled: true,
+            ..Default::default()
+        };
         let a = clamp_heights(&w, &f, 0.5, &params);
         let b = clamp_heights_brute_force(&w, &f, 0.5, &params);
         // Same intersection function, so the same hits give the same floats; only hits at the
@@ -305,7 +366,15 @@ mod tests {
         for (x, y) in a.welded_scale.iter().zip(&b.welded_scale) {
             assert!((x - y).abs() <= 1e-6, "{x} vs {y}");
         }
-        assert!(a.welded_scale.iter().zip(&b.welded_scale).filter(|(x, y)| x != y).count() * 20 < a.welded_scale.len());
+        assert!(
+            a.welded_scale
+                .iter()
+                .zip(&b.welded_scale)
+                .filter(|(x, y)| x != y)
+                .count()
+                * 20
+                < a.welded_scale.len()
+        );
         assert!(a.limited_by_inversion + a.limited_by_collision > 0);
     }
 }

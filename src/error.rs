@@ -15,7 +15,11 @@ pub enum Error {
     },
     /// The input is malformed; `element` says where (e.g. "vertex 17", "accessor 3").
     #[error("{path}: {element}: {message}")]
-    Invalid { path: PathBuf, element: String, message: String },
+    Invalid {
+        path: PathBuf,
+        element: String,
+        message: String,
+    },
     /// The input parsed but holds nothing to bake.
     #[error("{path}: {message}")]
     Empty { path: PathBuf, message: String },
@@ -29,11 +33,22 @@ pub enum Error {
 
 impl Error {
     pub(crate) fn io(path: &Path, source: std::io::Error) -> Error {
-        Error::Io { path: path.to_path_buf(), source }
+        Error::Io {
+            path: path.to_path_buf(),
+            source,
+        }
     }
 
-    pub(crate) fn invalid(path: &Path, element: impl Into<String>, message: impl Into<String>) -> Error {
-        Error::Invalid { path: path.to_path_buf(), element: element.into(), message: message.into() }
+    pub(crate) fn invalid(
+        path: &Path,
+        element: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Error {
+        Error::Invalid {
+            path: path.to_path_buf(),
+            element: element.into(),
+            message: message.into(),
+        }
     }
 }
 

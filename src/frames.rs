@@ -80,7 +80,10 @@ pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Fram
             }
         }
     }
-    let mut frames = Frames { welded: Vec::with_capacity(n), ..Default::default() };
+    let mut frames = Frames {
+        welded: Vec::with_capacity(n),
+        ..Default::default()
+    };
     for v in 0..n {
         let usable = |s: Vec3, w: f32| s.is_finite() && w > 0.0 && s.length() > VANISH * w;
         let (dir, rule) = if usable(angle_sum[v], angle_w[v]) {
@@ -98,8 +101,15 @@ pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Fram
         frames.fallbacks[rule as usize] += 1;
         frames.welded.push(dir);
     }
-    frames.direction = welded.remap.iter().map(|&w| frames.welded[w as usize]).collect();
-    debug_assert!(frames.direction.iter().all(|d| d.is_finite() && (d.length() - 1.0).abs() < 1e-3));
+    frames.direction = welded
+        .remap
+        .iter()
+        .map(|&w| frames.welded[w as usize])
+        .collect();
+    debug_assert!(frames
+        .direction
+        .iter()
+        .all(|d| d.is_finite() && (d.length() - 1.0).abs() < 1e-3));
     frames
 }
 
@@ -114,7 +124,12 @@ mod tests {
 
     #[test]
     fn flat_quad_points_up() {
-        let p = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, -1.0)];
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(0.0, 0.0, -1.0),
+        ];
         let f = frames_of(&p, &[0, 1, 2, 0, 2, 3]);
         for d in &f.direction {
             assert!((*d - Vec3::Y).length() < 1e-6, "{d}");
@@ -126,11 +141,21 @@ mod tests {
     fn cube_corner_is_the_diagonal_whatever_the_triangulation() {
         // Corner of a unit cube: three faces, one split into two triangles; angle weighting
         // gives the exact diagonal anyway.
-        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(1.0, 1.0, 0.0)];
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::new(1.0, 1.0, 0.0),
+        ];
         // -Z face as two triangles (0,4,1),(0,2,4); -X face (0,3,2); -Y face (0,1,3)
         let f = frames_of(&p, &[0, 4, 1, 0, 2, 4, 0, 3, 2, 0, 1, 3]);
         let want = Vec3::splat(-1.0).normalize();
-        assert!((f.direction[0] - want).length() < 1e-6, "{}", f.direction[0]);
+        assert!(
+            (f.direction[0] - want).length() < 1e-6,
+            "{}",
+            f.direction[0]
+        );
     }
 
     #[test]
@@ -167,6 +192,9 @@ mod tests {
     fn needle_is_finite() {
         let p = [Vec3::ZERO, Vec3::X, Vec3::new(2.0, 1e-30, 0.0)];
         let f = frames_of(&p, &[0, 1, 2]);
-        assert!(f.direction.iter().all(|d| d.is_finite() && (d.length() - 1.0).abs() < 1e-4));
+        assert!(f
+            .direction
+            .iter()
+            .all(|d| d.is_finite() && (d.length() - 1.0).abs() < 1e-4));
     }
 }

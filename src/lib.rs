@@ -80,35 +80,53 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         panic!("bake called with unchecked parameters: {e}");
     }
     let start = Instant::now();
-    let mut report = Report { warnings: scene.warnings.clone(), ..Default::default() };
+    let mut report = Report {
+        warnings: scene.warnings.clone(),
+        ..Default::default()
+    };
 
     let mut mesh = report.run("merge", || scene.merged());
     report.count("meshes", scene.meshes.len() as f64);
     report.count("vertices", mesh.vertex_count() as f64);
     report.count("triangles", mesh.triangle_count() as f64);
     if mesh.uvs.is_none() || mesh::uv_area(&mesh) <= 0.0 {
-        report.warnings.push("texture coordinates have no area; generated a per-face box projection".into());
+        report
+            .warnings
+            .push("texture coordinates have no area; generated a per-face box projection".into());
         load::generate_box_uvs(&mut mesh);
     }
 
     let welded = report.run("weld", || weld::weld(&mesh.positions, &mesh.indices));
     report.count("welded_vertices", welded.positions.len() as f64);
-    report.count("collapsed_triangles", (mesh.triangle_count() - welded.source_triangle.len()) as f64);
+    report.count(
+        "collapsed_triangles",
+        (mesh.triangle_count() - welded.source_triangle.len()) as f64,
+    );
     mesh.indices = welded
         .source_triangle
         .iter()
         .flat_map(|&t| mesh.indices[3 * t as usize..3 * t as usize + 3].to_vec())
         .collect();
 
-    let frames = report.run("frames", || frames::extrusion_frames(&welded, mesh.normals.as_deref()));
-    for (rule, n) in ["angle_weighted", "area_weighted", "largest_face", "input_normal", "plus_y"]
-        .iter()
-        .zip(frames.fallbacks)
+    let frames = report.run("frames", || {
+        frames::extrusion_frames(&welded, mesh.normals.as_deref())
+    });
+    for (rule, n) in [
+        "angle_weighted",
+        "area_weighted",
+        "largest_face",
+        "input_normal",
+        "plus_y",
+    ]
+    .iter()
+    .zip(frames.fallbacks)
     {
         report.count(rule, n as f64);
     }
     if mesh.normals.is_none() {
-        report.warnings.push("no normals in the input; shading with the extrusion directions".into());
+        report
+            .warnings
+            .push("no normals in the input; shading with the extrusion directions".into());
         mesh.normals = Some(frames.direction.clone());
     }
 
@@ -117,13 +135,21 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     let density = params.resolved_density(diagonal);
 
     let clamp = if params.clamp.enabled {
-        let c = report.run("clamp", || clamp::clamp_heights(&welded, &frames, height, &params.clamp));
+        let c = report.run("clamp", || {
+            clamp::clamp_heights(&welded, &frames, height, &params.clamp)
+        });
         report.count("limited_by_inversion", c.limited_by_inversion as f64);
         report.count("limited_by_collision", c.limited_by_collision as f64);
-        report.count("min_scale", c.welded_scale.iter().copied().fold(1.0f32, f32::min) as f64);
+        report.count(
+            "min_scale",
+            c.welded_scale.iter().copied().fold(1.0f32, f32::min) as f64,
+        );
         Some(c)
     } else {
-        report.skip("clamp", "not requested (--clamp / scene effect `collision`)");
+        report.skip(
+            "clamp",
+            "not requested (--clamp / scene effect `collision`)",
+        );
         None
     };
     let mask = report.run("strands", || strands::bake_mask(&params.strands));
@@ -132,7 +158,13 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     report.count("cells_per_tile", mask.cells_per_tile as f64);
 
     let shells = report.run("shells", || {
-        shells::build_shells(&frames.direction, clamp.as_ref().map(|c| c.scale.as_slice()), height, &params.shells, &params.shade)
+        shells::build_shells(
+            &frames.direction,
+            clamp.as_ref().map(|c| c.scale.as_slice()),
+            height,
+            &params.shells,
+            &params.shade,
+        )
     });
     report.count("layers", shells.t.len() as f64);
 
@@ -154,9 +186,29 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         (doc, glb)
     });
 
-    fill_report(&mut report, &packed, &json, &glb, &shells, &mesh, height, density, tiles_per_uv, params);
+    fill_report(
+        &mut report,
+        &packed,
+        &json,
+        &glb,
+        &shells,
+        &mesh,
+        height,
+        density,
+        tiles_per_uv,
+        params,
+    );
     report.total_ms = start.elapsed().as_secs_f64() * 1e3;
-    Baked { glb, json, report, mesh, shells, mask, packed, tiles_per_uv }
+    Baked {
+        glb,
+        json,
+        report,
+        mesh,
+        shells,
+        mask,
+        packed,
+        tiles_per_uv,
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -178,16 +230,28 @@ fn fill_report(
     };
     report.resolved.insert("height".into(), height as f64);
     report.resolved.insert("density".into(), density as f64);
-    report.resolved.insert("diagonal".into(), mesh.diagonal() as f64);
-    report.resolved.insert("mask_size".into(), params.strands.mask_size as f64);
-    report.resolved.insert("tiles_per_uv_u".into(), tiles.x as f64);
-    report.resolved.insert("tiles_per_uv_v".into(), tiles.y as f64);
+    report
+        .resolved
+        .insert("diagonal".into(), mesh.diagonal() as f64);
+    report
+        .resolved
+        .insert("mask_size".into(), params.strands.mask_size as f64);
+    report
+        .resolved
+        .insert("tiles_per_uv_u".into(), tiles.x as f64);
+    report
+        .resolved
+        .insert("tiles_per_uv_v".into(), tiles.y as f64);
     report.resolved.insert("position_step".into(), packed.scale);
     report.base_vertices = packed.base_vertices;
     report.base_triangles = mesh.triangle_count();
     report.layers = shells.t.len();
     report.draw_calls = packed.primitives.len();
-    report.triangles_drawn = packed.primitives.iter().map(|p| packed.accessors[p.indices].count / 3).sum();
+    report.triangles_drawn = packed
+        .primitives
+        .iter()
+        .map(|p| packed.accessors[p.indices].count / 3)
+        .sum();
     report.total_bytes = glb.len();
     report.bytes_per_base_vertex = glb.len() as f64 / packed.base_vertices.max(1) as f64;
     for v in &packed.views {
@@ -198,7 +262,12 @@ fn fill_report(
     report.bytes_per_layer = match packed.layout {
         params::Layout::Compact => write::json_bytes_per_layer(json),
         params::Layout::SingleDraw => {
-            let vertex_bytes: usize = packed.views.iter().filter(|v| v.vertex.is_some()).map(|v| v.bytes.len()).sum();
+            let vertex_bytes: usize = packed
+                .views
+                .iter()
+                .filter(|v| v.vertex.is_some())
+                .map(|v| v.bytes.len())
+                .sum();
             vec![vertex_bytes / shells.t.len().max(1); shells.t.len()]
         }
     };

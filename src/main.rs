@@ -12,7 +12,11 @@ use clap::{Args, Parser, Subcommand};
 use shellbake::params::{BakeParams, Layout, Preset};
 
 #[derive(Parser)]
-#[command(name = "shellbake", version, about = "Bakes shell-textured fur, grass, carpet and moss into standard glTF")]
+#[command(
+    name = "shellbake",
+    version,
+    about = "Bakes shell-textured fur, grass, carpet and moss into standard glTF"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -112,12 +116,15 @@ impl BakeArgs {
         }
         p.pack.layout = self.layout;
         p.clamp.enabled = self.clamp;
-        p.check().map_err(|e| anyhow::anyhow!(shellbake::Error::Params(e)))?;
+        p.check()
+            .map_err(|e| anyhow::anyhow!(shellbake::Error::Params(e)))?;
         Ok(p)
     }
 
     fn output(&self) -> PathBuf {
-        self.output.clone().unwrap_or_else(|| default_output(&self.input))
+        self.output
+            .clone()
+            .unwrap_or_else(|| default_output(&self.input))
     }
 }
 
@@ -130,12 +137,18 @@ fn parse_size(s: &str) -> Result<u64, String> {
         Some('G') => (&s[..s.len() - 1], 1 << 30),
         _ => (s, 1),
     };
-    let n: u64 = digits.parse().map_err(|_| format!("'{s}' is not a size like 512M or 2G"))?;
-    n.checked_mul(mult).ok_or_else(|| format!("'{s}' is too large"))
+    let n: u64 = digits
+        .parse()
+        .map_err(|_| format!("'{s}' is not a size like 512M or 2G"))?;
+    n.checked_mul(mult)
+        .ok_or_else(|| format!("'{s}' is too large"))
 }
 
 fn default_output(input: &Path) -> PathBuf {
-    let stem = input.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let stem = input
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
     Path::new("out").join(format!("{stem}.glb"))
 }
 
@@ -149,8 +162,9 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         pb
     });
     let scene = shellbake::load::load(&args.input)?;
-    let (vertices, triangles) =
-        scene.meshes.iter().fold((0u64, 0u64), |(v, t), m| (v + m.vertex_count() as u64, t + m.triangle_count() as u64));
+    let (vertices, triangles) = scene.meshes.iter().fold((0u64, 0u64), |(v, t), m| {
+        (v + m.vertex_count() as u64, t + m.triangle_count() as u64)
+    });
     let estimate = shellbake::pack::estimate_bytes(
         vertices,
         triangles,
@@ -191,7 +205,8 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
         all.push(("field", shellbake::procedural::plane(100.0, 256)));
     }
     for (name, mesh) in all {
-        let text = shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
+        let text =
+            shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
         shellbake::write::write_atomic(&dir.join(format!("{name}.obj")), text.as_bytes())?;
     }
     Ok(())
@@ -203,9 +218,9 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake(args),
         Command::Fixtures { dir, dense } => fixtures(dir, *dense),
         #[cfg(feature = "view")]
-        Command::Bench { bake, bench } => {
-            bake.params().and_then(|p| Ok(shellbake::view::cli::bench(&bake.input, &p, bench)?))
-        }
+        Command::Bench { bake, bench } => bake
+            .params()
+            .and_then(|p| Ok(shellbake::view::cli::bench(&bake.input, &p, bench)?)),
         #[cfg(feature = "view")]
         Command::Render(args) => shellbake::view::cli::render(args).map_err(Into::into),
         #[cfg(feature = "view")]
@@ -213,14 +228,23 @@ fn main() -> ExitCode {
         #[cfg(feature = "view")]
         Command::Verify { bake, verify } => bake.params().and_then(|p| {
             let out = bake.output.as_deref();
-            Ok(shellbake::view::cli::verify(&bake.input, &p, verify, out, bake.quiet)?)
+            Ok(shellbake::view::cli::verify(
+                &bake.input,
+                &p,
+                verify,
+                out,
+                bake.quiet,
+            )?)
         }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            let usage = matches!(e.downcast_ref::<shellbake::Error>(), Some(shellbake::Error::Params(_)));
+            let usage = matches!(
+                e.downcast_ref::<shellbake::Error>(),
+                Some(shellbake::Error::Params(_))
+            );
             ExitCode::from(if usage { 2 } else { 1 })
         }
     }
@@ -231,7 +255,8 @@ mod tests {
     use super::*;
 
     fn parse(args: &[&str]) -> BakeArgs {
-        let cli = Cli::try_parse_from(std::iter::once("shellbake").chain(args.iter().copied())).unwrap();
+        let cli =
+            Cli::try_parse_from(std::iter::once("shellbake").chain(args.iter().copied())).unwrap();
         match cli.command {
             Command::Bake(a) => a,
             _ => unreachable!(),
@@ -240,13 +265,36 @@ mod tests {
 
     #[test]
     fn output_defaults_to_out_stem_glb() {
-        assert_eq!(parse(&["bake", "fixtures/bunny.obj"]).output(), PathBuf::from("out/bunny.glb"));
-        assert_eq!(parse(&["bake", "a.obj", "-o", "b.glb"]).output(), PathBuf::from("b.glb"));
+        assert_eq!(
+            parse(&["bake", "fixtures/bunny.obj"]).output(),
+            PathBuf::from("out/bunny.glb")
+        );
+        assert_eq!(
+            parse(&["bake", "a.obj", "-o", "b.glb"]).output(),
+            PathBuf::from("b.glb")
+        );
     }
 
     #[test]
     fn flags_override_the_preset() {
-        let p = parse(&["bake", "a.obj", "--preset", "grass", "--layers", "8", "--height", "0.5", "--density", "30", "--seed", "9", "--layout", "single-draw"]).params().unwrap();
+        let p = parse(&[
+            "bake",
+            "a.obj",
+            "--preset",
+            "grass",
+            "--layers",
+            "8",
+            "--height",
+            "0.5",
+            "--density",
+            "30",
+            "--seed",
+            "9",
+            "--layout",
+            "single-draw",
+        ])
+        .params()
+        .unwrap();
         assert_eq!(p.shells.layers, 8);
         assert_eq!(p.shells.height, Some(0.5));
         assert_eq!(p.strands.density, Some(30.0));
@@ -261,7 +309,11 @@ mod tests {
         assert_eq!(parse_size("64k"), Ok(64 << 10));
         assert_eq!(parse_size("2G"), Ok(2 << 30));
         assert!(parse_size("lots").is_err());
-        assert!(parse_bool_flags(&["bake", "a.obj", "--clamp"]).clamp.enabled);
+        assert!(
+            parse_bool_flags(&["bake", "a.obj", "--clamp"])
+                .clamp
+                .enabled
+        );
     }
 
     fn parse_bool_flags(args: &[&str]) -> BakeParams {
@@ -270,7 +322,9 @@ mod tests {
 
     #[test]
     fn out_of_range_flags_are_refused() {
-        assert!(parse(&["bake", "a.obj", "--layers", "500"]).params().is_err());
+        assert!(parse(&["bake", "a.obj", "--layers", "500"])
+            .params()
+            .is_err());
         assert!(parse(&["bake", "a.obj", "--density=-1"]).params().is_err());
         assert!(Cli::try_parse_from(["shellbake", "bake", "a.obj", "--preset", "hair"]).is_err());
     }

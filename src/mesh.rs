@@ -77,7 +77,12 @@ impl Mesh {
         assert_eq!(self.uvs.is_some(), other.uvs.is_some());
         let base = self.positions.len() as u32;
         let shift = other.origin - self.origin;
-        self.positions.extend(other.positions.iter().map(|p| (p.as_dvec3() + shift).as_vec3()));
+        self.positions.extend(
+            other
+                .positions
+                .iter()
+                .map(|p| (p.as_dvec3() + shift).as_vec3()),
+        );
         if let (Some(a), Some(b)) = (&mut self.normals, &other.normals) {
             a.extend_from_slice(b);
         }
@@ -90,10 +95,17 @@ impl Mesh {
     /// Checks the invariants every stage relies on; panics with the broken one. Stages call this
     /// under `debug_assertions`.
     pub fn validate(&self) {
-        assert_eq!(self.indices.len() % 3, 0, "index count is not a multiple of 3");
+        assert_eq!(
+            self.indices.len() % 3,
+            0,
+            "index count is not a multiple of 3"
+        );
         let n = self.positions.len() as u32;
         assert!(self.indices.iter().all(|&i| i < n), "index out of range");
-        assert!(self.positions.iter().all(|p| p.is_finite()), "non-finite position");
+        assert!(
+            self.positions.iter().all(|p| p.is_finite()),
+            "non-finite position"
+        );
         assert!(self.origin.is_finite(), "non-finite origin");
         if let Some(ns) = &self.normals {
             assert_eq!(ns.len(), self.positions.len(), "normal count");
@@ -199,7 +211,10 @@ mod tests {
         };
         m.recentre();
         assert_eq!(m.origin, DVec3::new(1e6 + 2.0, 1.0, 0.0));
-        assert_eq!(m.positions, vec![Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)]);
+        assert_eq!(
+            m.positions,
+            vec![Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)]
+        );
     }
 
     #[test]
@@ -221,7 +236,10 @@ mod tests {
 
     #[test]
     fn degenerate_face_normal_is_zero() {
-        assert_eq!(face_normal(Vec3::ZERO, Vec3::X, Vec3::X * 2.0), (Vec3::ZERO, 0.0));
+        assert_eq!(
+            face_normal(Vec3::ZERO, Vec3::X, Vec3::X * 2.0),
+            (Vec3::ZERO, 0.0)
+        );
         let (n, a2) = face_normal(Vec3::ZERO, Vec3::X, Vec3::Y);
         assert_eq!((n, a2), (Vec3::Z, 1.0));
     }

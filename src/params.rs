@@ -162,7 +162,10 @@ impl Default for ShadeParams {
 }
 impl Default for PackParams {
     fn default() -> Self {
-        PackParams { layout: Layout::Compact, position_bits: 14 }
+        PackParams {
+            layout: Layout::Compact,
+            position_bits: 14,
+        }
     }
 }
 impl Default for BakeParams {
@@ -174,19 +177,30 @@ impl Default for BakeParams {
 impl BakeParams {
     /// The named preset.
     pub fn preset(preset: Preset) -> BakeParams {
-        let pack = PackParams { layout: Layout::Compact, position_bits: 14 };
+        let pack = PackParams {
+            layout: Layout::Compact,
+            position_bits: 14,
+        };
         let clamp = crate::clamp::ClampParams::default();
         match preset {
             Preset::Fur => BakeParams {
                 clamp,
                 strands: StrandParams {
-                    model: StrandModel::Cells { thickness: 0.9, min_length: 0.55, texels_per_cell: 8 },
+                    model: StrandModel::Cells {
+                        thickness: 0.9,
+                        min_length: 0.55,
+                        texels_per_cell: 8,
+                    },
                     density: None,
                     strands_per_diagonal: 240.0,
                     mask_size: 256,
                     seed: 1,
                 },
-                shells: ShellParams { layers: 32, height: None, height_fraction: 0.035 },
+                shells: ShellParams {
+                    layers: 32,
+                    height: None,
+                    height_fraction: 0.035,
+                },
                 shade: ShadeParams {
                     root_color: [0.16, 0.09, 0.045],
                     tip_color: [0.80, 0.62, 0.42],
@@ -204,7 +218,11 @@ impl BakeParams {
                     mask_size: 256,
                     seed: 1,
                 },
-                shells: ShellParams { layers: 16, height: None, height_fraction: 0.012 },
+                shells: ShellParams {
+                    layers: 16,
+                    height: None,
+                    height_fraction: 0.012,
+                },
                 shade: ShadeParams {
                     root_color: [0.22, 0.02, 0.03],
                     tip_color: [0.62, 0.10, 0.11],
@@ -216,13 +234,21 @@ impl BakeParams {
             Preset::Grass => BakeParams {
                 clamp: clamp.clone(),
                 strands: StrandParams {
-                    model: StrandModel::Cells { thickness: 0.7, min_length: 0.3, texels_per_cell: 8 },
+                    model: StrandModel::Cells {
+                        thickness: 0.7,
+                        min_length: 0.3,
+                        texels_per_cell: 8,
+                    },
                     density: None,
                     strands_per_diagonal: 120.0,
                     mask_size: 256,
                     seed: 1,
                 },
-                shells: ShellParams { layers: 48, height: None, height_fraction: 0.08 },
+                shells: ShellParams {
+                    layers: 48,
+                    height: None,
+                    height_fraction: 0.08,
+                },
                 shade: ShadeParams {
                     root_color: [0.02, 0.09, 0.01],
                     tip_color: [0.35, 0.62, 0.12],
@@ -240,7 +266,11 @@ impl BakeParams {
                     mask_size: 256,
                     seed: 1,
                 },
-                shells: ShellParams { layers: 12, height: None, height_fraction: 0.008 },
+                shells: ShellParams {
+                    layers: 12,
+                    height: None,
+                    height_fraction: 0.008,
+                },
                 shade: ShadeParams {
                     root_color: [0.04, 0.08, 0.015],
                     tip_color: [0.25, 0.42, 0.07],
@@ -261,42 +291,63 @@ impl BakeParams {
         }
         let s = &self.shells;
         if s.layers == 0 || s.layers > MAX_LAYERS {
-            return Err(format!("layers must be in 1..={MAX_LAYERS}, got {}", s.layers));
+            return Err(format!(
+                "layers must be in 1..={MAX_LAYERS}, got {}",
+                s.layers
+            ));
         }
         if let Some(h) = s.height {
             if !(h.is_finite() && h >= 0.0) {
-                return Err(format!("height must be a finite non-negative length, got {h}"));
+                return Err(format!(
+                    "height must be a finite non-negative length, got {h}"
+                ));
             }
         }
         if !(s.height_fraction.is_finite() && s.height_fraction >= 0.0) {
-            return Err(format!("height_fraction must be >= 0, got {}", s.height_fraction));
+            return Err(format!(
+                "height_fraction must be >= 0, got {}",
+                s.height_fraction
+            ));
         }
         let st = &self.strands;
         if let Some(d) = st.density {
             if !(d.is_finite() && d > 0.0) {
-                return Err(format!("density must be a positive number of strands per unit, got {d}"));
+                return Err(format!(
+                    "density must be a positive number of strands per unit, got {d}"
+                ));
             }
         }
         if !(st.strands_per_diagonal.is_finite() && st.strands_per_diagonal > 0.0) {
             return Err("strands_per_diagonal must be > 0".into());
         }
         if !st.mask_size.is_power_of_two() || !(16..=4096).contains(&st.mask_size) {
-            return Err(format!("mask_size must be a power of two in 16..=4096, got {}", st.mask_size));
+            return Err(format!(
+                "mask_size must be a power of two in 16..=4096, got {}",
+                st.mask_size
+            ));
         }
         match st.model {
             StrandModel::Noise { threshold } => {
                 if !(threshold > 0.0 && threshold < 1.0) {
-                    return Err(format!("noise threshold must be in (0, 1), got {threshold}"));
+                    return Err(format!(
+                        "noise threshold must be in (0, 1), got {threshold}"
+                    ));
                 }
             }
-            StrandModel::Cells { thickness, min_length, texels_per_cell } => {
+            StrandModel::Cells {
+                thickness,
+                min_length,
+                texels_per_cell,
+            } => {
                 if !(thickness > 0.0 && thickness <= 2.0) {
                     return Err(format!("cell thickness must be in (0, 2], got {thickness}"));
                 }
                 if !(0.0..=1.0).contains(&min_length) {
                     return Err(format!("min_length must be in [0, 1], got {min_length}"));
                 }
-                if !(2..=64).contains(&texels_per_cell) || !st.mask_size.is_multiple_of(texels_per_cell) {
+                if !(2..=64).contains(&texels_per_cell)
+                    || !st.mask_size.is_multiple_of(texels_per_cell)
+                {
                     return Err(format!(
                         "texels_per_cell must be in 2..=64 and divide mask_size {}, got {texels_per_cell}",
                         st.mask_size
@@ -313,19 +364,26 @@ impl BakeParams {
             return Err("occlusion and roughness must be in [0, 1]".into());
         }
         if !(8..=16).contains(&self.pack.position_bits) {
-            return Err(format!("position_bits must be in 8..=16, got {}", self.pack.position_bits));
+            return Err(format!(
+                "position_bits must be in 8..=16, got {}",
+                self.pack.position_bits
+            ));
         }
         Ok(())
     }
 
     /// World-unit shell height for a mesh with the given bounding-box diagonal.
     pub fn resolved_height(&self, diagonal: f32) -> f32 {
-        self.shells.height.unwrap_or(self.shells.height_fraction * diagonal)
+        self.shells
+            .height
+            .unwrap_or(self.shells.height_fraction * diagonal)
     }
 
     /// Strands per world unit for a mesh with the given bounding-box diagonal.
     pub fn resolved_density(&self, diagonal: f32) -> f32 {
-        self.strands.density.unwrap_or(self.strands.strands_per_diagonal / diagonal.max(f32::MIN_POSITIVE))
+        self.strands
+            .density
+            .unwrap_or(self.strands.strands_per_diagonal / diagonal.max(f32::MIN_POSITIVE))
     }
 }
 

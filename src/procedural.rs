@@ -11,11 +11,16 @@ use crate::mesh::Mesh;
 
 /// A `size × size` plane in XZ facing +Y, `n × n` quads, UVs over [0, 1].
 pub fn plane(size: f32, n: u32) -> Mesh {
-    let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
+    let mut m = Mesh {
+        normals: Some(vec![]),
+        uvs: Some(vec![]),
+        ..Default::default()
+    };
     for j in 0..=n {
         for i in 0..=n {
             let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
-            m.positions.push(Vec3::new((u - 0.5) * size, 0.0, (v - 0.5) * size));
+            m.positions
+                .push(Vec3::new((u - 0.5) * size, 0.0, (v - 0.5) * size));
             m.normals.as_mut().unwrap().push(Vec3::Y);
             m.uvs.as_mut().unwrap().push(Vec2::new(u, v));
         }
@@ -27,12 +32,22 @@ pub fn plane(size: f32, n: u32) -> Mesh {
 /// A UV sphere of `radius` with `rings` latitude bands and `segments` longitude segments; the
 /// seam column is duplicated (a UV seam) and the poles are rings of coincident vertices.
 pub fn sphere(radius: f32, rings: u32, segments: u32) -> Mesh {
-    let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
+    let mut m = Mesh {
+        normals: Some(vec![]),
+        uvs: Some(vec![]),
+        ..Default::default()
+    };
     for j in 0..=rings {
         let v = j as f32 / rings as f32;
         let theta = v * PI;
         // exact poles: every pole vertex at the same position (welded), not scattered by rounding
-        let (st, ct) = if j == 0 { (0.0, 1.0) } else if j == rings { (0.0, -1.0) } else { theta.sin_cos() };
+        let (st, ct) = if j == 0 {
+            (0.0, 1.0)
+        } else if j == rings {
+            (0.0, -1.0)
+        } else {
+            theta.sin_cos()
+        };
         for i in 0..=segments {
             let u = i as f32 / segments as f32;
             let phi = if i == segments { 0.0 } else { u * TAU }; // exact seam: welds
@@ -48,7 +63,11 @@ pub fn sphere(radius: f32, rings: u32, segments: u32) -> Mesh {
 
 /// A torus around Y: `major` radius of the ring, `minor` radius of the tube.
 pub fn torus(major: f32, minor: f32, rings: u32, segments: u32) -> Mesh {
-    let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
+    let mut m = Mesh {
+        normals: Some(vec![]),
+        uvs: Some(vec![]),
+        ..Default::default()
+    };
     for j in 0..=rings {
         let v = j as f32 / rings as f32;
         let a = if j == rings { 0.0 } else { v * TAU };
@@ -69,19 +88,30 @@ pub fn torus(major: f32, minor: f32, rings: u32, segments: u32) -> Mesh {
 /// A cube of side `size` with 24 vertices: every face has its own normals and UVs, so every
 /// corner is three render vertices at one position (the split-normal case).
 pub fn split_cube(size: f32) -> Mesh {
-    let mut m = Mesh { normals: Some(vec![]), uvs: Some(vec![]), ..Default::default() };
+    let mut m = Mesh {
+        normals: Some(vec![]),
+        uvs: Some(vec![]),
+        ..Default::default()
+    };
     let h = size * 0.5;
     for axis in 0..3 {
         for sign in [1.0f32, -1.0] {
             let mut n = Vec3::ZERO;
             n[axis] = sign;
-            let u_axis = Vec3::from(if axis == 1 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] });
+            let u_axis = Vec3::from(if axis == 1 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 1.0, 0.0]
+            });
             let v_axis = n.cross(u_axis);
             let base = m.positions.len() as u32;
             for (du, dv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
                 m.positions.push((n + u_axis * du + v_axis * dv) * h);
                 m.normals.as_mut().unwrap().push(n);
-                m.uvs.as_mut().unwrap().push(Vec2::new((du + 1.0) * 0.5, (dv + 1.0) * 0.5));
+                m.uvs
+                    .as_mut()
+                    .unwrap()
+                    .push(Vec2::new((du + 1.0) * 0.5, (dv + 1.0) * 0.5));
             }
             // counter-clockwise seen from outside
             let quad = [0, 1, 2, 0, 2, 3];
@@ -174,7 +204,11 @@ mod tests {
             m.validate();
             let ns = m.normals.as_ref().unwrap();
             for t in m.indices.chunks_exact(3) {
-                let (n, a) = face_normal(m.positions[t[0] as usize], m.positions[t[1] as usize], m.positions[t[2] as usize]);
+                let (n, a) = face_normal(
+                    m.positions[t[0] as usize],
+                    m.positions[t[1] as usize],
+                    m.positions[t[2] as usize],
+                );
                 if a > 1e-9 {
                     let avg = ns[t[0] as usize] + ns[t[1] as usize] + ns[t[2] as usize];
                     assert!(n.dot(avg) > 0.0, "{name}: inward face {t:?}");

@@ -62,7 +62,13 @@ impl Report {
 
     /// Records a stage that the parameters did not call for.
     pub fn skip(&mut self, name: &'static str, why: &str) {
-        self.stages.push(Stage { name, ran: false, ms: 0.0, skipped: Some(why.into()), counts: BTreeMap::new() });
+        self.stages.push(Stage {
+            name,
+            ran: false,
+            ms: 0.0,
+            skipped: Some(why.into()),
+            counts: BTreeMap::new(),
+        });
     }
 
     /// Adds a count to the last stage.
@@ -100,7 +106,12 @@ impl Report {
             "  {} bytes, {:.2} bytes per base vertex (",
             self.total_bytes, self.bytes_per_base_vertex
         );
-        s += &self.streams.iter().map(|(k, v)| format!("{k} {v}")).collect::<Vec<_>>().join(", ");
+        s += &self
+            .streams
+            .iter()
+            .map(|(k, v)| format!("{k} {v}"))
+            .collect::<Vec<_>>()
+            .join(", ");
         s += ")\n  stages:";
         for st in &self.stages {
             if st.ran {

@@ -49,7 +49,9 @@ pub fn build_shells(
     shade: &ShadeParams,
 ) -> ShellStack {
     assert!(height.is_finite() && height >= 0.0);
-    let steps: Vec<u32> = (0..shells.layers).map(|j| layer_step(j, shells.layers)).collect();
+    let steps: Vec<u32> = (0..shells.layers)
+        .map(|j| layer_step(j, shells.layers))
+        .collect();
     let t: Vec<f32> = steps.iter().map(|&k| step_height(k)).collect();
     let delta = directions
         .iter()
@@ -74,8 +76,17 @@ mod tests {
     #[test]
     fn layers_rise_evenly_and_deltas_scale() {
         let p = BakeParams::default();
-        let shells = ShellParams { layers: 4, ..p.shells.clone() };
-        let s = build_shells(&[Vec3::Y, Vec3::X], Some(&[1.0, 0.5]), 2.0, &shells, &p.shade);
+        let shells = ShellParams {
+            layers: 4,
+            ..p.shells.clone()
+        };
+        let s = build_shells(
+            &[Vec3::Y, Vec3::X],
+            Some(&[1.0, 0.5]),
+            2.0,
+            &shells,
+            &p.shade,
+        );
         assert_eq!(s.steps, vec![0, 60, 120, 179]);
         assert_eq!(s.t[0], 0.0);
         assert!((s.t[2] - 0.5).abs() < 0.5 / 239.0 + 1e-6);
@@ -84,7 +95,12 @@ mod tests {
 
     #[test]
     fn colour_is_occluded_root_to_tip_gradient() {
-        let shade = ShadeParams { root_color: [0.0; 3], tip_color: [1.0; 3], occlusion: 0.5, roughness: 0.5 };
+        let shade = ShadeParams {
+            root_color: [0.0; 3],
+            tip_color: [1.0; 3],
+            occlusion: 0.5,
+            roughness: 0.5,
+        };
         assert_eq!(layer_color(&shade, 0.0), [0.0; 3]);
         assert_eq!(layer_color(&shade, 1.0), [1.0; 3]);
         assert_eq!(layer_color(&shade, 0.5), [0.5 * 0.75; 3]);

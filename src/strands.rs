@@ -53,7 +53,11 @@ impl Mask {
 
     /// Fraction of texels visible at step `k`.
     pub fn coverage(&self, k: u32) -> f64 {
-        let n = self.code.iter().filter(|&&c| c as u32 >= BASE_CODE + k).count();
+        let n = self
+            .code
+            .iter()
+            .filter(|&&c| c as u32 >= BASE_CODE + k)
+            .count();
         n as f64 / self.code.len() as f64
     }
 }
@@ -103,7 +107,9 @@ pub fn cell_rand(cx: u32, cy: u32, cells: u32, seed: u32) -> f32 {
 pub fn cells_per_tile(p: &StrandParams) -> u32 {
     match p.model {
         StrandModel::Noise { .. } => p.mask_size,
-        StrandModel::Cells { texels_per_cell, .. } => p.mask_size / texels_per_cell,
+        StrandModel::Cells {
+            texels_per_cell, ..
+        } => p.mask_size / texels_per_cell,
     }
 }
 
@@ -115,9 +121,17 @@ pub fn cells_per_tile(p: &StrandParams) -> u32 {
 pub fn tiles_per_uv(mesh: &crate::mesh::Mesh, density: f32, cells_per_tile: u32) -> glam::Vec2 {
     let uv = crate::mesh::uv_area(mesh);
     let world = crate::mesh::world_area(mesh);
-    let scale = if uv > 0.0 && world > 0.0 { (world / uv).sqrt() } else { 1.0 };
+    let scale = if uv > 0.0 && world > 0.0 {
+        (world / uv).sqrt()
+    } else {
+        1.0
+    };
     let tiles = (density as f64 * scale / cells_per_tile as f64) as f32;
-    glam::Vec2::splat(if tiles.is_finite() && tiles > 0.0 { tiles } else { 1.0 })
+    glam::Vec2::splat(if tiles.is_finite() && tiles > 0.0 {
+        tiles
+    } else {
+        1.0
+    })
 }
 
 /// Survival height of texel `(x, y)` in `f32`, the law as the reference evaluates it. For the
@@ -132,7 +146,11 @@ pub fn survival(p: &StrandParams, x: u32, y: u32) -> f32 {
                 1.0 - threshold / n
             }
         }
-        StrandModel::Cells { thickness, min_length, texels_per_cell } => {
+        StrandModel::Cells {
+            thickness,
+            min_length,
+            texels_per_cell,
+        } => {
             let cells = p.mask_size / texels_per_cell;
             let (cx, cy) = (x / texels_per_cell, y / texels_per_cell);
             let lx = ((x % texels_per_cell) as f32 + 0.5) / texels_per_cell as f32 - 0.5;
@@ -178,7 +196,11 @@ pub fn bake_mask(p: &StrandParams) -> Mask {
                 .collect()
         })
         .collect();
-    Mask { size, code: rows.concat(), cells_per_tile: cells_per_tile(p) }
+    Mask {
+        size,
+        code: rows.concat(),
+        cells_per_tile: cells_per_tile(p),
+    }
 }
 
 #[cfg(test)]
@@ -187,7 +209,11 @@ mod tests {
     use crate::params::{BakeParams, Preset};
 
     fn noise_params(threshold: f32) -> StrandParams {
-        StrandParams { model: StrandModel::Noise { threshold }, mask_size: 64, ..BakeParams::default().strands }
+        StrandParams {
+            model: StrandModel::Noise { threshold },
+            mask_size: 64,
+            ..BakeParams::default().strands
+        }
     }
 
     #[test]
@@ -208,7 +234,10 @@ mod tests {
                     let shown = (m.code[(y * 64 + x) as usize] as f32 / 255.0) >= cutoff;
                     if law != shown {
                         // f32 and f64 may differ only where n·(1−t) is within rounding of c.
-                        assert!((n * (1.0 - t as f64) - 0.3).abs() < 1e-6, "texel {x},{y} layer {j}");
+                        assert!(
+                            (n * (1.0 - t as f64) - 0.3).abs() < 1e-6,
+                            "texel {x},{y} layer {j}"
+                        );
                         disagreements += 1;
                     }
                 }
@@ -236,7 +265,10 @@ mod tests {
     #[test]
     fn coverage_decreases_with_height_and_matches_theory() {
         // P(n(1−t) >= c) = 1 − c/(1−t) for uniform n.
-        let p = StrandParams { mask_size: 256, ..noise_params(0.3) };
+        let p = StrandParams {
+            mask_size: 256,
+            ..noise_params(0.3)
+        };
         let m = bake_mask(&p);
         let mut last = 1.0;
         for k in [0, 40, 80, 120, 160] {
@@ -245,7 +277,10 @@ mod tests {
             last = cov;
             if k > 0 {
                 let theory = (1.0 - 0.3 / (1.0 - step_height(k) as f64)).max(0.0);
-                assert!((cov - theory).abs() < 0.03, "k={k} cov={cov} theory={theory}");
+                assert!(
+                    (cov - theory).abs() < 0.03,
+                    "k={k} cov={cov} theory={theory}"
+                );
             }
         }
         assert_eq!(m.coverage(0), 1.0, "the base shows everything");

@@ -45,7 +45,10 @@ fn key(p: Vec3) -> [u32; 3] {
 pub fn weld(positions: &[Vec3], indices: &[u32]) -> Welded {
     debug_assert!(indices.len().is_multiple_of(3));
     let mut ids: HashMap<[u32; 3], u32> = HashMap::with_capacity(positions.len());
-    let mut out = Welded { remap: Vec::with_capacity(positions.len()), ..Default::default() };
+    let mut out = Welded {
+        remap: Vec::with_capacity(positions.len()),
+        ..Default::default()
+    };
     for &p in positions {
         let next = out.positions.len() as u32;
         let id = *ids.entry(key(p)).or_insert(next);
@@ -71,7 +74,13 @@ mod tests {
     #[test]
     fn split_cube_corner_welds_to_one_vertex() {
         // The same corner written three times (three face normals), plus -0.0.
-        let p = [Vec3::ZERO, Vec3::new(-0.0, 0.0, 0.0), Vec3::ZERO, Vec3::X, Vec3::Y];
+        let p = [
+            Vec3::ZERO,
+            Vec3::new(-0.0, 0.0, 0.0),
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+        ];
         let w = weld(&p, &[0, 3, 4, 1, 3, 4]);
         assert_eq!(w.remap, vec![0, 0, 0, 1, 2]);
         assert_eq!(w.positions.len(), 3);

@@ -175,7 +175,9 @@ pub fn json_bytes_per_layer(doc: &Value) -> Vec<usize> {
     let meshes = doc["meshes"].as_array().cloned().unwrap_or_default();
     let materials = doc["materials"].as_array().cloned().unwrap_or_default();
     let nodes = doc["nodes"].as_array().cloned().unwrap_or_default();
-    (0..meshes.len()).map(|j| len(&meshes[j]) + len(&materials[j]) + len(&nodes[j + 1])).collect()
+    (0..meshes.len())
+        .map(|j| len(&meshes[j]) + len(&materials[j]) + len(&nodes[j + 1]))
+        .collect()
 }
 
 /// A GLB container around `doc` and `bin`.
@@ -202,9 +204,15 @@ pub fn glb_bytes(doc: &Value, bin: &[u8]) -> Vec<u8> {
 
 /// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
     let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
@@ -239,7 +247,10 @@ mod tests {
         let doc = json!({"asset": {"version": "2.0"}});
         let glb = glb_bytes(&doc, &[1, 2, 3, 4]);
         assert_eq!(&glb[0..4], b"glTF");
-        assert_eq!(u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize, glb.len());
+        assert_eq!(
+            u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize,
+            glb.len()
+        );
         let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
         assert_eq!(json_len % 4, 0);
     }
@@ -250,7 +261,10 @@ mod tests {
         let path = dir.join("a.glb");
         write_atomic(&path, b"abc").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"abc");
-        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
         assert_eq!(names.len(), 1);
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -11,7 +11,14 @@ use common::{assert_valid, fixture, node, scratch, Glb};
 use glam::DVec3;
 use shellbake::params::{BakeParams, Layout, Preset};
 
-const FIXTURES: [&str; 6] = ["plane.obj", "sphere.obj", "torus.obj", "cube.obj", "bunny.obj", "teapot.obj"];
+const FIXTURES: [&str; 6] = [
+    "plane.obj",
+    "sphere.obj",
+    "torus.obj",
+    "cube.obj",
+    "bunny.obj",
+    "teapot.obj",
+];
 const LAYOUTS: [Layout; 2] = [Layout::Compact, Layout::SingleDraw];
 
 fn layout_name(l: Layout) -> &'static str {
@@ -40,8 +47,16 @@ fn bake_matrix() -> Vec<Case> {
                 let mut p = BakeParams::preset(preset);
                 p.pack.layout = layout;
                 let baked = shellbake::bake(&scene, &p);
-                check_exactness(&baked, &format!("{fx} {} {}", preset.name(), layout_name(layout)));
-                let file = dir.join(format!("{}-{}-{}.glb", fx.trim_end_matches(".obj"), preset.name(), layout_name(layout)));
+                check_exactness(
+                    &baked,
+                    &format!("{fx} {} {}", preset.name(), layout_name(layout)),
+                );
+                let file = dir.join(format!(
+                    "{}-{}-{}.glb",
+                    fx.trim_end_matches(".obj"),
+                    preset.name(),
+                    layout_name(layout)
+                ));
                 shellbake::write::write_glb(&file, &baked.glb).unwrap();
                 cases.push(Case {
                     file,
@@ -61,7 +76,12 @@ fn bake_matrix() -> Vec<Case> {
 fn check_exactness(baked: &shellbake::Baked, what: &str) {
     let glb = Glb::parse(&baked.glb);
     let root = &glb.json["nodes"][0];
-    let tr: Vec<f64> = root["translation"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let tr: Vec<f64> = root["translation"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
     let s = root["scale"][0].as_f64().unwrap();
     let t0 = DVec3::new(tr[0], tr[1], tr[2]);
     let order = &baked.packed.vertex_order;
@@ -84,7 +104,9 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
             Layout::SingleDraw => (&meshes[0]["primitives"][0], 0.0, j * nv),
         };
         let q = glb.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
-        let d = prim["targets"][0]["POSITION"].as_u64().map(|a| glb.accessor(a as usize));
+        let d = prim["targets"][0]["POSITION"]
+            .as_u64()
+            .map(|a| glb.accessor(a as usize));
         for (i, &old) in order.iter().enumerate() {
             let qi = &q[offset + i];
             let mut local = DVec3::new(qi[0], qi[1], qi[2]);
@@ -96,7 +118,10 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
             let want = mesh.origin + (mesh.positions[o] + baked.shells.delta[o] * t).as_dvec3();
             let err = (got - want).abs().max_element();
             worst = worst.max(err / s);
-            assert!(err <= bound, "{what}: layer {j} vertex {i}: error {err} > bound {bound}");
+            assert!(
+                err <= bound,
+                "{what}: layer {j} vertex {i}: error {err} > bound {bound}"
+            );
         }
     }
     assert!(worst <= 1.0001, "{what}: worst {worst} steps");
@@ -116,17 +141,31 @@ fn every_fixture_preset_and_layout_is_valid_loads_in_three_and_is_exact() {
         let meshes = r["meshes"].as_array().unwrap();
         match c.layout {
             Layout::Compact => {
-                assert_eq!(meshes.len(), c.layers, "{name}: one three.js mesh per layer");
+                assert_eq!(
+                    meshes.len(),
+                    c.layers,
+                    "{name}: one three.js mesh per layer"
+                );
                 for (j, m) in meshes.iter().enumerate() {
                     let alpha_test = m["alphaTest"].as_f64().unwrap();
                     if j == 0 {
                         assert_eq!(alpha_test, 0.0, "{name}: base layer is opaque");
                         assert_eq!(m["morph"].as_u64(), Some(0));
                     } else {
-                        assert!((alpha_test - c.cutoffs[j] as f64).abs() < 1e-6, "{name} layer {j}: cutoff {alpha_test}");
-                        assert_eq!(m["morph"].as_u64(), Some(1), "{name} layer {j}: morph target");
+                        assert!(
+                            (alpha_test - c.cutoffs[j] as f64).abs() < 1e-6,
+                            "{name} layer {j}: cutoff {alpha_test}"
+                        );
+                        assert_eq!(
+                            m["morph"].as_u64(),
+                            Some(1),
+                            "{name} layer {j}: morph target"
+                        );
                         let w = m["weights"][0].as_f64().unwrap();
-                        assert!((w - c.t[j] as f64).abs() < 1e-6, "{name} layer {j}: weight {w}");
+                        assert!(
+                            (w - c.t[j] as f64).abs() < 1e-6,
+                            "{name} layer {j}: weight {w}"
+                        );
                     }
                 }
                 // every layer shares one geometry: same vertex count everywhere
@@ -146,9 +185,13 @@ fn every_fixture_preset_and_layout_is_valid_loads_in_three_and_is_exact() {
 #[test]
 fn committed_procedural_fixtures_match_the_generator() {
     for (name, mesh) in shellbake::procedural::fixtures() {
-        let text = shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
+        let text =
+            shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
         let committed = std::fs::read_to_string(fixture(&format!("{name}.obj"))).unwrap();
-        assert!(committed == text, "fixtures/{name}.obj is stale: run `shellbake fixtures fixtures`");
+        assert!(
+            committed == text,
+            "fixtures/{name}.obj is stale: run `shellbake fixtures fixtures`"
+        );
     }
 }
 
@@ -173,7 +216,13 @@ fn compact_layers_share_accessors_and_cost_json_only() {
     let ga = Glb::parse(&a.glb);
     let gb = Glb::parse(&b.glb);
     assert_eq!(ga.bin.len(), gb.bin.len(), "more layers add no binary data");
-    let prims: Vec<&serde_json::Value> =
-        gb.json["meshes"].as_array().unwrap().iter().map(|m| &m["primitives"][0]).collect();
-    assert!(prims.iter().all(|p| p["attributes"] == prims[0]["attributes"] && p["indices"] == prims[0]["indices"]));
+    let prims: Vec<&serde_json::Value> = gb.json["meshes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| &m["primitives"][0])
+        .collect();
+    assert!(prims
+        .iter()
+        .all(|p| p["attributes"] == prims[0]["attributes"] && p["indices"] == prims[0]["indices"]));
 }

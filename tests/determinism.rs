@@ -15,7 +15,15 @@ fn same_bytes_for_1_2_and_8_threads_and_repeated_runs() {
         for (run, threads) in ["1", "2", "8", "8"].iter().enumerate() {
             let out = dir.join(format!("bunny-{layout}-{threads}-{run}.glb"));
             let status = Command::new(env!("CARGO_BIN_EXE_shellbake"))
-                .args(["bake", fixture("bunny.obj").to_str().unwrap(), "--clamp", "--layout", layout, "-q", "-o"])
+                .args([
+                    "bake",
+                    fixture("bunny.obj").to_str().unwrap(),
+                    "--clamp",
+                    "--layout",
+                    layout,
+                    "-q",
+                    "-o",
+                ])
                 .arg(&out)
                 .env("RAYON_NUM_THREADS", threads)
                 .status()
@@ -23,6 +31,9 @@ fn same_bytes_for_1_2_and_8_threads_and_repeated_runs() {
             assert!(status.success());
             outputs.push(std::fs::read(&out).unwrap());
         }
-        assert!(outputs.windows(2).all(|w| w[0] == w[1]), "{layout}: outputs differ between thread counts or runs");
+        assert!(
+            outputs.windows(2).all(|w| w[0] == w[1]),
+            "{layout}: outputs differ between thread counts or runs"
+        );
     }
 }

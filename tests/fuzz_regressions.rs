@@ -7,14 +7,25 @@ mod common;
 use shellbake::params::{BakeParams, Layout};
 
 fn replay(data: &[u8]) -> Result<usize, String> {
-    let Some((&selector, body)) = data.split_first() else { return Ok(0) };
-    let name = if selector & 1 == 0 { "fuzz.obj" } else { "fuzz.glb" };
-    let scene = shellbake::load::load_bytes(std::path::Path::new(name), body).map_err(|e| e.to_string())?;
+    let Some((&selector, body)) = data.split_first() else {
+        return Ok(0);
+    };
+    let name = if selector & 1 == 0 {
+        "fuzz.obj"
+    } else {
+        "fuzz.glb"
+    };
+    let scene =
+        shellbake::load::load_bytes(std::path::Path::new(name), body).map_err(|e| e.to_string())?;
     let mut p = BakeParams::default();
     p.shells.layers = 4;
     p.strands.mask_size = 16;
     p.clamp.enabled = true;
-    p.pack.layout = if selector & 2 == 0 { Layout::Compact } else { Layout::SingleDraw };
+    p.pack.layout = if selector & 2 == 0 {
+        Layout::Compact
+    } else {
+        Layout::SingleDraw
+    };
     Ok(shellbake::bake(&scene, &p).glb.len())
 }
 

@@ -52,10 +52,16 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
 fn all_finite(glb: &[u8], what: &str) {
     let g = Glb::parse(glb);
     let text = serde_json::to_string(&g.json).unwrap();
-    assert!(!text.contains("NaN") && !text.contains("inf") && !text.contains("null,"), "{what}: non-finite JSON");
+    assert!(
+        !text.contains("NaN") && !text.contains("inf") && !text.contains("null,"),
+        "{what}: non-finite JSON"
+    );
     for i in 0..g.json["accessors"].as_array().unwrap().len() {
         for row in g.accessor(i) {
-            assert!(row.iter().all(|v| v.is_finite()), "{what}: accessor {i} not finite");
+            assert!(
+                row.iter().all(|v| v.is_finite()),
+                "{what}: accessor {i} not finite"
+            );
         }
     }
 }
@@ -74,7 +80,10 @@ fn no_layer_inverts(baked: &shellbake::Baked, what: &str) {
         for &t in &baked.shells.t {
             let q = [0, 1, 2].map(|k| p[k] + d[k] * t as f64);
             let n = (q[1] - q[0]).cross(q[2] - q[0]);
-            assert!(n.dot(n0) > 0.0, "{what}: triangle {tri:?} inverts at t = {t}");
+            assert!(
+                n.dot(n0) > 0.0,
+                "{what}: triangle {tri:?} inverts at t = {t}"
+            );
         }
     }
 }
@@ -130,7 +139,11 @@ fn obj(m: &Mesh) -> String {
 }
 
 fn mesh(positions: Vec<Vec3>, indices: Vec<u32>) -> Mesh {
-    Mesh { positions, indices, ..Default::default() }
+    Mesh {
+        positions,
+        indices,
+        ..Default::default()
+    }
 }
 
 /// Refused with an error naming the file and `wants`, and nothing written at the output.
@@ -140,18 +153,31 @@ fn refused(case: &str, name: &str, content: &[u8], extra: &[&str], wants: &[&str
     std::fs::write(&input, content).unwrap();
     let output = dir.join("out.glb");
     let out = Command::new(env!("CARGO_BIN_EXE_shellbake"))
-        .args(["bake", input.to_str().unwrap(), "-o", output.to_str().unwrap(), "-q"])
+        .args([
+            "bake",
+            input.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+            "-q",
+        ])
         .args(extra)
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{case}: accepted");
-    assert!(err.contains(name), "{case}: error does not name the file: {err}");
+    assert!(
+        err.contains(name),
+        "{case}: error does not name the file: {err}"
+    );
     for w in wants {
         assert!(err.contains(w), "{case}: error does not say '{w}': {err}");
     }
     assert!(!output.exists(), "{case}: output written");
-    assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().starts_with('.')));
+    assert!(std::fs::read_dir(&dir).unwrap().all(|e| !e
+        .unwrap()
+        .file_name()
+        .to_string_lossy()
+        .starts_with('.')));
 }
 
 #[test]
@@ -159,7 +185,11 @@ fn degenerate_and_zero_area_triangles() {
     let mut m = procedural::plane(1.0, 4);
     let n = m.positions.len() as u32;
     // collinear, repeated-index and repeated-position triangles
-    m.positions.extend([Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.1, 0.0, 0.0), Vec3::new(0.2, 0.0, 0.0)]);
+    m.positions.extend([
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(0.1, 0.0, 0.0),
+        Vec3::new(0.2, 0.0, 0.0),
+    ]);
     m.normals.as_mut().unwrap().extend([Vec3::Y; 3]);
     m.uvs.as_mut().unwrap().extend([Vec2::ZERO; 3]);
     m.indices.extend([n, n + 1, n + 2, 0, 0, 1, 2, 2, 2]);
@@ -190,7 +220,11 @@ fn needles_and_slivers() {
         m.indices.extend([0, i, i + 1]);
     }
     let b = m.positions.len() as u32;
-    m.positions.extend([Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.5, 0.0, 1.000001)]);
+    m.positions.extend([
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(1.0, 0.0, 1.0),
+        Vec3::new(0.5, 0.0, 1.000001),
+    ]);
     m.indices.extend([b, b + 1, b + 2]);
     bakes_clean("needles_and_slivers", &obj(&m));
 }
@@ -199,14 +233,21 @@ fn needles_and_slivers() {
 fn two_sided_sheets_whose_normals_cancel() {
     let q = procedural::plane(1.0, 4);
     let mut m = q.clone();
-    let back: Vec<u32> = q.indices.chunks_exact(3).flat_map(|t| [t[0], t[2], t[1]]).collect();
+    let back: Vec<u32> = q
+        .indices
+        .chunks_exact(3)
+        .flat_map(|t| [t[0], t[2], t[1]])
+        .collect();
     m.indices.extend(back);
     bakes_clean("two_sided_sheets_whose_normals_cancel", &obj(&m));
 }
 
 #[test]
 fn cube_with_split_normals() {
-    bakes_clean("cube_with_split_normals", &obj(&procedural::split_cube(1.0)));
+    bakes_clean(
+        "cube_with_split_normals",
+        &obj(&procedural::split_cube(1.0)),
+    );
 }
 
 #[test]
@@ -246,10 +287,18 @@ fn concave_corners_deeper_than_the_shell_height() {
     // clamp (faces collapse at 0.87 along the corner diagonals; see the test below).
     let c = procedural::split_cube(1.0);
     let mut m = c.clone();
-    m.indices = c.indices.chunks_exact(3).flat_map(|t| [t[0], t[2], t[1]]).collect();
+    m.indices = c
+        .indices
+        .chunks_exact(3)
+        .flat_map(|t| [t[0], t[2], t[1]])
+        .collect();
     m.normals = Some(c.normals.unwrap().iter().map(|n| -*n).collect());
     m.indices.truncate(m.indices.len() - 6); // open the lid
-    bakes_clean_with("concave_corners_deeper_than_the_shell_height", &obj(&m), Some(0.6));
+    bakes_clean_with(
+        "concave_corners_deeper_than_the_shell_height",
+        &obj(&m),
+        Some(0.6),
+    );
 }
 
 #[test]
@@ -264,12 +313,20 @@ fn thin_features_where_opposite_shells_collide() {
         p.z = 0.01;
     }
     // a faces +z, b faces -z
-    a.indices = a.indices.chunks_exact(3).flat_map(|t| [t[0], t[2], t[1]]).collect();
+    a.indices = a
+        .indices
+        .chunks_exact(3)
+        .flat_map(|t| [t[0], t[2], t[1]])
+        .collect();
     a.normals = Some(vec![Vec3::Z; a.positions.len()]);
     b.normals = Some(vec![-Vec3::Z; b.positions.len()]);
     let mut m = a.clone();
     m.append(&b);
-    bakes_clean_with("thin_features_where_opposite_shells_collide", &obj(&m), Some(0.07));
+    bakes_clean_with(
+        "thin_features_where_opposite_shells_collide",
+        &obj(&m),
+        Some(0.07),
+    );
 }
 
 fn transformed_sphere(scale: f32, offset: DVec3) -> Mesh {
@@ -283,17 +340,26 @@ fn transformed_sphere(scale: f32, offset: DVec3) -> Mesh {
 
 #[test]
 fn models_at_1e6_offset() {
-    bakes_clean("models_at_1e6_offset", &obj(&transformed_sphere(1.0, DVec3::splat(1e6))));
+    bakes_clean(
+        "models_at_1e6_offset",
+        &obj(&transformed_sphere(1.0, DVec3::splat(1e6))),
+    );
 }
 
 #[test]
 fn models_at_1e_5_scale() {
-    bakes_clean("models_at_1e_5_scale", &obj(&transformed_sphere(1e-5, DVec3::ZERO)));
+    bakes_clean(
+        "models_at_1e_5_scale",
+        &obj(&transformed_sphere(1e-5, DVec3::ZERO)),
+    );
 }
 
 #[test]
 fn models_at_1e4_scale() {
-    bakes_clean("models_at_1e4_scale", &obj(&transformed_sphere(1e4, DVec3::ZERO)));
+    bakes_clean(
+        "models_at_1e4_scale",
+        &obj(&transformed_sphere(1e4, DVec3::ZERO)),
+    );
 }
 
 #[test]
@@ -327,23 +393,55 @@ fn missing_normals() {
 
 #[test]
 fn empty_meshes() {
-    refused("empty_meshes", "empty.obj", b"# no geometry\no empty\n", &[], &["no triangles"]);
+    refused(
+        "empty_meshes",
+        "empty.obj",
+        b"# no geometry\no empty\n",
+        &[],
+        &["no triangles"],
+    );
 }
 
 #[test]
 fn nan_and_inf_input() {
-    refused("nan_input", "nan.obj", b"v 0 0 0\nv NaN 0 0\nv 0 1 0\nf 1 2 3\n", &[], &["vertex 2", "non-finite"]);
-    refused("inf_input", "inf.obj", b"v 0 0 0\nv 1 0 0\nv 0 -inf 0\nf 1 2 3\n", &[], &["vertex 3", "non-finite"]);
+    refused(
+        "nan_input",
+        "nan.obj",
+        b"v 0 0 0\nv NaN 0 0\nv 0 1 0\nf 1 2 3\n",
+        &[],
+        &["vertex 2", "non-finite"],
+    );
+    refused(
+        "inf_input",
+        "inf.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 -inf 0\nf 1 2 3\n",
+        &[],
+        &["vertex 3", "non-finite"],
+    );
 }
 
 #[test]
 fn out_of_range_indices() {
-    refused("out_of_range_indices", "range.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -7\n", &[], &["line 4", "-7"]);
+    refused(
+        "out_of_range_indices",
+        "range.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -7\n",
+        &[],
+        &["line 4", "-7"],
+    );
 }
 
 #[test]
 fn gltf_uris_that_point_outside_the_asset_folder() {
-    for (k, uri) in ["../outside.bin", "/etc/passwd", "sub/../../outside.bin", "file:///etc/passwd"].iter().enumerate() {
+    for (k, uri) in [
+        "../outside.bin",
+        "/etc/passwd",
+        "sub/../../outside.bin",
+        "file:///etc/passwd",
+    ]
+    .iter()
+    .enumerate()
+    {
         let doc = serde_json::json!({
             "asset": {"version": "2.0"},
             "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
@@ -352,14 +450,26 @@ fn gltf_uris_that_point_outside_the_asset_folder() {
             "bufferViews": [{"buffer": 0, "byteLength": 36}],
             "buffers": [{"byteLength": 36, "uri": uri}]
         });
-        refused(&format!("gltf_uri_{k}"), "escape.gltf", &serde_json::to_vec(&doc).unwrap(), &[], &["buffer 0", "refused"]);
+        refused(
+            &format!("gltf_uri_{k}"),
+            "escape.gltf",
+            &serde_json::to_vec(&doc).unwrap(),
+            &[],
+            &["buffer 0", "refused"],
+        );
     }
 }
 
 #[test]
 fn oversize_outputs() {
     let m = procedural::sphere(1.0, 12, 24);
-    refused("oversize_outputs", "big.obj", obj(&m).as_bytes(), &["--max-output", "64K"], &["would be about", "bytes", "--max-output"]);
+    refused(
+        "oversize_outputs",
+        "big.obj",
+        obj(&m).as_bytes(),
+        &["--max-output", "64K"],
+        &["would be about", "bytes", "--max-output"],
+    );
 }
 
 #[test]
@@ -368,7 +478,11 @@ fn clamp_is_needed_for_the_concave_box() {
     // shows the invariant checker can fail.
     let c = procedural::split_cube(1.0);
     let mut m = c.clone();
-    m.indices = c.indices.chunks_exact(3).flat_map(|t| [t[0], t[2], t[1]]).collect();
+    m.indices = c
+        .indices
+        .chunks_exact(3)
+        .flat_map(|t| [t[0], t[2], t[1]])
+        .collect();
     let dir = scratch("clamp_needed");
     m.indices.truncate(m.indices.len() - 6); // open the lid, as above
     let input: PathBuf = dir.join("box.obj");

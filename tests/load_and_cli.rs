@@ -11,8 +11,15 @@ use common::{fixture, scratch, Glb};
 use serde_json::json;
 
 fn shellbake(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_shellbake")).args(args).output().unwrap();
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+    let out = Command::new(env!("CARGO_BIN_EXE_shellbake"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
 }
 
 fn bad_input(dir: &Path, name: &str, content: &[u8]) -> (PathBuf, PathBuf) {
@@ -25,36 +32,77 @@ fn bad_input(dir: &Path, name: &str, content: &[u8]) -> (PathBuf, PathBuf) {
 fn bad_inputs_are_refused_with_file_and_element_and_nothing_is_written() {
     let dir = scratch("bad_inputs");
     let cases: [(&str, &[u8], &[&str]); 6] = [
-        ("nan.obj", b"v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n", &["nan.obj", "vertex 2", "line 2"]),
-        ("inf.obj", b"v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n", &["inf.obj", "vertex 3"]),
-        ("range.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", &["range.obj", "line 4", "vertex 4"]),
-        ("empty.obj", b"# nothing here\n", &["empty.obj", "no triangles"]),
-        ("points.obj", b"v 0 0 0\nv 1 0 0\n", &["points.obj", "no triangles"]),
+        (
+            "nan.obj",
+            b"v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n",
+            &["nan.obj", "vertex 2", "line 2"],
+        ),
+        (
+            "inf.obj",
+            b"v 0 0 0\nv 1 0 0\nv 0 inf 0\nf 1 2 3\n",
+            &["inf.obj", "vertex 3"],
+        ),
+        (
+            "range.obj",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n",
+            &["range.obj", "line 4", "vertex 4"],
+        ),
+        (
+            "empty.obj",
+            b"# nothing here\n",
+            &["empty.obj", "no triangles"],
+        ),
+        (
+            "points.obj",
+            b"v 0 0 0\nv 1 0 0\n",
+            &["points.obj", "no triangles"],
+        ),
         ("garbage.glb", b"not a glb at all", &["garbage.glb"]),
     ];
     for (name, content, wants) in cases {
         let (input, output) = bad_input(&dir, name, content);
-        let (ok, _, err) = shellbake(&["bake", input.to_str().unwrap(), "-o", output.to_str().unwrap(), "-q"]);
+        let (ok, _, err) = shellbake(&[
+            "bake",
+            input.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+            "-q",
+        ]);
         assert!(!ok, "{name} was accepted");
         for w in wants {
-            assert!(err.contains(w), "{name}: error '{err}' does not mention '{w}'");
+            assert!(
+                err.contains(w),
+                "{name}: error '{err}' does not mention '{w}'"
+            );
         }
         assert!(!output.exists(), "{name}: a partial output was written");
     }
     let missing = dir.join("missing.obj");
     let (ok, _, err) = shellbake(&["bake", missing.to_str().unwrap(), "-q"]);
     assert!(!ok && err.contains("missing.obj"), "{err}");
-    let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().filter_map(|e| {
-        let n = e.unwrap().file_name().to_string_lossy().into_owned();
-        n.starts_with('.').then_some(n)
-    }).collect();
-    assert!(leftovers.is_empty(), "temporary files left behind: {leftovers:?}");
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| {
+            let n = e.unwrap().file_name().to_string_lossy().into_owned();
+            n.starts_with('.').then_some(n)
+        })
+        .collect();
+    assert!(
+        leftovers.is_empty(),
+        "temporary files left behind: {leftovers:?}"
+    );
 }
 
 #[test]
 fn bad_parameters_exit_with_usage_code() {
     let out = Command::new(env!("CARGO_BIN_EXE_shellbake"))
-        .args(["bake", fixture("cube.obj").to_str().unwrap(), "--layers", "0", "-q"])
+        .args([
+            "bake",
+            fixture("cube.obj").to_str().unwrap(),
+            "--layers",
+            "0",
+            "-q",
+        ])
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
@@ -85,12 +133,22 @@ fn cli_bakes_with_report_and_summary() {
     let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     assert_eq!(r["layers"], 10);
     assert_eq!(r["resolved"]["height"].as_f64().unwrap() as f32, 0.05);
-    let stages: Vec<(&str, bool)> =
-        r["stages"].as_array().unwrap().iter().map(|s| (s["name"].as_str().unwrap(), s["ran"].as_bool().unwrap())).collect();
-    assert!(stages.contains(&("clamp", false)) && stages.contains(&("pack", true)), "{stages:?}");
+    let stages: Vec<(&str, bool)> = r["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| (s["name"].as_str().unwrap(), s["ran"].as_bool().unwrap()))
+        .collect();
+    assert!(
+        stages.contains(&("clamp", false)) && stages.contains(&("pack", true)),
+        "{stages:?}"
+    );
     assert_eq!(r["bytes_per_layer"].as_array().unwrap().len(), 10);
     assert!(r["streams"]["position"].as_u64().unwrap() > 0);
-    assert_eq!(r["total_bytes"].as_u64().unwrap() as usize, std::fs::read(&out).unwrap().len());
+    assert_eq!(
+        r["total_bytes"].as_u64().unwrap() as usize,
+        std::fs::read(&out).unwrap().len()
+    );
 }
 
 /// A two-mesh glTF with a node hierarchy (translation, rotation, mirrored scale), one mesh with
@@ -107,7 +165,10 @@ fn hierarchy_parts() -> (serde_json::Value, Vec<u8>) {
     for v in tri.iter().chain(&nrm).chain(&uv) {
         bytes.extend_from_slice(&v.to_le_bytes());
     }
-    let uri = format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes));
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bytes)
+    );
     let doc = json!({
         "asset": {"version": "2.0"},
         "scene": 0,
@@ -144,20 +205,43 @@ fn gltf_node_transforms_meshes_and_primitives() {
     let path = dir.join("h.gltf");
     std::fs::write(&path, serde_json::to_vec(&hierarchy_gltf()).unwrap()).unwrap();
     let scene = shellbake::load::load(&path).unwrap();
-    assert_eq!(scene.meshes.len(), 3, "two primitives of mesh 0 and one of mesh 1");
-    let world = |m: &shellbake::mesh::Mesh| -> Vec<glam::DVec3> { m.positions.iter().map(|p| m.origin + p.as_dvec3()).collect() };
+    assert_eq!(
+        scene.meshes.len(),
+        3,
+        "two primitives of mesh 0 and one of mesh 1"
+    );
+    let world = |m: &shellbake::mesh::Mesh| -> Vec<glam::DVec3> {
+        m.positions
+            .iter()
+            .map(|p| m.origin + p.as_dvec3())
+            .collect()
+    };
     let mut all: Vec<Vec<glam::DVec3>> = scene.meshes.iter().map(world).collect();
     all.sort_by(|a, b| a[0].y.partial_cmp(&b[0].y).unwrap());
     // mesh 0 under scale 2 then translation 10
     let scaled = &all[0];
-    assert!(scaled.iter().any(|p| (*p - glam::DVec3::new(12.0, 0.0, 0.0)).length() < 1e-9), "{scaled:?}");
+    assert!(
+        scaled
+            .iter()
+            .any(|p| (*p - glam::DVec3::new(12.0, 0.0, 0.0)).length() < 1e-9),
+        "{scaled:?}"
+    );
     // mesh 1 mirrored: x → -x, then +5 y, then +10 x
     let mirrored = &all[2];
-    assert!(mirrored.iter().any(|p| (*p - glam::DVec3::new(9.0, 5.0, 0.0)).length() < 1e-9), "{mirrored:?}");
+    assert!(
+        mirrored
+            .iter()
+            .any(|p| (*p - glam::DVec3::new(9.0, 5.0, 0.0)).length() < 1e-9),
+        "{mirrored:?}"
+    );
     // mirrored winding flipped, so its face normal still points +z
     let m1 = scene.meshes.iter().find(|m| m.origin.y > 4.0).unwrap();
     let i = &m1.indices;
-    let (n, _) = shellbake::mesh::face_normal(m1.positions[i[0] as usize], m1.positions[i[1] as usize], m1.positions[i[2] as usize]);
+    let (n, _) = shellbake::mesh::face_normal(
+        m1.positions[i[0] as usize],
+        m1.positions[i[1] as usize],
+        m1.positions[i[2] as usize],
+    );
     assert!(n.z > 0.99, "{n}");
     assert!(!scene.warnings.is_empty(), "missing UVs are reported");
     // and it bakes to a valid file
@@ -166,7 +250,10 @@ fn gltf_node_transforms_meshes_and_primitives() {
     shellbake::write::write_glb(&out, &baked.glb).unwrap();
     common::assert_valid(&[out]);
     let g = Glb::parse(&baked.glb);
-    assert_eq!(g.json["meshes"].as_array().unwrap().len(), baked.shells.t.len());
+    assert_eq!(
+        g.json["meshes"].as_array().unwrap().len(),
+        baked.shells.t.len()
+    );
 }
 
 #[test]

@@ -21,18 +21,31 @@ fn arb_mesh() -> impl Strategy<Value = Mesh> {
     )
         .prop_map(|(lattice, tris, exp, offset)| {
             let scale = 10f32.powi(exp);
-            let positions: Vec<Vec3> =
-                lattice.iter().map(|&(x, y, z)| Vec3::new(x as f32, y as f32, z as f32) * scale).collect();
+            let positions: Vec<Vec3> = lattice
+                .iter()
+                .map(|&(x, y, z)| Vec3::new(x as f32, y as f32, z as f32) * scale)
+                .collect();
             let n = positions.len();
-            let indices = tris.iter().flat_map(|&(a, b, c)| [(a % n) as u32, (b % n) as u32, (c % n) as u32]).collect();
-            Mesh { origin: DVec3::splat(offset), positions, indices, ..Default::default() }
+            let indices = tris
+                .iter()
+                .flat_map(|&(a, b, c)| [(a % n) as u32, (b % n) as u32, (c % n) as u32])
+                .collect();
+            Mesh {
+                origin: DVec3::splat(offset),
+                positions,
+                indices,
+                ..Default::default()
+            }
         })
 }
 
 fn scene_of(m: &Mesh) -> Scene {
     let mut m = m.clone();
     shellbake::load::generate_box_uvs(&mut m);
-    Scene { meshes: vec![m], warnings: vec![] }
+    Scene {
+        meshes: vec![m],
+        warnings: vec![],
+    }
 }
 
 proptest! {

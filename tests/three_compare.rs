@@ -37,13 +37,23 @@ struct Job {
     wgpu: RgbaImage,
 }
 
-fn bake(dir: &Path, fixture: &str, preset: Preset, layout: Layout, seed: u32) -> (PathBuf, Vec<u8>) {
+fn bake(
+    dir: &Path,
+    fixture: &str,
+    preset: Preset,
+    layout: Layout,
+    seed: u32,
+) -> (PathBuf, Vec<u8>) {
     let scene = shellbake::load::load(&common::fixture(fixture)).unwrap();
     let mut p = BakeParams::preset(preset);
     p.pack.layout = layout;
     p.strands.seed = seed;
     let baked = shellbake::bake(&scene, &p);
-    let path = dir.join(format!("{}-{}-{layout:?}-{seed}.glb", fixture.trim_end_matches(".obj"), preset.name()));
+    let path = dir.join(format!(
+        "{}-{}-{layout:?}-{seed}.glb",
+        fixture.trim_end_matches(".obj"),
+        preset.name()
+    ));
     std::fs::write(&path, &baked.glb).unwrap();
     (path, baked.glb)
 }
@@ -80,10 +90,20 @@ fn three_js_in_chromium_renders_what_the_viewer_renders() {
         for v in [NamedView::Front, NamedView::Close] {
             let camera = view::camera_for_glb(&glb, v.orbit(), SIZE).unwrap();
             let wgpu = view::render_glb_to_png(&glb, v.orbit(), SIZE).unwrap();
-            let name = format!("{}-{}-{layout:?}-{}", fixture.trim_end_matches(".obj"), preset.name(), v.name());
+            let name = format!(
+                "{}-{}-{layout:?}-{}",
+                fixture.trim_end_matches(".obj"),
+                preset.name(),
+                v.name()
+            );
             let png = dir.join(format!("{name}-three.png"));
             specs.push(three_job(&glb_path, &png, &camera));
-            jobs.push(Job { name, glb: glb_path.clone(), png, wgpu });
+            jobs.push(Job {
+                name,
+                glb: glb_path.clone(),
+                png,
+                wgpu,
+            });
         }
     }
     // The control: three.js draws the seed-2 bunny, compared with the viewer's seed-1 bunny.
@@ -97,7 +117,13 @@ fn three_js_in_chromium_renders_what_the_viewer_renders() {
     let spec_file = dir.join("jobs.json");
     std::fs::write(&spec_file, serde_json::to_vec(&specs).unwrap()).unwrap();
     let done = node("three_render.mjs", &[spec_file]);
-    assert_eq!(done.len(), specs.len(), "three.js rendered {} of {} pictures", done.len(), specs.len());
+    assert_eq!(
+        done.len(),
+        specs.len(),
+        "three.js rendered {} of {} pictures",
+        done.len(),
+        specs.len()
+    );
 
     let mut failures = Vec::new();
     for job in &jobs {
@@ -111,15 +137,37 @@ fn three_js_in_chromium_renders_what_the_viewer_renders() {
             THREE_PIXELS * 100.0
         );
         if c.flip_mean > THREE_FLIP || c.differing_fraction() > THREE_PIXELS {
-            job.wgpu.save(dir.join(format!("{}-actual.png", job.name))).unwrap();
-            c.difference.save(dir.join(format!("{}-difference.png", job.name))).unwrap();
-            failures.push(format!("{} ({}): FLIP {:.4}, {:.2}% differ", job.name, job.glb.display(), c.flip_mean, c.differing_fraction() * 100.0));
+            job.wgpu
+                .save(dir.join(format!("{}-actual.png", job.name)))
+                .unwrap();
+            c.difference
+                .save(dir.join(format!("{}-difference.png", job.name)))
+                .unwrap();
+            failures.push(format!(
+                "{} ({}): FLIP {:.4}, {:.2}% differ",
+                job.name,
+                job.glb.display(),
+                c.flip_mean,
+                c.differing_fraction() * 100.0
+            ));
         }
     }
-    assert!(failures.is_empty(), "three.js and the viewer disagree (pictures in {}):\n{}", dir.display(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "three.js and the viewer disagree (pictures in {}):\n{}",
+        dir.display(),
+        failures.join("\n")
+    );
 
-    let control = compare::compare(&control_wgpu, &image::open(&control_png).unwrap().to_rgba8());
-    println!("control (other seed)            FLIP {:.4}  differing {:.2}%", control.flip_mean, control.differing_fraction() * 100.0);
+    let control = compare::compare(
+        &control_wgpu,
+        &image::open(&control_png).unwrap().to_rgba8(),
+    );
+    println!(
+        "control (other seed)            FLIP {:.4}  differing {:.2}%",
+        control.flip_mean,
+        control.differing_fraction() * 100.0
+    );
     assert!(
         control.flip_mean > THREE_FLIP || control.differing_fraction() > THREE_PIXELS,
         "a bake with another seed passed the comparison: the thresholds are too loose"

@@ -17,7 +17,7 @@ use glam::DVec3;
 use image::RgbaImage;
 use serde_json::json;
 use shellbake::params::{BakeParams, Layout, Preset};
-use shellbake::view::{self, Camera, Gpu, GltfRenderer, Light, NamedView, Orbit};
+use shellbake::view::{self, Camera, GltfRenderer, Gpu, Light, NamedView, Orbit};
 
 /// Largest FLIP mean against a golden picture (set on llvmpipe, where the mean is 0).
 const GOLDEN_FLIP: f32 = 0.005;
@@ -34,12 +34,18 @@ fn golden(name: &str, actual: &RgbaImage) {
         actual.save(&path).unwrap();
         return;
     }
-    let expected = image::open(&path).unwrap_or_else(|e| panic!("{}: {e} (SHELLBAKE_BLESS=1 writes it)", path.display()));
+    let expected = image::open(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (SHELLBAKE_BLESS=1 writes it)", path.display()));
     let c = view::compare::compare(&expected.to_rgba8(), actual);
     if c.flip_mean > GOLDEN_FLIP {
         actual.save(dir.join(format!("{name}-actual.png"))).unwrap();
-        c.difference.save(dir.join(format!("{name}-difference.png"))).unwrap();
-        panic!("{name}: FLIP mean {} > {GOLDEN_FLIP} ({} pixels differ); see {name}-actual.png", c.flip_mean, c.differing_any);
+        c.difference
+            .save(dir.join(format!("{name}-difference.png")))
+            .unwrap();
+        panic!(
+            "{name}: FLIP mean {} > {GOLDEN_FLIP} ({} pixels differ); see {name}-actual.png",
+            c.flip_mean, c.differing_any
+        );
     }
 }
 
@@ -72,49 +78,122 @@ fn feature_asset() -> Vec<u8> {
     let mut bin = Vec::new();
     let mut views = Vec::new();
     let mut accessors = Vec::new();
-    let mut add = |bin: &mut Vec<u8>, bytes: Vec<u8>, stride: Option<usize>, acc: serde_json::Value| {
-        views.push(push(bin, &bytes, stride));
-        let mut a = acc;
-        a["bufferView"] = json!(views.len() - 1);
-        accessors.push(a);
-        accessors.len() - 1
-    };
-    let quad_ix: Vec<u8> = [0u16, 2, 1, 1, 2, 3].iter().flat_map(|i| i.to_le_bytes()).collect();
+    let mut add =
+        |bin: &mut Vec<u8>, bytes: Vec<u8>, stride: Option<usize>, acc: serde_json::Value| {
+            views.push(push(bin, &bytes, stride));
+            let mut a = acc;
+            a["bufferView"] = json!(views.len() - 1);
+            accessors.push(a);
+            accessors.len() - 1
+        };
+    let quad_ix: Vec<u8> = [0u16, 2, 1, 1, 2, 3]
+        .iter()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
     let scalar_u16 = |n: usize| json!({ "componentType": 5123, "count": n, "type": "SCALAR" });
     let vec3f = |n: usize, lo: [f32; 3], hi: [f32; 3]| json!({ "componentType": 5126, "count": n, "type": "VEC3", "min": lo, "max": hi });
 
     // A: corners top-left, top-right, bottom-left, bottom-right (CCW seen from +Z with 0,2,1 / 1,2,3).
-    let a_pos = add(&mut bin, f32s(&[-3., 1., 0., -1.2, 1., 0., -3., -1., 0., -1.2, -1., 0.]), None, vec3f(4, [-3., -1., 0.], [-1.2, 1., 0.]));
-    let a_nrm = add(&mut bin, f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.]), None, vec3f(4, [0., 0., 1.], [0., 0., 1.]));
-    let a_col = add(&mut bin, f32s(&[1., 0., 0., 0., 1., 0., 1., 0., 0., 0., 1., 0.]), None, vec3f(4, [0.; 3], [1.; 3]));
+    let a_pos = add(
+        &mut bin,
+        f32s(&[-3., 1., 0., -1.2, 1., 0., -3., -1., 0., -1.2, -1., 0.]),
+        None,
+        vec3f(4, [-3., -1., 0.], [-1.2, 1., 0.]),
+    );
+    let a_nrm = add(
+        &mut bin,
+        f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.]),
+        None,
+        vec3f(4, [0., 0., 1.], [0., 0., 1.]),
+    );
+    let a_col = add(
+        &mut bin,
+        f32s(&[1., 0., 0., 0., 1., 0., 1., 0., 0., 0., 1., 0.]),
+        None,
+        vec3f(4, [0.; 3], [1.; 3]),
+    );
     let a_ix = add(&mut bin, quad_ix.clone(), None, scalar_u16(6));
 
     // B: u16 positions on a 1/1000 grid from (−1, −1, 0): node scale 0.001, translation −1.
-    let b_q: Vec<u8> = [[0u16, 2000, 0, 0], [2000, 2000, 0, 0], [0, 0, 0, 0], [2000, 0, 0, 0]]
+    let b_q: Vec<u8> = [
+        [0u16, 2000, 0, 0],
+        [2000, 2000, 0, 0],
+        [0, 0, 0, 0],
+        [2000, 0, 0, 0],
+    ]
+    .iter()
+    .flatten()
+    .flat_map(|v| v.to_le_bytes())
+    .collect();
+    let b_pos = add(
+        &mut bin,
+        b_q,
+        Some(8),
+        json!({ "componentType": 5123, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [2000, 2000, 0] }),
+    );
+    let b_nrm = add(
+        &mut bin,
+        [0u8, 0, 127, 0].repeat(4),
+        Some(4),
+        json!({ "componentType": 5120, "normalized": true, "count": 4, "type": "VEC3" }),
+    );
+    let b_uv: Vec<u8> = [[0u16, 0], [65535, 0], [0, 65535], [65535, 65535]]
         .iter()
         .flatten()
         .flat_map(|v| v.to_le_bytes())
         .collect();
-    let b_pos = add(&mut bin, b_q, Some(8), json!({ "componentType": 5123, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [2000, 2000, 0] }));
-    let b_nrm = add(&mut bin, [0u8, 0, 127, 0].repeat(4), Some(4), json!({ "componentType": 5120, "normalized": true, "count": 4, "type": "VEC3" }));
-    let b_uv: Vec<u8> = [[0u16, 0], [65535, 0], [0, 65535], [65535, 65535]].iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
-    let b_tex = add(&mut bin, b_uv, Some(4), json!({ "componentType": 5123, "normalized": true, "count": 4, "type": "VEC2" }));
+    let b_tex = add(
+        &mut bin,
+        b_uv,
+        Some(4),
+        json!({ "componentType": 5123, "normalized": true, "count": 4, "type": "VEC2" }),
+    );
     let b_ix = add(&mut bin, quad_ix.clone(), None, scalar_u16(6));
 
     // C: a triangle at y ∈ [−1, −0.1] lifted by 1.1 through its morph target.
-    let c_pos = add(&mut bin, f32s(&[1.2, -1., 0., 3., -1., 0., 2.1, -0.1, 0.]), None, vec3f(3, [1.2, -1., 0.], [3., -0.1, 0.]));
-    let c_nrm = add(&mut bin, f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]), None, vec3f(3, [0., 0., 1.], [0., 0., 1.]));
-    let c_dlt = add(&mut bin, f32s(&[0., 1.1, 0., 0., 1.1, 0., 0., 1.1, 0.]), None, vec3f(3, [0., 1.1, 0.], [0., 1.1, 0.]));
+    let c_pos = add(
+        &mut bin,
+        f32s(&[1.2, -1., 0., 3., -1., 0., 2.1, -0.1, 0.]),
+        None,
+        vec3f(3, [1.2, -1., 0.], [3., -0.1, 0.]),
+    );
+    let c_nrm = add(
+        &mut bin,
+        f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]),
+        None,
+        vec3f(3, [0., 0., 1.], [0., 0., 1.]),
+    );
+    let c_dlt = add(
+        &mut bin,
+        f32s(&[0., 1.1, 0., 0., 1.1, 0., 0., 1.1, 0.]),
+        None,
+        vec3f(3, [0., 1.1, 0.], [0., 1.1, 0.]),
+    );
 
     // D: clockwise seen from +Z.
-    let d_pos = add(&mut bin, f32s(&[3.2, 1., 0., 4., 1., 0., 3.2, -1., 0., 4., -1., 0.]), None, vec3f(4, [3.2, -1., 0.], [4., 1., 0.]));
-    let d_ix = add(&mut bin, [0u16, 1, 2, 1, 3, 2].iter().flat_map(|i| i.to_le_bytes()).collect(), None, scalar_u16(6));
+    let d_pos = add(
+        &mut bin,
+        f32s(&[3.2, 1., 0., 4., 1., 0., 3.2, -1., 0., 4., -1., 0.]),
+        None,
+        vec3f(4, [3.2, -1., 0.], [4., 1., 0.]),
+    );
+    let d_ix = add(
+        &mut bin,
+        [0u16, 1, 2, 1, 3, 2]
+            .iter()
+            .flat_map(|i| i.to_le_bytes())
+            .collect(),
+        None,
+        scalar_u16(6),
+    );
 
     // 2×2 checker: opaque white at (0,0) and (1,1), transparent elsewhere.
     let mut png = Vec::new();
-    RgbaImage::from_fn(2, 2, |x, y| image::Rgba([255, 255, 255, if x == y { 255 } else { 0 }]))
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .unwrap();
+    RgbaImage::from_fn(2, 2, |x, y| {
+        image::Rgba([255, 255, 255, if x == y { 255 } else { 0 }])
+    })
+    .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+    .unwrap();
     views.push(push(&mut bin, &png, None));
     let image_view = views.len() - 1;
 
@@ -155,7 +234,16 @@ fn feature_asset() -> Vec<u8> {
 
 fn render_features() -> (RgbaImage, Camera) {
     let mut r = GltfRenderer::from_glb(gpu(), &feature_asset()).unwrap();
-    let camera = Camera::frame(r.bounds, Orbit { yaw_deg: 0.0, pitch_deg: 0.0, distance: None, fov_y_deg: 35.0 }, 2.0);
+    let camera = Camera::frame(
+        r.bounds,
+        Orbit {
+            yaw_deg: 0.0,
+            pitch_deg: 0.0,
+            distance: None,
+            fov_y_deg: 35.0,
+        },
+        2.0,
+    );
     let img = view::render_gltf(gpu(), &mut r, &camera, &Light::default(), (256, 128));
     (img, camera)
 }
@@ -170,8 +258,17 @@ fn pixel(img: &RgbaImage, camera: &Camera, p: DVec3) -> [u8; 4] {
 
 fn is_background(px: [u8; 4]) -> bool {
     let clear = view::gpu::CLEAR;
-    let srgb = |c: f64| (if c <= 0.0031308 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }) * 255.0;
-    [clear.r, clear.g, clear.b].iter().zip(px).all(|(c, p)| (srgb(*c) - p as f64).abs() <= 1.5)
+    let srgb = |c: f64| {
+        (if c <= 0.0031308 {
+            c * 12.92
+        } else {
+            1.055 * c.powf(1.0 / 2.4) - 0.055
+        }) * 255.0
+    };
+    [clear.r, clear.g, clear.b]
+        .iter()
+        .zip(px)
+        .all(|(c, p)| (srgb(*c) - p as f64).abs() <= 1.5)
 }
 
 #[test]
@@ -180,16 +277,38 @@ fn features_land_where_gltf_says() {
     let at = |x: f64, y: f64| pixel(&img, &cam, DVec3::new(x, y, 0.0));
     // A: COLOR_0 red on the left, green on the right
     let (l, r) = (at(-2.9, 0.0), at(-1.3, 0.0));
-    assert!(l[0] > 3 * l[1] && r[1] > 3 * r[0], "COLOR_0: left {l:?} right {r:?}");
+    assert!(
+        l[0] > 3 * l[1] && r[1] > 3 * r[0],
+        "COLOR_0: left {l:?} right {r:?}"
+    );
     // B: 4×4 checker shifted by the transform offset: cell (0,0) hidden, (1,0) shown, (1,1) hidden
     let cell = |i: f64, j: f64| at(-1.0 + 0.5 * i + 0.25, 1.0 - 0.5 * j - 0.25);
-    assert!(is_background(cell(0.0, 0.0)), "cell 0,0 {:?}", cell(0.0, 0.0));
-    assert!(!is_background(cell(1.0, 0.0)), "cell 1,0 {:?}", cell(1.0, 0.0));
-    assert!(!is_background(cell(0.0, 1.0)), "cell 0,1 {:?}", cell(0.0, 1.0));
-    assert!(is_background(cell(1.0, 1.0)), "cell 1,1 {:?}", cell(1.0, 1.0));
+    assert!(
+        is_background(cell(0.0, 0.0)),
+        "cell 0,0 {:?}",
+        cell(0.0, 0.0)
+    );
+    assert!(
+        !is_background(cell(1.0, 0.0)),
+        "cell 1,0 {:?}",
+        cell(1.0, 0.0)
+    );
+    assert!(
+        !is_background(cell(0.0, 1.0)),
+        "cell 0,1 {:?}",
+        cell(0.0, 1.0)
+    );
+    assert!(
+        is_background(cell(1.0, 1.0)),
+        "cell 1,1 {:?}",
+        cell(1.0, 1.0)
+    );
     // C: the node weight (1) overrides the mesh weight (0): the triangle is up, not down
     assert!(!is_background(at(2.1, 0.4)), "morphed triangle missing");
-    assert!(is_background(at(2.1, -0.8)), "triangle drawn at its base position");
+    assert!(
+        is_background(at(2.1, -0.8)),
+        "triangle drawn at its base position"
+    );
     // D: back-facing, single-sided: culled
     assert!(is_background(at(3.6, 0.0)), "back face drawn");
     golden("features", &img);
@@ -222,7 +341,11 @@ fn layer_limit_draws_fewer_triangles_and_both_layouts_agree() {
         counts.push((all, r.draw_calls()));
     }
     assert_eq!(counts[0].0, counts[1].0);
-    assert_eq!((counts[0].1, counts[1].1), (4, 1), "compact: one draw per layer; single-draw: one");
+    assert_eq!(
+        (counts[0].1, counts[1].1),
+        (4, 1),
+        "compact: one draw per layer; single-draw: one"
+    );
 }
 
 #[test]
@@ -234,7 +357,10 @@ fn cameras_for_other_renderers_match_the_rendered_framing() {
     assert_eq!(cam, Camera::frame(r.bounds, NamedView::Side.orbit(), 1.5));
     // GL and wgpu projections agree on x and y
     let p = DVec3::new(0.3, 0.2, -0.1);
-    let (a, b) = ((cam.projection() * cam.view_matrix()).project_point3(p), (cam.projection_gl() * cam.view_matrix()).project_point3(p));
+    let (a, b) = (
+        (cam.projection() * cam.view_matrix()).project_point3(p),
+        (cam.projection_gl() * cam.view_matrix()).project_point3(p),
+    );
     assert!((a.x - b.x).abs() < 1e-12 && (a.y - b.y).abs() < 1e-12);
 }
 
@@ -264,12 +390,33 @@ fn render_command_writes_a_picture_of_the_asked_size() {
     std::fs::write(&glb, feature_asset()).unwrap();
     let png = tmp("features.png");
     let out = std::process::Command::new(bin())
-        .args(["render", glb.to_str().unwrap(), "-o", png.to_str().unwrap(), "--size", "200x100", "--view", "side", "--yaw", "-30"])
+        .args([
+            "render",
+            glb.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--size",
+            "200x100",
+            "--view",
+            "side",
+            "--yaw",
+            "-30",
+        ])
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(image::open(&png).unwrap().to_rgba8().dimensions(), (200, 100));
-    let bad = std::process::Command::new(bin()).args(["render", "fixtures/cube.obj", "-o", png.to_str().unwrap()]).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        image::open(&png).unwrap().to_rgba8().dimensions(),
+        (200, 100)
+    );
+    let bad = std::process::Command::new(bin())
+        .args(["render", "fixtures/cube.obj", "-o", png.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert_eq!(bad.status.code(), Some(1), "an OBJ is not a GLB");
 }
 
@@ -277,11 +424,24 @@ fn render_command_writes_a_picture_of_the_asked_size() {
 fn verify_command_passes_and_writes_pictures() {
     let dir = tmp("verify");
     let out = std::process::Command::new(bin())
-        .args(["verify", "fixtures/cube.obj", "--preset", "moss", "--size", "96", "--out-dir", dir.to_str().unwrap()])
+        .args([
+            "verify",
+            "fixtures/cube.obj",
+            "--preset",
+            "moss",
+            "--size",
+            "96",
+            "--out-dir",
+            dir.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     for v in ["front", "side", "close", "far"] {
         assert!(stdout.contains(&format!("  {v}")), "{stdout}");
         for kind in ["reference", "baked", "difference"] {

@@ -24,7 +24,8 @@ fn gpu() -> &'static Gpu {
 fn bake(fixture: &str, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
     let mut params = BakeParams::preset(preset);
     params.pack.layout = layout;
-    let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).expect("fixture loads");
+    let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj")))
+        .expect("fixture loads");
     (shellbake::bake(&scene, &params), params)
 }
 
@@ -50,7 +51,14 @@ fn row(name: &str, v: &Verification) -> String {
     let cells: Vec<String> = v
         .views
         .iter()
-        .map(|r| format!("{} {:.4} {:.2}%", r.view.name(), r.comparison.flip_mean, 100.0 * r.comparison.differing_fraction()))
+        .map(|r| {
+            format!(
+                "{} {:.4} {:.2}%",
+                r.view.name(),
+                r.comparison.flip_mean,
+                100.0 * r.comparison.differing_fraction()
+            )
+        })
         .collect();
     format!("{name:<28} {}", cells.join(" | "))
 }
@@ -60,16 +68,34 @@ fn verify_fixture(fixture: &str) {
     for preset in Preset::ALL {
         for layout in [Layout::Compact, Layout::SingleDraw] {
             let (baked, params) = bake(fixture, preset, layout);
-            let v = verify::verify(gpu(), &baked.glb, ReferenceInput::from_baked(&baked, &params), SIZE).unwrap();
+            let v = verify::verify(
+                gpu(),
+                &baked.glb,
+                ReferenceInput::from_baked(&baked, &params),
+                SIZE,
+            )
+            .unwrap();
             let name = format!("{fixture}-{}-{}", preset.name(), layout_name(layout));
             println!("{}", row(&name, &v));
             if !v.passed() {
                 save_failure(&v, &name);
-                failures.push(format!("{name}:\n  {}", v.views.iter().map(|r| r.line()).collect::<Vec<_>>().join("\n  ")));
+                failures.push(format!(
+                    "{name}:\n  {}",
+                    v.views
+                        .iter()
+                        .map(|r| r.line())
+                        .collect::<Vec<_>>()
+                        .join("\n  ")
+                ));
             }
         }
     }
-    assert!(failures.is_empty(), "verify failed on {} bake(s):\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "verify failed on {} bake(s):\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }
 
 #[test]
@@ -107,18 +133,33 @@ fn verify_passes_on_teapot() {
 fn off_by_one_layer(baked: &shellbake::Baked) -> Vec<u8> {
     let (mut doc, mut bin) = shellbake::view::glb::split_glb(&baked.glb).unwrap();
     let steps = &baked.shells.steps;
-    let next = |j: usize| if j + 1 < steps.len() { steps[j + 1] } else { 2 * steps[j] - steps[j - 1] };
+    let next = |j: usize| {
+        if j + 1 < steps.len() {
+            steps[j + 1]
+        } else {
+            2 * steps[j] - steps[j - 1]
+        }
+    };
     match baked.packed.layout {
         Layout::Compact => {
-            for (j, m) in doc["materials"].as_array_mut().unwrap().iter_mut().enumerate().skip(1) {
+            for (j, m) in doc["materials"]
+                .as_array_mut()
+                .unwrap()
+                .iter_mut()
+                .enumerate()
+                .skip(1)
+            {
                 m["alphaCutoff"] = serde_json::json!(shellbake::strands::step_cutoff(next(j)));
             }
         }
         Layout::SingleDraw => {
-            let color = doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"].as_u64().unwrap() as usize;
+            let color = doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"]
+                .as_u64()
+                .unwrap() as usize;
             let view = doc["accessors"][color]["bufferView"].as_u64().unwrap() as usize;
             let offset = doc["bufferViews"][view]["byteOffset"].as_u64().unwrap_or(0) as usize;
-            let per_layer = doc["accessors"][color]["count"].as_u64().unwrap() as usize / steps.len();
+            let per_layer =
+                doc["accessors"][color]["count"].as_u64().unwrap() as usize / steps.len();
             for j in 1..steps.len() {
                 let a = shellbake::pack::single_draw_alpha(next(j)).to_le_bytes();
                 for v in 0..per_layer {
@@ -133,17 +174,40 @@ fn off_by_one_layer(baked: &shellbake::Baked) -> Vec<u8> {
 
 #[test]
 fn verify_fails_when_the_bake_is_off_by_one_layer() {
-    for (fixture, preset) in [("bunny", Preset::Fur), ("sphere", Preset::Carpet), ("plane", Preset::Grass), ("torus", Preset::Moss)] {
+    for (fixture, preset) in [
+        ("bunny", Preset::Fur),
+        ("sphere", Preset::Carpet),
+        ("plane", Preset::Grass),
+        ("torus", Preset::Moss),
+    ] {
         for layout in [Layout::Compact, Layout::SingleDraw] {
             let (baked, params) = bake(fixture, preset, layout);
             let wrong = off_by_one_layer(&baked);
-            let v = verify::verify(gpu(), &wrong, ReferenceInput::from_baked(&baked, &params), SIZE).unwrap();
-            let name = format!("off-by-one-{fixture}-{}-{}", preset.name(), layout_name(layout));
+            let v = verify::verify(
+                gpu(),
+                &wrong,
+                ReferenceInput::from_baked(&baked, &params),
+                SIZE,
+            )
+            .unwrap();
+            let name = format!(
+                "off-by-one-{fixture}-{}-{}",
+                preset.name(),
+                layout_name(layout)
+            );
             println!("{}", row(&name, &v));
             if v.passed() {
                 save_failure(&v, &name);
             }
-            assert!(!v.passed(), "{name}: verify did not notice:\n  {}", v.views.iter().map(|r| r.line()).collect::<Vec<_>>().join("\n  "));
+            assert!(
+                !v.passed(),
+                "{name}: verify did not notice:\n  {}",
+                v.views
+                    .iter()
+                    .map(|r| r.line())
+                    .collect::<Vec<_>>()
+                    .join("\n  ")
+            );
         }
     }
 }
@@ -153,7 +217,13 @@ fn verify_fails_when_the_strands_come_from_another_seed() {
     let (baked, params) = bake("sphere", Preset::Fur, Layout::Compact);
     let mut other = params.clone();
     other.strands.seed += 1;
-    let v = verify::verify(gpu(), &baked.glb, ReferenceInput::from_baked(&baked, &other), SIZE).unwrap();
+    let v = verify::verify(
+        gpu(),
+        &baked.glb,
+        ReferenceInput::from_baked(&baked, &other),
+        SIZE,
+    )
+    .unwrap();
     println!("{}", row("other-seed-sphere-fur", &v));
     assert!(!v.passed());
 }

@@ -40,22 +40,41 @@ fn window_screenshot_matches_the_headless_render() {
     let out = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 640x480x24"])
         .arg(env!("CARGO_BIN_EXE_shellbake"))
-        .args(["view", glb.to_str().unwrap(), "--size", "240x180", "--view", "side"])
+        .args([
+            "view",
+            glb.to_str().unwrap(),
+            "--size",
+            "240x180",
+            "--view",
+            "side",
+        ])
         .args(["--screenshot", shot.to_str().unwrap(), "--frames", "3"])
         .env("XDG_RUNTIME_DIR", &runtime)
         .output()
         .unwrap();
-    assert!(out.status.success(), "view failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "view failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     let window = image::open(&shot).expect("screenshot written").to_rgba8();
     assert_eq!(window.dimensions(), (240, 180));
-    let headless = view::render_glb_to_png(&baked.glb, NamedView::Side.orbit(), (240, 180)).unwrap();
+    let headless =
+        view::render_glb_to_png(&baked.glb, NamedView::Side.orbit(), (240, 180)).unwrap();
     let c = view::compare::compare(&headless, &window);
     if c.flip_mean > WINDOW_FLIP {
         window.save(dir.join("torus-window-actual.png")).unwrap();
-        c.difference.save(dir.join("torus-window-difference.png")).unwrap();
+        c.difference
+            .save(dir.join("torus-window-difference.png"))
+            .unwrap();
     }
-    assert!(c.flip_mean <= WINDOW_FLIP, "window vs headless FLIP mean {} ({} pixels differ)", c.flip_mean, c.differing_any);
+    assert!(
+        c.flip_mean <= WINDOW_FLIP,
+        "window vs headless FLIP mean {} ({} pixels differ)",
+        c.flip_mean,
+        c.differing_any
+    );
     // and it is a picture of something, not a cleared surface
     let lit = window.pixels().filter(|p| p.0[1] > 60).count();
     assert!(lit > 1000, "only {lit} lit pixels");

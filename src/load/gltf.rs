@@ -37,10 +37,15 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             doc.nodes().filter(|n| !is_child[n.index()]).collect()
         }
     };
-    let mut stack: Vec<(::gltf::Node, DMat4, usize)> = roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
+    let mut stack: Vec<(::gltf::Node, DMat4, usize)> =
+        roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > 256 {
-            return Err(Error::invalid(path, format!("node {}", node.index()), "node hierarchy deeper than 256 (cycle?)"));
+            return Err(Error::invalid(
+                path,
+                format!("node {}", node.index()),
+                "node hierarchy deeper than 256 (cycle?)",
+            ));
         }
         let local = glam::Mat4::from_cols_array_2d(&node.transform().matrix()).as_dmat4();
         let world = parent * local;
@@ -48,10 +53,16 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             for prim in mesh.primitives() {
                 let element = format!("mesh {} primitive {}", mesh.index(), prim.index());
                 if prim.mode() != ::gltf::mesh::Mode::Triangles {
-                    scene.warnings.push(format!("{}: {element}: mode {:?} skipped", path.display(), prim.mode()));
+                    scene.warnings.push(format!(
+                        "{}: {element}: mode {:?} skipped",
+                        path.display(),
+                        prim.mode()
+                    ));
                     continue;
                 }
-                scene.meshes.push(read_primitive(path, &element, &prim, &buffers, world)?);
+                scene
+                    .meshes
+                    .push(read_primitive(path, &element, &prim, &buffers, world)?);
             }
         }
         for child in node.children() {
@@ -65,12 +76,18 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
 /// accessor before checking that it exists (a panic on `"POSITION": 7` with no accessor 7, found
 /// by fuzzing), so attribute indices are checked here first.
 fn parse(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
-    let raw = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| Error::invalid(path, "gltf", e.to_string()))?;
+    let raw = ::gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| Error::invalid(path, "gltf", e.to_string()))?;
     let root = raw.document.into_json();
     let accessors = root.accessors.len();
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (k, prim) in mesh.primitives.iter().enumerate() {
-            let bad = prim.attributes.values().map(|i| i.value()).chain(prim.indices.map(|i| i.value())).find(|&i| i >= accessors);
+            let bad = prim
+                .attributes
+                .values()
+                .map(|i| i.value())
+                .chain(prim.indices.map(|i| i.value()))
+                .find(|&i| i >= accessors);
             if let Some(i) = bad {
                 return Err(Error::invalid(
                     path,
@@ -80,8 +97,12 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
             }
         }
     }
-    let document = ::gltf::Document::from_json(root).map_err(|e| Error::invalid(path, "gltf", e.to_string()))?;
-    Ok(::gltf::Gltf { document, blob: raw.blob })
+    let document = ::gltf::Document::from_json(root)
+        .map_err(|e| Error::invalid(path, "gltf", e.to_string()))?;
+    Ok(::gltf::Gltf {
+        document,
+        blob: raw.blob,
+    })
 }
 
 fn read_primitive(
@@ -106,7 +127,13 @@ fn read_primitive(
     }
     if let Some(acc) = prim.indices() {
         check_accessor(path, element, &acc, buffers)?;
-        check_kind(path, element, &acc, &[(T::U8, D::Scalar), (T::U16, D::Scalar), (T::U32, D::Scalar)], "indices")?;
+        check_kind(
+            path,
+            element,
+            &acc,
+            &[(T::U8, D::Scalar), (T::U16, D::Scalar), (T::U32, D::Scalar)],
+            "indices",
+        )?;
     }
     let reader = prim.reader(|b| buffers.get(b.index()).map(|v| v.as_slice()));
     let Some(pos) = reader.read_positions() else {
@@ -117,7 +144,11 @@ fn read_primitive(
     let mut world_pos = Vec::with_capacity(nv);
     for (i, p) in local.iter().enumerate() {
         if !p.iter().all(|v| v.is_finite()) {
-            return Err(Error::invalid(path, element.to_string(), format!("vertex {i} has a non-finite coordinate")));
+            return Err(Error::invalid(
+                path,
+                element.to_string(),
+                format!("vertex {i} has a non-finite coordinate"),
+            ));
         }
         world_pos.push(world.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)));
     }
@@ -127,7 +158,11 @@ fn read_primitive(
         None => (0..nv as u32).collect(),
     };
     if let Some((k, &i)) = indices.iter().enumerate().find(|(_, &i)| i as usize >= nv) {
-        return Err(Error::invalid(path, element, format!("index {k} = {i} is out of range ({nv} vertices)")));
+        return Err(Error::invalid(
+            path,
+            element,
+            format!("index {k} = {i} is out of range ({nv} vertices)"),
+        ));
     }
     let mut indices: Vec<u32> = indices[..indices.len() / 3 * 3].to_vec();
     let normal_matrix: DMat3 = DMat3::from_mat4(world).inverse().transpose();
@@ -139,9 +174,14 @@ fn read_primitive(
         .collect::<Vec<_>>()
     });
     let normals = normals.filter(|n| n.len() == nv);
-    let uvs = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect::<Vec<_>>());
+    let uvs = reader
+        .read_tex_coords(0)
+        .map(|t| t.into_f32().map(Vec2::from).collect::<Vec<_>>());
     let uvs = uvs.filter(|u| u.len() == nv);
-    if uvs.as_ref().is_some_and(|u| u.iter().any(|t| !t.is_finite())) {
+    if uvs
+        .as_ref()
+        .is_some_and(|u| u.iter().any(|t| !t.is_finite()))
+    {
         return Err(Error::invalid(path, element, "non-finite TEXCOORD_0"));
     }
     if DMat3::from_mat4(world).determinant() < 0.0 {
@@ -158,7 +198,11 @@ fn read_primitive(
         indices,
     };
     if !mesh.positions.iter().all(|p| p.is_finite()) {
-        return Err(Error::invalid(path, element, "node transform makes positions non-finite"));
+        return Err(Error::invalid(
+            path,
+            element,
+            "node transform makes positions non-finite",
+        ));
     }
     mesh.recentre();
     Ok(mesh)
@@ -172,23 +216,41 @@ fn check_kind(
     allowed: &[(::gltf::accessor::DataType, ::gltf::accessor::Dimensions)],
     what: &str,
 ) -> Result<()> {
-    if allowed.iter().any(|&(t, d)| acc.data_type() == t && acc.dimensions() == d) {
+    if allowed
+        .iter()
+        .any(|&(t, d)| acc.data_type() == t && acc.dimensions() == d)
+    {
         return Ok(());
     }
     Err(Error::invalid(
         path,
         format!("{element}: accessor {}", acc.index()),
-        format!("{what} as {:?} {:?} is not supported (expected one of {allowed:?})", acc.data_type(), acc.dimensions()),
+        format!(
+            "{what} as {:?} {:?} is not supported (expected one of {allowed:?})",
+            acc.data_type(),
+            acc.dimensions()
+        ),
     ))
 }
 
 /// Checks that an accessor's bytes lie inside its buffer (the gltf crate would silently stop
 /// early or read garbage).
-fn check_accessor(path: &Path, element: &str, acc: &::gltf::Accessor, buffers: &[Vec<u8>]) -> Result<()> {
-    let Some(view) = acc.view() else { return Ok(()) };
+fn check_accessor(
+    path: &Path,
+    element: &str,
+    acc: &::gltf::Accessor,
+    buffers: &[Vec<u8>],
+) -> Result<()> {
+    let Some(view) = acc.view() else {
+        return Ok(());
+    };
     let elem = acc.size();
     let stride = view.stride().unwrap_or(elem);
-    let need = if acc.count() == 0 { 0 } else { acc.offset() + stride * (acc.count() - 1) + elem };
+    let need = if acc.count() == 0 {
+        0
+    } else {
+        acc.offset() + stride * (acc.count() - 1) + elem
+    };
     let have_view = view.length();
     let buf_len = buffers.get(view.buffer().index()).map_or(0, |b| b.len());
     if need > have_view || view.offset() + have_view > buf_len {
@@ -211,17 +273,24 @@ fn resolve_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>> {
     for buffer in gltf.document.buffers() {
         let element = format!("buffer {}", buffer.index());
         let data = match buffer.source() {
-            ::gltf::buffer::Source::Bin => gltf
-                .blob
-                .clone()
-                .ok_or_else(|| Error::invalid(path, &element, "refers to the GLB binary chunk, which is missing"))?,
+            ::gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    &element,
+                    "refers to the GLB binary chunk, which is missing",
+                )
+            })?,
             ::gltf::buffer::Source::Uri(uri) => read_uri(path, &element, uri)?,
         };
         if data.len() < buffer.length() {
             return Err(Error::invalid(
                 path,
                 &element,
-                format!("declares {} bytes but holds {}", buffer.length(), data.len()),
+                format!(
+                    "declares {} bytes but holds {}",
+                    buffer.length(),
+                    data.len()
+                ),
             ));
         }
         out.push(data);
@@ -240,9 +309,14 @@ pub(crate) fn read_uri(path: &Path, element: &str, uri: &str) -> Result<Vec<u8>>
             .map_err(|e| Error::invalid(path, element, format!("bad base64 data URI: {e}")));
     }
     let target = confined_path(path, uri).ok_or_else(|| {
-        Error::invalid(path, element, format!("URI '{uri}' leaves the asset's folder; refused"))
+        Error::invalid(
+            path,
+            element,
+            format!("URI '{uri}' leaves the asset's folder; refused"),
+        )
     })?;
-    std::fs::read(&target).map_err(|e| Error::invalid(path, element, format!("{}: {e}", target.display())))
+    std::fs::read(&target)
+        .map_err(|e| Error::invalid(path, element, format!("{}: {e}", target.display())))
 }
 
 /// `uri` resolved against the folder of `asset`, or `None` if it is absolute, has a scheme, or
@@ -294,8 +368,14 @@ mod tests {
     #[test]
     fn uris_outside_the_folder_are_refused() {
         let a = Path::new("assets/x.gltf");
-        assert_eq!(confined_path(a, "buf.bin"), Some(PathBuf::from("assets/buf.bin")));
-        assert_eq!(confined_path(a, "sub/../buf.bin"), Some(PathBuf::from("assets/sub/../buf.bin")));
+        assert_eq!(
+            confined_path(a, "buf.bin"),
+            Some(PathBuf::from("assets/buf.bin"))
+        );
+        assert_eq!(
+            confined_path(a, "sub/../buf.bin"),
+            Some(PathBuf::from("assets/sub/../buf.bin"))
+        );
         assert_eq!(confined_path(a, "../secret.bin"), None);
         assert_eq!(confined_path(a, "sub/../../secret.bin"), None);
         assert_eq!(confined_path(a, "/etc/passwd"), None);

@@ -32,7 +32,10 @@ pub const MAX_COORDINATE: f64 = 1e15;
 
 /// Checks world coordinates (before they become `f32` offsets) against [`MAX_COORDINATE`].
 pub(crate) fn check_range(path: &Path, element: &str, world: &[glam::DVec3]) -> Result<()> {
-    match world.iter().position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE) {
+    match world
+        .iter()
+        .position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
+    {
         Some(v) => Err(Error::invalid(
             path,
             element,
@@ -52,22 +55,36 @@ pub fn load(path: &Path) -> Result<Scene> {
 /// Like [`load`] on bytes already in memory; `path` names the input in errors and resolves
 /// relative glTF URIs.
 pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Scene> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     let mut scene = match ext.as_deref() {
         Some("obj") => obj::load(path, bytes)?,
         Some("gltf") | Some("glb") => gltf::load(path, bytes)?,
-        _ => return Err(Error::Format { path: path.to_path_buf() }),
+        _ => {
+            return Err(Error::Format {
+                path: path.to_path_buf(),
+            })
+        }
     };
     for (k, m) in scene.meshes.iter().enumerate() {
         // After recentring, every relative position must be finite (a NaN here means the
         // loader let an out-of-range coordinate through).
         if let Some(v) = m.positions.iter().position(|p| !p.is_finite()) {
-            return Err(Error::invalid(path, format!("mesh {k}"), format!("vertex {v} is not representable")));
+            return Err(Error::invalid(
+                path,
+                format!("mesh {k}"),
+                format!("vertex {v} is not representable"),
+            ));
         }
     }
     scene.meshes.retain(|m| !m.indices.is_empty());
     if scene.meshes.is_empty() {
-        return Err(Error::Empty { path: path.to_path_buf(), message: "no triangles to bake".into() });
+        return Err(Error::Empty {
+            path: path.to_path_buf(),
+            message: "no triangles to bake".into(),
+        });
     }
     let mut generated = 0;
     for m in &mut scene.meshes {
@@ -158,8 +175,15 @@ mod tests {
 
     #[test]
     fn coordinates_beyond_the_range_are_refused() {
-        let e = load_bytes(Path::new("big.obj"), b"v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n").unwrap_err();
-        assert!(e.to_string().contains("vertex 1") && e.to_string().contains("big.obj"), "{e}");
+        let e = load_bytes(
+            Path::new("big.obj"),
+            b"v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("vertex 1") && e.to_string().contains("big.obj"),
+            "{e}"
+        );
     }
 
     #[test]

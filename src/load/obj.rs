@@ -33,10 +33,17 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
         let nv = m.positions.len() / 3;
         let element = || format!("object {k} ('{}')", model.name);
         if let Some(&i) = m.indices.iter().find(|&&i| i as usize >= nv) {
-            return Err(Error::invalid(path, element(), format!("index {i} out of range ({nv} vertices)")));
+            return Err(Error::invalid(
+                path,
+                element(),
+                format!("index {i} out of range ({nv} vertices)"),
+            ));
         }
-        let world: Vec<DVec3> =
-            m.positions.chunks_exact(3).map(|p| DVec3::new(p[0], p[1], p[2])).collect();
+        let world: Vec<DVec3> = m
+            .positions
+            .chunks_exact(3)
+            .map(|p| DVec3::new(p[0], p[1], p[2]))
+            .collect();
         super::check_range(path, &element(), &world)?;
         let origin = world.first().copied().unwrap_or_default();
         let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
@@ -47,13 +54,35 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
                 .collect()
         });
         // OBJ's v points up the image, glTF's down.
-        let uvs = (m.texcoords.len() == nv * 2 && nv > 0)
-            .then(|| m.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0] as f32, 1.0 - t[1] as f32)).collect());
-        let mut mesh = Mesh { origin, positions, normals, uvs, indices: m.indices.clone() };
-        if mesh.uvs.as_ref().is_some_and(|u: &Vec<Vec2>| u.iter().any(|t| !t.is_finite())) {
-            return Err(Error::invalid(path, element(), "non-finite texture coordinate"));
+        let uvs = (m.texcoords.len() == nv * 2 && nv > 0).then(|| {
+            m.texcoords
+                .chunks_exact(2)
+                .map(|t| Vec2::new(t[0] as f32, 1.0 - t[1] as f32))
+                .collect()
+        });
+        let mut mesh = Mesh {
+            origin,
+            positions,
+            normals,
+            uvs,
+            indices: m.indices.clone(),
+        };
+        if mesh
+            .uvs
+            .as_ref()
+            .is_some_and(|u: &Vec<Vec2>| u.iter().any(|t| !t.is_finite()))
+        {
+            return Err(Error::invalid(
+                path,
+                element(),
+                "non-finite texture coordinate",
+            ));
         }
-        if mesh.normals.as_ref().is_some_and(|n: &Vec<Vec3>| n.iter().any(|t| !t.is_finite())) {
+        if mesh
+            .normals
+            .as_ref()
+            .is_some_and(|n: &Vec<Vec3>| n.iter().any(|t| !t.is_finite()))
+        {
             mesh.normals = None;
         }
         mesh.recentre();
@@ -64,7 +93,8 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
 
 /// Finds non-finite `v`/`vt`/`vn` values and out-of-range `f` references, with line numbers.
 fn prescan(path: &Path, bytes: &[u8]) -> Result<()> {
-    let text = std::str::from_utf8(bytes).map_err(|e| Error::invalid(path, "file", format!("not UTF-8 text: {e}")))?;
+    let text = std::str::from_utf8(bytes)
+        .map_err(|e| Error::invalid(path, "file", format!("not UTF-8 text: {e}")))?;
     let (mut nv, mut nt, mut nn) = (0i64, 0i64, 0i64);
     for (line_no, raw) in text.lines().enumerate() {
         let line = raw.trim();
@@ -81,7 +111,11 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<()> {
                 *count += 1;
                 for w in words.take(if tag == "vt" { 2 } else { 3 }) {
                     let value: f64 = w.parse().map_err(|_| {
-                        Error::invalid(path, format!("line {line_no}"), format!("'{w}' is not a number"))
+                        Error::invalid(
+                            path,
+                            format!("line {line_no}"),
+                            format!("'{w}' is not a number"),
+                        )
                     })?;
                     if !value.is_finite() {
                         let what = match tag {
@@ -105,7 +139,11 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<()> {
                         }
                         let limit = [nv, nt, nn].get(slot).copied().unwrap_or(0);
                         let i: i64 = part.parse().map_err(|_| {
-                            Error::invalid(path, format!("line {line_no}"), format!("bad face index '{part}'"))
+                            Error::invalid(
+                                path,
+                                format!("line {line_no}"),
+                                format!("bad face index '{part}'"),
+                            )
                         })?;
                         let resolved = if i < 0 { limit + i + 1 } else { i };
                         if i == 0 || resolved < 1 || resolved > limit {
@@ -142,13 +180,20 @@ mod tests {
 
     #[test]
     fn nan_vertex_is_named() {
-        let e = load_str("v 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n").unwrap_err().to_string();
-        assert!(e.contains("t.obj") && e.contains("line 2") && e.contains("vertex 2"), "{e}");
+        let e = load_str("v 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("t.obj") && e.contains("line 2") && e.contains("vertex 2"),
+            "{e}"
+        );
     }
 
     #[test]
     fn out_of_range_face_is_named() {
-        let e = load_str("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 9\n").unwrap_err().to_string();
+        let e = load_str("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 9\n")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 4") && e.contains("vertex 9"), "{e}");
     }
 

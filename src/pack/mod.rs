@@ -140,12 +140,19 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
     if cfg!(debug_assertions) {
         mesh.validate();
     }
-    assert!(mesh.normals.is_some() && mesh.uvs.is_some(), "pack needs normals and uvs");
+    assert!(
+        mesh.normals.is_some() && mesh.uvs.is_some(),
+        "pack needs normals and uvs"
+    );
     assert_eq!(input.shells.delta.len(), mesh.vertex_count());
 
     // meshopt: vertex cache order, then fetch order.
     let nv = mesh.vertex_count();
-    let indices = if nv > 0 { meshopt::optimize_vertex_cache(&mesh.indices, nv) } else { Vec::new() };
+    let indices = if nv > 0 {
+        meshopt::optimize_vertex_cache(&mesh.indices, nv)
+    } else {
+        Vec::new()
+    };
     // Fetch order = first use in the cache-ordered index buffer (what meshopt's
     // optimizeVertexFetchRemap computes; done here because the binding truncates its remap
     // table when some vertices are unused). Unused vertices are dropped.
@@ -162,15 +169,25 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
     let positions = pick(&mesh.positions);
     let normals = pick(mesh.normals.as_ref().unwrap());
     let deltas = pick(&input.shells.delta);
-    let uvs: Vec<Vec2> = order.iter().map(|&o| mesh.uvs.as_ref().unwrap()[o as usize]).collect();
+    let uvs: Vec<Vec2> = order
+        .iter()
+        .map(|&o| mesh.uvs.as_ref().unwrap()[o as usize])
+        .collect();
 
-    let grid = PositionGrid::fit(positions.iter().chain(&positions).enumerate().map(|(i, p)| {
-        if i < positions.len() {
-            *p
-        } else {
-            *p + deltas[i - positions.len()]
-        }
-    }), params.position_bits.min(15));
+    let grid = PositionGrid::fit(
+        positions
+            .iter()
+            .chain(&positions)
+            .enumerate()
+            .map(|(i, p)| {
+                if i < positions.len() {
+                    *p
+                } else {
+                    *p + deltas[i - positions.len()]
+                }
+            }),
+        params.position_bits.min(15),
+    );
     let uv_grid = UvGrid::fit(&uvs);
     let tiles = input.tiles_per_uv;
     let texel_error = (uv_grid.extent * tiles * input.mask.size as f32 / 65535.0).max_element();
@@ -185,7 +202,16 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
         (uv_grid.lo * tiles, uv_grid.extent * tiles)
     };
 
-    let ordered = Ordered { grid, uv_grid, float_uvs, positions, normals, uvs, deltas, indices };
+    let ordered = Ordered {
+        grid,
+        uv_grid,
+        float_uvs,
+        positions,
+        normals,
+        uvs,
+        deltas,
+        indices,
+    };
     let primitives = match params.layout {
         Layout::Compact => compact(&mut b, input, &ordered),
         Layout::SingleDraw => single_draw(&mut b, input, &ordered),
@@ -226,8 +252,19 @@ struct Builder {
 }
 
 impl Builder {
-    fn view(&mut self, name: &'static str, bytes: Vec<u8>, stride: Option<usize>, vertex: Option<bool>) -> usize {
-        self.views.push(View { name, bytes, stride, vertex });
+    fn view(
+        &mut self,
+        name: &'static str,
+        bytes: Vec<u8>,
+        stride: Option<usize>,
+        vertex: Option<bool>,
+    ) -> usize {
+        self.views.push(View {
+            name,
+            bytes,
+            stride,
+            vertex,
+        });
         self.views.len() - 1
     }
 
@@ -242,7 +279,16 @@ impl Builder {
         bounds: Option<(Vec<f64>, Vec<f64>)>,
     ) -> usize {
         let (min, max) = bounds.map_or((None, None), |(a, b)| (Some(a), Some(b)));
-        self.accessors.push(Accessor { view, offset: 0, component, normalized, count, kind, min, max });
+        self.accessors.push(Accessor {
+            view,
+            offset: 0,
+            component,
+            normalized,
+            count,
+            kind,
+            min,
+            max,
+        });
         self.accessors.len() - 1
     }
 
@@ -259,7 +305,14 @@ impl Builder {
         }
         let v = self.view("position", bytes.0, Some(8), Some(true));
         let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
-        self.accessor(v, component::UNSIGNED_SHORT, false, q.len(), "VEC3", Some(bounds))
+        self.accessor(
+            v,
+            component::UNSIGNED_SHORT,
+            false,
+            q.len(),
+            "VEC3",
+            Some(bounds),
+        )
     }
 
     fn normals(&mut self, n: &[Vec3]) -> usize {
@@ -308,7 +361,16 @@ impl Builder {
 }
 
 fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
-    let Ordered { grid, uv_grid, float_uvs, positions, normals, uvs, deltas, indices } = s;
+    let Ordered {
+        grid,
+        uv_grid,
+        float_uvs,
+        positions,
+        normals,
+        uvs,
+        deltas,
+        indices,
+    } = s;
     let (grid, uv_grid, float_uvs) = (*grid, *uv_grid, *float_uvs);
     let q: Vec<[u16; 3]> = positions.iter().map(|&p| grid.quantize(p)).collect();
     let position = b.positions(&q);
@@ -353,7 +415,11 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
                 material: Material {
                     name: format!("layer_{j:03}"),
                     base_color: [c[0], c[1], c[2], 1.0],
-                    alpha: if base { Alpha::Opaque } else { Alpha::Mask(shells.cutoff[j]) },
+                    alpha: if base {
+                        Alpha::Opaque
+                    } else {
+                        Alpha::Mask(shells.cutoff[j])
+                    },
                     textured: !base,
                     roughness: input.roughness,
                 },
@@ -366,7 +432,13 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
 /// so an oversize bake can be refused with the size it would have had. Counts every stream at its
 /// widest encoding (float UVs, u32 indices past 65535 vertices), the mask PNG uncompressed, and
 /// 600 bytes of JSON per layer.
-pub fn estimate_bytes(vertices: u64, triangles: u64, layers: u64, mask_size: u64, layout: Layout) -> u64 {
+pub fn estimate_bytes(
+    vertices: u64,
+    triangles: u64,
+    layers: u64,
+    mask_size: u64,
+    layout: Layout,
+) -> u64 {
     let png = mask_size * mask_size * 2 + 1024;
     let json = 4096 + 600 * layers;
     match layout {
@@ -394,7 +466,16 @@ pub fn single_draw_cutoff() -> f32 {
 }
 
 fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
-    let Ordered { grid, uv_grid, float_uvs, positions, normals, uvs, deltas, indices } = s;
+    let Ordered {
+        grid,
+        uv_grid,
+        float_uvs,
+        positions,
+        normals,
+        uvs,
+        deltas,
+        indices,
+    } = s;
     let (grid, uv_grid, float_uvs) = (*grid, *uv_grid, *float_uvs);
     let shells = input.shells;
     let layers = shells.t.len();
@@ -403,7 +484,12 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive
     let mut colors = Bytes::default();
     for j in 0..layers {
         let t = shells.t[j];
-        q.extend(positions.iter().zip(deltas).map(|(&p, &d)| grid.quantize(p + d * t)));
+        q.extend(
+            positions
+                .iter()
+                .zip(deltas)
+                .map(|(&p, &d)| grid.quantize(p + d * t)),
+        );
         let c = shells.color[j];
         let rgba = [
             (c[0].clamp(0.0, 1.0) * 65535.0).round() as u16,
@@ -421,9 +507,17 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive
     let all_uvs: Vec<Vec2> = (0..layers).flat_map(|_| uvs.iter().copied()).collect();
     let texcoord = b.texcoords(&all_uvs, uv_grid, float_uvs);
     let cv = b.view("color", colors.0, Some(8), Some(true));
-    let color = b.accessor(cv, component::UNSIGNED_SHORT, true, nv * layers, "VEC4", None);
-    let all_ix: Vec<u32> =
-        (0..layers as u32).flat_map(|j| indices.iter().map(move |&i| i + j * nv as u32)).collect();
+    let color = b.accessor(
+        cv,
+        component::UNSIGNED_SHORT,
+        true,
+        nv * layers,
+        "VEC4",
+        None,
+    );
+    let all_ix: Vec<u32> = (0..layers as u32)
+        .flat_map(|j| indices.iter().map(move |&i| i + j * nv as u32))
+        .collect();
     let ix = b.indices("indices", &all_ix, nv * layers);
     vec![Primitive {
         name: "shells".into(),
@@ -484,22 +578,40 @@ mod tests {
 
     #[test]
     fn estimate_is_an_upper_bound() {
-        let scene = crate::load::load(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bunny.obj"))).unwrap();
+        let scene = crate::load::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/fixtures/bunny.obj"
+        )))
+        .unwrap();
         let m = scene.merged();
         for layout in [Layout::Compact, Layout::SingleDraw] {
             let mut p = crate::params::BakeParams::default();
             p.pack.layout = layout;
             let baked = crate::bake(&scene, &p);
-            let est = estimate_bytes(m.vertex_count() as u64, m.triangle_count() as u64, 32, 256, layout);
+            let est = estimate_bytes(
+                m.vertex_count() as u64,
+                m.triangle_count() as u64,
+                32,
+                256,
+                layout,
+            );
             assert!(est >= baked.glb.len() as u64, "{est} < {}", baked.glb.len());
-            assert!(est < baked.glb.len() as u64 * 3, "estimate {est} too loose for {}", baked.glb.len());
+            assert!(
+                est < baked.glb.len() as u64 * 3,
+                "estimate {est} too loose for {}",
+                baked.glb.len()
+            );
         }
     }
 
     #[test]
     fn png_is_deterministic_and_decodes_to_the_codes() {
         let p = crate::params::BakeParams::default().strands;
-        let m = crate::strands::bake_mask(&crate::params::StrandParams { mask_size: 32, model: crate::params::StrandModel::Noise { threshold: 0.3 }, ..p });
+        let m = crate::strands::bake_mask(&crate::params::StrandParams {
+            mask_size: 32,
+            model: crate::params::StrandModel::Noise { threshold: 0.3 },
+            ..p
+        });
         let a = encode_mask_png(&m);
         assert_eq!(a, encode_mask_png(&m));
         let img = image::load_from_memory(&a).unwrap().to_luma_alpha8();

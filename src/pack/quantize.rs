@@ -35,7 +35,11 @@ impl PositionGrid {
             hi = hi.max(p);
         }
         if !lo.is_finite() {
-            return PositionGrid { min: Vec3::ZERO, step: 1.0, bits };
+            return PositionGrid {
+                min: Vec3::ZERO,
+                step: 1.0,
+                bits,
+            };
         }
         let extent = (hi - lo).max_element();
         let levels = ((1u32 << bits) - 1) as f32;
@@ -47,7 +51,11 @@ impl PositionGrid {
         while ((hi - lo) / step).max_element().round() > levels {
             step = f32::from_bits(step.to_bits() + 1);
         }
-        PositionGrid { min: lo, step, bits }
+        PositionGrid {
+            min: lo,
+            step,
+            bits,
+        }
     }
 
     pub fn max_level(&self) -> u32 {
@@ -111,12 +119,17 @@ impl UvGrid {
     pub fn fit(uvs: &[Vec2]) -> UvGrid {
         let (lo, hi) = crate::mesh::uv_bounds(uvs);
         let extent = (hi - lo).max(Vec2::splat(f32::MIN_POSITIVE));
-        let extent = Vec2::new(if hi.x > lo.x { extent.x } else { 1.0 }, if hi.y > lo.y { extent.y } else { 1.0 });
+        let extent = Vec2::new(
+            if hi.x > lo.x { extent.x } else { 1.0 },
+            if hi.y > lo.y { extent.y } else { 1.0 },
+        );
         UvGrid { lo, extent }
     }
 
     pub fn quantize(&self, uv: Vec2) -> [u16; 2] {
-        let q = ((uv - self.lo) / self.extent * 65535.0).round().clamp(Vec2::ZERO, Vec2::splat(65535.0));
+        let q = ((uv - self.lo) / self.extent * 65535.0)
+            .round()
+            .clamp(Vec2::ZERO, Vec2::splat(65535.0));
         [q.x as u16, q.y as u16]
     }
 
@@ -169,12 +182,19 @@ mod tests {
 
     #[test]
     fn position_round_trip_within_half_a_step() {
-        let pts = [Vec3::new(-1.0, 0.0, 2.0), Vec3::new(3.0, 0.5, -1.0), Vec3::new(0.123, 0.456, 0.789)];
+        let pts = [
+            Vec3::new(-1.0, 0.0, 2.0),
+            Vec3::new(3.0, 0.5, -1.0),
+            Vec3::new(0.123, 0.456, 0.789),
+        ];
         let g = PositionGrid::fit(pts.iter().copied(), 14);
         assert!((g.step - 4.0 / 16383.0).abs() < 1e-9);
         for p in pts {
             let back = g.dequantize(g.quantize(p));
-            assert!(((back - p).abs().max_element()) <= g.step * 0.5 + 1e-6, "{p} {back}");
+            assert!(
+                ((back - p).abs().max_element()) <= g.step * 0.5 + 1e-6,
+                "{p} {back}"
+            );
         }
         let top = g.quantize(Vec3::new(3.0, 0.5, 2.0));
         assert!(top.iter().all(|&q| q as u32 <= g.max_level()));
@@ -190,7 +210,11 @@ mod tests {
 
     #[test]
     fn delta_round_trip() {
-        let g = PositionGrid { min: Vec3::ZERO, step: 0.01, bits: 14 };
+        let g = PositionGrid {
+            min: Vec3::ZERO,
+            step: 0.01,
+            bits: 14,
+        };
         let d = Vec3::new(0.123, -0.456, 0.0);
         let q = g.quantize_delta(d);
         let back = Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) * g.step;

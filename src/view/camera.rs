@@ -37,7 +37,13 @@ pub enum NamedView {
 }
 
 impl NamedView {
-    pub const ALL: [NamedView; 5] = [NamedView::Front, NamedView::Side, NamedView::Top, NamedView::Close, NamedView::Far];
+    pub const ALL: [NamedView; 5] = [
+        NamedView::Front,
+        NamedView::Side,
+        NamedView::Top,
+        NamedView::Close,
+        NamedView::Far,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -51,13 +57,33 @@ impl NamedView {
 
     /// The orbit parameters of this view.
     pub fn orbit(self) -> Orbit {
-        let fit = Orbit { yaw_deg: 0.0, pitch_deg: 20.0, distance: None, fov_y_deg: 35.0 };
+        let fit = Orbit {
+            yaw_deg: 0.0,
+            pitch_deg: 20.0,
+            distance: None,
+            fov_y_deg: 35.0,
+        };
         match self {
             NamedView::Front => fit,
-            NamedView::Side => Orbit { yaw_deg: 90.0, pitch_deg: 0.0, ..fit },
-            NamedView::Top => Orbit { pitch_deg: 89.0, ..fit },
-            NamedView::Close => Orbit { yaw_deg: 30.0, pitch_deg: 30.0, distance: Some(1.6), fov_y_deg: 20.0 },
-            NamedView::Far => Orbit { distance: Some(8.0), ..fit },
+            NamedView::Side => Orbit {
+                yaw_deg: 90.0,
+                pitch_deg: 0.0,
+                ..fit
+            },
+            NamedView::Top => Orbit {
+                pitch_deg: 89.0,
+                ..fit
+            },
+            NamedView::Close => Orbit {
+                yaw_deg: 30.0,
+                pitch_deg: 30.0,
+                distance: Some(1.6),
+                fov_y_deg: 20.0,
+            },
+            NamedView::Far => Orbit {
+                distance: Some(8.0),
+                ..fit
+            },
         }
     }
 }
@@ -89,7 +115,10 @@ impl Sphere {
     /// The sphere around an axis-aligned box (never of zero radius).
     pub fn around_box(lo: DVec3, hi: DVec3) -> Sphere {
         let r = (hi - lo).length() * 0.5;
-        Sphere { center: (lo + hi) * 0.5, radius: if r > 0.0 && r.is_finite() { r } else { 1.0 } }
+        Sphere {
+            center: (lo + hi) * 0.5,
+            radius: if r > 0.0 && r.is_finite() { r } else { 1.0 },
+        }
     }
 }
 
@@ -115,7 +144,11 @@ impl Camera {
         let half = half_y.min(half_x);
         let d = orbit.distance.map_or(1.02 / half.sin(), |d| d.max(1e-3)) * r;
         let (yaw, pitch) = (orbit.yaw_deg.to_radians(), orbit.pitch_deg.to_radians());
-        let dir = DVec3::new(yaw.sin() * pitch.cos(), pitch.sin(), yaw.cos() * pitch.cos());
+        let dir = DVec3::new(
+            yaw.sin() * pitch.cos(),
+            pitch.sin(),
+            yaw.cos() * pitch.cos(),
+        );
         let near = (d - 1.05 * r).max(d * 1e-3);
         Camera {
             eye: sphere.center + dir * d,
@@ -140,7 +173,11 @@ impl Camera {
 
     /// View → clip, depth in [0, 1] (wgpu, WebGPU, Vulkan).
     pub fn projection(&self) -> DMat4 {
-        let (f, n, z) = (1.0 / (self.fov_y_deg.to_radians() * 0.5).tan(), self.near, self.far);
+        let (f, n, z) = (
+            1.0 / (self.fov_y_deg.to_radians() * 0.5).tan(),
+            self.near,
+            self.far,
+        );
         DMat4::from_cols(
             DVec4::new(f / self.aspect, 0.0, 0.0, 0.0),
             DVec4::new(0.0, f, 0.0, 0.0),
@@ -151,7 +188,11 @@ impl Camera {
 
     /// View → clip, depth in [−1, 1] (OpenGL, WebGL, three.js).
     pub fn projection_gl(&self) -> DMat4 {
-        let (f, n, z) = (1.0 / (self.fov_y_deg.to_radians() * 0.5).tan(), self.near, self.far);
+        let (f, n, z) = (
+            1.0 / (self.fov_y_deg.to_radians() * 0.5).tan(),
+            self.near,
+            self.far,
+        );
         DMat4::from_cols(
             DVec4::new(f / self.aspect, 0.0, 0.0, 0.0),
             DVec4::new(0.0, f, 0.0, 0.0),
@@ -192,19 +233,35 @@ mod tests {
 
     #[test]
     fn fit_keeps_the_sphere_inside_the_frustum() {
-        let s = Sphere { center: DVec3::new(1e6, 0.0, -3.0), radius: 2.0 };
+        let s = Sphere {
+            center: DVec3::new(1e6, 0.0, -3.0),
+            radius: 2.0,
+        };
         for v in NamedView::ALL {
             for aspect in [0.5, 1.0, 2.0] {
                 let c = Camera::frame(s, v.orbit(), aspect);
                 let clip = c.projection() * c.view_matrix();
                 // the centre projects to the middle of the picture, in front of the camera
                 let p = clip.project_point3(s.center);
-                assert!(p.x.abs() < 1e-9 && p.y.abs() < 1e-9 && p.z > 0.0 && p.z < 1.0, "{v:?} {p}");
+                assert!(
+                    p.x.abs() < 1e-9 && p.y.abs() < 1e-9 && p.z > 0.0 && p.z < 1.0,
+                    "{v:?} {p}"
+                );
                 if v.orbit().distance.is_none() {
                     // points of the sphere stay inside [-1, 1]
-                    for d in [DVec3::X, DVec3::Y, DVec3::Z, -DVec3::X, -DVec3::Y, -DVec3::Z] {
+                    for d in [
+                        DVec3::X,
+                        DVec3::Y,
+                        DVec3::Z,
+                        -DVec3::X,
+                        -DVec3::Y,
+                        -DVec3::Z,
+                    ] {
                         let q = clip.project_point3(s.center + d * s.radius);
-                        assert!(q.x.abs() <= 1.0 && q.y.abs() <= 1.0 && q.z >= 0.0 && q.z <= 1.0, "{v:?} {q}");
+                        assert!(
+                            q.x.abs() <= 1.0 && q.y.abs() <= 1.0 && q.z >= 0.0 && q.z <= 1.0,
+                            "{v:?} {q}"
+                        );
                     }
                 }
             }
@@ -213,10 +270,15 @@ mod tests {
 
     #[test]
     fn gpu_matrices_are_the_world_matrices_moved_to_the_anchor() {
-        let s = Sphere { center: DVec3::new(5.0, 1.0, 2.0), radius: 1.0 };
+        let s = Sphere {
+            center: DVec3::new(5.0, 1.0, 2.0),
+            radius: 1.0,
+        };
         let c = Camera::frame(s, NamedView::Close.orbit(), 1.0);
         let world = (c.projection() * c.view_matrix()).project_point3(DVec3::new(5.5, 1.2, 2.1));
-        let gpu = c.gpu_view_projection().project_point3(Vec3::new(0.5, 0.2, 0.1));
+        let gpu = c
+            .gpu_view_projection()
+            .project_point3(Vec3::new(0.5, 0.2, 0.1));
         assert!((world.as_vec3() - gpu).length() < 1e-5);
     }
 }

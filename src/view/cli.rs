@@ -14,11 +14,21 @@ use crate::params::BakeParams;
 
 /// `WxH`, e.g. `512x512`.
 pub fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("expected WxH, got '{s}'"))?;
-    let w: u32 = w.trim().parse().map_err(|_| format!("bad width in '{s}'"))?;
-    let h: u32 = h.trim().parse().map_err(|_| format!("bad height in '{s}'"))?;
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WxH, got '{s}'"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad width in '{s}'"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("bad height in '{s}'"))?;
     if !(1..=8192).contains(&w) || !(1..=8192).contains(&h) {
-        return Err(format!("size must be within 1..=8192 on each side, got '{s}'"));
+        return Err(format!(
+            "size must be within 1..=8192 on each side, got '{s}'"
+        ));
     }
     Ok((w, h))
 }
@@ -141,7 +151,12 @@ pub fn bench(input: &Path, params: &BakeParams, args: &BenchArgs) -> Result<()> 
     );
     let ms = |t: &super::gpu::Timing| t.gpu_ms.unwrap_or(t.wall_ms);
     let mut rows = Vec::new();
-    for v in [NamedView::Front, NamedView::Side, NamedView::Close, NamedView::Far] {
+    for v in [
+        NamedView::Front,
+        NamedView::Side,
+        NamedView::Close,
+        NamedView::Far,
+    ] {
         let camera = super::camera_for_glb(&baked.glb, v.orbit(), args.size)?;
         let (_, tb) = super::render_baked(&gpu, &baked.glb, &camera, args.size, args.frames)?;
         let input = ReferenceInput::from_baked(&baked, params);
@@ -152,7 +167,11 @@ pub fn bench(input: &Path, params: &BakeParams, args: &BenchArgs) -> Result<()> 
             ms(&tb),
             ms(&tr),
             ms(&tb) / ms(&tr),
-            if tb.gpu_ms.is_some() { "" } else { "  (wall time: no timestamp queries)" }
+            if tb.gpu_ms.is_some() {
+                ""
+            } else {
+                "  (wall time: no timestamp queries)"
+            }
         );
         rows.push(serde_json::json!({
             "view": v.name(), "baked_ms": ms(&tb), "reference_ms": ms(&tr),
@@ -166,7 +185,12 @@ pub fn bench(input: &Path, params: &BakeParams, args: &BenchArgs) -> Result<()> 
             "baked_triangles": baked.report.triangles_drawn, "reference_triangles": reference_triangles,
             "draw_calls": baked.report.draw_calls, "views": rows,
         });
-        crate::write::write_atomic(path, serde_json::to_string_pretty(&doc).unwrap_or_default().as_bytes())?;
+        crate::write::write_atomic(
+            path,
+            serde_json::to_string_pretty(&doc)
+                .unwrap_or_default()
+                .as_bytes(),
+        )?;
     }
     Ok(())
 }
@@ -184,7 +208,10 @@ pub fn render(args: &RenderArgs) -> Result<()> {
 /// Runs `view`.
 pub fn view(args: &ViewArgs) -> Result<()> {
     let asset = Asset::open(&args.input)?;
-    let title = args.input.file_name().map_or("shellbake".into(), |n| n.to_string_lossy().into_owned());
+    let title = args
+        .input
+        .file_name()
+        .map_or("shellbake".into(), |n| n.to_string_lossy().into_owned());
     super::window::run(
         asset,
         super::window::ViewOptions {
@@ -199,18 +226,37 @@ pub fn view(args: &ViewArgs) -> Result<()> {
 
 /// Runs `verify`: bakes `input` with `params`, writes the GLB to `glb_out` when given, renders
 /// baked and reference, prints one line per view and fails when a view exceeds the tolerance.
-pub fn verify(input: &Path, params: &BakeParams, args: &VerifyArgs, glb_out: Option<&Path>, quiet: bool) -> Result<()> {
+pub fn verify(
+    input: &Path,
+    params: &BakeParams,
+    args: &VerifyArgs,
+    glb_out: Option<&Path>,
+    quiet: bool,
+) -> Result<()> {
     let scene = crate::load::load(input)?;
     let baked = crate::bake(&scene, params);
     if let Some(path) = glb_out {
         crate::write::write_glb(path, &baked.glb)?;
     }
     let gpu = Gpu::new()?;
-    let result = verify::verify(&gpu, &baked.glb, ReferenceInput::from_baked(&baked, params), args.size)?;
-    let stem = input.file_stem().map_or("input".into(), |s| s.to_string_lossy().into_owned());
+    let result = verify::verify(
+        &gpu,
+        &baked.glb,
+        ReferenceInput::from_baked(&baked, params),
+        args.size,
+    )?;
+    let stem = input
+        .file_stem()
+        .map_or("input".into(), |s| s.to_string_lossy().into_owned());
     result.write_pictures(&args.out_dir, &stem)?;
     if !quiet {
-        println!("verify {} on {} ({}x{})", input.display(), result.adapter, args.size, args.size);
+        println!(
+            "verify {} on {} ({}x{})",
+            input.display(),
+            result.adapter,
+            args.size,
+            args.size
+        );
         for v in &result.views {
             println!("  {}", v.line());
         }
@@ -219,7 +265,12 @@ pub fn verify(input: &Path, params: &BakeParams, args: &VerifyArgs, glb_out: Opt
     if result.passed() {
         Ok(())
     } else {
-        let failed: Vec<&str> = result.views.iter().filter(|v| !v.passed()).map(|v| v.view.name()).collect();
+        let failed: Vec<&str> = result
+            .views
+            .iter()
+            .filter(|v| !v.passed())
+            .map(|v| v.view.name())
+            .collect();
         Err(ViewError::Verify(format!(
             "{}: baked and reference differ beyond the tolerance in view(s) {}",
             input.display(),
@@ -242,8 +293,16 @@ mod tests {
 
     #[test]
     fn flags_override_the_named_view() {
-        let args = CameraArgs { view: NamedView::Side, yaw: None, pitch: Some(120.0), distance: Some(2.0) };
+        let args = CameraArgs {
+            view: NamedView::Side,
+            yaw: None,
+            pitch: Some(120.0),
+            distance: Some(2.0),
+        };
         let o = args.orbit();
-        assert_eq!((o.yaw_deg, o.pitch_deg, o.distance), (90.0, 89.0, Some(2.0)));
+        assert_eq!(
+            (o.yaw_deg, o.pitch_deg, o.distance),
+            (90.0, 89.0, Some(2.0))
+        );
     }
 }

@@ -35,18 +35,29 @@ impl Comparison {
 }
 
 fn rgb(img: &RgbaImage) -> Vec<u8> {
-    img.pixels().flat_map(|p| [p.0[0], p.0[1], p.0[2]]).collect()
+    img.pixels()
+        .flat_map(|p| [p.0[0], p.0[1], p.0[2]])
+        .collect()
 }
 
 /// Compares `test` against `reference` (same size).
 pub fn compare(reference: &RgbaImage, test: &RgbaImage) -> Comparison {
-    assert_eq!(reference.dimensions(), test.dimensions(), "pictures of different sizes");
+    assert_eq!(
+        reference.dimensions(),
+        test.dimensions(),
+        "pictures of different sizes"
+    );
     let (w, h) = reference.dimensions();
     let (a, b) = (rgb(reference), rgb(test));
     let mut differing = 0;
     let mut differing_any = 0;
     for (p, q) in a.chunks_exact(3).zip(b.chunks_exact(3)) {
-        let d = p.iter().zip(q).map(|(x, y)| x.abs_diff(*y)).max().unwrap_or(0);
+        let d = p
+            .iter()
+            .zip(q)
+            .map(|(x, y)| x.abs_diff(*y))
+            .max()
+            .unwrap_or(0);
         differing_any += (d > 0) as usize;
         differing += (d > PIXEL_LEVELS) as usize;
     }
@@ -57,9 +68,21 @@ pub fn compare(reference: &RgbaImage, test: &RgbaImage) -> Comparison {
     );
     let flip_mean = nv_flip::FlipPool::from_image(&error).mean();
     let map = error.apply_color_lut(&nv_flip::magma_lut()).to_vec();
-    let difference = RgbaImage::from_raw(w, h, map.chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 255]).collect())
-        .expect("sized map");
-    Comparison { flip_mean, differing, differing_any, pixels: (w * h) as usize, difference }
+    let difference = RgbaImage::from_raw(
+        w,
+        h,
+        map.chunks_exact(3)
+            .flat_map(|c| [c[0], c[1], c[2], 255])
+            .collect(),
+    )
+    .expect("sized map");
+    Comparison {
+        flip_mean,
+        differing,
+        differing_any,
+        pixels: (w * h) as usize,
+        difference,
+    }
 }
 
 #[cfg(test)]
@@ -68,12 +91,21 @@ mod tests {
 
     #[test]
     fn identical_pictures_have_no_error_and_a_changed_pixel_is_counted() {
-        let a = RgbaImage::from_fn(16, 16, |x, y| image::Rgba([(x * 16) as u8, (y * 16) as u8, 128, 255]));
+        let a = RgbaImage::from_fn(16, 16, |x, y| {
+            image::Rgba([(x * 16) as u8, (y * 16) as u8, 128, 255])
+        });
         let same = compare(&a, &a);
-        assert_eq!((same.flip_mean, same.differing, same.differing_any), (0.0, 0, 0));
+        assert_eq!(
+            (same.flip_mean, same.differing, same.differing_any),
+            (0.0, 0, 0)
+        );
         let mut b = a.clone();
         b.put_pixel(3, 3, image::Rgba([255, 255, 255, 255]));
-        b.put_pixel(4, 4, image::Rgba([a.get_pixel(4, 4).0[0] + 1, 64, 128, 255]));
+        b.put_pixel(
+            4,
+            4,
+            image::Rgba([a.get_pixel(4, 4).0[0] + 1, 64, 128, 255]),
+        );
         let c = compare(&a, &b);
         assert_eq!((c.differing, c.differing_any), (1, 2));
         assert!(c.flip_mean > 0.0);

@@ -62,7 +62,10 @@ pub fn split_glb(bytes: &[u8]) -> Result<(Value, Vec<u8>)> {
         return Err(err("not a GLB file (magic is not 'glTF')"));
     }
     if u32_at(4)? != 2 {
-        return Err(err(format!("GLB version {} (only 2 is supported)", u32_at(4)?)));
+        return Err(err(format!(
+            "GLB version {} (only 2 is supported)",
+            u32_at(4)?
+        )));
     }
     let total = (u32_at(8)? as usize).min(bytes.len());
     let mut offset = 12;
@@ -75,7 +78,8 @@ pub fn split_glb(bytes: &[u8]) -> Result<(Value, Vec<u8>)> {
             .ok_or_else(|| err(format!("GLB chunk at byte {offset} runs past the end")))?;
         match kind {
             0x4E4F_534A => {
-                json = Some(serde_json::from_slice(body).map_err(|e| err(format!("GLB JSON: {e}")))?)
+                json =
+                    Some(serde_json::from_slice(body).map_err(|e| err(format!("GLB JSON: {e}")))?)
             }
             0x004E_4942 if bin.is_empty() => bin = body.to_vec(),
             _ => {}
@@ -122,7 +126,12 @@ pub enum Wrap {
 
 impl Default for SamplerDesc {
     fn default() -> Self {
-        SamplerDesc { mag_nearest: false, min_nearest: false, wrap_u: Wrap::Repeat, wrap_v: Wrap::Repeat }
+        SamplerDesc {
+            mag_nearest: false,
+            min_nearest: false,
+            wrap_u: Wrap::Repeat,
+            wrap_v: Wrap::Repeat,
+        }
     }
 }
 
@@ -228,7 +237,10 @@ pub struct Asset {
 }
 
 fn f32s(v: &Value) -> Option<Vec<f32>> {
-    v.as_array()?.iter().map(|x| x.as_f64().map(|f| f as f32)).collect()
+    v.as_array()?
+        .iter()
+        .map(|x| x.as_f64().map(|f| f as f32))
+        .collect()
 }
 
 fn f64s(v: &Value) -> Option<Vec<f64>> {
@@ -258,11 +270,19 @@ impl Asset {
         let mut meshes = Vec::new();
         for (m, mesh) in arr("meshes").iter().enumerate() {
             let mut primitives = Vec::new();
-            for (p, prim) in mesh["primitives"].as_array().cloned().unwrap_or_default().iter().enumerate() {
+            for (p, prim) in mesh["primitives"]
+                .as_array()
+                .cloned()
+                .unwrap_or_default()
+                .iter()
+                .enumerate()
+            {
                 let at = &prim["attributes"];
                 let mode = prim["mode"].as_u64().unwrap_or(4);
                 if mode != 4 {
-                    return Err(err(format!("mesh {m} primitive {p}: mode {mode} (only triangles are drawn)")));
+                    return Err(err(format!(
+                        "mesh {m} primitive {p}: mode {mode} (only triangles are drawn)"
+                    )));
                 }
                 let position = index(&at["POSITION"])
                     .ok_or_else(|| err(format!("mesh {m} primitive {p} has no POSITION")))?;
@@ -286,7 +306,10 @@ impl Asset {
                     material: index(&prim["material"]),
                 });
             }
-            meshes.push(Mesh { primitives, weights: f32s(&mesh["weights"]).unwrap_or_default() });
+            meshes.push(Mesh {
+                primitives,
+                weights: f32s(&mesh["weights"]).unwrap_or_default(),
+            });
         }
 
         let mut nodes = Vec::new();
@@ -294,9 +317,15 @@ impl Asset {
             let local = if let Some(m) = f64s(&n["matrix"]).filter(|m| m.len() == 16) {
                 DMat4::from_cols_slice(&m)
             } else {
-                let t = f64s(&n["translation"]).filter(|v| v.len() == 3).unwrap_or(vec![0.0; 3]);
-                let r = f64s(&n["rotation"]).filter(|v| v.len() == 4).unwrap_or(vec![0.0, 0.0, 0.0, 1.0]);
-                let s = f64s(&n["scale"]).filter(|v| v.len() == 3).unwrap_or(vec![1.0; 3]);
+                let t = f64s(&n["translation"])
+                    .filter(|v| v.len() == 3)
+                    .unwrap_or(vec![0.0; 3]);
+                let r = f64s(&n["rotation"])
+                    .filter(|v| v.len() == 4)
+                    .unwrap_or(vec![0.0, 0.0, 0.0, 1.0]);
+                let s = f64s(&n["scale"])
+                    .filter(|v| v.len() == 3)
+                    .unwrap_or(vec![1.0; 3]);
                 DMat4::from_scale_rotation_translation(
                     DVec3::new(s[0], s[1], s[2]),
                     DQuat::from_xyzw(r[0], r[1], r[2], r[3]).normalize(),
@@ -306,7 +335,10 @@ impl Asset {
             nodes.push(Node {
                 local,
                 mesh: index(&n["mesh"]),
-                children: n["children"].as_array().map(|c| c.iter().filter_map(index).collect()).unwrap_or_default(),
+                children: n["children"]
+                    .as_array()
+                    .map(|c| c.iter().filter_map(index).collect())
+                    .unwrap_or_default(),
                 weights: f32s(&n["weights"]),
                 lods: n["extensions"]["MSFT_lod"]["ids"]
                     .as_array()
@@ -316,7 +348,10 @@ impl Asset {
         }
         let scene = index(&json["scene"]).unwrap_or(0);
         let roots = match json["scenes"].get(scene) {
-            Some(s) => s["nodes"].as_array().map(|c| c.iter().filter_map(index).collect()).unwrap_or_default(),
+            Some(s) => s["nodes"]
+                .as_array()
+                .map(|c| c.iter().filter_map(index).collect())
+                .unwrap_or_default(),
             // No scene: draw every node that is nobody's child.
             None => {
                 let children: Vec<usize> = nodes.iter().flat_map(|n| n.children.clone()).collect();
@@ -326,7 +361,9 @@ impl Asset {
 
         let materials = arr("materials").iter().map(parse_material).collect();
         let mut asset = Asset {
-            shell_layers: json["nodes"][0]["extras"]["shellbake"]["layers"].as_u64().map(|n| n as usize),
+            shell_layers: json["nodes"][0]["extras"]["shellbake"]["layers"]
+                .as_u64()
+                .map(|n| n as usize),
             json,
             bin,
             meshes,
@@ -345,24 +382,43 @@ impl Asset {
         let accessors = self.json["accessors"].as_array().map_or(0, |a| a.len());
         for (m, mesh) in self.meshes.iter().enumerate() {
             for (p, prim) in mesh.primitives.iter().enumerate() {
-                let all = [Some(prim.position), prim.normal, prim.texcoord, prim.color, prim.indices];
-                for a in all.into_iter().flatten().chain(prim.targets.iter().copied()) {
+                let all = [
+                    Some(prim.position),
+                    prim.normal,
+                    prim.texcoord,
+                    prim.color,
+                    prim.indices,
+                ];
+                for a in all
+                    .into_iter()
+                    .flatten()
+                    .chain(prim.targets.iter().copied())
+                {
                     if a >= accessors {
-                        return Err(err(format!("mesh {m} primitive {p}: accessor {a} does not exist")));
+                        return Err(err(format!(
+                            "mesh {m} primitive {p}: accessor {a} does not exist"
+                        )));
                     }
                 }
                 if let Some(mat) = prim.material {
                     if mat >= self.materials.len() {
-                        return Err(err(format!("mesh {m} primitive {p}: material {mat} does not exist")));
+                        return Err(err(format!(
+                            "mesh {m} primitive {p}: material {mat} does not exist"
+                        )));
                     }
                 }
             }
         }
         for (i, n) in self.nodes.iter().enumerate() {
             if n.mesh.is_some_and(|m| m >= self.meshes.len())
-                || n.children.iter().chain(&n.lods).any(|&c| c >= self.nodes.len())
+                || n.children
+                    .iter()
+                    .chain(&n.lods)
+                    .any(|&c| c >= self.nodes.len())
             {
-                return Err(err(format!("node {i} refers to a mesh or node that does not exist")));
+                return Err(err(format!(
+                    "node {i} refers to a mesh or node that does not exist"
+                )));
             }
         }
         for (i, m) in self.materials.iter().enumerate() {
@@ -377,19 +433,31 @@ impl Asset {
         let view = &self.json["bufferViews"][v];
         let buffer = index(&view["buffer"]).unwrap_or(0);
         if buffer != 0 {
-            return Err(err(format!("buffer view {v}: only buffer 0 (the GLB chunk) is supported")));
+            return Err(err(format!(
+                "buffer view {v}: only buffer 0 (the GLB chunk) is supported"
+            )));
         }
         let offset = index(&view["byteOffset"]).unwrap_or(0);
-        let len = index(&view["byteLength"]).ok_or_else(|| err(format!("buffer view {v} has no byteLength")))?;
-        self.bin
-            .get(offset..offset + len)
-            .ok_or_else(|| err(format!("buffer view {v} runs past the end of the binary chunk")))
+        let len = index(&view["byteLength"])
+            .ok_or_else(|| err(format!("buffer view {v} has no byteLength")))?;
+        self.bin.get(offset..offset + len).ok_or_else(|| {
+            err(format!(
+                "buffer view {v} runs past the end of the binary chunk"
+            ))
+        })
     }
 
     fn parse_textures(&self) -> Result<Vec<Texture>> {
         let mut out = Vec::new();
-        for (t, tex) in self.json["textures"].as_array().cloned().unwrap_or_default().iter().enumerate() {
-            let source = index(&tex["source"]).ok_or_else(|| err(format!("texture {t} has no source")))?;
+        for (t, tex) in self.json["textures"]
+            .as_array()
+            .cloned()
+            .unwrap_or_default()
+            .iter()
+            .enumerate()
+        {
+            let source =
+                index(&tex["source"]).ok_or_else(|| err(format!("texture {t} has no source")))?;
             let image = &self.json["images"][source];
             let bytes: Vec<u8> = if let Some(v) = index(&image["bufferView"]) {
                 self.buffer_view(v)?.to_vec()
@@ -399,12 +467,16 @@ impl Asset {
                     .decode(b64)
                     .map_err(|e| err(format!("image {source}: bad data URI: {e}")))?
             } else {
-                return Err(err(format!("image {source}: only embedded images are supported")));
+                return Err(err(format!(
+                    "image {source}: only embedded images are supported"
+                )));
             };
             let img = image::load_from_memory(&bytes)
                 .map_err(|e| err(format!("image {source}: {e}")))?
                 .to_rgba8();
-            let s = index(&tex["sampler"]).map(|s| self.json["samplers"][s].clone()).unwrap_or(Value::Null);
+            let s = index(&tex["sampler"])
+                .map(|s| self.json["samplers"][s].clone())
+                .unwrap_or(Value::Null);
             let wrap = |k: &str| match s[k].as_u64() {
                 Some(33071) => Wrap::Clamp,
                 Some(33648) => Wrap::Mirror,
@@ -417,7 +489,12 @@ impl Asset {
                 wrap_u: wrap("wrapS"),
                 wrap_v: wrap("wrapT"),
             };
-            out.push(Texture { width: img.width(), height: img.height(), rgba: img.into_raw(), sampler });
+            out.push(Texture {
+                width: img.width(),
+                height: img.height(),
+                rgba: img.into_raw(),
+                sampler,
+            });
         }
         Ok(out)
     }
@@ -426,16 +503,23 @@ impl Asset {
     pub fn floats(&self, a: usize) -> Result<Floats> {
         let acc = &self.json["accessors"][a];
         if !acc["sparse"].is_null() {
-            return Err(err(format!("accessor {a}: sparse accessors are not supported")));
+            return Err(err(format!(
+                "accessor {a}: sparse accessors are not supported"
+            )));
         }
         let components = match acc["type"].as_str() {
             Some("SCALAR") => 1,
             Some("VEC2") => 2,
             Some("VEC3") => 3,
             Some("VEC4") => 4,
-            other => return Err(err(format!("accessor {a}: type {other:?} is not a vertex type"))),
+            other => {
+                return Err(err(format!(
+                    "accessor {a}: type {other:?} is not a vertex type"
+                )))
+            }
         };
-        let count = index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
+        let count =
+            index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
         let component = acc["componentType"].as_u64().unwrap_or(0);
         let normalized = acc["normalized"].as_bool().unwrap_or(false);
         let size = match component {
@@ -445,13 +529,19 @@ impl Asset {
             c => return Err(err(format!("accessor {a}: component type {c} unknown"))),
         };
         let Some(view) = index(&acc["bufferView"]) else {
-            return Ok(Floats { components, data: vec![0.0; count * components] });
+            return Ok(Floats {
+                components,
+                data: vec![0.0; count * components],
+            });
         };
         let bytes = self.buffer_view(view)?;
         let offset = index(&acc["byteOffset"]).unwrap_or(0);
-        let stride = index(&self.json["bufferViews"][view]["byteStride"]).unwrap_or(size * components);
+        let stride =
+            index(&self.json["bufferViews"][view]["byteStride"]).unwrap_or(size * components);
         if count > 0 && offset + (count - 1) * stride + size * components > bytes.len() {
-            return Err(err(format!("accessor {a} reads past the end of buffer view {view}")));
+            return Err(err(format!(
+                "accessor {a} reads past the end of buffer view {view}"
+            )));
         }
         let mut data = Vec::with_capacity(count * components);
         for i in 0..count {
@@ -476,7 +566,10 @@ impl Asset {
                             x
                         }
                     }
-                    5123 => u16::from_le_bytes([b[0], b[1]]) as f32 / if normalized { 65535.0 } else { 1.0 },
+                    5123 => {
+                        u16::from_le_bytes([b[0], b[1]]) as f32
+                            / if normalized { 65535.0 } else { 1.0 }
+                    }
                     5125 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
                     _ => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
                 };
@@ -489,15 +582,21 @@ impl Asset {
     /// Decodes an index accessor to `u32`.
     pub fn indices(&self, a: usize) -> Result<Vec<u32>> {
         let acc = &self.json["accessors"][a];
-        let count = index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
-        let view = index(&acc["bufferView"]).ok_or_else(|| err(format!("index accessor {a} has no buffer view")))?;
+        let count =
+            index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
+        let view = index(&acc["bufferView"])
+            .ok_or_else(|| err(format!("index accessor {a} has no buffer view")))?;
         let bytes = self.buffer_view(view)?;
         let offset = index(&acc["byteOffset"]).unwrap_or(0);
         let size = match acc["componentType"].as_u64() {
             Some(5121) => 1,
             Some(5123) => 2,
             Some(5125) => 4,
-            c => return Err(err(format!("index accessor {a}: component type {c:?} is not an index type"))),
+            c => {
+                return Err(err(format!(
+                    "index accessor {a}: component type {c:?} is not an index type"
+                )))
+            }
         };
         let b = bytes
             .get(offset..offset + count * size)
@@ -519,8 +618,12 @@ impl Asset {
     /// Every mesh instance of the scene at LOD `lod` (clamped per node), world matrices in `f64`.
     pub fn instances(&self, lod: usize) -> Vec<Instance> {
         let mut out = Vec::new();
-        let mut stack: Vec<(usize, DMat4, usize, u32)> =
-            self.roots.iter().enumerate().map(|(i, &r)| (r, DMat4::IDENTITY, i, 0)).collect();
+        let mut stack: Vec<(usize, DMat4, usize, u32)> = self
+            .roots
+            .iter()
+            .enumerate()
+            .map(|(i, &r)| (r, DMat4::IDENTITY, i, 0))
+            .collect();
         stack.reverse();
         while let Some((n, parent, sibling, depth)) = stack.pop() {
             if depth > 64 {
@@ -528,13 +631,27 @@ impl Asset {
             }
             let n = match lod {
                 0 => n,
-                k => self.nodes[n].lods.get(k - 1).or(self.nodes[n].lods.last()).copied().unwrap_or(n),
+                k => self.nodes[n]
+                    .lods
+                    .get(k - 1)
+                    .or(self.nodes[n].lods.last())
+                    .copied()
+                    .unwrap_or(n),
             };
             let node = &self.nodes[n];
             let world = parent * node.local;
             if let Some(m) = node.mesh {
-                let weights = node.weights.clone().unwrap_or_else(|| self.meshes[m].weights.clone());
-                out.push(Instance { node: n, mesh: m, world, weights, sibling });
+                let weights = node
+                    .weights
+                    .clone()
+                    .unwrap_or_else(|| self.meshes[m].weights.clone());
+                out.push(Instance {
+                    node: n,
+                    mesh: m,
+                    world,
+                    weights,
+                    sibling,
+                });
             }
             for (i, &c) in node.children.iter().enumerate().rev() {
                 stack.push((c, world, i, depth + 1));
@@ -585,8 +702,12 @@ fn parse_material(m: &Value) -> Material {
         .unwrap_or(d.base_color);
     let tex = &pbr["baseColorTexture"];
     let xf = &tex["extensions"]["KHR_texture_transform"];
-    let offset = f32s(&xf["offset"]).filter(|v| v.len() == 2).unwrap_or(vec![0.0, 0.0]);
-    let scale = f32s(&xf["scale"]).filter(|v| v.len() == 2).unwrap_or(vec![1.0, 1.0]);
+    let offset = f32s(&xf["offset"])
+        .filter(|v| v.len() == 2)
+        .unwrap_or(vec![0.0, 0.0]);
+    let scale = f32s(&xf["scale"])
+        .filter(|v| v.len() == 2)
+        .unwrap_or(vec![1.0, 1.0]);
     let rotation = xf["rotation"].as_f64().unwrap_or(0.0) as f32;
     // KHR_texture_transform: uv' = T(offset) · R(rotation) · S(scale) · uv, with
     // the extension's GLSL `mat3(cos, sin, 0, −sin, cos, 0, 0, 0, 1)` is column-major, so in rows
@@ -603,9 +724,15 @@ fn parse_material(m: &Value) -> Material {
     };
     Material {
         base_color,
-        metallic: pbr["metallicFactor"].as_f64().map_or(d.metallic, |v| v as f32),
-        roughness: pbr["roughnessFactor"].as_f64().map_or(d.roughness, |v| v as f32),
-        emissive: f32s(&m["emissiveFactor"]).filter(|v| v.len() == 3).map_or(d.emissive, |v| [v[0], v[1], v[2]]),
+        metallic: pbr["metallicFactor"]
+            .as_f64()
+            .map_or(d.metallic, |v| v as f32),
+        roughness: pbr["roughnessFactor"]
+            .as_f64()
+            .map_or(d.roughness, |v| v as f32),
+        emissive: f32s(&m["emissiveFactor"])
+            .filter(|v| v.len() == 3)
+            .map_or(d.emissive, |v| [v[0], v[1], v[2]]),
         texture: index(&tex["index"]),
         uv_transform,
         alpha,
@@ -639,7 +766,10 @@ mod tests {
             ]
         });
         let a = Asset::from_parts(doc, bin).unwrap();
-        assert_eq!(a.floats(0).unwrap().data, vec![0.0, 1.0, 32768.0 / 65535.0, 1.0 / 65535.0]);
+        assert_eq!(
+            a.floats(0).unwrap().data,
+            vec![0.0, 1.0, 32768.0 / 65535.0, 1.0 / 65535.0]
+        );
         assert_eq!(a.floats(1).unwrap().data, vec![-1.0, 1.0, 0.0]);
         assert_eq!(a.floats(2).unwrap().data, vec![0.0, 65535.0, 32768.0, 1.0]);
     }
@@ -662,7 +792,10 @@ mod tests {
         assert_eq!(inst[0].weights, vec![0.5]);
         assert_eq!(inst[1].weights, vec![0.25]);
         assert_eq!(inst[1].sibling, 1);
-        assert_eq!(inst[0].world.transform_point3(DVec3::ONE), DVec3::new(1e6 + 2.0, 2.0, 2.0));
+        assert_eq!(
+            inst[0].world.transform_point3(DVec3::ONE),
+            DVec3::new(1e6 + 2.0, 2.0, 2.0)
+        );
     }
 
     #[test]
@@ -697,7 +830,10 @@ mod tests {
         let a = Asset::from_parts(doc, Vec::new()).unwrap();
         assert_eq!(a.lod_levels(), 2);
         let mesh_at = |lod| a.instances(lod).iter().map(|i| i.mesh).collect::<Vec<_>>();
-        assert_eq!([mesh_at(0), mesh_at(1), mesh_at(2), mesh_at(5)], [vec![0], vec![1], vec![2], vec![2]]);
+        assert_eq!(
+            [mesh_at(0), mesh_at(1), mesh_at(2), mesh_at(5)],
+            [vec![0], vec![1], vec![2], vec![2]]
+        );
     }
 
     #[test]

@@ -157,7 +157,11 @@ impl GltfRenderer {
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("gltf"),
-            bind_group_layouts: &[Some(&frame.layout), Some(&draw_layout), Some(&material_layout)],
+            bind_group_layouts: &[
+                Some(&frame.layout),
+                Some(&draw_layout),
+                Some(&material_layout),
+            ],
             immediate_size: 0,
         });
 
@@ -166,7 +170,12 @@ impl GltfRenderer {
         let textures: Vec<(wgpu::TextureView, wgpu::Sampler)> = asset
             .textures
             .iter()
-            .map(|t| (upload_texture(gpu, t.width, t.height, &t.rgba), make_sampler(gpu, t.sampler)))
+            .map(|t| {
+                (
+                    upload_texture(gpu, t.width, t.height, &t.rgba),
+                    make_sampler(gpu, t.sampler),
+                )
+            })
             .collect();
         let default_sampler = make_sampler(gpu, SamplerDesc::default());
         let group = |view: &wgpu::TextureView, sampler: &wgpu::Sampler| {
@@ -174,8 +183,14 @@ impl GltfRenderer {
                 label: Some("material"),
                 layout: &material_layout,
                 entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(view) },
-                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(sampler) },
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Sampler(sampler),
+                    },
                 ],
             })
         };
@@ -191,7 +206,10 @@ impl GltfRenderer {
 
         let bounds = match asset.bounds()? {
             Some((lo, hi)) => Sphere::around_box(lo, hi),
-            None => Sphere { center: DVec3::ZERO, radius: 1.0 },
+            None => Sphere {
+                center: DVec3::ZERO,
+                radius: 1.0,
+            },
         };
         let draw_buffer = make_draw_buffer(gpu, 1);
         let draw_group = make_draw_group(gpu, &draw_layout, &draw_buffer);
@@ -225,7 +243,9 @@ impl GltfRenderer {
 
     /// Number of shell layers (or top-level meshes) the layer limit steps through.
     pub fn layer_count(&self) -> usize {
-        self.asset.shell_layers.unwrap_or_else(|| self.draws.iter().map(|d| d.layer + 1).max().unwrap_or(0))
+        self.asset
+            .shell_layers
+            .unwrap_or_else(|| self.draws.iter().map(|d| d.layer + 1).max().unwrap_or(0))
     }
 
     /// Shows layers `0..=k` only (`None`: all).
@@ -245,7 +265,8 @@ impl GltfRenderer {
 
     fn single_draw_layers(&self) -> Option<u32> {
         let l = self.asset.shell_layers? as u32;
-        (self.draws.len() == 1 && l > 0 && self.draws[0].elements.is_multiple_of(3 * l)).then_some(l)
+        (self.draws.len() == 1 && l > 0 && self.draws[0].elements.is_multiple_of(3 * l))
+            .then_some(l)
     }
 
     /// Elements drawn of each draw call under the current layer limit (0 = skipped).
@@ -269,7 +290,10 @@ impl GltfRenderer {
 
     /// Triangles drawn per frame under the current layer limit and LOD.
     pub fn triangles(&self) -> usize {
-        self.visible_elements().iter().map(|&e| e as usize / 3).sum()
+        self.visible_elements()
+            .iter()
+            .map(|&e| e as usize / 3)
+            .sum()
     }
 
     /// Draw calls per frame under the current layer limit and LOD.
@@ -282,7 +306,10 @@ impl GltfRenderer {
         for inst in self.asset.instances(self.lod) {
             let mesh = &self.asset.meshes[inst.mesh];
             for prim in &mesh.primitives {
-                let material = prim.material.map(|m| self.asset.materials[m].clone()).unwrap_or_default();
+                let material = prim
+                    .material
+                    .map(|m| self.asset.materials[m].clone())
+                    .unwrap_or_default();
                 let material_group = prim.material.unwrap_or(self.asset.materials.len());
                 let vertices = self.asset.floats(prim.position)?.count();
                 let mut accessors: Vec<usize> = vec![prim.position];
@@ -295,7 +322,10 @@ impl GltfRenderer {
                         let f = self.asset.floats(a)?;
                         let data = if a == prim.color.unwrap_or(usize::MAX) && f.components == 3 {
                             // COLOR_0 VEC3: alpha 1
-                            f.data.chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 1.0]).collect()
+                            f.data
+                                .chunks_exact(3)
+                                .flat_map(|c| [c[0], c[1], c[2], 1.0])
+                                .collect()
                         } else {
                             f.data
                         };
@@ -312,7 +342,9 @@ impl GltfRenderer {
                 };
                 for s in [normal, texcoord] {
                     if let Stream::Zeros(c, n) = s {
-                        self.zeros.entry((c, n)).or_insert_with(|| vertex_buffer(gpu, &vec![0.0; c as usize * n.max(1)]));
+                        self.zeros.entry((c, n)).or_insert_with(|| {
+                            vertex_buffer(gpu, &vec![0.0; c as usize * n.max(1)])
+                        });
                     }
                 }
                 let elements = match prim.indices {
@@ -324,11 +356,13 @@ impl GltfRenderer {
                                     what: format!("index accessor {a}: index {bad} is out of range ({vertices} vertices)"),
                                 }));
                             }
-                            let buf = gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                                label: Some("indices"),
-                                contents: bytemuck::cast_slice(&ix),
-                                usage: wgpu::BufferUsages::INDEX,
-                            });
+                            let buf =
+                                gpu.device
+                                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                                        label: Some("indices"),
+                                        contents: bytemuck::cast_slice(&ix),
+                                        usage: wgpu::BufferUsages::INDEX,
+                                    });
                             self.index_buffers.insert(a, buf);
                         }
                         self.asset.indices(a)?.len() as u32
@@ -382,7 +416,13 @@ impl GltfRenderer {
     }
 
     /// Writes the camera, light and per-draw uniforms and builds the pipelines for `format`.
-    pub fn prepare(&mut self, gpu: &Gpu, camera: &Camera, light: &Light, format: wgpu::TextureFormat) {
+    pub fn prepare(
+        &mut self,
+        gpu: &Gpu,
+        camera: &Camera,
+        light: &Light,
+        format: wgpu::TextureFormat,
+    ) {
         self.frame.write(gpu, camera, light);
         let anchor = DMat4::from_translation(-camera.anchor());
         let mut bytes = vec![0u8; self.draws.len() * DRAW_SLOT as usize];
@@ -400,14 +440,30 @@ impl GltfRenderer {
                 model: model.as_mat4().to_cols_array(),
                 normal_matrix: normal.as_mat4().to_cols_array(),
                 base_color: m.base_color,
-                uv_row0: [m.uv_transform[0][0], m.uv_transform[0][1], m.uv_transform[0][2], 0.0],
-                uv_row1: [m.uv_transform[1][0], m.uv_transform[1][1], m.uv_transform[1][2], 0.0],
+                uv_row0: [
+                    m.uv_transform[0][0],
+                    m.uv_transform[0][1],
+                    m.uv_transform[0][2],
+                    0.0,
+                ],
+                uv_row1: [
+                    m.uv_transform[1][0],
+                    m.uv_transform[1][1],
+                    m.uv_transform[1][2],
+                    0.0,
+                ],
                 weights: d.weights,
                 material: [m.metallic, m.roughness, cutoff, mode],
-                emissive: [m.emissive[0], m.emissive[1], m.emissive[2], if flat { 1.0 } else { 0.0 }],
+                emissive: [
+                    m.emissive[0],
+                    m.emissive[1],
+                    m.emissive[2],
+                    if flat { 1.0 } else { 0.0 },
+                ],
             };
             let o = i * DRAW_SLOT as usize;
-            bytes[o..o + std::mem::size_of::<DrawData>()].copy_from_slice(bytemuck::bytes_of(&data));
+            bytes[o..o + std::mem::size_of::<DrawData>()]
+                .copy_from_slice(bytemuck::bytes_of(&data));
         }
         if !bytes.is_empty() {
             gpu.queue.write_buffer(&self.draw_buffer, 0, &bytes);
@@ -436,26 +492,49 @@ impl GltfRenderer {
                     inputs.push_str(&format!("    @location({}) target{t}: vec3<f32>,\n", 4 + t));
                     morph.push_str(&format!("    p += in.target{t} * draw.weights[{t}];\n"));
                 }
-                let color = if key.color { "    out.color = in.color;\n" } else { "    out.color = vec4<f32>(1.0);\n" };
+                let color = if key.color {
+                    "    out.color = in.color;\n"
+                } else {
+                    "    out.color = vec4<f32>(1.0);\n"
+                };
                 let src = format!(
                     "{}\n{}",
                     gpu::COMMON_WGSL,
-                    WGSL.replace("//INPUTS\n", &inputs).replace("//MORPH\n", &morph).replace("//COLOR\n", color)
+                    WGSL.replace("//INPUTS\n", &inputs)
+                        .replace("//MORPH\n", &morph)
+                        .replace("//COLOR\n", color)
                 );
-                gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("gltf"),
-                    source: wgpu::ShaderSource::Wgsl(src.into()),
-                })
+                gpu.device
+                    .create_shader_module(wgpu::ShaderModuleDescriptor {
+                        label: Some("gltf"),
+                        source: wgpu::ShaderSource::Wgsl(src.into()),
+                    })
             })
             .clone();
         let attrs: Vec<[wgpu::VertexAttribute; 1]> = {
             let mut v = vec![
-                [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 0 }],
-                [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: 1 }],
-                [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x2, offset: 0, shader_location: 2 }],
+                [wgpu::VertexAttribute {
+                    format: wgpu::VertexFormat::Float32x3,
+                    offset: 0,
+                    shader_location: 0,
+                }],
+                [wgpu::VertexAttribute {
+                    format: wgpu::VertexFormat::Float32x3,
+                    offset: 0,
+                    shader_location: 1,
+                }],
+                [wgpu::VertexAttribute {
+                    format: wgpu::VertexFormat::Float32x2,
+                    offset: 0,
+                    shader_location: 2,
+                }],
             ];
             if key.color {
-                v.push([wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x4, offset: 0, shader_location: 3 }]);
+                v.push([wgpu::VertexAttribute {
+                    format: wgpu::VertexFormat::Float32x4,
+                    offset: 0,
+                    shader_location: 3,
+                }]);
             }
             for t in 0..key.targets {
                 v.push([wgpu::VertexAttribute {
@@ -474,31 +553,40 @@ impl GltfRenderer {
                     wgpu::VertexFormat::Float32x3 => 12,
                     _ => 16,
                 };
-                Some(wgpu::VertexBufferLayout { array_stride: stride, step_mode: wgpu::VertexStepMode::Vertex, attributes: a })
+                Some(wgpu::VertexBufferLayout {
+                    array_stride: stride,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: a,
+                })
             })
             .collect();
         let blend = key.blend.then_some(wgpu::BlendState::ALPHA_BLENDING);
-        gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("gltf"),
-            layout: Some(&self.pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &layouts,
-            },
-            primitive: gpu::primitive_state(key.cull, key.mirrored),
-            depth_stencil: Some(gpu::depth_state(!key.blend)),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState { format: key.format, blend, write_mask: wgpu::ColorWrites::ALL })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        })
+        gpu.device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("gltf"),
+                layout: Some(&self.pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &layouts,
+                },
+                primitive: gpu::primitive_state(key.cull, key.mirrored),
+                depth_stencil: Some(gpu::depth_state(!key.blend)),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: key.format,
+                        blend,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
     }
 
     /// Records the draws into `pass` (after [`GltfRenderer::prepare`] for the pass's format).
@@ -530,7 +618,10 @@ impl GltfRenderer {
             }
             match d.indices {
                 Some(a) => {
-                    pass.set_index_buffer(self.index_buffers[&a].slice(..), wgpu::IndexFormat::Uint32);
+                    pass.set_index_buffer(
+                        self.index_buffers[&a].slice(..),
+                        wgpu::IndexFormat::Uint32,
+                    );
                     pass.draw_indexed(0..elements, 0, 0..1);
                 }
                 None => pass.draw(0..elements, 0..1),
@@ -541,11 +632,12 @@ impl GltfRenderer {
 
 fn vertex_buffer(gpu: &Gpu, data: &[f32]) -> wgpu::Buffer {
     let data: &[f32] = if data.is_empty() { &[0.0; 4] } else { data };
-    gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("vertices"),
-        contents: bytemuck::cast_slice(data),
-        usage: wgpu::BufferUsages::VERTEX,
-    })
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vertices"),
+            contents: bytemuck::cast_slice(data),
+            usage: wgpu::BufferUsages::VERTEX,
+        })
 }
 
 fn make_draw_buffer(gpu: &Gpu, draws: usize) -> wgpu::Buffer {
@@ -557,7 +649,11 @@ fn make_draw_buffer(gpu: &Gpu, draws: usize) -> wgpu::Buffer {
     })
 }
 
-fn make_draw_group(gpu: &Gpu, layout: &wgpu::BindGroupLayout, buffer: &wgpu::Buffer) -> wgpu::BindGroup {
+fn make_draw_group(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    buffer: &wgpu::Buffer,
+) -> wgpu::BindGroup {
     gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("draws"),
         layout,
@@ -578,7 +674,11 @@ fn upload_texture(gpu: &Gpu, width: u32, height: u32, rgba: &[u8]) -> wgpu::Text
         &gpu.queue,
         &wgpu::TextureDescriptor {
             label: Some("base colour"),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -598,7 +698,13 @@ fn make_sampler(gpu: &Gpu, s: SamplerDesc) -> wgpu::Sampler {
         Wrap::Clamp => wgpu::AddressMode::ClampToEdge,
         Wrap::Mirror => wgpu::AddressMode::MirrorRepeat,
     };
-    let filter = |nearest: bool| if nearest { wgpu::FilterMode::Nearest } else { wgpu::FilterMode::Linear };
+    let filter = |nearest: bool| {
+        if nearest {
+            wgpu::FilterMode::Nearest
+        } else {
+            wgpu::FilterMode::Linear
+        }
+    };
     gpu.device.create_sampler(&wgpu::SamplerDescriptor {
         label: Some("sampler"),
         address_mode_u: wrap(s.wrap_u),

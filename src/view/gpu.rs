@@ -32,9 +32,15 @@ pub enum ViewError {
     #[error("GPU: {0}")]
     Gpu(String),
     #[error("{path}: {source}")]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{path}: {source}")]
-    Image { path: PathBuf, source: image::ImageError },
+    Image {
+        path: PathBuf,
+        source: image::ImageError,
+    },
     #[error("window: {0}")]
     Window(String),
     #[error(transparent)]
@@ -50,7 +56,12 @@ pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrg
 /// Depth format of every target.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Linear clear colour (a dark neutral grey, so silhouettes of dark fur still show).
-pub const CLEAR: wgpu::Color = wgpu::Color { r: 0.03, g: 0.035, b: 0.04, a: 1.0 };
+pub const CLEAR: wgpu::Color = wgpu::Color {
+    r: 0.03,
+    g: 0.035,
+    b: 0.04,
+    a: 1.0,
+};
 
 /// Instance, adapter, device and queue.
 pub struct Gpu {
@@ -65,12 +76,16 @@ pub struct Gpu {
 impl Gpu {
     /// A headless context on the best adapter (`WGPU_BACKEND` etc. are honoured).
     pub fn new() -> Result<Gpu> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         Gpu::with_instance(instance, None)
     }
 
     /// A context on `instance` able to present to `surface` when given.
-    pub fn with_instance(instance: wgpu::Instance, surface: Option<&wgpu::Surface<'_>>) -> Result<Gpu> {
+    pub fn with_instance(
+        instance: wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+    ) -> Result<Gpu> {
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
             power_preference: wgpu::PowerPreference::HighPerformance,
             force_fallback_adapter: false,
@@ -79,7 +94,11 @@ impl Gpu {
         }))
         .map_err(|e| ViewError::Gpu(format!("no adapter: {e}")))?;
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let required_features = if timestamps { wgpu::Features::TIMESTAMP_QUERY } else { wgpu::Features::empty() };
+        let required_features = if timestamps {
+            wgpu::Features::TIMESTAMP_QUERY
+        } else {
+            wgpu::Features::empty()
+        };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("shellbake"),
             required_features,
@@ -87,7 +106,13 @@ impl Gpu {
             ..Default::default()
         }))
         .map_err(|e| ViewError::Gpu(format!("no device: {e}")))?;
-        Ok(Gpu { instance, adapter, device, queue, timestamps })
+        Ok(Gpu {
+            instance,
+            adapter,
+            device,
+            queue,
+            timestamps,
+        })
     }
 
     /// Adapter name and backend, e.g. "llvmpipe (LLVM 19.1.7, 256 bits) (Vulkan)".
@@ -135,11 +160,13 @@ impl Gpu {
         let start = Instant::now();
         for f in 0..frames {
             let mut encoder = self.device.create_command_encoder(&Default::default());
-            let ts = queries.as_ref().map(|(set, _, _)| wgpu::RenderPassTimestampWrites {
-                query_set: set,
-                beginning_of_pass_write_index: Some(2 * f),
-                end_of_pass_write_index: Some(2 * f + 1),
-            });
+            let ts = queries
+                .as_ref()
+                .map(|(set, _, _)| wgpu::RenderPassTimestampWrites {
+                    query_set: set,
+                    beginning_of_pass_write_index: Some(2 * f),
+                    end_of_pass_write_index: Some(2 * f + 1),
+                });
             record(&mut encoder, ts);
             self.queue.submit([encoder.finish()]);
         }
@@ -151,12 +178,22 @@ impl Gpu {
             encoder.copy_buffer_to_buffer(&resolve, 0, &read, 0, 16 * frames as u64);
             self.queue.submit([encoder.finish()]);
             let stamps = self.read_buffer(&read);
-            let ticks: Vec<u64> = stamps.chunks_exact(8).map(|b| u64::from_le_bytes(b.try_into().unwrap())).collect();
+            let ticks: Vec<u64> = stamps
+                .chunks_exact(8)
+                .map(|b| u64::from_le_bytes(b.try_into().unwrap()))
+                .collect();
             let period = self.queue.get_timestamp_period() as f64;
-            let total: f64 = ticks.chunks_exact(2).map(|p| p[1].saturating_sub(p[0]) as f64 * period).sum();
+            let total: f64 = ticks
+                .chunks_exact(2)
+                .map(|p| p[1].saturating_sub(p[0]) as f64 * period)
+                .sum();
             total / frames as f64 / 1e6
         });
-        Timing { frames, gpu_ms, wall_ms }
+        Timing {
+            frames,
+            gpu_ms,
+            wall_ms,
+        }
     }
 
     /// Maps a `MAP_READ` buffer and copies its bytes out.
@@ -166,7 +203,9 @@ impl Gpu {
             let _ = tx.send(r);
         });
         self.wait();
-        rx.recv().expect("map callback ran").expect("mapping a read-back buffer");
+        rx.recv()
+            .expect("map callback ran")
+            .expect("mapping a read-back buffer");
         let bytes = buffer.get_mapped_range(..).expect("mapped").to_vec();
         buffer.unmap();
         bytes
@@ -175,7 +214,8 @@ impl Gpu {
     /// Copies a 4-byte-per-texel texture into an RGBA image (BGRA is swizzled).
     pub fn read_texture(&self, texture: &wgpu::Texture) -> RgbaImage {
         let (w, h) = (texture.width(), texture.height());
-        let row = (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let row = (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("read-back"),
             size: row as u64 * h as u64,
@@ -187,13 +227,20 @@ impl Gpu {
             texture.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
                 buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: Some(h) },
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: Some(h),
+                },
             },
             texture.size(),
         );
         self.queue.submit([encoder.finish()]);
         let bytes = self.read_buffer(&buffer);
-        let bgra = matches!(texture.format(), wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
+        let bgra = matches!(
+            texture.format(),
+            wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+        );
         let mut out = Vec::with_capacity((w * h * 4) as usize);
         for y in 0..h as usize {
             let line = &bytes[y * row as usize..y * row as usize + w as usize * 4];
@@ -230,7 +277,11 @@ impl Target {
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Target {
         let color = gpu.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("colour"),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -240,7 +291,11 @@ impl Target {
         });
         let color_view = color.create_view(&Default::default());
         let depth_view = depth_texture(gpu, width, height).create_view(&Default::default());
-        Target { color, color_view, depth_view }
+        Target {
+            color,
+            color_view,
+            depth_view,
+        }
     }
 
     pub fn read(&self, gpu: &Gpu) -> RgbaImage {
@@ -252,7 +307,11 @@ impl Target {
 pub fn depth_texture(gpu: &Gpu, width: u32, height: u32) -> wgpu::Texture {
     gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("depth"),
-        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -269,24 +328,29 @@ pub fn begin_pass<'e>(
     depth: &wgpu::TextureView,
     timestamps: Option<wgpu::RenderPassTimestampWrites<'_>>,
 ) -> wgpu::RenderPass<'e> {
-    encoder
-        .begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("scene"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: color,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations { load: wgpu::LoadOp::Clear(CLEAR), store: wgpu::StoreOp::Store },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: depth,
-                depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
-                stencil_ops: None,
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("scene"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: color,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(CLEAR),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: wgpu::StoreOp::Store,
             }),
-            timestamp_writes: timestamps,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        })
+            stencil_ops: None,
+        }),
+        timestamp_writes: timestamps,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
 }
 
 /// One directional light and a constant ambient term, in linear RGB.
@@ -334,19 +398,21 @@ pub struct Frame {
 
 impl Frame {
     pub fn new(gpu: &Gpu) -> Frame {
-        let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("frame"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
-        });
+        let layout = gpu
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("frame"),
+                entries: &[wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                }],
+            });
         let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<FrameData>() as u64,
@@ -356,9 +422,16 @@ impl Frame {
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("frame"),
             layout: &layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: buffer.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: buffer.as_entire_binding(),
+            }],
         });
-        Frame { layout, buffer, bind_group }
+        Frame {
+            layout,
+            buffer,
+            bind_group,
+        }
     }
 
     /// Writes the camera (anchor-relative) and the light.
@@ -371,7 +444,8 @@ impl Frame {
             light_color: light.color.extend(0.0).to_array(),
             ambient: Vec4::from((light.ambient, 0.0)).to_array(),
         };
-        gpu.queue.write_buffer(&self.buffer, 0, bytemuck::bytes_of(&data));
+        gpu.queue
+            .write_buffer(&self.buffer, 0, bytemuck::bytes_of(&data));
     }
 }
 
@@ -379,8 +453,14 @@ impl Frame {
 pub fn save_png(image: &RgbaImage, path: &Path) -> Result<()> {
     let mut bytes = Vec::new();
     image
-        .write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
-        .map_err(|source| ViewError::Image { path: path.to_path_buf(), source })?;
+        .write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .map_err(|source| ViewError::Image {
+            path: path.to_path_buf(),
+            source,
+        })?;
     crate::write::write_atomic(path, &bytes).map_err(|e| ViewError::Io {
         path: path.to_path_buf(),
         source: std::io::Error::other(e.to_string()),
@@ -391,7 +471,11 @@ pub fn save_png(image: &RgbaImage, path: &Path) -> Result<()> {
 pub fn primitive_state(cull: bool, mirrored: bool) -> wgpu::PrimitiveState {
     wgpu::PrimitiveState {
         topology: wgpu::PrimitiveTopology::TriangleList,
-        front_face: if mirrored { wgpu::FrontFace::Cw } else { wgpu::FrontFace::Ccw },
+        front_face: if mirrored {
+            wgpu::FrontFace::Cw
+        } else {
+            wgpu::FrontFace::Ccw
+        },
         cull_mode: cull.then_some(wgpu::Face::Back),
         ..Default::default()
     }

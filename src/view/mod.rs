@@ -63,13 +63,22 @@ pub fn camera_for_glb(glb: &[u8], orbit: Orbit, size: (u32, u32)) -> Result<Came
     let asset = glb::Asset::from_glb(glb)?;
     let sphere = match asset.bounds()? {
         Some((lo, hi)) => Sphere::around_box(lo, hi),
-        None => Sphere { center: glam::DVec3::ZERO, radius: 1.0 },
+        None => Sphere {
+            center: glam::DVec3::ZERO,
+            radius: 1.0,
+        },
     };
     Ok(Camera::frame(sphere, orbit, size.0 as f64 / size.1 as f64))
 }
 
 /// Draws `r` headless from `camera` and reads the picture back.
-pub fn render_gltf(gpu: &Gpu, r: &mut GltfRenderer, camera: &Camera, light: &Light, size: (u32, u32)) -> RgbaImage {
+pub fn render_gltf(
+    gpu: &Gpu,
+    r: &mut GltfRenderer,
+    camera: &Camera,
+    light: &Light,
+    size: (u32, u32),
+) -> RgbaImage {
     let target = gpu::Target::new(gpu, size.0, size.1);
     r.prepare(gpu, camera, light, gpu::COLOR_FORMAT);
     gpu.time_passes(1, |encoder, ts| {
@@ -97,7 +106,13 @@ pub fn render_reference_image(
 }
 
 /// Renders GLB bytes `frames` times from `camera`; returns the last picture and the timing.
-pub fn render_baked(gpu: &Gpu, glb: &[u8], camera: &Camera, size: (u32, u32), frames: u32) -> Result<(RgbaImage, Timing)> {
+pub fn render_baked(
+    gpu: &Gpu,
+    glb: &[u8],
+    camera: &Camera,
+    size: (u32, u32),
+    frames: u32,
+) -> Result<(RgbaImage, Timing)> {
     let mut r = GltfRenderer::from_glb(gpu, glb)?;
     let target = gpu::Target::new(gpu, size.0, size.1);
     r.prepare(gpu, camera, &Light::default(), gpu::COLOR_FORMAT);

@@ -58,7 +58,10 @@ pub struct ReferenceInput<'a> {
 
 impl<'a> ReferenceInput<'a> {
     /// The reference for a bake made with `params`.
-    pub fn from_baked(baked: &'a Baked, params: &'a crate::params::BakeParams) -> ReferenceInput<'a> {
+    pub fn from_baked(
+        baked: &'a Baked,
+        params: &'a crate::params::BakeParams,
+    ) -> ReferenceInput<'a> {
         ReferenceInput {
             mesh: &baked.mesh,
             shells: &baked.shells,
@@ -105,8 +108,14 @@ impl ReferenceRenderer {
         let shells = input.shells;
         assert!(shells.t.len() <= MAX_LAYERS && shells.t.len() == shells.color.len());
         assert_eq!(shells.delta.len(), mesh.vertex_count());
-        let normals = mesh.normals.as_ref().expect("the reference needs normals (bake fills them)");
-        let uvs = mesh.uvs.as_ref().expect("the reference needs UVs (bake fills them)");
+        let normals = mesh
+            .normals
+            .as_ref()
+            .expect("the reference needs normals (bake fills them)");
+        let uvs = mesh
+            .uvs
+            .as_ref()
+            .expect("the reference needs UVs (bake fills them)");
         let device = &gpu.device;
         let frame = Frame::new(gpu);
 
@@ -125,7 +134,11 @@ impl ReferenceRenderer {
             f32s(uvs.iter().flat_map(|p| p.to_array()).collect(), "uvs"),
             f32s(flat3(&shells.delta), "deltas"),
         ];
-        let ix = if mesh.indices.is_empty() { vec![0u32; 3] } else { mesh.indices.clone() };
+        let ix = if mesh.indices.is_empty() {
+            vec![0u32; 3]
+        } else {
+            mesh.indices.clone()
+        };
         let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("indices"),
             contents: bytemuck::cast_slice(&ix),
@@ -136,16 +149,20 @@ impl ReferenceRenderer {
         let size = input.strands.mask_size;
         let seed = input.strands.seed;
         let noise: Vec<u8> = match input.strands.model {
-            StrandModel::Noise { .. } => {
-                (0..size).flat_map(|y| (0..size).map(move |x| strands::noise8(x, y, size, seed))).collect()
-            }
+            StrandModel::Noise { .. } => (0..size)
+                .flat_map(|y| (0..size).map(move |x| strands::noise8(x, y, size, seed)))
+                .collect(),
             StrandModel::Cells { .. } => vec![0; (size * size) as usize],
         };
         let noise_texture = device.create_texture_with_data(
             &gpu.queue,
             &wgpu::TextureDescriptor {
                 label: Some("noise"),
-                size: wgpu::Extent3d { width: size, height: size, depth_or_array_layers: 1 },
+                size: wgpu::Extent3d {
+                    width: size,
+                    height: size,
+                    depth_or_array_layers: 1,
+                },
                 mip_level_count: 1,
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
@@ -169,11 +186,18 @@ impl ReferenceRenderer {
         let mut data: Box<ShellData> = bytemuck::zeroed_box();
         let (kind, law) = match input.strands.model {
             StrandModel::Noise { threshold } => (0.0, [threshold, 0.0, 0.0, 0.0]),
-            StrandModel::Cells { thickness, min_length, texels_per_cell } => {
-                (1.0, [thickness, min_length, texels_per_cell as f32, 0.0])
-            }
+            StrandModel::Cells {
+                thickness,
+                min_length,
+                texels_per_cell,
+            } => (1.0, [thickness, min_length, texels_per_cell as f32, 0.0]),
         };
-        data.tiles = [input.tiles_per_uv.x, input.tiles_per_uv.y, size as f32, kind];
+        data.tiles = [
+            input.tiles_per_uv.x,
+            input.tiles_per_uv.y,
+            size as f32,
+            kind,
+        ];
         data.law = law;
         data.ints = [seed, shells.t.len() as u32, 0, 0];
         data.material = [0.0, input.roughness, 0.0, 0.0];
@@ -221,9 +245,18 @@ impl ReferenceRenderer {
             label: Some("shell"),
             layout: &layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&noise_view) },
-                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(&sampler) },
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&noise_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(&sampler),
+                },
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -250,7 +283,10 @@ impl ReferenceRenderer {
         let bounds = if lo.is_finite() {
             Sphere::around_box(lo, hi)
         } else {
-            Sphere { center: mesh.origin, radius: 1.0 }
+            Sphere {
+                center: mesh.origin,
+                radius: 1.0,
+            }
         };
 
         ReferenceRenderer {
@@ -282,7 +318,8 @@ impl ReferenceRenderer {
     }
 
     fn instances(&self) -> u32 {
-        self.layer_limit.map_or(self.layers, |k| (k as u32 + 1).min(self.layers))
+        self.layer_limit
+            .map_or(self.layers, |k| (k as u32 + 1).min(self.layers))
     }
 
     /// Triangles drawn per frame.
@@ -291,12 +328,27 @@ impl ReferenceRenderer {
     }
 
     /// Writes the camera, light and shell uniforms and builds the pipeline for `format`.
-    pub fn prepare(&mut self, gpu: &Gpu, camera: &Camera, light: &Light, format: wgpu::TextureFormat) {
+    pub fn prepare(
+        &mut self,
+        gpu: &Gpu,
+        camera: &Camera,
+        light: &Light,
+        format: wgpu::TextureFormat,
+    ) {
         self.frame.write(gpu, camera, light);
-        self.data.model = DMat4::from_translation(self.origin - camera.anchor()).as_mat4().to_cols_array();
-        gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&*self.data));
+        self.data.model = DMat4::from_translation(self.origin - camera.anchor())
+            .as_mat4()
+            .to_cols_array();
+        gpu.queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&*self.data));
         if self.pipeline.as_ref().map(|p| p.0) != Some(format) {
-            let attr = |loc, format| [wgpu::VertexAttribute { format, offset: 0, shader_location: loc }];
+            let attr = |loc, format| {
+                [wgpu::VertexAttribute {
+                    format,
+                    offset: 0,
+                    shader_location: loc,
+                }]
+            };
             let a = [
                 attr(0, wgpu::VertexFormat::Float32x3),
                 attr(1, wgpu::VertexFormat::Float32x3),
@@ -313,27 +365,33 @@ impl ReferenceRenderer {
                     })
                 })
                 .collect();
-            let pipeline = gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("reference"),
-                layout: Some(&self.pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &self.module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &layouts,
-                },
-                primitive: gpu::primitive_state(true, false),
-                depth_stencil: Some(gpu::depth_state(true)),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &self.module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let pipeline = gpu
+                .device
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("reference"),
+                    layout: Some(&self.pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &self.module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: Default::default(),
+                        buffers: &layouts,
+                    },
+                    primitive: gpu::primitive_state(true, false),
+                    depth_stencil: Some(gpu::depth_state(true)),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &self.module,
+                        entry_point: Some("fs_main"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(wgpu::ColorTargetState {
+                            format,
+                            blend: None,
+                            write_mask: wgpu::ColorWrites::ALL,
+                        })],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                });
             self.pipeline = Some((format, pipeline));
         }
     }

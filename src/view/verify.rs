@@ -26,7 +26,12 @@ use super::gpu::{save_png, Gpu, Light, Result};
 use super::reference::{ReferenceInput, ReferenceRenderer};
 
 /// The views verify renders.
-pub const VIEWS: [NamedView; 4] = [NamedView::Front, NamedView::Side, NamedView::Close, NamedView::Far];
+pub const VIEWS: [NamedView; 4] = [
+    NamedView::Front,
+    NamedView::Side,
+    NamedView::Close,
+    NamedView::Far,
+];
 
 /// Side of the square pictures verify renders by default.
 pub const DEFAULT_SIZE: u32 = 256;
@@ -47,10 +52,22 @@ pub struct Tolerance {
 /// through up to 48 layers, where a sub-pixel move of a layer edge changes a pixel.
 pub const fn tolerance(view: NamedView) -> Tolerance {
     match view {
-        NamedView::Front | NamedView::Top => Tolerance { flip_mean: 0.012, differing: 0.012 },
-        NamedView::Side => Tolerance { flip_mean: 0.011, differing: 0.008 },
-        NamedView::Close => Tolerance { flip_mean: 0.045, differing: 0.055 },
-        NamedView::Far => Tolerance { flip_mean: 0.0035, differing: 0.002 },
+        NamedView::Front | NamedView::Top => Tolerance {
+            flip_mean: 0.012,
+            differing: 0.012,
+        },
+        NamedView::Side => Tolerance {
+            flip_mean: 0.011,
+            differing: 0.008,
+        },
+        NamedView::Close => Tolerance {
+            flip_mean: 0.045,
+            differing: 0.055,
+        },
+        NamedView::Far => Tolerance {
+            flip_mean: 0.0035,
+            differing: 0.002,
+        },
     }
 }
 
@@ -65,7 +82,8 @@ pub struct ViewResult {
 impl ViewResult {
     pub fn passed(&self) -> bool {
         let t = tolerance(self.view);
-        self.comparison.flip_mean <= t.flip_mean && self.comparison.differing_fraction() <= t.differing
+        self.comparison.flip_mean <= t.flip_mean
+            && self.comparison.differing_fraction() <= t.differing
     }
 
     /// One line: view, FLIP mean, differing pixels, verdict.
@@ -120,7 +138,15 @@ pub fn verify(gpu: &Gpu, glb: &[u8], input: ReferenceInput, size: u32) -> Result
         let camera = Camera::frame(baked.bounds, view.orbit(), 1.0);
         let b = super::render_gltf(gpu, &mut baked, &camera, &light, (size, size));
         let r = super::render_reference_image(gpu, &mut reference, &camera, &light, (size, size));
-        views.push(ViewResult { view, comparison: compare(&r, &b), reference: r, baked: b });
+        views.push(ViewResult {
+            view,
+            comparison: compare(&r, &b),
+            reference: r,
+            baked: b,
+        });
     }
-    Ok(Verification { adapter: gpu.adapter_name(), views })
+    Ok(Verification {
+        adapter: gpu.adapter_name(),
+        views,
+    })
 }

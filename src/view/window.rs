@@ -80,7 +80,9 @@ pub fn run(asset: Asset, options: ViewOptions) -> Result<()> {
         frame_ms: 0.0,
         error: None,
     };
-    event_loop.run_app(&mut app).map_err(|e| ViewError::Window(e.to_string()))?;
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| ViewError::Window(e.to_string()))?;
     match app.error {
         Some(e) => Err(e),
         None => Ok(()),
@@ -94,16 +96,30 @@ impl App {
             .with_title(self.options.title.clone())
             .with_inner_size(winit::dpi::PhysicalSize::new(w, h))
             .with_resizable(self.options.screenshot.is_none());
-        let window = Arc::new(event_loop.create_window(attrs).map_err(|e| ViewError::Window(e.to_string()))?);
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let surface = instance.create_surface(window.clone()).map_err(|e| ViewError::Window(e.to_string()))?;
+        let window = Arc::new(
+            event_loop
+                .create_window(attrs)
+                .map_err(|e| ViewError::Window(e.to_string()))?,
+        );
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let surface = instance
+            .create_surface(window.clone())
+            .map_err(|e| ViewError::Window(e.to_string()))?;
         let gpu = Gpu::with_instance(instance, Some(&surface))?;
         let caps = surface.get_capabilities(&gpu.adapter);
-        let format = caps.formats.iter().copied().find(|f| f.is_srgb()).unwrap_or(caps.formats[0]);
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| f.is_srgb())
+            .unwrap_or(caps.formats[0]);
         let mut usage = wgpu::TextureUsages::RENDER_ATTACHMENT;
         if self.options.screenshot.is_some() {
             if !caps.usages.contains(wgpu::TextureUsages::COPY_SRC) {
-                return Err(ViewError::Window("this surface cannot be copied from; no screenshot possible".into()));
+                return Err(ViewError::Window(
+                    "this surface cannot be copied from; no screenshot possible".into(),
+                ));
             }
             usage |= wgpu::TextureUsages::COPY_SRC;
         }
@@ -120,14 +136,24 @@ impl App {
             color_space: Default::default(),
         };
         surface.configure(&gpu.device, &config);
-        let depth = gpu::depth_texture(&gpu, config.width, config.height).create_view(&Default::default());
+        let depth =
+            gpu::depth_texture(&gpu, config.width, config.height).create_view(&Default::default());
         let renderer = GltfRenderer::new(&gpu, self.asset.take().expect("started once"))?;
-        self.running = Some(Running { window, surface, config, depth, gpu, renderer });
+        self.running = Some(Running {
+            window,
+            surface,
+            config,
+            depth,
+            gpu,
+            renderer,
+        });
         Ok(())
     }
 
     fn title(&self) -> String {
-        let Some(r) = &self.running else { return String::new() };
+        let Some(r) = &self.running else {
+            return String::new();
+        };
         let layers = r.renderer.layer_count();
         let shown = self.layer_limit.map_or(layers, |k| (k + 1).min(layers));
         let lod = if r.renderer.lod_levels() > 0 {
@@ -145,9 +171,12 @@ impl App {
     }
 
     fn redraw(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
-        let Some(r) = &mut self.running else { return Ok(()) };
+        let Some(r) = &mut self.running else {
+            return Ok(());
+        };
         let frame = match r.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
                 r.surface.configure(&r.gpu.device, &r.config);
                 return Ok(());
@@ -158,18 +187,25 @@ impl App {
         let aspect = r.config.width as f64 / r.config.height as f64;
         let camera = Camera::frame(r.renderer.bounds, self.orbit, aspect);
         r.renderer.set_layer_limit(self.layer_limit);
-        r.renderer.prepare(&r.gpu, &camera, &Light::default(), r.config.format);
+        r.renderer
+            .prepare(&r.gpu, &camera, &Light::default(), r.config.format);
         let timing = r.gpu.time_passes(1, |encoder, ts| {
             let mut pass = gpu::begin_pass(encoder, &view, &r.depth, ts);
             r.renderer.record(&mut pass);
         });
         let now = Instant::now();
         self.frame_ms = timing.gpu_ms.unwrap_or_else(|| {
-            self.last_frame.map_or(timing.wall_ms, |t| now.duration_since(t).as_secs_f64() * 1e3)
+            self.last_frame.map_or(timing.wall_ms, |t| {
+                now.duration_since(t).as_secs_f64() * 1e3
+            })
         });
         self.last_frame = Some(now);
         self.frames += 1;
-        let shot = self.options.screenshot.clone().filter(|_| self.frames >= self.options.frames.max(1));
+        let shot = self
+            .options
+            .screenshot
+            .clone()
+            .filter(|_| self.frames >= self.options.frames.max(1));
         if let Some(path) = &shot {
             let image = r.gpu.read_texture(&frame.texture);
             gpu::save_png(&image, path)?;
@@ -209,7 +245,8 @@ impl ApplicationHandler for App {
                     r.config.width = size.width.max(1);
                     r.config.height = size.height.max(1);
                     r.surface.configure(&r.gpu.device, &r.config);
-                    r.depth = gpu::depth_texture(&r.gpu, r.config.width, r.config.height).create_view(&Default::default());
+                    r.depth = gpu::depth_texture(&r.gpu, r.config.width, r.config.height)
+                        .create_view(&Default::default());
                 }
             }
             WindowEvent::RedrawRequested => {
@@ -217,13 +254,18 @@ impl ApplicationHandler for App {
                     self.fail(event_loop, e);
                 }
             }
-            WindowEvent::MouseInput { state, button: MouseButton::Left, .. } => {
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => {
                 self.dragging = state == ElementState::Pressed;
             }
             WindowEvent::CursorMoved { position, .. } => {
                 if let (true, Some((x, y))) = (self.dragging, self.cursor) {
                     self.orbit.yaw_deg -= (position.x - x) * 0.4;
-                    self.orbit.pitch_deg = (self.orbit.pitch_deg + (position.y - y) * 0.4).clamp(-89.0, 89.0);
+                    self.orbit.pitch_deg =
+                        (self.orbit.pitch_deg + (position.y - y) * 0.4).clamp(-89.0, 89.0);
                 }
                 self.cursor = Some((position.x, position.y));
             }
@@ -232,16 +274,29 @@ impl ApplicationHandler for App {
                     MouseScrollDelta::LineDelta(_, y) => y as f64,
                     MouseScrollDelta::PixelDelta(p) => p.y / 40.0,
                 };
-                let aspect = self.running.as_ref().map_or(1.0, |r| r.config.width as f64 / r.config.height as f64);
+                let aspect = self
+                    .running
+                    .as_ref()
+                    .map_or(1.0, |r| r.config.width as f64 / r.config.height as f64);
                 let fit = self.running.as_ref().map_or(3.0, |r| {
-                    let c = Camera::frame(r.renderer.bounds, Orbit { distance: None, ..self.orbit }, aspect);
+                    let c = Camera::frame(
+                        r.renderer.bounds,
+                        Orbit {
+                            distance: None,
+                            ..self.orbit
+                        },
+                        aspect,
+                    );
                     (c.eye - c.target).length() / r.renderer.bounds.radius
                 });
                 let d = self.orbit.distance.unwrap_or(fit);
                 self.orbit.distance = Some((d * 0.9f64.powf(steps)).clamp(0.05, 100.0));
             }
             WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
-                let layers = self.running.as_ref().map_or(1, |r| r.renderer.layer_count().max(1));
+                let layers = self
+                    .running
+                    .as_ref()
+                    .map_or(1, |r| r.renderer.layer_count().max(1));
                 let current = self.layer_limit.unwrap_or(layers - 1);
                 match event.logical_key.as_ref() {
                     Key::Named(NamedKey::Escape) => event_loop.exit(),
@@ -254,7 +309,11 @@ impl ApplicationHandler for App {
                     Key::Character("l") | Key::Character("L") => {
                         if let Some(r) = &mut self.running {
                             let levels = r.renderer.lod_levels();
-                            self.lod = if levels == 0 { 0 } else { (self.lod + 1) % (levels + 1) };
+                            self.lod = if levels == 0 {
+                                0
+                            } else {
+                                (self.lod + 1) % (levels + 1)
+                            };
                             if let Err(e) = r.renderer.set_lod(&r.gpu, self.lod) {
                                 self.fail(event_loop, e);
                             }

@@ -64,8 +64,11 @@ impl Glb {
             _ => panic!("componentType {ct}"),
         };
         let normalized = a["normalized"].as_bool().unwrap_or(false);
-        let stride = view["byteStride"].as_u64().map_or(comps * size, |s| s as usize);
-        let base = view["byteOffset"].as_u64().unwrap_or(0) as usize + a["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let stride = view["byteStride"]
+            .as_u64()
+            .map_or(comps * size, |s| s as usize);
+        let base = view["byteOffset"].as_u64().unwrap_or(0) as usize
+            + a["byteOffset"].as_u64().unwrap_or(0) as usize;
         let count = a["count"].as_u64().unwrap() as usize;
         (0..count)
             .map(|k| {
@@ -105,7 +108,11 @@ pub fn node(script: &str, files: &[PathBuf]) -> Vec<Value> {
         .args(files)
         .output()
         .expect("node must be installed (tests/setup.sh installs what the tests need)");
-    assert!(out.status.success(), "{script} failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{script} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     String::from_utf8(out.stdout)
         .unwrap()
         .lines()
@@ -123,7 +130,11 @@ pub fn assert_valid(files: &[PathBuf]) {
         .filter(|r| r["errors"].as_u64() != Some(0) || r["warnings"].as_u64() != Some(0))
         .map(|r| r.to_string())
         .collect();
-    assert!(bad.is_empty(), "glTF-Validator reported errors or warnings:\n{}", bad.join("\n"));
+    assert!(
+        bad.is_empty(),
+        "glTF-Validator reported errors or warnings:\n{}",
+        bad.join("\n")
+    );
 }
 
 pub fn fixture(name: &str) -> PathBuf {
