@@ -44,8 +44,8 @@ fn fuzzer_findings_stay_fixed() {
 }
 
 #[test]
-fn seed_corpus_loads_and_bakes() {
-    let dir = common::repo().join("tests/fuzz/corpus/load_bake");
+fn seed_inputs_load_and_bake() {
+    let dir = common::repo().join("tests/fuzz/seeds");
     let mut baked = 0;
     for name in ["cube-obj", "tri-obj", "tri-glb", "tri-gltf"] {
         let data = std::fs::read(dir.join(name)).unwrap();
@@ -53,4 +53,28 @@ fn seed_corpus_loads_and_bakes() {
         baked += 1;
     }
     assert_eq!(baked, 4);
+}
+
+#[test]
+fn the_whole_fuzz_corpus_replays_without_a_panic() {
+    // Thousands of coverage-distinct inputs the fuzzer kept; each must load and bake or fail
+    // with an error.
+    let dir = common::repo().join("tests/fuzz/corpus/load_bake");
+    let mut panics = Vec::new();
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let data = std::fs::read(&path).unwrap();
+        if std::panic::catch_unwind(|| replay(&data)).is_err() {
+            panics.push(path.display().to_string());
+        }
+        n += 1;
+    }
+    assert!(n > 1000, "the corpus is missing ({n} files)");
+    assert!(
+        panics.is_empty(),
+        "{} corpus inputs panic: {:?}",
+        panics.len(),
+        &panics[..panics.len().min(5)]
+    );
 }

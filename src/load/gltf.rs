@@ -5,7 +5,9 @@
 //! the GLB binary chunk, base64 `data:` URIs, and relative files **inside the asset's folder**.
 //! Absolute paths, `..` that leave the folder, and any scheme other than `data:` are refused. A
 //! buffer shorter than its declared `byteLength`, or an accessor reaching past its buffer, is an
-//! error naming the buffer or the mesh, never a panic.
+//! error naming the buffer or the mesh, never a panic. So are accessors the gltf crate's readers
+//! would trip over (found by fuzzing): an empty accessor, a component type the attribute does not
+//! allow; sparse accessors are refused for mesh input (base meshes do not use them).
 //!
 //! Every primitive with mode TRIANGLES of every node of the default scene (or, with no scene,
 //! every root node) becomes one [`Mesh`] with its world transform applied in `f64`; normals go
@@ -241,6 +243,22 @@ fn check_accessor(
     acc: &::gltf::Accessor,
     buffers: &[Vec<u8>],
 ) -> Result<()> {
+    // The spec requires count >= 1; the gltf crate computes `count - 1` (found by fuzzing).
+    let sparse_empty = acc.sparse().is_some_and(|s| s.count() == 0);
+    if acc.count() == 0 || sparse_empty {
+        return Err(Error::invalid(
+            path,
+            format!("{element}: accessor {}", acc.index()),
+            "has no elements (count must be at least 1)",
+        ));
+    }
+    if acc.sparse().is_some() {
+        return Err(Error::invalid(
+            path,
+            format!("{element}: accessor {}", acc.index()),
+            "sparse accessors are not supported for mesh input",
+        ));
+    }
     let Some(view) = acc.view() else {
         return Ok(());
     };
