@@ -22,7 +22,8 @@
 //! feature stop before they meet. The BVH is a binary PLOC tree (obvhs `Bvh2`), not the 8-wide
 //! CWBVH: the CWBVH traverses with a fixed 32-entry stack and silently loses nodes on deeper
 //! trees, which fuzzed inputs with thousands of coincident triangles produce; `Bvh2` sizes its
-//! stack from the tree's depth. (The CWBVH was about 1.4× faster on a 261k-triangle sphere.)
+//! stack from the tree's depth. Measured: 210 ms for the build and 131 073 rays on a
+//! 261 120-triangle sphere, 2 cores.
 //!
 //! Rays are cast in parallel (rayon); each vertex's result depends on nothing else, and results
 //! are collected in vertex order, so the output is the same for any thread count. A brute-force
