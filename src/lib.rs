@@ -153,7 +153,10 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         None
     };
     let mask = report.run("strands", || strands::bake_mask(&params.strands));
-    let tiles_per_uv = strands::tiles_per_uv(&mesh, density, mask.cells_per_tile);
+    let tiles_per_uv = match params.strands.uv_density {
+        Some(per_uv) => Vec2::splat(per_uv / mask.cells_per_tile as f32),
+        None => strands::tiles_per_uv(&mesh, density, mask.cells_per_tile),
+    };
     report.count("mask_texels", (mask.size * mask.size) as f64);
     report.count("cells_per_tile", mask.cells_per_tile as f64);
 
@@ -229,7 +232,10 @@ fn fill_report(
         params::Layout::SingleDraw => "single-draw".into(),
     };
     report.resolved.insert("height".into(), height as f64);
-    report.resolved.insert("density".into(), density as f64);
+    match params.strands.uv_density {
+        Some(d) => report.resolved.insert("uv_density".into(), d as f64),
+        None => report.resolved.insert("density".into(), density as f64),
+    };
     report
         .resolved
         .insert("diagonal".into(), mesh.diagonal() as f64);

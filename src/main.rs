@@ -78,6 +78,10 @@ struct BakeArgs {
     /// Strand density in strands per world unit [default: a preset count per diagonal].
     #[arg(long)]
     density: Option<f32>,
+    /// Strand density in strands per UV unit instead of per world unit (ignores the mesh's
+    /// UV-to-world scale; for UV layouts authored at a set texel density).
+    #[arg(long, conflicts_with = "density")]
+    uv_density: Option<f32>,
     /// Noise seed.
     #[arg(long)]
     seed: Option<u32>,
@@ -110,6 +114,9 @@ impl BakeArgs {
         }
         if let Some(d) = self.density {
             p.strands.density = Some(d);
+        }
+        if let Some(d) = self.uv_density {
+            p.strands.uv_density = Some(d);
         }
         if let Some(s) = self.seed {
             p.strands.seed = s;

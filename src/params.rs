@@ -95,6 +95,11 @@ pub struct StrandParams {
     pub mask_size: u32,
     /// Noise seed. The same seed gives the same strands on every machine.
     pub seed: u32,
+    /// Strands per UV unit. When set, it replaces `density`: the mask tiles at this rate in UV
+    /// space whatever the mesh's UV-to-world scale — for UV layouts authored at a set texel
+    /// density, or strands that must follow a hand-painted UV stretch. Leave unset otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uv_density: Option<f32>,
 }
 
 /// Shell stage parameters (`shells.rs`).
@@ -195,6 +200,7 @@ impl BakeParams {
                     strands_per_diagonal: 240.0,
                     mask_size: 256,
                     seed: 1,
+                    uv_density: None,
                 },
                 shells: ShellParams {
                     layers: 32,
@@ -217,6 +223,7 @@ impl BakeParams {
                     strands_per_diagonal: 900.0,
                     mask_size: 256,
                     seed: 1,
+                    uv_density: None,
                 },
                 shells: ShellParams {
                     layers: 16,
@@ -243,6 +250,7 @@ impl BakeParams {
                     strands_per_diagonal: 120.0,
                     mask_size: 256,
                     seed: 1,
+                    uv_density: None,
                 },
                 shells: ShellParams {
                     layers: 48,
@@ -265,6 +273,7 @@ impl BakeParams {
                     strands_per_diagonal: 1200.0,
                     mask_size: 256,
                     seed: 1,
+                    uv_density: None,
                 },
                 shells: ShellParams {
                     layers: 12,
@@ -314,6 +323,13 @@ impl BakeParams {
             if !(d.is_finite() && d > 0.0) {
                 return Err(format!(
                     "density must be a positive number of strands per unit, got {d}"
+                ));
+            }
+        }
+        if let Some(d) = st.uv_density {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(format!(
+                    "uv_density must be a positive number of strands per UV unit, got {d}"
                 ));
             }
         }

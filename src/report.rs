@@ -94,10 +94,13 @@ impl Report {
             self.layers, self.layout, self.base_vertices, self.base_triangles, self.triangles_drawn, self.draw_calls
         );
         let r = |k: &str| self.resolved.get(k).copied().unwrap_or(f64::NAN);
+        let density = match self.resolved.get("uv_density") {
+            Some(d) => format!("{d:.1} strands per UV unit"),
+            None => format!("{:.1} strands/unit", r("density")),
+        };
         s += &format!(
-            "  height {:.4} world units, density {:.1} strands/unit, mask {}² tiled {:.2}×{:.2} per UV unit\n",
+            "  height {:.4} world units, density {density}, mask {}² tiled {:.2}×{:.2} per UV unit\n",
             r("height"),
-            r("density"),
             r("mask_size"),
             r("tiles_per_uv_u"),
             r("tiles_per_uv_v")

@@ -94,6 +94,37 @@ fn bad_inputs_are_refused_with_file_and_element_and_nothing_is_written() {
 }
 
 #[test]
+fn uv_density_and_world_density_agree_on_a_unit_uv_plane() {
+    // fixtures/plane.obj: 2 × 2 world units, UVs over [0, 1], so one UV unit spans 2 world units.
+    // 512 strands per UV unit = 256 per world unit; the noise law has 256 cells per tile: 2 tiles.
+    let scene = shellbake::load::load(&fixture("plane.obj")).unwrap();
+    let mut p = shellbake::params::BakeParams::preset(shellbake::params::Preset::Carpet);
+    p.strands.density = Some(256.0);
+    let world = shellbake::bake(&scene, &p);
+    p.strands.density = None;
+    p.strands.uv_density = Some(512.0);
+    let uv = shellbake::bake(&scene, &p);
+    assert!(
+        (world.tiles_per_uv.x - 2.0).abs() < 1e-4,
+        "{}",
+        world.tiles_per_uv
+    );
+    assert_eq!(uv.tiles_per_uv, glam::Vec2::splat(2.0));
+    assert!(uv.report.summary().contains("512.0 strands per UV unit"));
+    // the CLI refuses both at once
+    let (ok, _, err) = shellbake(&[
+        "bake",
+        fixture("plane.obj").to_str().unwrap(),
+        "--density",
+        "3",
+        "--uv-density",
+        "4",
+        "-q",
+    ]);
+    assert!(!ok && err.contains("uv-density"), "{err}");
+}
+
+#[test]
 fn bad_parameters_exit_with_usage_code() {
     let out = Command::new(env!("CARGO_BIN_EXE_shellbake"))
         .args([

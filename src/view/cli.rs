@@ -1,4 +1,4 @@
-//! The `render`, `view` and `verify` commands: their flags (first tier, close to clap) and the
+//! The `render`, `view`, `verify` and `bench` commands: their flags (first tier, close to clap) and the
 //! functions the binary dispatches to. `verify` takes the bake flags from the binary's
 //! `BakeArgs` (already turned into [`BakeParams`]) plus [`VerifyArgs`].
 
