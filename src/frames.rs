@@ -14,6 +14,9 @@
 //!
 //! The result is always a finite unit vector. "Vanishes" means shorter than 1e-4 of the summed
 //! weights: a sum that cancelled to rounding noise must not pick a random direction.
+//!
+//! Corner angles use `libm::acosf`, not the platform's `acos`, so directions (and so the baked
+//! bytes) are the same on every OS and C library.
 
 use glam::Vec3;
 
@@ -62,7 +65,8 @@ pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Fram
             let v = tri[k] as usize;
             let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
             let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
-            let angle = e1.dot(e2).clamp(-1.0, 1.0).acos();
+            // libm, not the platform's acos: the same bits on every OS.
+            let angle = libm::acosf(e1.dot(e2).clamp(-1.0, 1.0));
             angle_sum[v] += fnrm * angle;
             angle_w[v] += angle;
             area_sum[v] += fnrm * area2;

@@ -1,6 +1,9 @@
 //! Procedural test meshes — the plane, sphere, torus and split-normal cube fixtures — and an OBJ
 //! writer for them. `shellbake fixtures DIR` writes them; a test checks the committed copies in
 //! `fixtures/` are what this code generates.
+//!
+//! Trigonometry goes through `libm` (a pure-Rust implementation) so the generated files are the
+//! same bytes on every platform, whatever its C library.
 
 use std::f32::consts::{PI, TAU};
 use std::fmt::Write as _;
@@ -46,12 +49,12 @@ pub fn sphere(radius: f32, rings: u32, segments: u32) -> Mesh {
         } else if j == rings {
             (0.0, -1.0)
         } else {
-            theta.sin_cos()
+            (libm::sinf(theta), libm::cosf(theta))
         };
         for i in 0..=segments {
             let u = i as f32 / segments as f32;
             let phi = if i == segments { 0.0 } else { u * TAU }; // exact seam: welds
-            let n = Vec3::new(st * phi.cos(), ct, -st * phi.sin());
+            let n = Vec3::new(st * libm::cosf(phi), ct, -st * libm::sinf(phi));
             m.positions.push(n * radius);
             m.normals.as_mut().unwrap().push(n);
             m.uvs.as_mut().unwrap().push(Vec2::new(u, v));
@@ -74,8 +77,12 @@ pub fn torus(major: f32, minor: f32, rings: u32, segments: u32) -> Mesh {
         for i in 0..=segments {
             let u = i as f32 / segments as f32;
             let b = if i == segments { 0.0 } else { u * TAU }; // exact seam: welds
-            let centre = Vec3::new(b.cos(), 0.0, -b.sin()) * major;
-            let n = Vec3::new(a.cos() * b.cos(), a.sin(), -a.cos() * b.sin());
+            let centre = Vec3::new(libm::cosf(b), 0.0, -libm::sinf(b)) * major;
+            let n = Vec3::new(
+                libm::cosf(a) * libm::cosf(b),
+                libm::sinf(a),
+                -libm::cosf(a) * libm::sinf(b),
+            );
             m.positions.push(centre + n * minor);
             m.normals.as_mut().unwrap().push(n);
             m.uvs.as_mut().unwrap().push(Vec2::new(u * 4.0, v));
