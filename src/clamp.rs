@@ -181,6 +181,12 @@ fn tree_depth(bvh: &Bvh2) -> usize {
     deepest
 }
 
+/// The ray from welded vertex `v` along its extrusion direction, up to `reach`.
+fn vertex_ray(welded: &Welded, frames: &Frames, v: u32, reach: f32) -> Ray {
+    let (p, d) = (welded.positions[v as usize], frames.welded[v as usize]);
+    Ray::new(Vec3A::from(p), Vec3A::from(d), 0.0, reach)
+}
+
 fn incident(welded: &Welded, tri: usize, v: u32) -> bool {
     welded.indices[3 * tri..3 * tri + 3].contains(&v)
 }
@@ -204,12 +210,7 @@ pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &Cla
         (0..welded.positions.len() as u32)
             .into_par_iter()
             .map(|v| {
-                let ray = Ray::new(
-                    Vec3A::from(welded.positions[v as usize]),
-                    Vec3A::from(frames.welded[v as usize]),
-                    0.0,
-                    reach,
-                );
+                let ray = vertex_ray(welded, frames, v, reach);
                 let mut hit = RayHit::none();
                 bvh.ray_traverse(ray, &mut hit, |r, id| {
                     let t = bvh.primitive_indices[id] as usize;
@@ -241,12 +242,7 @@ pub fn clamp_heights_brute_force(
     let reach = height / params.ray_keep;
     let collision = (0..welded.positions.len() as u32)
         .map(|v| {
-            let ray = Ray::new(
-                Vec3A::from(welded.positions[v as usize]),
-                Vec3A::from(frames.welded[v as usize]),
-                0.0,
-                reach,
-            );
+            let ray = vertex_ray(welded, frames, v, reach);
             let t = (0..tris.len())
                 .filter(|&t| !incident(welded, t, v))
                 .map(|t| tris[t].intersect(&ray))

@@ -280,11 +280,9 @@ fn high_valence_cone_tips() {
     bakes_clean_with("high_valence_cone_tips", &obj(&m), Some(0.2));
 }
 
-#[test]
-fn concave_corners_deeper_than_the_shell_height() {
-    // The inside of an open box (normals inward): every corner is concave, and the shell height
-    // (60% of the diagonal, about 1.04 for a unit box) is deeper than the box allows without the
-    // clamp (faces collapse at 0.87 along the corner diagonals; see the test below).
+/// The inside of a unit box with its lid removed: winding and normals face inward, so every
+/// corner and edge is concave.
+fn open_box_inside() -> Mesh {
     let c = procedural::split_cube(1.0);
     let mut m = c.clone();
     m.indices = c
@@ -293,7 +291,16 @@ fn concave_corners_deeper_than_the_shell_height() {
         .flat_map(|t| [t[0], t[2], t[1]])
         .collect();
     m.normals = Some(c.normals.unwrap().iter().map(|n| -*n).collect());
-    m.indices.truncate(m.indices.len() - 6); // open the lid
+    m.indices.truncate(m.indices.len() - 6);
+    m
+}
+
+#[test]
+fn concave_corners_deeper_than_the_shell_height() {
+    // The inside of an open box (normals inward): every corner is concave, and the shell height
+    // (60% of the diagonal, about 1.04 for a unit box) is deeper than the box allows without the
+    // clamp (faces collapse at 0.87 along the corner diagonals; see the test below).
+    let m = open_box_inside();
     bakes_clean_with(
         "concave_corners_deeper_than_the_shell_height",
         &obj(&m),
@@ -476,15 +483,8 @@ fn oversize_outputs() {
 fn clamp_is_needed_for_the_concave_box() {
     // Without the clamp the inside of a box inverts; with it, it does not (the test above). This
     // shows the invariant checker can fail.
-    let c = procedural::split_cube(1.0);
-    let mut m = c.clone();
-    m.indices = c
-        .indices
-        .chunks_exact(3)
-        .flat_map(|t| [t[0], t[2], t[1]])
-        .collect();
+    let m = open_box_inside();
     let dir = scratch("clamp_needed");
-    m.indices.truncate(m.indices.len() - 6); // open the lid, as above
     let input: PathBuf = dir.join("box.obj");
     std::fs::write(&input, obj(&m)).unwrap();
     let scene = shellbake::load::load(Path::new(&input)).unwrap();

@@ -361,21 +361,11 @@ impl Builder {
 }
 
 fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
-    let Ordered {
-        grid,
-        uv_grid,
-        float_uvs,
-        positions,
-        normals,
-        uvs,
-        deltas,
-        indices,
-    } = s;
-    let (grid, uv_grid, float_uvs) = (*grid, *uv_grid, *float_uvs);
+    let (grid, positions, deltas) = (&s.grid, &s.positions, &s.deltas);
     let q: Vec<[u16; 3]> = positions.iter().map(|&p| grid.quantize(p)).collect();
     let position = b.positions(&q);
-    let normal = b.normals(normals);
-    let texcoord = b.texcoords(uvs, uv_grid, float_uvs);
+    let normal = b.normals(&s.normals);
+    let texcoord = b.texcoords(&s.uvs, s.uv_grid, s.float_uvs);
     let dq: Vec<[i16; 3]> = deltas.iter().map(|&d| grid.quantize_delta(d)).collect();
     let mut bytes = Bytes::default();
     let (mut lo, mut hi) = ([i16::MAX; 3], [i16::MIN; 3]);
@@ -398,7 +388,7 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
         "VEC3",
         Some((lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec())),
     );
-    let ix = b.indices("indices", indices, positions.len());
+    let ix = b.indices("indices", &s.indices, positions.len());
     let shells = input.shells;
     (0..shells.t.len())
         .map(|j| {
@@ -466,17 +456,7 @@ pub fn single_draw_cutoff() -> f32 {
 }
 
 fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
-    let Ordered {
-        grid,
-        uv_grid,
-        float_uvs,
-        positions,
-        normals,
-        uvs,
-        deltas,
-        indices,
-    } = s;
-    let (grid, uv_grid, float_uvs) = (*grid, *uv_grid, *float_uvs);
+    let (grid, positions, deltas) = (&s.grid, &s.positions, &s.deltas);
     let shells = input.shells;
     let layers = shells.t.len();
     let nv = positions.len();
@@ -502,10 +482,12 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive
         }
     }
     let position = b.positions(&q);
-    let all_normals: Vec<Vec3> = (0..layers).flat_map(|_| normals.iter().copied()).collect();
+    let all_normals: Vec<Vec3> = (0..layers)
+        .flat_map(|_| s.normals.iter().copied())
+        .collect();
     let normal = b.normals(&all_normals);
-    let all_uvs: Vec<Vec2> = (0..layers).flat_map(|_| uvs.iter().copied()).collect();
-    let texcoord = b.texcoords(&all_uvs, uv_grid, float_uvs);
+    let all_uvs: Vec<Vec2> = (0..layers).flat_map(|_| s.uvs.iter().copied()).collect();
+    let texcoord = b.texcoords(&all_uvs, s.uv_grid, s.float_uvs);
     let cv = b.view("color", colors.0, Some(8), Some(true));
     let color = b.accessor(
         cv,
@@ -516,7 +498,7 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive
         None,
     );
     let all_ix: Vec<u32> = (0..layers as u32)
-        .flat_map(|j| indices.iter().map(move |&i| i + j * nv as u32))
+        .flat_map(|j| s.indices.iter().map(move |&i| i + j * nv as u32))
         .collect();
     let ix = b.indices("indices", &all_ix, nv * layers);
     vec![Primitive {

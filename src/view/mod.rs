@@ -71,6 +71,48 @@ pub fn camera_for_glb(glb: &[u8], orbit: Orbit, size: (u32, u32)) -> Result<Came
     Ok(Camera::frame(sphere, orbit, size.0 as f64 / size.1 as f64))
 }
 
+/// What both renderers do: upload the frame for a camera, then record into a pass.
+pub trait Draw {
+    fn prepare(&mut self, gpu: &Gpu, camera: &Camera, light: &Light, format: wgpu::TextureFormat);
+    fn record(&self, pass: &mut wgpu::RenderPass<'_>);
+}
+
+impl Draw for GltfRenderer {
+    fn prepare(&mut self, gpu: &Gpu, camera: &Camera, light: &Light, format: wgpu::TextureFormat) {
+        GltfRenderer::prepare(self, gpu, camera, light, format)
+    }
+    fn record(&self, pass: &mut wgpu::RenderPass<'_>) {
+        GltfRenderer::record(self, pass)
+    }
+}
+
+impl Draw for ReferenceRenderer {
+    fn prepare(&mut self, gpu: &Gpu, camera: &Camera, light: &Light, format: wgpu::TextureFormat) {
+        ReferenceRenderer::prepare(self, gpu, camera, light, format)
+    }
+    fn record(&self, pass: &mut wgpu::RenderPass<'_>) {
+        ReferenceRenderer::record(self, pass)
+    }
+}
+
+/// Draws `r` headless `frames` times from `camera`; returns the last picture and the timing.
+pub fn draw_headless(
+    gpu: &Gpu,
+    r: &mut impl Draw,
+    camera: &Camera,
+    light: &Light,
+    size: (u32, u32),
+    frames: u32,
+) -> (RgbaImage, Timing) {
+    let target = gpu::Target::new(gpu, size.0, size.1);
+    r.prepare(gpu, camera, light, gpu::COLOR_FORMAT);
+    let timing = gpu.time_passes(frames, |encoder, ts| {
+        let mut pass = gpu::begin_pass(encoder, &target.color_view, &target.depth_view, ts);
+        r.record(&mut pass);
+    });
+    (target.read(gpu), timing)
+}
+
 /// Draws `r` headless from `camera` and reads the picture back.
 pub fn render_gltf(
     gpu: &Gpu,
@@ -79,13 +121,7 @@ pub fn render_gltf(
     light: &Light,
     size: (u32, u32),
 ) -> RgbaImage {
-    let target = gpu::Target::new(gpu, size.0, size.1);
-    r.prepare(gpu, camera, light, gpu::COLOR_FORMAT);
-    gpu.time_passes(1, |encoder, ts| {
-        let mut pass = gpu::begin_pass(encoder, &target.color_view, &target.depth_view, ts);
-        r.record(&mut pass);
-    });
-    target.read(gpu)
+    draw_headless(gpu, r, camera, light, size, 1).0
 }
 
 /// Draws the reference headless from `camera` and reads the picture back.
@@ -96,13 +132,7 @@ pub fn render_reference_image(
     light: &Light,
     size: (u32, u32),
 ) -> RgbaImage {
-    let target = gpu::Target::new(gpu, size.0, size.1);
-    r.prepare(gpu, camera, light, gpu::COLOR_FORMAT);
-    gpu.time_passes(1, |encoder, ts| {
-        let mut pass = gpu::begin_pass(encoder, &target.color_view, &target.depth_view, ts);
-        r.record(&mut pass);
-    });
-    target.read(gpu)
+    draw_headless(gpu, r, camera, light, size, 1).0
 }
 
 /// Renders GLB bytes `frames` times from `camera`; returns the last picture and the timing.
@@ -114,13 +144,14 @@ pub fn render_baked(
     frames: u32,
 ) -> Result<(RgbaImage, Timing)> {
     let mut r = GltfRenderer::from_glb(gpu, glb)?;
-    let target = gpu::Target::new(gpu, size.0, size.1);
-    r.prepare(gpu, camera, &Light::default(), gpu::COLOR_FORMAT);
-    let timing = gpu.time_passes(frames, |encoder, ts| {
-        let mut pass = gpu::begin_pass(encoder, &target.color_view, &target.depth_view, ts);
-        r.record(&mut pass);
-    });
-    Ok((target.read(gpu), timing))
+    Ok(draw_headless(
+        gpu,
+        &mut r,
+        camera,
+        &Light::default(),
+        size,
+        frames,
+    ))
 }
 
 /// Renders the runtime reference `frames` times from `camera`; returns the last picture and the
@@ -133,11 +164,5 @@ pub fn render_reference(
     frames: u32,
 ) -> (RgbaImage, Timing) {
     let mut r = ReferenceRenderer::new(gpu, input);
-    let target = gpu::Target::new(gpu, size.0, size.1);
-    r.prepare(gpu, camera, &Light::default(), gpu::COLOR_FORMAT);
-    let timing = gpu.time_passes(frames, |encoder, ts| {
-        let mut pass = gpu::begin_pass(encoder, &target.color_view, &target.depth_view, ts);
-        r.record(&mut pass);
-    });
-    (target.read(gpu), timing)
+    draw_headless(gpu, &mut r, camera, &Light::default(), size, frames)
 }
