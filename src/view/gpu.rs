@@ -376,6 +376,30 @@ impl Default for Light {
     }
 }
 
+/// Bind group layout entry of a filterable 2D texture read by the fragment stage.
+pub fn fragment_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// Bind group layout entry of a filtering sampler used by the fragment stage.
+pub fn fragment_sampler_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        count: None,
+    }
+}
+
 /// The WGSL both renderers include: frame uniforms (group 0) and the metallic-roughness BRDF.
 pub const COMMON_WGSL: &str = include_str!("common.wgsl");
 
