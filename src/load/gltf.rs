@@ -78,6 +78,17 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
 /// accessor before checking that it exists (a panic on `"POSITION": 7` with no accessor 7, found
 /// by fuzzing), so attribute indices are checked here first.
 fn parse(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
+    // The gltf crate subtracts the header size from the declared length before checking it.
+    if bytes.len() >= 12 && &bytes[0..4] == b"glTF" {
+        let declared = u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize;
+        if declared < 20 || declared > bytes.len() {
+            return Err(Error::invalid(
+                path,
+                "GLB header",
+                format!("declares {declared} bytes; the file has {} (and a GLB needs at least 20)", bytes.len()),
+            ));
+        }
+    }
     let raw = ::gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| Error::invalid(path, "gltf", e.to_string()))?;
     let root = raw.document.into_json();
