@@ -105,7 +105,10 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     mesh.indices = welded
         .source_triangle
         .iter()
-        .flat_map(|&t| mesh.indices[3 * t as usize..3 * t as usize + 3].to_vec())
+        .flat_map(|&t| {
+            let i = 3 * t as usize;
+            [mesh.indices[i], mesh.indices[i + 1], mesh.indices[i + 2]]
+        })
         .collect();
 
     let frames = report.run("frames", || {

@@ -169,16 +169,7 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         pb
     });
     let scene = shellbake::load::load(&args.input)?;
-    let (vertices, triangles) = scene.meshes.iter().fold((0u64, 0u64), |(v, t), m| {
-        (v + m.vertex_count() as u64, t + m.triangle_count() as u64)
-    });
-    let estimate = shellbake::pack::estimate_bytes(
-        vertices,
-        triangles,
-        params.shells.layers as u64,
-        params.strands.mask_size as u64,
-        params.pack.layout,
-    );
+    let estimate = shellbake::pack::estimate_scene_bytes(&scene, &params);
     if estimate > args.max_output {
         anyhow::bail!(
             "{}: the output would be about {} bytes ({:.1} MiB), above --max-output {} bytes; nothing was written",

@@ -159,7 +159,7 @@ pub fn face_normal(a: Vec3, b: Vec3, c: Vec3) -> (Vec3, f32) {
     }
 }
 
-/// Smallest of `Vec2` coordinates, used by UV quantization.
+/// Bounds `(min, max)` of texture coordinates (zero box when empty), used by UV quantization.
 pub fn uv_bounds(uvs: &[Vec2]) -> (Vec2, Vec2) {
     let mut lo = Vec2::splat(f32::INFINITY);
     let mut hi = Vec2::splat(f32::NEG_INFINITY);

@@ -26,6 +26,9 @@ fn replay(data: &[u8]) -> Result<usize, String> {
     } else {
         Layout::SingleDraw
     };
+    if shellbake::pack::estimate_scene_bytes(&scene, &p) > 64 << 20 {
+        return Ok(0);
+    }
     Ok(shellbake::bake(&scene, &p).glb.len())
 }
 

@@ -85,7 +85,10 @@ fn parse(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
             return Err(Error::invalid(
                 path,
                 "GLB header",
-                format!("declares {declared} bytes; the file has {} (and a GLB needs at least 20)", bytes.len()),
+                format!(
+                    "declares {declared} bytes; the file has {} (and a GLB needs at least 20)",
+                    bytes.len()
+                ),
             ));
         }
     }
@@ -210,13 +213,6 @@ fn read_primitive(
         uvs,
         indices,
     };
-    if !mesh.positions.iter().all(|p| p.is_finite()) {
-        return Err(Error::invalid(
-            path,
-            element,
-            "node transform makes positions non-finite",
-        ));
-    }
     mesh.recentre();
     Ok(mesh)
 }

@@ -68,17 +68,6 @@ pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Scene> {
             })
         }
     };
-    for (k, m) in scene.meshes.iter().enumerate() {
-        // After recentring, every relative position must be finite (a NaN here means the
-        // loader let an out-of-range coordinate through).
-        if let Some(v) = m.positions.iter().position(|p| !p.is_finite()) {
-            return Err(Error::invalid(
-                path,
-                format!("mesh {k}"),
-                format!("vertex {v} is not representable"),
-            ));
-        }
-    }
     scene.meshes.retain(|m| !m.indices.is_empty());
     if scene.meshes.is_empty() {
         return Err(Error::Empty {

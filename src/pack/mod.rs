@@ -175,17 +175,11 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
         .collect();
 
     let grid = PositionGrid::fit(
+        // the base and the fully extruded surface
         positions
             .iter()
-            .chain(&positions)
-            .enumerate()
-            .map(|(i, p)| {
-                if i < positions.len() {
-                    *p
-                } else {
-                    *p + deltas[i - positions.len()]
-                }
-            }),
+            .copied()
+            .chain(positions.iter().zip(&deltas).map(|(&p, &d)| p + d)),
         params.position_bits.min(15),
     );
     let uv_grid = UvGrid::fit(&uvs);
@@ -343,19 +337,18 @@ impl Builder {
     fn indices(&mut self, name: &'static str, ix: &[u32], vertex_count: usize) -> usize {
         let mut bytes = Bytes::default();
         // 65535 is the primitive-restart value of u16 and may not appear.
-        let (component, len) = if vertex_count <= 65535 {
+        let component = if vertex_count <= 65535 {
             let small: Vec<u16> = ix.iter().map(|&i| i as u16).collect();
             bytes.u16s(&small, 0);
-            (component::UNSIGNED_SHORT, small.len() * 2)
+            component::UNSIGNED_SHORT
         } else {
             bytes.u32s(ix);
-            (component::UNSIGNED_INT, ix.len() * 4)
+            component::UNSIGNED_INT
         };
         while bytes.0.len() % 4 != 0 {
             bytes.0.push(0);
         }
         let v = self.view(name, bytes.0, None, Some(false));
-        let _ = len;
         self.accessor(v, component, false, ix.len(), "SCALAR", None)
     }
 }
@@ -442,6 +435,20 @@ pub fn estimate_bytes(
             n * (8 + 4 + 8 + 8) + triangles * layers * 3 * index + png + json
         }
     }
+}
+
+/// [`estimate_bytes`] for a loaded scene baked with `params`.
+pub fn estimate_scene_bytes(scene: &crate::mesh::Scene, params: &crate::params::BakeParams) -> u64 {
+    let (vertices, triangles) = scene.meshes.iter().fold((0u64, 0u64), |(v, t), m| {
+        (v + m.vertex_count() as u64, t + m.triangle_count() as u64)
+    });
+    estimate_bytes(
+        vertices,
+        triangles,
+        params.shells.layers as u64,
+        params.strands.mask_size as u64,
+        params.pack.layout,
+    )
 }
 
 /// `COLOR_0` alpha of a single-draw layer at height step `k`, as normalized u16.

@@ -275,20 +275,13 @@ pub struct Target {
 
 impl Target {
     pub fn new(gpu: &Gpu, width: u32, height: u32) -> Target {
-        let color = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("colour"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: COLOR_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let color = render_texture(
+            gpu,
+            "colour",
+            (width, height),
+            COLOR_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
         let color_view = color.create_view(&Default::default());
         let depth_view = depth_texture(gpu, width, height).create_view(&Default::default());
         Target {
@@ -305,8 +298,25 @@ impl Target {
 
 /// A depth texture of the given size.
 pub fn depth_texture(gpu: &Gpu, width: u32, height: u32) -> wgpu::Texture {
+    render_texture(
+        gpu,
+        "depth",
+        (width, height),
+        DEPTH_FORMAT,
+        wgpu::TextureUsages::RENDER_ATTACHMENT,
+    )
+}
+
+/// A single-sample, single-mip 2D texture to render into.
+fn render_texture(
+    gpu: &Gpu,
+    label: &str,
+    (width, height): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
     gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("depth"),
+        label: Some(label),
         size: wgpu::Extent3d {
             width,
             height,
@@ -315,8 +325,8 @@ pub fn depth_texture(gpu: &Gpu, width: u32, height: u32) -> wgpu::Texture {
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
-        format: DEPTH_FORMAT,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        format,
+        usage,
         view_formats: &[],
     })
 }

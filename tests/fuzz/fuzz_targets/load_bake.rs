@@ -15,8 +15,7 @@ fuzz_target!(|data: &[u8]| {
     p.strands.mask_size = 16;
     p.clamp.enabled = true;
     p.pack.layout = if selector & 2 == 0 { Layout::Compact } else { Layout::SingleDraw };
-    let (v, t) = scene.meshes.iter().fold((0u64, 0u64), |(v, t), m| (v + m.vertex_count() as u64, t + m.triangle_count() as u64));
-    if shellbake::pack::estimate_bytes(v, t, 4, 16, p.pack.layout) > 64 << 20 {
+    if shellbake::pack::estimate_scene_bytes(&scene, &p) > 64 << 20 {
         return;
     }
     let baked = shellbake::bake(&scene, &p);
