@@ -1,9 +1,20 @@
-//! The clamp stage (DESIGN §2): a per-vertex maximum safe height, so that no layer inverts in a
-//! concave region and no layer passes through another part of the mesh. Runs only when asked
-//! (`--clamp`, scene effect `collision`); otherwise no BVH is built and every vertex keeps the
-//! full height.
+//! The clamp stage (DESIGN §2): directions that agree with their neighbours, and a per-vertex
+//! maximum safe height, so that no layer inverts in a concave region and — when the scene asks
+//! for the `collision` effect (`--clamp`) — no layer passes through another part of the mesh.
+//! Smoothing and the inversion bound always run (no default bake may invert a layer triangle);
+//! the BVH is built only for the collision bound.
 //!
-//! Two bounds, both on the position-welded topology with the extrusion directions of `frames`:
+//! All of it works on the side-welded topology with the extrusion directions of `frames`:
+//!
+//! **Smoothing where neighbours disagree.** Scanned meshes have noisy normals: neighbouring
+//! directions that converge make a triangle invert long before the surface's real curvature
+//! would, and shrinking heights there leaves bald patches. So first, every vertex of a triangle
+//! that would invert below the shell height gets the normalised mean of its own and its
+//! neighbours' directions, pushed back to the outer side of every incident face (`d·n_f ≥ 0.05`
+//! for each face normal `n_f`; if no such direction is found the vertex keeps its own). Jacobi
+//! iterations (each reads the previous directions, so the result does not depend on the visiting
+//! order), up to [`SMOOTH_ITERATIONS`], re-examining only triangles around changed vertices.
+//! Only the clamp then limits what is left.
 //!
 //! **Inversion (curvature) bound.** Extruding a triangle's corners by heights `h_a, h_b, h_c`
 //! along their directions changes its normal; the layer triangle faces against its base triangle
@@ -14,11 +25,12 @@
 //! smallest such root over the 7 non-zero corners, times `inversion_keep` (< 1, so the dot stays
 //! strictly positive); a vertex takes the minimum over its triangles. Because every layer of
 //! every vertex then stays inside the box, **no layer triangle inverts at any layer and any mix
-//! of clamped heights** — an exact guarantee, not a heuristic curvature radius.
+//! of clamped heights** — an exact guarantee, not a heuristic curvature radius. The pack stage
+//! re-checks the stored (quantized) geometry, so the guarantee holds for the written file.
 //!
-//! **Collision bound.** A ray from each vertex along its direction against the whole mesh (an
-//! obvhs BVH; triangles that contain the vertex are skipped), keeping `ray_keep` of the free
-//! distance. With `ray_keep < 0.5`, two shells that grow towards each other across a thin
+//! **Collision bound** (opt-in). A ray from each vertex along its direction against the whole
+//! mesh (an obvhs BVH; triangles that contain the vertex are skipped), keeping `ray_keep` of the
+//! free distance. With `ray_keep < 0.5`, two shells that grow towards each other across a thin
 //! feature stop before they meet. The BVH is a binary PLOC tree (obvhs `Bvh2`), not the 8-wide
 //! CWBVH: the CWBVH traverses with a fixed 32-entry stack and silently loses nodes on deeper
 //! trees, which fuzzed inputs with thousands of coincident triangles produce; `Bvh2` sizes its
@@ -32,7 +44,9 @@
 //!
 //! Rejected: a curvature radius from the dihedral angle at each edge (what most shell tools do) —
 //! it needs a safety factor to cover mixed-height triangles and still inverts at cone tips of high
-//! valence; the corner-root bound above is exact and costs 7 quadratics per triangle.
+//! valence; the corner-root bound above is exact and costs 7 quadratics per triangle. Clamping
+//! without smoothing first: on the 100 k-vertex Stanford dragon it limits far more vertices (see
+//! the README's figures), leaving bald patches along every scan-noise crease.
 
 use std::time::Duration;
 
@@ -47,12 +61,19 @@ use serde::{Deserialize, Serialize};
 use crate::frames::Frames;
 use crate::weld::Welded;
 
+/// Jacobi smoothing iterations at most (each re-examines only what the previous one changed).
+pub const SMOOTH_ITERATIONS: usize = 8;
+
 /// Clamp stage parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ClampParams {
-    /// Run the stage. Off by default: it costs a BVH build and one ray per vertex.
-    pub enabled: bool,
+    /// Run the collision bound (the scene effect `collision`, `--clamp`). Off by default: it
+    /// costs a BVH build and one ray per vertex. Smoothing and the inversion bound always run.
+    pub collision: bool,
+    /// Smooth directions where neighbours disagree before bounding. On by default; off only to
+    /// measure what smoothing buys.
+    pub smooth: bool,
     /// Fraction of the free distance along the ray a vertex may use, (0, 1). Below 0.5 opposite
     /// shells across a thin gap never meet. 0.45 is a good default.
     pub ray_keep: f32,
@@ -63,7 +84,8 @@ pub struct ClampParams {
 impl Default for ClampParams {
     fn default() -> Self {
         ClampParams {
-            enabled: false,
+            collision: false,
+            smooth: true,
             ray_keep: 0.45,
             inversion_keep: 0.9,
         }
@@ -80,6 +102,36 @@ pub struct Clamp {
     /// Welded vertices shortened by the inversion bound / by the collision bound.
     pub limited_by_inversion: usize,
     pub limited_by_collision: usize,
+    /// Welded vertices whose direction smoothing changed.
+    pub smoothed: usize,
+    /// Smoothed directions per welded vertex (the input directions where nothing changed).
+    pub welded_direction: Vec<Vec3>,
+}
+
+impl Clamp {
+    /// Extrusion direction per render vertex after smoothing.
+    pub fn directions(&self, welded: &Welded) -> Vec<Vec3> {
+        welded
+            .remap
+            .iter()
+            .map(|&w| self.welded_direction[w as usize])
+            .collect()
+    }
+
+    /// `(min, mean)` height scale over the welded vertices that were limited; `(1, 1)` if none.
+    pub fn limited_scale(&self) -> (f32, f32) {
+        let limited: Vec<f32> = self
+            .welded_scale
+            .iter()
+            .copied()
+            .filter(|&s| s < 1.0)
+            .collect();
+        if limited.is_empty() {
+            return (1.0, 1.0);
+        }
+        let min = limited.iter().copied().fold(1.0f32, f32::min);
+        (min, limited.iter().sum::<f32>() / limited.len() as f32)
+    }
 }
 
 /// Smallest positive root of `c0 + c1 h + c2 h²` with `c0 > 0`, or infinity.
@@ -136,20 +188,221 @@ pub fn inversion_height(p: [Vec3; 3], d: [Vec3; 3]) -> Option<f64> {
     Some(best)
 }
 
-/// Per-welded-vertex inversion limit (world units).
-fn inversion_limits(welded: &Welded, frames: &Frames, keep: f32) -> Vec<f64> {
-    let mut limit = vec![f64::INFINITY; welded.positions.len()];
-    for tri in welded.indices.chunks_exact(3) {
-        let p = [0, 1, 2].map(|k| welded.positions[tri[k] as usize]);
-        let d = [0, 1, 2].map(|k| frames.welded[tri[k] as usize]);
-        if let Some(h) = inversion_height(p, d) {
-            let h = h * keep as f64;
-            for &v in tri {
-                limit[v as usize] = limit[v as usize].min(h);
-            }
+/// Where the triangle `(a, b, c)` first inverts when its corners move along `g` (their
+/// directions times their heights) by a common factor `λ`: the smallest positive root of the
+/// quadratic `n₀·((B−A)×(C−A))(λ)`. Infinity when it never does; `None` for a degenerate
+/// triangle. This is the path every layer of a bake takes (layer `j` is `λ = t_j`).
+pub fn ray_inversion(p: [Vec3; 3], g: [Vec3; 3]) -> Option<f64> {
+    let [a, b, c] = p.map(|v| v.as_dvec3());
+    let [ga, gb, gc] = g.map(|v| v.as_dvec3());
+    let (e1, e2) = (b - a, c - a);
+    let n = e1.cross(e2);
+    let c0 = n.length();
+    if !(c0.is_finite() && c0 > 0.0) {
+        return None;
+    }
+    let n0 = n / c0;
+    let (g1, g2) = (gb - ga, gc - ga);
+    let c1 = n0.dot(e1.cross(g2) + g1.cross(e2));
+    let c2 = n0.dot(g1.cross(g2));
+    Some(first_root(c0, c1, c2))
+}
+
+/// Rounds of the inversion bound before the last resort (see [`inversion_scales`]).
+const BOUND_ROUNDS: usize = 64;
+
+/// Per-welded-vertex height scales in [0, 1] such that no triangle inverts anywhere on its path
+/// up to `height`: each round finds the triangles whose path inverts at `λ* ≤ 1` and scales their
+/// three corners by `λ*·keep` (so that triangle's path keeps its shape and now stops short of the
+/// root); shortening a corner changes its neighbours' paths, so rounds repeat, re-examining only
+/// triangles around shortened vertices. Scales only shrink, so this converges; after
+/// [`BOUND_ROUNDS`] rounds the corners of any triangle still inverting are set to 0.
+fn inversion_scales(
+    welded: &Welded,
+    dirs: &[Vec3],
+    height: f32,
+    keep: f32,
+    mut scale: Vec<f32>,
+) -> Vec<f32> {
+    use rayon::prelude::*;
+    let faces = incident_faces(welded);
+    if height <= 0.0 {
+        return scale;
+    }
+    let tri = |t: u32| {
+        let i = 3 * t as usize;
+        [welded.indices[i], welded.indices[i + 1], welded.indices[i + 2]]
+    };
+    let mut check: Vec<u32> = (0..(welded.indices.len() / 3) as u32).collect();
+    for round in 0.. {
+        let bad: Vec<(u32, f32)> = check
+            .par_iter()
+            .filter_map(|&t| {
+                let v = tri(t);
+                let p = v.map(|v| welded.positions[v as usize]);
+                let g = v.map(|v| dirs[v as usize] * (height * scale[v as usize]));
+                let root = ray_inversion(p, g)?;
+                (root <= 1.0).then(|| {
+                    let f = if round < BOUND_ROUNDS { root as f32 * keep } else { 0.0 };
+                    (t, f)
+                })
+            })
+            .collect();
+        if bad.is_empty() {
+            break;
+        }
+        let mut factor: Vec<(u32, f32)> = bad
+            .iter()
+            .flat_map(|&(t, f)| tri(t).map(|v| (v, f)))
+            .collect();
+        factor.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        factor.dedup_by_key(|x| x.0);
+        let before: Vec<f32> = factor.iter().map(|&(v, _)| scale[v as usize]).collect();
+        for &(v, f) in &factor {
+            scale[v as usize] *= f.clamp(0.0, 1.0);
+        }
+        check = factor
+            .iter()
+            .zip(before)
+            .filter(|(&(v, _), b)| scale[v as usize] != *b)
+            .flat_map(|(&(v, _), _)| faces.of(v).iter().copied())
+            .collect();
+        check.sort_unstable();
+        check.dedup();
+        if check.is_empty() {
+            break;
         }
     }
-    limit
+    scale
+}
+
+/// Compressed adjacency: `items[start[v]..start[v + 1]]` for each of `n` keys.
+struct Csr {
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Csr {
+    fn build(n: usize, pairs: impl Iterator<Item = (u32, u32)> + Clone) -> Csr {
+        let mut start = vec![0u32; n + 1];
+        for (k, _) in pairs.clone() {
+            start[k as usize + 1] += 1;
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut items = vec![0u32; start[n] as usize];
+        for (k, v) in pairs {
+            items[fill[k as usize] as usize] = v;
+            fill[k as usize] += 1;
+        }
+        Csr { start, items }
+    }
+
+    fn of(&self, k: u32) -> &[u32] {
+        &self.items[self.start[k as usize] as usize..self.start[k as usize + 1] as usize]
+    }
+}
+
+/// The triangles around each welded vertex.
+fn incident_faces(welded: &Welded) -> Csr {
+    let corners = welded
+        .indices
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| (v, (i / 3) as u32));
+    Csr::build(welded.positions.len(), corners)
+}
+
+/// Smallest `d · n_f` a smoothed direction may have against an incident face normal.
+const OUTER_MARGIN: f32 = 0.05;
+
+/// Smooths `dirs` (per welded vertex) where triangles would invert below `height` (see the
+/// module doc). Returns the smoothed directions and how many vertices changed.
+pub fn smooth_directions(welded: &Welded, dirs: &[Vec3], height: f32) -> (Vec<Vec3>, usize) {
+    use rayon::prelude::*;
+    let n = welded.positions.len();
+    let tris: Vec<[u32; 3]> = welded
+        .indices
+        .chunks_exact(3)
+        .map(|t| [t[0], t[1], t[2]])
+        .collect();
+    let normals: Vec<Vec3> = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| welded.positions[v as usize]);
+            crate::mesh::face_normal(a, b, c).0
+        })
+        .collect();
+    let faces = incident_faces(welded);
+    let edges = tris
+        .iter()
+        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0]), (t[1], t[0]), (t[2], t[1]), (t[0], t[2])]);
+    let ring = Csr::build(n, edges);
+    let inverts = |d: &[Vec3], t: usize| {
+        let tri = tris[t];
+        let g = tri.map(|v| d[v as usize] * height);
+        ray_inversion(tri.map(|v| welded.positions[v as usize]), g).is_some_and(|r| r <= 1.0)
+    };
+
+    let mut dirs = dirs.to_vec();
+    let mut changed = vec![false; n];
+    let mut check: Vec<u32> = (0..tris.len() as u32).collect();
+    for _ in 0..SMOOTH_ITERATIONS {
+        let bad: Vec<u32> = check
+            .par_iter()
+            .copied()
+            .filter(|&t| inverts(&dirs, t as usize))
+            .collect();
+        let mut verts: Vec<u32> = bad.iter().flat_map(|&t| tris[t as usize]).collect();
+        verts.sort_unstable();
+        verts.dedup();
+        if verts.is_empty() {
+            break;
+        }
+        let moved: Vec<(u32, Vec3)> = verts
+            .par_iter()
+            .filter_map(|&v| {
+                let own = dirs[v as usize];
+                let sum = ring.of(v).iter().fold(own, |s, &u| s + dirs[u as usize]);
+                let mut d = sum.normalize_or_zero();
+                if d == Vec3::ZERO {
+                    return None;
+                }
+                let incident = faces.of(v);
+                for _ in 0..4 {
+                    for &f in incident {
+                        let nf = normals[f as usize];
+                        let dot = d.dot(nf);
+                        if nf != Vec3::ZERO && dot < OUTER_MARGIN {
+                            d += nf * (OUTER_MARGIN - dot);
+                        }
+                    }
+                    d = d.normalize_or_zero();
+                }
+                let outer = incident
+                    .iter()
+                    .all(|&f| normals[f as usize] == Vec3::ZERO || d.dot(normals[f as usize]) > 0.0);
+                (outer && d != Vec3::ZERO && d != own).then_some((v, d))
+            })
+            .collect();
+        if moved.is_empty() {
+            break;
+        }
+        for &(v, d) in &moved {
+            dirs[v as usize] = d;
+            changed[v as usize] = true;
+        }
+        check = moved
+            .iter()
+            .flat_map(|&(v, _)| faces.of(v).iter().copied())
+            .collect();
+        check.sort_unstable();
+        check.dedup();
+    }
+    let count = changed.iter().filter(|&&c| c).count();
+    (dirs, count)
 }
 
 fn triangles(welded: &Welded) -> Vec<Triangle> {
@@ -182,8 +435,8 @@ fn tree_depth(bvh: &Bvh2) -> usize {
 }
 
 /// The ray from welded vertex `v` along its extrusion direction, up to `reach`.
-fn vertex_ray(welded: &Welded, frames: &Frames, v: u32, reach: f32) -> Ray {
-    let (p, d) = (welded.positions[v as usize], frames.welded[v as usize]);
+fn vertex_ray(welded: &Welded, dirs: &[Vec3], v: u32, reach: f32) -> Ray {
+    let (p, d) = (welded.positions[v as usize], dirs[v as usize]);
     Ray::new(Vec3A::from(p), Vec3A::from(d), 0.0, reach)
 }
 
@@ -191,10 +444,20 @@ fn incident(welded: &Welded, tri: usize, v: u32) -> bool {
     welded.indices[3 * tri..3 * tri + 3].contains(&v)
 }
 
-/// Computes the clamp (BVH ray casts). `height` is the global shell height in world units.
+/// The directions the bounds work with: smoothed, or as framed.
+fn directions(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams) -> (Vec<Vec3>, usize) {
+    if params.smooth && height > 0.0 {
+        smooth_directions(welded, &frames.welded, height)
+    } else {
+        (frames.welded.clone(), 0)
+    }
+}
+
+/// Runs the clamp stage. `height` is the global shell height in world units.
 pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams) -> Clamp {
+    let (dirs, smoothed) = directions(welded, frames, height, params);
     let tris = triangles(welded);
-    let collision = if tris.is_empty() || height <= 0.0 {
+    let collision = if !params.collision || tris.is_empty() || height <= 0.0 {
         vec![f64::INFINITY; welded.positions.len()]
     } else {
         let mut bvh = build_bvh2_from_tris(
@@ -210,7 +473,7 @@ pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &Cla
         (0..welded.positions.len() as u32)
             .into_par_iter()
             .map(|v| {
-                let ray = vertex_ray(welded, frames, v, reach);
+                let ray = vertex_ray(welded, &dirs, v, reach);
                 let mut hit = RayHit::none();
                 bvh.ray_traverse(ray, &mut hit, |r, id| {
                     let t = bvh.primitive_indices[id] as usize;
@@ -228,21 +491,23 @@ pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &Cla
             })
             .collect()
     };
-    finish(welded, frames, height, params, collision)
+    finish(welded, dirs, smoothed, height, params, collision)
 }
 
-/// The same clamp with a linear scan over all triangles per ray: the differential reference.
+/// The same clamp (collision included) with a linear scan over all triangles per ray: the
+/// differential reference.
 pub fn clamp_heights_brute_force(
     welded: &Welded,
     frames: &Frames,
     height: f32,
     params: &ClampParams,
 ) -> Clamp {
+    let (dirs, smoothed) = directions(welded, frames, height, params);
     let tris = triangles(welded);
     let reach = height / params.ray_keep;
     let collision = (0..welded.positions.len() as u32)
         .map(|v| {
-            let ray = vertex_ray(welded, frames, v, reach);
+            let ray = vertex_ray(welded, &dirs, v, reach);
             let t = (0..tris.len())
                 .filter(|&t| !incident(welded, t, v))
                 .map(|t| tris[t].intersect(&ray))
@@ -254,39 +519,42 @@ pub fn clamp_heights_brute_force(
             }
         })
         .collect();
-    finish(welded, frames, height, params, collision)
+    finish(welded, dirs, smoothed, height, params, collision)
 }
 
 fn finish(
     welded: &Welded,
-    frames: &Frames,
+    dirs: Vec<Vec3>,
+    smoothed: usize,
     height: f32,
     params: &ClampParams,
     collision: Vec<f64>,
 ) -> Clamp {
-    let inversion = inversion_limits(welded, frames, params.inversion_keep);
     let h = height as f64;
-    let mut out = Clamp::default();
-    out.welded_scale = (0..welded.positions.len())
-        .map(|v| {
-            let limit = inversion[v].min(collision[v]);
-            if inversion[v] < h && inversion[v] <= collision[v] {
-                out.limited_by_inversion += 1;
-            } else if collision[v] < h {
-                out.limited_by_collision += 1;
-            }
-            if h > 0.0 {
-                (limit / h).clamp(0.0, 1.0) as f32
-            } else {
-                1.0
-            }
-        })
+    let by_collision: Vec<f32> = collision
+        .iter()
+        .map(|&c| if h > 0.0 { (c / h).clamp(0.0, 1.0) as f32 } else { 1.0 })
         .collect();
+    let welded_scale =
+        inversion_scales(welded, &dirs, height, params.inversion_keep, by_collision.clone());
+    let mut out = Clamp {
+        smoothed,
+        ..Default::default()
+    };
+    for (&c, &s) in by_collision.iter().zip(&welded_scale) {
+        if s < c {
+            out.limited_by_inversion += 1;
+        } else if c < 1.0 {
+            out.limited_by_collision += 1;
+        }
+    }
     out.scale = welded
         .remap
         .iter()
-        .map(|&w| out.welded_scale[w as usize])
+        .map(|&w| welded_scale[w as usize])
         .collect();
+    out.welded_scale = welded_scale;
+    out.welded_direction = dirs;
     out
 }
 
@@ -304,7 +572,7 @@ mod tests {
             &f,
             height,
             &ClampParams {
-                enabled: true,
+                collision: true,
                 ..Default::default()
             },
         );
@@ -376,7 +644,7 @@ mod tests {
         let w = weld(&m.positions, &m.indices);
         let f = extrusion_frames(&w, None);
         let params = ClampParams {
-            enabled: true,
+            collision: true,
             ..Default::default()
         };
         let a = clamp_heights(&w, &f, 0.5, &params);

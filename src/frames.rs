@@ -33,6 +33,28 @@ pub enum Fallback {
     PlusY,
 }
 
+impl Fallback {
+    /// Every rule, in the order they are tried.
+    pub const ALL: [Fallback; 5] = [
+        Fallback::AngleWeighted,
+        Fallback::AreaWeighted,
+        Fallback::LargestFace,
+        Fallback::InputNormal,
+        Fallback::PlusY,
+    ];
+
+    /// The rule's name in the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Fallback::AngleWeighted => "angle_weighted",
+            Fallback::AreaWeighted => "area_weighted",
+            Fallback::LargestFace => "largest_face",
+            Fallback::InputNormal => "input_normal",
+            Fallback::PlusY => "plus_y",
+        }
+    }
+}
+
 /// Per-vertex extrusion frames.
 #[derive(Clone, Debug, Default)]
 pub struct Frames {
@@ -171,15 +193,38 @@ mod tests {
     }
 
     #[test]
-    fn two_sided_sheet_falls_back_to_largest_face() {
-        // Two triangles on the same positions with opposite winding: every sum cancels.
+    fn two_sided_sheet_sides_extrude_apart() {
+        // Two triangles on the same positions with opposite winding: weld keeps the sides apart
+        // (splitting the shared render vertices), so each side extrudes along its own normal.
         let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
         let f = frames_of(&p, &[0, 1, 2, 0, 2, 1]);
-        for d in &f.direction {
-            assert!(d.is_finite());
+        assert_eq!(f.direction.len(), 6);
+        for d in &f.direction[..3] {
             assert!((*d - Vec3::Z).length() < 1e-6, "{d}");
         }
-        assert_eq!(f.fallbacks[Fallback::LargestFace as usize], 3);
+        for d in &f.direction[3..] {
+            assert!((*d + Vec3::Z).length() < 1e-6, "{d}");
+        }
+        assert_eq!(f.fallbacks[Fallback::AngleWeighted as usize], 6);
+    }
+
+    #[test]
+    fn bowtie_fans_get_a_welded_vertex_each() {
+        // two triangles touching only at vertex 0, facing opposite ways: one welded vertex per
+        // fan, each extruding along its own face
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(-2.0, 0.0, 0.0),
+            Vec3::new(0.0, -2.0, 0.0),
+        ];
+        let w = weld(&p, &[0, 1, 2, 0, 4, 3]);
+        assert_eq!((w.positions.len(), w.split_vertices()), (6, 1));
+        let f = extrusion_frames(&w, None);
+        assert_eq!(f.direction[0], Vec3::Z);
+        assert_eq!(f.direction[5], -Vec3::Z);
+        assert_eq!(f.fallbacks[Fallback::AngleWeighted as usize], 6);
     }
 
     #[test]

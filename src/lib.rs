@@ -5,10 +5,12 @@
 //! | stage | module | verb |
 //! |---|---|---|
 //! | load | [`load`] | [`load::load`] |
+//! | orient | [`orient`] | [`orient::orient`] |
 //! | weld | [`weld`] | [`weld::weld`] |
 //! | frames | [`frames`] | [`frames::extrusion_frames`] |
-//! | clamp (only when asked) | [`clamp`] | [`clamp::clamp_heights`] |
+//! | clamp (smoothing and inversion always; collision when asked) | [`clamp`] | [`clamp::clamp_heights`] |
 //! | strands | [`strands`] | [`strands::bake_mask`] |
+//! | tiling | [`tiling`] | [`tiling::mask_tiling`] |
 //! | shells | [`shells`] | [`shells::build_shells`] |
 //! | cull, lod | (not yet; skipped) | — |
 //! | pack | [`pack`] | [`pack::pack`] |
@@ -25,12 +27,14 @@ pub mod error;
 pub mod frames;
 pub mod load;
 pub mod mesh;
+pub mod orient;
 pub mod pack;
 pub mod params;
 pub mod procedural;
 pub mod report;
 pub mod shells;
 pub mod strands;
+pub mod tiling;
 #[cfg(feature = "view")]
 pub mod view;
 pub mod weld;
@@ -96,35 +100,53 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         load::generate_box_uvs(&mut mesh);
     }
 
+    let orientation = report.run("orient", || orient::orient(&mut mesh, &params.orient));
+    report.count("components", orientation.components as f64);
+    report.count("closed_components", orientation.closed as f64);
+    report.count("turned_outward", orientation.turned_outward as f64);
+    report.count("made_consistent", orientation.made_consistent as f64);
+    report.count("orientation_conflicts", orientation.conflicts as f64);
+    report.warnings.extend(orientation.warning());
+    if params.orient.mode != orient::OrientMode::Auto {
+        report.note("orient", &format!("--orient {}", params.orient.mode.name()));
+    }
+
     let welded = report.run("weld", || weld::weld(&mesh.positions, &mesh.indices));
     report.count("welded_vertices", welded.positions.len() as f64);
     report.count(
         "collapsed_triangles",
         (mesh.triangle_count() - welded.source_triangle.len()) as f64,
     );
-    mesh.indices = welded
-        .source_triangle
-        .iter()
-        .flat_map(|&t| {
-            let i = 3 * t as usize;
-            [mesh.indices[i], mesh.indices[i + 1], mesh.indices[i + 2]]
-        })
-        .collect();
+    report.count("sheet_vertices_split", welded.split_vertices() as f64);
+    mesh.gather_vertices(&welded.vertex_source);
+    mesh.indices = welded.render_indices.clone();
 
-    let frames = report.run("frames", || {
+    let mut frames = report.run("frames", || {
         frames::extrusion_frames(&welded, mesh.normals.as_deref())
     });
-    for (rule, n) in [
-        "angle_weighted",
-        "area_weighted",
-        "largest_face",
-        "input_normal",
-        "plus_y",
-    ]
-    .iter()
-    .zip(frames.fallbacks)
-    {
-        report.count(rule, n as f64);
+    for (rule, n) in frames::Fallback::ALL.iter().zip(frames.fallbacks) {
+        report.count(rule.name(), n as f64);
+    }
+
+    let diagonal = mesh.diagonal();
+    let height = params.resolved_height(diagonal);
+    let density = params.resolved_density(diagonal);
+
+    let clamp = report.run("clamp", || {
+        clamp::clamp_heights(&welded, &frames, height, &params.clamp)
+    });
+    frames.direction = clamp.directions(&welded);
+    let (min_scale, mean_scale) = clamp.limited_scale();
+    report.count("smoothed_directions", clamp.smoothed as f64);
+    report.count("limited_by_inversion", clamp.limited_by_inversion as f64);
+    report.count("limited_by_collision", clamp.limited_by_collision as f64);
+    report.count("min_scale", min_scale as f64);
+    report.count("mean_limited_scale", mean_scale as f64);
+    if !params.clamp.collision {
+        report.note(
+            "clamp",
+            "collision bound not requested (--clamp / scene effect `collision`); smoothing and the inversion bound ran",
+        );
     }
     if mesh.normals.is_none() {
         report
@@ -133,40 +155,19 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         mesh.normals = Some(frames.direction.clone());
     }
 
-    let diagonal = mesh.diagonal();
-    let height = params.resolved_height(diagonal);
-    let density = params.resolved_density(diagonal);
-
-    let clamp = if params.clamp.enabled {
-        let c = report.run("clamp", || {
-            clamp::clamp_heights(&welded, &frames, height, &params.clamp)
-        });
-        report.count("limited_by_inversion", c.limited_by_inversion as f64);
-        report.count("limited_by_collision", c.limited_by_collision as f64);
-        report.count(
-            "min_scale",
-            c.welded_scale.iter().copied().fold(1.0f32, f32::min) as f64,
-        );
-        Some(c)
-    } else {
-        report.skip(
-            "clamp",
-            "not requested (--clamp / scene effect `collision`)",
-        );
-        None
-    };
     let mask = report.run("strands", || strands::bake_mask(&params.strands));
-    let tiles_per_uv = match params.strands.uv_density {
-        Some(per_uv) => Vec2::splat(per_uv / mask.cells_per_tile as f32),
-        None => strands::tiles_per_uv(&mesh, density, mask.cells_per_tile),
-    };
     report.count("mask_texels", (mask.size * mask.size) as f64);
     report.count("cells_per_tile", mask.cells_per_tile as f64);
+    let tiling = report.run("tiling", || {
+        tiling::mask_tiling(&mesh, density, params.strands.uv_density, mask.cells_per_tile)
+    });
+    report.warnings.extend(tiling.warning());
+    let tiles_per_uv = tiling.tiles_per_uv;
 
     let shells = report.run("shells", || {
         shells::build_shells(
             &frames.direction,
-            clamp.as_ref().map(|c| c.scale.as_slice()),
+            Some(clamp.scale.as_slice()),
             height,
             &params.shells,
             &params.shade,
@@ -186,6 +187,7 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     };
     let packed = report.run("pack", || pack::pack(&input, &params.pack));
     report.count("float_uvs", if packed.float_uvs { 1.0 } else { 0.0 });
+    report.count("guarded_vertices", packed.guarded as f64);
     let (json, glb) = report.run("write", || {
         let (doc, bin) = write::gltf_json(&packed, &shells);
         let glb = write::glb_bytes(&doc, &bin);
@@ -201,7 +203,7 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         &mesh,
         height,
         density,
-        tiles_per_uv,
+        &tiling,
         params,
     );
     report.total_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -227,9 +229,10 @@ fn fill_report(
     mesh: &Mesh,
     height: f32,
     density: f32,
-    tiles: Vec2,
+    tiling: &tiling::Tiling,
     params: &BakeParams,
 ) {
+    let tiles = tiling.tiles_per_uv;
     report.layout = match packed.layout {
         params::Layout::Compact => "compact".into(),
         params::Layout::SingleDraw => "single-draw".into(),
@@ -251,6 +254,17 @@ fn fill_report(
     report
         .resolved
         .insert("tiles_per_uv_v".into(), tiles.y as f64);
+    let deviation = tiling.deviation();
+    report
+        .resolved
+        .insert("tiling_deviation_u".into(), deviation.x as f64);
+    report
+        .resolved
+        .insert("tiling_deviation_v".into(), deviation.y as f64);
+    report
+        .resolved
+        .insert("uv_scale_spread".into(), tiling.spread);
+
     report.resolved.insert("position_step".into(), packed.scale);
     report.base_vertices = packed.base_vertices;
     report.base_triangles = mesh.triangle_count();

@@ -88,9 +88,14 @@ struct BakeArgs {
     /// Output layout.
     #[arg(long, value_enum, default_value = "compact")]
     layout: Layout,
-    /// Run the clamp stage: shorten shells where they would invert or pass through the mesh.
+    /// Also shorten shells where they would pass through another part of the mesh (a BVH ray per
+    /// vertex). Shells are always kept from inverting.
     #[arg(long)]
     clamp: bool,
+    /// Winding: `auto` makes faces agree and turns closed parts outward (with a warning saying
+    /// what was flipped), `keep` leaves it as loaded, `flip` reverses every triangle.
+    #[arg(long, value_enum, default_value = "auto")]
+    orient: shellbake::orient::OrientMode,
     /// Refuse bakes whose output would exceed this size (bytes; K, M, G suffixes).
     #[arg(long, default_value = "2G", value_parser = parse_size)]
     max_output: u64,
@@ -122,7 +127,8 @@ impl BakeArgs {
             p.strands.seed = s;
         }
         p.pack.layout = self.layout;
-        p.clamp.enabled = self.clamp;
+        p.clamp.collision = self.clamp;
+        p.orient.mode = self.orient;
         p.check()
             .map_err(|e| anyhow::anyhow!(shellbake::Error::Params(e)))?;
         Ok(p)

@@ -92,6 +92,23 @@ impl Mesh {
         self.indices.extend(other.indices.iter().map(|i| i + base));
     }
 
+    /// Keeps the vertices `source` lists, in that order (repeats allowed: a vertex listed twice
+    /// is copied). Indices are left to the caller.
+    pub fn gather_vertices(&mut self, source: &[u32]) {
+        if source.len() == self.positions.len()
+            && source.iter().enumerate().all(|(i, &s)| s as usize == i)
+        {
+            return;
+        }
+        let pick3 = |v: &[Vec3]| source.iter().map(|&s| v[s as usize]).collect::<Vec<_>>();
+        self.positions = pick3(&self.positions);
+        self.normals = self.normals.as_deref().map(pick3);
+        self.uvs = self
+            .uvs
+            .as_deref()
+            .map(|uv| source.iter().map(|&s| uv[s as usize]).collect());
+    }
+
     /// Checks the invariants every stage relies on; panics with the broken one. Stages call this
     /// under `debug_assertions`.
     pub fn validate(&self) {

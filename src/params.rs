@@ -143,6 +143,7 @@ pub struct PackParams {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BakeParams {
+    pub orient: crate::orient::OrientParams,
     pub clamp: crate::clamp::ClampParams,
     pub strands: StrandParams,
     pub shells: ShellParams,
@@ -187,8 +188,10 @@ impl BakeParams {
             position_bits: 14,
         };
         let clamp = crate::clamp::ClampParams::default();
+        let orient = crate::orient::OrientParams::default();
         match preset {
             Preset::Fur => BakeParams {
+                orient: orient.clone(),
                 clamp,
                 strands: StrandParams {
                     model: StrandModel::Cells {
@@ -216,6 +219,7 @@ impl BakeParams {
                 pack,
             },
             Preset::Carpet => BakeParams {
+                orient: orient.clone(),
                 clamp: clamp.clone(),
                 strands: StrandParams {
                     model: StrandModel::Noise { threshold: 0.3 },
@@ -239,6 +243,7 @@ impl BakeParams {
                 pack,
             },
             Preset::Grass => BakeParams {
+                orient: orient.clone(),
                 clamp: clamp.clone(),
                 strands: StrandParams {
                     model: StrandModel::Cells {
@@ -266,6 +271,7 @@ impl BakeParams {
                 pack,
             },
             Preset::Moss => BakeParams {
+                orient: orient.clone(),
                 clamp: clamp.clone(),
                 strands: StrandParams {
                     model: StrandModel::Noise { threshold: 0.2 },

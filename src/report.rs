@@ -19,6 +19,9 @@ pub struct Stage {
     /// Why the stage was skipped.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub skipped: Option<String>,
+    /// What a stage that ran left out, or how it was configured.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
     pub counts: BTreeMap<String, f64>,
 }
 
@@ -55,6 +58,7 @@ impl Report {
             ran: true,
             ms: start.elapsed().as_secs_f64() * 1e3,
             skipped: None,
+            note: None,
             counts: BTreeMap::new(),
         });
         out
@@ -67,8 +71,16 @@ impl Report {
             ran: false,
             ms: 0.0,
             skipped: Some(why.into()),
+            note: None,
             counts: BTreeMap::new(),
         });
+    }
+
+    /// Adds a note to stage `name` (which must have run or been skipped already).
+    pub fn note(&mut self, name: &str, text: &str) {
+        if let Some(st) = self.stages.iter_mut().find(|s| s.name == name) {
+            st.note = Some(text.into());
+        }
     }
 
     /// Adds a count to the last stage.
@@ -95,16 +107,30 @@ impl Report {
         );
         let r = |k: &str| self.resolved.get(k).copied().unwrap_or(f64::NAN);
         let density = match self.resolved.get("uv_density") {
-            Some(d) => format!("{d:.1} strands per UV unit"),
-            None => format!("{:.1} strands/unit", r("density")),
+            Some(&d) => format!("{} strands per UV unit", significant(d)),
+            None => format!("{} strands/unit", significant(r("density"))),
         };
         s += &format!(
-            "  height {:.4} world units, density {density}, mask {}² tiled {:.2}×{:.2} per UV unit\n",
-            r("height"),
+            "  height {} world units, density {density}, mask {}² tiled {}×{} per UV unit ({:+.1}% / {:+.1}% from the density, for whole tiles)\n",
+            significant(r("height")),
             r("mask_size"),
-            r("tiles_per_uv_u"),
-            r("tiles_per_uv_v")
+            significant(r("tiles_per_uv_u")),
+            significant(r("tiles_per_uv_v")),
+            r("tiling_deviation_u") * 100.0,
+            r("tiling_deviation_v") * 100.0,
         );
+        if let Some(c) = self.stage("clamp") {
+            let n = |k: &str| c.counts.get(k).copied().unwrap_or(0.0);
+            s += &format!(
+                "  clamp: {} directions smoothed, {} vertices limited (by inversion {}, collision {}; height kept: min {:.0}%, mean {:.0}%)\n",
+                n("smoothed_directions"),
+                n("limited_by_inversion") + n("limited_by_collision"),
+                n("limited_by_inversion"),
+                n("limited_by_collision"),
+                n("min_scale") * 100.0,
+                n("mean_limited_scale") * 100.0,
+            );
+        }
         s += &format!(
             "  {} bytes, {:.2} bytes per base vertex (",
             self.total_bytes, self.bytes_per_base_vertex
@@ -130,5 +156,32 @@ impl Report {
             s += &format!("  warning: {w}\n");
         }
         s
+    }
+}
+
+/// `x` with four significant digits and no exponent for ordinary magnitudes (`0.0001234`,
+/// `12.35`, `12346`); scientific notation below 1e-4 and from 1e9.
+pub fn significant(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let mag = x.abs().log10().floor() as i32;
+    if !(-4..9).contains(&mag) {
+        return format!("{x:.3e}");
+    }
+    format!("{x:.*}", (3 - mag).max(0) as usize)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::significant;
+
+    #[test]
+    fn tiny_and_large_values_keep_their_digits() {
+        assert_eq!(significant(0.00012346), "0.0001235");
+        assert_eq!(significant(12.3456), "12.35");
+        assert_eq!(significant(123456.0), "123456");
+        assert_eq!(significant(2.5e-7), "2.500e-7");
+        assert_eq!(significant(0.0), "0");
     }
 }

@@ -1,38 +1,63 @@
-//! Position welding: the topology that shells are extruded on (DESIGN §2).
+//! Welding: the topology that shells are extruded on (DESIGN §2).
 //!
 //! Render vertices that share a position — split by hard normals, UV seams, or simply duplicated
-//! by an exporter — must move together, or the shells tear apart along every seam. `weld` maps
-//! each render vertex to a welded vertex (exactly equal position bits, `-0.0` folded into `0.0`)
-//! and rewrites the triangles on that topology, dropping triangles that collapse (two corners on
-//! one welded vertex).
+//! by an exporter — must move together, or the shells tear apart along every seam. But the two
+//! sides of a thin sheet (a leaf, a cloth, a card) also share positions, and welding them would
+//! make both sides extrude the same way, so the underside's fur lies on top of the upper side's.
+//! `weld` therefore joins the triangle corners at one position only when they are on **the same
+//! side** of the surface:
 //!
-//! Exact equality, not an epsilon: an epsilon weld is not transitive (a–b and b–c close, a–c
-//! not) and makes the result depend on vertex order. Exporters write split vertices with
-//! identical coordinates, so exact equality finds the seams that matter. The welded ids are
-//! given in first-occurrence order, so the result is deterministic.
+//! 1. **Positions** are matched exactly (equal bits, `-0.0` folded into `0.0`). Not an epsilon:
+//!    an epsilon weld is not transitive (a–b and b–c close, a–c not) and makes the result depend
+//!    on vertex order; exporters write split vertices with identical coordinates.
+//! 2. **Sides.** Around each edge (by position) the incident triangles are sorted by the angle
+//!    of their third corner. A triangle continues into the neighbour reached first when turning
+//!    from it towards its front side (the radial edge order of solid modelling). On an ordinary
+//!    two-triangle edge that is the other triangle; at a sheet's interior edge, where top and
+//!    bottom lie on the same positions, the top continues into the top and the bottom into the
+//!    bottom; at the sheet's rim, where top and bottom fold onto each other (the only way round
+//!    is more than `360° − FOLD_ANGLE`), they do not continue at all. Corners at one position
+//!    joined through such continuations form one welded vertex.
+//! 3. A render vertex whose corners end up on different sides (an OBJ sheet whose two sides
+//!    share vertex indices) is split into one render vertex per side.
+//!
+//! So a cube corner with split normals is one welded vertex (its three faces continue into each
+//! other), a 512-valence cone tip is one, and each side of a two-sided sheet is its own. Two fans
+//! touching only at a vertex (a bowtie) get one welded vertex each. Triangles that collapse (two
+//! corners on one position) are dropped. Welded ids are given in first-use order, so the result
+//! is deterministic.
+//!
+//! Rejected: welding by position alone (the sheet defect above), and grouping corners by the
+//! angle between their face normals (splits sharp cone tips and needles into pieces).
 
 use std::collections::HashMap;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+
+use crate::orient::{angle_around, FOLD_ANGLE};
 
 /// The welded topology of a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Welded {
-    /// For each render vertex, its welded vertex.
+    /// For each output render vertex, the input render vertex it copies. Equal to `0..n` unless
+    /// a render vertex had to be split between the two sides of a sheet.
+    pub vertex_source: Vec<u32>,
+    /// For each output render vertex, its welded vertex.
     pub remap: Vec<u32>,
     /// Position of each welded vertex.
     pub positions: Vec<Vec3>,
     /// Triangles on welded vertices, collapsed ones removed.
     pub indices: Vec<u32>,
-    /// For each kept welded triangle, the render triangle it came from.
+    /// The kept triangles on output render vertices (same order as `indices`).
+    pub render_indices: Vec<u32>,
+    /// For each kept triangle, the input triangle it came from.
     pub source_triangle: Vec<u32>,
 }
 
 impl Welded {
-    /// Whether render triangle `t` of `indices` survives welding (is not collapsed).
-    pub fn keeps(&self, indices: &[u32], t: usize) -> bool {
-        let [a, b, c] = [0, 1, 2].map(|k| self.remap[indices[3 * t + k] as usize]);
-        a != b && b != c && a != c
+    /// Sides split off a render vertex shared by both sides of a sheet.
+    pub fn split_vertices(&self) -> usize {
+        self.vertex_source.len() - self.vertex_source.iter().max().map_or(0, |&m| m as usize + 1)
     }
 }
 
@@ -41,27 +66,208 @@ fn key(p: Vec3) -> [u32; 3] {
     [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f32::to_bits)
 }
 
-/// Welds `positions` by exact position and rewrites `indices` on the welded vertices.
+/// Exact-position ids: for each vertex its position id (first-occurrence order), and the
+/// position of each id.
+pub fn position_ids(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
+    let mut ids: HashMap<[u32; 3], u32> = HashMap::with_capacity(positions.len());
+    let mut unique = Vec::new();
+    let remap = positions
+        .iter()
+        .map(|&p| {
+            let next = unique.len() as u32;
+            let id = *ids.entry(key(p)).or_insert(next);
+            if id == next {
+                unique.push(p);
+            }
+            id
+        })
+        .collect();
+    (remap, unique)
+}
+
+/// One triangle's side of an undirected edge `a < b`: the edge runs from corner `k` of
+/// triangle `t` to corner `k + 1`, `forward` when that is `a → b`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub struct EdgeSide {
+    pub a: u32,
+    pub b: u32,
+    pub t: u32,
+    pub k: u8,
+    pub forward: bool,
+}
+
+/// Every edge side of `tris`, sorted so that the sides of one edge are adjacent (group them with
+/// `chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))`). Collapsed triangles (two corners on one id)
+/// contribute no edges.
+pub fn edge_sides(tris: &[[u32; 3]]) -> Vec<EdgeSide> {
+    let mut edges: Vec<EdgeSide> = Vec::with_capacity(tris.len() * 3);
+    for (t, tri) in tris.iter().enumerate() {
+        if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+            continue;
+        }
+        for k in 0..3 {
+            let (p, q) = (tri[k], tri[(k + 1) % 3]);
+            edges.push(EdgeSide {
+                a: p.min(q),
+                b: p.max(q),
+                t: t as u32,
+                k: k as u8,
+                forward: p < q,
+            });
+        }
+    }
+    edges.sort_unstable();
+    edges
+}
+
+/// Whether two triangles on edge `(pa, pb)` with third corners `r0`, `r1` lie on top of each
+/// other: their third corners, seen along the edge, are within [`FOLD_ANGLE`].
+pub fn folded(pa: DVec3, pb: DVec3, r0: DVec3, r1: DVec3) -> bool {
+    let e = (pb - pa).normalize_or_zero();
+    let w0 = (r0 - pa) - e * (r0 - pa).dot(e);
+    let w1 = (r1 - pa) - e * (r1 - pa).dot(e);
+    let len = w0.length() * w1.length();
+    len > 0.0 && w0.dot(w1) > len * FOLD_ANGLE.cos()
+}
+
+/// The third corner (not on the edge) of an edge side.
+fn third(tris: &[[u32; 3]], e: &EdgeSide) -> u32 {
+    tris[e.t as usize][(e.k as usize + 2) % 3]
+}
+
+/// Pairs of sides (indices into `m`, the sides of one edge) whose triangles continue into each
+/// other across the edge.
+fn continuations(m: &[EdgeSide], tris: &[[u32; 3]], pos: &[Vec3]) -> Vec<(usize, usize)> {
+    let p = |i: u32| pos[i as usize].as_dvec3();
+    let (pa, pb): (DVec3, DVec3) = (p(m[0].a), p(m[0].b));
+    if m.len() == 2 {
+        // One neighbour: continue unless the two are folded onto each other (a sheet's rim). The
+        // same direction on both sides means a surface the orient stage could not make agree
+        // (non-orientable); it continues too.
+        let fold = folded(pa, pb, p(third(tris, &m[0])), p(third(tris, &m[1])));
+        return if fold { vec![] } else { vec![(0, 1)] };
+    }
+    let phi: Vec<f64> = m
+        .iter()
+        .map(|e| angle_around(pa, pb, p(third(tris, e))))
+        .collect();
+    let tau = std::f64::consts::TAU;
+    let mut out = Vec::new();
+    for i in 0..m.len() {
+        let mut best: Option<(f64, usize)> = None;
+        for j in 0..m.len() {
+            if m[j].forward == m[i].forward {
+                continue;
+            }
+            // turn from i towards its front: + around a→b for forward triangles, − otherwise
+            let turn = if m[i].forward {
+                phi[j] - phi[i]
+            } else {
+                phi[i] - phi[j]
+            };
+            let mut d = turn.rem_euclid(tau);
+            if d < 1e-12 {
+                d = tau;
+            }
+            if best.is_none_or(|(bd, _)| d < bd) {
+                best = Some((d, j));
+            }
+        }
+        if let Some((d, j)) = best {
+            if d <= tau - FOLD_ANGLE {
+                out.push((i, j));
+            }
+        }
+    }
+    out
+}
+
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        parent[x as usize] = parent[parent[x as usize] as usize];
+        x = parent[x as usize];
+    }
+    x
+}
+
+/// Welds `positions` by position and side, and rewrites `indices` on the welded vertices.
 pub fn weld(positions: &[Vec3], indices: &[u32]) -> Welded {
     debug_assert!(indices.len().is_multiple_of(3));
-    let mut ids: HashMap<[u32; 3], u32> = HashMap::with_capacity(positions.len());
+    let (ids, upos) = position_ids(positions);
+    let mut source_triangle = Vec::new();
+    let mut tris: Vec<[u32; 3]> = Vec::new();
+    for (t, tri) in indices.chunks_exact(3).enumerate() {
+        let w = [0, 1, 2].map(|k| ids[tri[k] as usize]);
+        if w[0] != w[1] && w[1] != w[2] && w[0] != w[2] {
+            tris.push(w);
+            source_triangle.push(t as u32);
+        }
+    }
+
+    // Corners (3 per kept triangle) joined across continuing edges.
+    let mut parent: Vec<u32> = (0..3 * tris.len() as u32).collect();
+    let sides = edge_sides(&tris);
+    for group in sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
+        for (i, j) in continuations(group, &tris, &upos) {
+            let (ti, ki) = (group[i].t, group[i].k);
+            let (tj, kj) = (group[j].t, group[j].k);
+            for end in [group[0].a, group[0].b] {
+                let corner = |t: u32, k: u8| {
+                    let tri = tris[t as usize];
+                    let k = if tri[k as usize] == end { k } else { (k + 1) % 3 };
+                    3 * t + k as u32
+                };
+                let (x, y) = (find(&mut parent, corner(ti, ki)), find(&mut parent, corner(tj, kj)));
+                if x != y {
+                    parent[x.max(y) as usize] = x.min(y);
+                }
+            }
+        }
+    }
+
+    // Welded ids in first-use order; render vertices split where their corners disagree.
     let mut out = Welded {
-        remap: Vec::with_capacity(positions.len()),
+        vertex_source: (0..positions.len() as u32).collect(),
+        source_triangle,
         ..Default::default()
     };
-    for &p in positions {
-        let next = out.positions.len() as u32;
-        let id = *ids.entry(key(p)).or_insert(next);
-        if id == next {
-            out.positions.push(p);
+    out.remap = vec![u32::MAX; positions.len()];
+    let mut welded_of_class = vec![u32::MAX; parent.len()];
+    // (render vertex, welded vertex) → output render vertex, for split copies
+    let mut copies: HashMap<(u32, u32), u32> = HashMap::new();
+    for (kt, &t) in out.source_triangle.iter().enumerate() {
+        for k in 0..3 {
+            let class = find(&mut parent, 3 * kt as u32 + k as u32);
+            if welded_of_class[class as usize] == u32::MAX {
+                welded_of_class[class as usize] = out.positions.len() as u32;
+                out.positions.push(upos[tris[kt][k] as usize]);
+            }
+            let w = welded_of_class[class as usize];
+            let v = indices[3 * t as usize + k];
+            let rv = if out.remap[v as usize] == u32::MAX || out.remap[v as usize] == w {
+                out.remap[v as usize] = w;
+                v
+            } else {
+                *copies.entry((v, w)).or_insert_with(|| {
+                    out.vertex_source.push(v);
+                    out.remap.push(w);
+                    out.remap.len() as u32 - 1
+                })
+            };
+            out.indices.push(w);
+            out.render_indices.push(rv);
         }
-        out.remap.push(id);
     }
-    for (t, tri) in indices.chunks_exact(3).enumerate() {
-        let [a, b, c] = [0, 1, 2].map(|k| out.remap[tri[k] as usize]);
-        if a != b && b != c && a != c {
-            out.indices.extend_from_slice(&[a, b, c]);
-            out.source_triangle.push(t as u32);
+    // Render vertices no kept triangle uses: one welded vertex per position.
+    let mut unused_at: HashMap<u32, u32> = HashMap::new();
+    for v in 0..positions.len() {
+        if out.remap[v] == u32::MAX {
+            let next = out.positions.len() as u32;
+            let w = *unused_at.entry(ids[v]).or_insert(next);
+            if w == next {
+                out.positions.push(upos[ids[v] as usize]);
+            }
+            out.remap[v] = w;
         }
     }
     out
@@ -80,11 +286,14 @@ mod tests {
             Vec3::ZERO,
             Vec3::X,
             Vec3::Y,
+            Vec3::Z,
         ];
-        let w = weld(&p, &[0, 3, 4, 1, 3, 4]);
-        assert_eq!(w.remap, vec![0, 0, 0, 1, 2]);
-        assert_eq!(w.positions.len(), 3);
-        assert_eq!(w.indices, vec![0, 1, 2, 0, 1, 2]);
+        // three faces of a corner, each with its own copy of the corner vertex
+        let w = weld(&p, &[0, 4, 3, 1, 3, 5, 2, 5, 4]);
+        assert_eq!(w.remap, vec![0, 0, 0, 2, 1, 3]);
+        assert_eq!(w.positions.len(), 4);
+        assert_eq!(w.indices, vec![0, 1, 2, 0, 2, 3, 0, 3, 1]);
+        assert_eq!(w.split_vertices(), 0);
     }
 
     #[test]
@@ -92,13 +301,93 @@ mod tests {
         let p = [Vec3::ZERO, Vec3::ZERO, Vec3::X, Vec3::Y];
         let w = weld(&p, &[0, 1, 2, 0, 2, 3]);
         assert_eq!(w.indices, vec![0, 1, 2]);
+        assert_eq!(w.render_indices, vec![0, 2, 3]);
         assert_eq!(w.source_triangle, vec![1]);
-        assert!(!w.keeps(&[0, 1, 2, 0, 2, 3], 0));
-        assert!(w.keeps(&[0, 1, 2, 0, 2, 3], 1));
     }
 
     #[test]
     fn empty_input() {
-        assert_eq!(weld(&[], &[]), Welded::default());
+        let w = weld(&[], &[]);
+        assert!(w.positions.is_empty() && w.indices.is_empty() && w.remap.is_empty());
+    }
+
+    /// A 2×1 quad strip (two quads, four triangles) facing +z, as positions and indices.
+    fn strip() -> (Vec<Vec3>, Vec<u32>) {
+        let p = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(2.0, 1.0, 0.0),
+        ];
+        (p, vec![0, 1, 4, 0, 4, 3, 1, 2, 5, 1, 5, 4])
+    }
+
+    #[test]
+    fn sheet_sides_with_their_own_vertices_stay_apart() {
+        // bottom = the top's triangles reversed, on copies of the vertices
+        let (mut p, top) = strip();
+        p.extend(p.clone());
+        let mut ix = top.clone();
+        for t in top.chunks_exact(3) {
+            ix.extend([t[0] + 6, t[2] + 6, t[1] + 6]);
+        }
+        let w = weld(&p, &ix);
+        assert_eq!(w.positions.len(), 12, "each side keeps its own welded vertices");
+        for v in 0..6 {
+            assert_ne!(w.remap[v], w.remap[v + 6]);
+        }
+    }
+
+    #[test]
+    fn sheet_sides_sharing_vertices_are_split() {
+        // the same six render vertices used by both sides
+        let (p, top) = strip();
+        let mut ix = top.clone();
+        for t in top.chunks_exact(3) {
+            ix.extend([t[0], t[2], t[1]]);
+        }
+        let w = weld(&p, &ix);
+        assert_eq!(w.positions.len(), 12);
+        assert_eq!(w.split_vertices(), 6);
+        assert_eq!(w.vertex_source[6..].len(), 6);
+        // the bottom's triangles use the copies
+        assert!(w.render_indices[12..].iter().all(|&v| v >= 6));
+    }
+
+    #[test]
+    fn a_folded_strip_keeps_one_side_per_face_and_a_flat_one_welds() {
+        // flat strip: every interior vertex is one welded vertex
+        let (p, ix) = strip();
+        let w = weld(&p, &ix);
+        assert_eq!(w.positions.len(), 6);
+        // a closed thin wedge opening 30°: still one surface (continues round the blade)
+        let c = libm::cosf(30f32.to_radians());
+        let s = libm::sinf(30f32.to_radians());
+        let p = [
+            Vec3::ZERO,
+            Vec3::Z,
+            Vec3::X,
+            Vec3::new(c, s, 0.0),
+        ];
+        let w = weld(&p, &[0, 1, 2, 0, 3, 1]);
+        assert_eq!(w.positions.len(), 4);
+    }
+
+    #[test]
+    fn non_manifold_fin_joins_each_face_to_its_radial_neighbour() {
+        // three half-planes around the z axis at 0°, 120°, 240°: every vertex is shared,
+        // nothing is folded, so corners join into one welded vertex per position
+        let p = [
+            Vec3::ZERO,
+            Vec3::Z,
+            Vec3::X,
+            Vec3::new(-0.5, 0.866, 0.0),
+            Vec3::new(-0.5, -0.866, 0.0),
+        ];
+        let w = weld(&p, &[0, 1, 2, 1, 0, 3, 0, 1, 4]);
+        assert!(w.positions.len() <= 5);
+        assert_eq!(w.indices.len(), 9);
     }
 }

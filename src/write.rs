@@ -92,7 +92,10 @@ pub fn gltf_json(packed: &Packed, shells: &ShellStack) -> (Value, Vec<u8>) {
         let mut attributes = Map::new();
         attributes.insert("POSITION".into(), json!(p.position));
         attributes.insert("NORMAL".into(), json!(p.normal));
-        attributes.insert("TEXCOORD_0".into(), json!(p.texcoord));
+        // an untextured material (the opaque base layer) reads no texture coordinates
+        if p.material.textured {
+            attributes.insert("TEXCOORD_0".into(), json!(p.texcoord));
+        }
         if let Some(c) = p.color {
             attributes.insert("COLOR_0".into(), json!(c));
         }

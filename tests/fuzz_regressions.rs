@@ -20,7 +20,7 @@ fn replay(data: &[u8]) -> Result<usize, String> {
     let mut p = BakeParams::default();
     p.shells.layers = 4;
     p.strands.mask_size = 16;
-    p.clamp.enabled = true;
+    p.clamp.collision = true;
     p.pack.layout = if selector & 2 == 0 {
         Layout::Compact
     } else {

@@ -31,7 +31,7 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
         for layout in [Layout::Compact, Layout::SingleDraw] {
             let mut p = BakeParams::preset(preset);
             p.pack.layout = layout;
-            p.clamp.enabled = true;
+            p.clamp.collision = true;
             p.shells.layers = p.shells.layers.min(16);
             if let Some(f) = height_fraction {
                 p.shells.height_fraction = f;

@@ -80,7 +80,7 @@ proptest! {
         let w = shellbake::weld::weld(&m.positions, &m.indices);
         let f = shellbake::frames::extrusion_frames(&w, None);
         let h = m.diagonal() * frac;
-        let params = shellbake::clamp::ClampParams { enabled: true, ..Default::default() };
+        let params = shellbake::clamp::ClampParams { collision: true, ..Default::default() };
         let c = shellbake::clamp::clamp_heights(&w, &f, h, &params);
         prop_assert!(c.welded_scale.iter().all(|s| s.is_finite() && (0.0..=1.0).contains(s)));
         for tri in w.indices.chunks_exact(3) {
@@ -130,7 +130,7 @@ proptest! {
         let mut p = BakeParams::default();
         p.shells.layers = 5;
         p.strands.mask_size = 16;
-        p.clamp.enabled = clamp;
+        p.clamp.collision = clamp;
         p.pack.layout = if single { Layout::SingleDraw } else { Layout::Compact };
         let baked = shellbake::bake(&scene, &p);
         let g = Glb::parse(&baked.glb);
@@ -144,8 +144,8 @@ proptest! {
             let o = old as usize;
             let want = baked.mesh.positions[o] + baked.shells.delta[o] * t;
             let q = grid.quantize(baked.mesh.positions[o]);
-            let d = grid.quantize_delta(baked.shells.delta[o]);
-            let got = grid.dequantize(q) + Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32) * grid.step * t;
+            let d = baked.shells.delta[o] / grid.step;
+            let got = grid.dequantize(q) + d * grid.step * t;
             prop_assert!((got - want).abs().max_element() <= grid.step * 1.001 + want.abs().max_element() * 1e-6);
         }
     }

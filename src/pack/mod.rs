@@ -10,7 +10,7 @@
 //! triangle uses are dropped.
 //!
 //! - **compact**: one quantized geometry (POSITION u16, NORMAL i8, TEXCOORD_0 u16, morph target 0
-//!   = extrusion delta i16) shared by every layer; layer `j` is a primitive reusing the same
+//!   = extrusion delta as float, see below) shared by every layer; layer `j` is a primitive reusing the same
 //!   accessors with its own material (`MASK`, `alphaCutoff`, per-layer colour) and weight `t_j`.
 //!   The base layer is opaque and has no morph target. Adding a layer costs JSON only.
 //! - **single-draw**: every layer's vertices explicitly (positions quantized per layer), all in
@@ -18,7 +18,16 @@
 //!   and `a_j = (BASE_CODE − ½)/(BASE_CODE + k_j − ½)` against the fixed cutoff
 //!   `(BASE_CODE − ½)/255`, which reproduces `s >= t_j` (see `strands.rs`). Indices run from the
 //!   inner to the outer layer.
+//!
+//! The extrusion delta has a precision of its own: 32-bit float in grid units, not integers on
+//! the position grid. On the grid, a delta the clamp shortened to a few steps loses its
+//! direction (the Stanford dragon kept 158 inverted outer-shell triangles that way). A float
+//! delta costs 4 more bytes per vertex than an `i16` one; scaling an `i16` delta up and the layer
+//! weights down would keep it at 8 bytes but breaks every client's bounding box (three.js adds
+//! the whole target to the bounds). Then `guard.rs` checks the stored geometry, so no layer
+//! triangle of the written file inverts.
 
+mod guard;
 mod quantize;
 
 pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid};
@@ -122,6 +131,8 @@ pub struct Packed {
     pub base_vertices: usize,
     /// Vertex order chosen by the optimizer: `order[new] = old`.
     pub vertex_order: Vec<u32>,
+    /// Vertices whose extrusion the inversion guard shortened.
+    pub guarded: usize,
 }
 
 /// What `pack` needs besides the mesh and the stack.
@@ -182,6 +193,25 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
             .chain(positions.iter().zip(&deltas).map(|(&p, &d)| p + d)),
         params.position_bits.min(15),
     );
+    // Deltas in grid units, shortened where the stored geometry would invert.
+    let mut deltas: Vec<Vec3> = deltas.iter().map(|&d| d / grid.step).collect();
+    let shells = input.shells;
+    let top = shells.t.iter().copied().fold(0.0f32, f32::max);
+    let guarded = match params.layout {
+        Layout::Compact => {
+            let base: Vec<Vec3> = positions.iter().map(|&p| grid.quantize(p).map(f32::from).into()).collect();
+            guard::guard(&base, &mut deltas, &indices, &guard::MorphPath { base: &base, top })
+        }
+        Layout::SingleDraw => {
+            let base: Vec<Vec3> = positions.iter().map(|&p| (p - grid.min) / grid.step).collect();
+            let check = guard::RoundedLayers {
+                base: &base,
+                t: &shells.t,
+                top_level: grid.max_level() as f32,
+            };
+            guard::guard(&base, &mut deltas, &indices, &check)
+        }
+    };
     let uv_grid = UvGrid::fit(&uvs);
     let tiles = input.tiles_per_uv;
     let texel_error = (uv_grid.extent * tiles * input.mask.size as f32 / 65535.0).max_element();
@@ -224,6 +254,7 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
         float_uvs,
         base_vertices: nv,
         vertex_order: order,
+        guarded,
     }
 }
 
@@ -235,6 +266,7 @@ struct Ordered {
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
     uvs: Vec<Vec2>,
+    /// Extrusion deltas in grid units (already guarded).
     deltas: Vec<Vec3>,
     indices: Vec<u32>,
 }
@@ -359,27 +391,25 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
     let position = b.positions(&q);
     let normal = b.normals(&s.normals);
     let texcoord = b.texcoords(&s.uvs, s.uv_grid, s.float_uvs);
-    let dq: Vec<[i16; 3]> = deltas.iter().map(|&d| grid.quantize_delta(d)).collect();
     let mut bytes = Bytes::default();
-    let (mut lo, mut hi) = ([i16::MAX; 3], [i16::MIN; 3]);
-    for d in &dq {
-        bytes.i16s(d, 8);
-        for c in 0..3 {
-            lo[c] = lo[c].min(d[c]);
-            hi[c] = hi[c].max(d[c]);
-        }
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for d in deltas {
+        bytes.f32s(&d.to_array());
+        lo = lo.min(*d);
+        hi = hi.max(*d);
     }
-    if dq.is_empty() {
-        (lo, hi) = ([0; 3], [0; 3]);
+    if deltas.is_empty() {
+        (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
     }
-    let dv = b.view("extrusion", bytes.0, Some(8), Some(true));
+    let dv = b.view("extrusion", bytes.0, Some(12), Some(true));
+    let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
     let delta = b.accessor(
         dv,
-        component::SHORT,
+        component::FLOAT,
         false,
-        dq.len(),
+        deltas.len(),
         "VEC3",
-        Some((lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec())),
+        Some((bounds(lo), bounds(hi))),
     );
     let ix = b.indices("indices", &s.indices, positions.len());
     let shells = input.shells;
@@ -427,7 +457,7 @@ pub fn estimate_bytes(
     match layout {
         Layout::Compact => {
             let index = if vertices <= 65535 { 2 } else { 4 };
-            vertices * (8 + 4 + 8 + 8) + triangles * 3 * index + png + json
+            vertices * (8 + 4 + 8 + 12) + triangles * 3 * index + png + json
         }
         Layout::SingleDraw => {
             let n = vertices * layers;
@@ -471,12 +501,11 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive
     let mut colors = Bytes::default();
     for j in 0..layers {
         let t = shells.t[j];
-        q.extend(
-            positions
-                .iter()
-                .zip(deltas)
-                .map(|(&p, &d)| grid.quantize(p + d * t)),
-        );
+        let top_level = grid.max_level() as f32;
+        q.extend(positions.iter().zip(deltas).map(|(&p, &d)| {
+            let r = guard::layer_point((p - grid.min) / grid.step, d, t, top_level);
+            [r.x as u16, r.y as u16, r.z as u16]
+        }));
         let c = shells.color[j];
         let rgba = [
             (c[0].clamp(0.0, 1.0) * 65535.0).round() as u16,

@@ -4,15 +4,16 @@
 //!   holds the base and the fully extruded surface; the node carrying the mesh scales by the grid
 //!   step and translates to the box corner. Uniform, not per-axis, so normals need no correction
 //!   (a non-uniform node scale would bend them). Error ≤ step/2 per component.
-//! - Extrusion delta (morph target): signed 16-bit integers on the same grid. Error ≤ step/2.
-//!   With `bits ≤ 15` every delta fits (|delta| ≤ box extent ≤ 2^bits − 1 steps).
+//! - Extrusion delta (morph target): 32-bit float in grid units (a precision of its own, see
+//!   `mod.rs`); the single-draw layout rounds each layer's positions to the grid instead.
 //! - NORMAL: normalized `i8`, searched in the 3×3×3 integer neighbourhood of the rounded value
 //!   for the vector closest to unit length, so dequantized normals are unit to ~1e-3.
 //! - TEXCOORD_0: normalized `u16` over the UV bounds, undone by `KHR_texture_transform`; float
 //!   when 16 bits would misplace a mask texel by more than 1/8 texel (huge tiling counts).
 //!
-//! So a layer vertex dequantizes to `T + S·(q + t·d)` and differs from the exact
-//! `base + t·delta` by at most one grid step `S` per component (`S/2` from `q`, `t·S/2` from `d`).
+//! So a compact layer vertex dequantizes to `T + S·(q + t·d)` and differs from the exact
+//! `base + t·delta` by at most half a grid step `S` per component (from `q`), unless the
+//! inversion guard shortened `d`.
 
 use glam::{Vec2, Vec3};
 
@@ -66,11 +67,6 @@ impl PositionGrid {
         let q = ((p - self.min) / self.step).round();
         let top = self.max_level() as f32;
         [q.x, q.y, q.z].map(|v| v.clamp(0.0, top) as u16)
-    }
-
-    pub fn quantize_delta(&self, d: Vec3) -> [i16; 3] {
-        let q = (d / self.step).round();
-        [q.x, q.y, q.z].map(|v| v.clamp(-32767.0, 32767.0) as i16)
     }
 
     pub fn dequantize(&self, q: [u16; 3]) -> Vec3 {
@@ -149,12 +145,6 @@ impl Bytes {
         }
         self.pad_element(v.len() * 2, pad_to);
     }
-    pub fn i16s(&mut self, v: &[i16], pad_to: usize) {
-        for x in v {
-            self.0.extend_from_slice(&x.to_le_bytes());
-        }
-        self.pad_element(v.len() * 2, pad_to);
-    }
     pub fn i8s(&mut self, v: &[i8], pad_to: usize) {
         self.0.extend(v.iter().map(|&x| x as u8));
         self.pad_element(v.len(), pad_to);
@@ -206,19 +196,6 @@ mod tests {
         assert!(g.step > 0.0 && g.step.is_finite());
         let g = PositionGrid::fit(std::iter::empty(), 14);
         assert!(g.step > 0.0);
-    }
-
-    #[test]
-    fn delta_round_trip() {
-        let g = PositionGrid {
-            min: Vec3::ZERO,
-            step: 0.01,
-            bits: 14,
-        };
-        let d = Vec3::new(0.123, -0.456, 0.0);
-        let q = g.quantize_delta(d);
-        let back = Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) * g.step;
-        assert!((back - d).abs().max_element() <= 0.005 + 1e-7);
     }
 
     #[test]

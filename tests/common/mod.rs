@@ -144,3 +144,76 @@ pub fn fixture(name: &str) -> PathBuf {
 pub fn path_str(p: &Path) -> String {
     p.display().to_string()
 }
+
+/// Layer triangles of a baked GLB that face against their base triangle (`n_layer · n_base ≤ 0`
+/// in f64, read from the file's own accessors), and the number of layer triangles checked. Base
+/// triangles of zero stored area have no facing and are skipped. Works for both layouts.
+pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
+    let g = Glb::parse(glb);
+    let normal = |p: &[[f64; 3]; 3]| {
+        let e1 = [0, 1, 2].map(|c| p[1][c] - p[0][c]);
+        let e2 = [0, 1, 2].map(|c| p[2][c] - p[0][c]);
+        [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ]
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let row = |v: &Vec<f64>| [v[0], v[1], v[2]];
+    let (mut inverted, mut checked) = (0, 0);
+    let meshes = g.json["meshes"].as_array().unwrap();
+    let layout = g.json["nodes"][0]["extras"]["shellbake"]["layout"].as_str().unwrap();
+    if layout == "compact" {
+        let base_prim = &meshes[0]["primitives"][0];
+        let pos = g.accessor(base_prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
+        let ix: Vec<usize> = g
+            .accessor(base_prim["indices"].as_u64().unwrap() as usize)
+            .iter()
+            .map(|v| v[0] as usize)
+            .collect();
+        for mesh in &meshes[1..] {
+            let prim = &mesh["primitives"][0];
+            let w = mesh["weights"][0].as_f64().unwrap();
+            let d = g.accessor(prim["targets"][0]["POSITION"].as_u64().unwrap() as usize);
+            for t in ix.chunks_exact(3) {
+                let base = [0, 1, 2].map(|k| row(&pos[t[k]]));
+                let n0 = normal(&base);
+                if n0 == [0.0; 3] {
+                    continue;
+                }
+                let layer = [0, 1, 2].map(|k| {
+                    let (p, dd) = (&pos[t[k]], &d[t[k]]);
+                    [0, 1, 2].map(|c| p[c] + w * dd[c])
+                });
+                checked += 1;
+                if dot(normal(&layer), n0) <= 0.0 {
+                    inverted += 1;
+                }
+            }
+        }
+    } else {
+        let prim = &meshes[0]["primitives"][0];
+        let pos = g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
+        let ix: Vec<usize> = g
+            .accessor(prim["indices"].as_u64().unwrap() as usize)
+            .iter()
+            .map(|v| v[0] as usize)
+            .collect();
+        let layers = g.json["nodes"][0]["extras"]["shellbake"]["layers"].as_u64().unwrap() as usize;
+        let per = ix.len() / layers;
+        for j in 1..layers {
+            for (b, l) in ix[..per].chunks_exact(3).zip(ix[j * per..(j + 1) * per].chunks_exact(3)) {
+                let n0 = normal(&[0, 1, 2].map(|k| row(&pos[b[k]])));
+                if n0 == [0.0; 3] {
+                    continue;
+                }
+                checked += 1;
+                if dot(normal(&[0, 1, 2].map(|k| row(&pos[l[k]]))), n0) <= 0.0 {
+                    inverted += 1;
+                }
+            }
+        }
+    }
+    (inverted, checked)
+}

@@ -1,0 +1,179 @@
+//! The inversion guard: no layer triangle of the *written* file faces against its base.
+//!
+//! The clamp stage bounds heights on the exact float geometry; what a client draws is the
+//! quantized one. Rounding a base corner by half a grid step, or (in the single-draw layout)
+//! rounding each layer's corners to the grid, can tip a small triangle over where the float
+//! geometry had a thin margin. So pack checks the stored geometry itself, triangle by triangle,
+//! and shortens the extrusion of any triangle that would invert: each round scales the deltas
+//! of an offending triangle's corners (by the fraction of the path that is safe, or by half),
+//! and re-examines the triangles around them. Corners are grouped by stored position and delta,
+//! so render vertices split only by normals or UVs keep moving together (no cracks). After
+//! [`ROUNDS`] rounds an offender's deltas are set to zero, where its layers coincide with its
+//! base and cannot invert; so the loop always ends.
+//!
+//! Triangles whose stored base is degenerate (zero area after quantization) have no facing and
+//! are not checked.
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Rounds of proportional shortening before offenders are flattened.
+const ROUNDS: usize = 24;
+
+/// How an inverted triangle should be shortened: `Some(f)` scales its corners' deltas by `f`
+/// (in [0, 1)), `None` when it does not invert.
+pub trait Check: Sync {
+    fn check(&self, corners: [u32; 3], deltas: &[Vec3], round: usize) -> Option<f32>;
+}
+
+/// Shortens `deltas` (per vertex) until `check` passes for every triangle of `indices`.
+/// `base` groups vertices that must keep equal deltas. Returns the number of vertices shortened.
+pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl Check) -> usize {
+    let mut group_of: HashMap<([u32; 3], [u32; 3]), u32> = HashMap::new();
+    let group: Vec<u32> = base
+        .iter()
+        .zip(deltas.iter())
+        .map(|(p, d)| {
+            let key = (p.to_array().map(f32::to_bits), d.to_array().map(f32::to_bits));
+            let next = group_of.len() as u32;
+            *group_of.entry(key).or_insert(next)
+        })
+        .collect();
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); group_of.len()];
+    for (v, &g) in group.iter().enumerate() {
+        members[g as usize].push(v as u32);
+    }
+    let mut around: Vec<Vec<u32>> = vec![Vec::new(); group_of.len()];
+    for (t, tri) in indices.chunks_exact(3).enumerate() {
+        for &v in tri {
+            around[group[v as usize] as usize].push(t as u32);
+        }
+    }
+    let tri = |t: u32| {
+        let i = 3 * t as usize;
+        [indices[i], indices[i + 1], indices[i + 2]]
+    };
+    let mut shortened = vec![false; base.len()];
+    let mut check_list: Vec<u32> = (0..(indices.len() / 3) as u32).collect();
+    for round in 0.. {
+        let bad: Vec<(u32, f32)> = check_list
+            .par_iter()
+            .filter_map(|&t| {
+                let f = check.check(tri(t), deltas, round)?;
+                Some((t, if round < ROUNDS { f.clamp(0.0, 0.99) } else { 0.0 }))
+            })
+            .collect();
+        if bad.is_empty() {
+            break;
+        }
+        let mut factor: Vec<(u32, f32)> = bad
+            .iter()
+            .flat_map(|&(t, f)| tri(t).map(|v| (group[v as usize], f)))
+            .collect();
+        factor.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        factor.dedup_by_key(|x| x.0);
+        check_list.clear();
+        for &(g, f) in &factor {
+            for &v in &members[g as usize] {
+                deltas[v as usize] *= f;
+                shortened[v as usize] = true;
+            }
+            check_list.extend(&around[g as usize]);
+        }
+        check_list.sort_unstable();
+        check_list.dedup();
+    }
+    shortened.iter().filter(|&&s| s).count()
+}
+
+/// Compact layout: layer `j` is `base + t_j · delta` in float (a morph target), so a triangle is
+/// safe when its path up to the top layer's weight does not invert.
+pub struct MorphPath<'a> {
+    pub base: &'a [Vec3],
+    pub top: f32,
+}
+
+impl Check for MorphPath<'_> {
+    fn check(&self, c: [u32; 3], deltas: &[Vec3], _round: usize) -> Option<f32> {
+        let p = c.map(|v| self.base[v as usize]);
+        let g = c.map(|v| deltas[v as usize] * self.top);
+        let root = crate::clamp::ray_inversion(p, g)?;
+        (root <= 1.0).then_some(root as f32 * 0.9)
+    }
+}
+
+/// Single-draw layout: every layer's corners are rounded to the grid on their own, so each
+/// stored layer triangle is compared with the stored base triangle.
+pub struct RoundedLayers<'a> {
+    /// Unrounded base positions in grid units.
+    pub base: &'a [Vec3],
+    pub t: &'a [f32],
+    pub top_level: f32,
+}
+
+/// A single-draw layer vertex in grid units, as stored: `base + t · delta` rounded to the grid.
+pub fn layer_point(p: Vec3, d: Vec3, t: f32, top_level: f32) -> Vec3 {
+    (p + d * t).round().clamp(Vec3::ZERO, Vec3::splat(top_level))
+}
+
+impl Check for RoundedLayers<'_> {
+    fn check(&self, c: [u32; 3], deltas: &[Vec3], _round: usize) -> Option<f32> {
+        let layer = |t: f32| {
+            c.map(|v| {
+                layer_point(self.base[v as usize], deltas[v as usize], t, self.top_level).as_dvec3()
+            })
+        };
+        let normal = |q: [glam::DVec3; 3]| (q[1] - q[0]).cross(q[2] - q[0]);
+        let n0 = normal(layer(0.0));
+        if n0 == glam::DVec3::ZERO {
+            return None;
+        }
+        self.t[1..]
+            .iter()
+            .any(|&t| normal(layer(t)).dot(n0) <= 0.0)
+            .then_some(0.5)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn converging_corners_are_shortened_until_nothing_inverts() {
+        // corner 1 moves by -x faster than the triangle is wide: inverts at t = 0.5
+        let base = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let mut d = vec![Vec3::Z, Vec3::new(-2.0, 0.0, 1.0), Vec3::Z];
+        let n = guard(&base, &mut d, &[0, 1, 2], &MorphPath { base: &base, top: 1.0 });
+        assert_eq!(n, 3);
+        let root = crate::clamp::ray_inversion(base, [d[0], d[1], d[2]]).unwrap();
+        assert!(root > 1.0, "{root}");
+        // a triangle that does not invert is left alone
+        let mut d = vec![Vec3::Z; 3];
+        assert_eq!(guard(&base, &mut d, &[0, 1, 2], &MorphPath { base: &base, top: 1.0 }), 0);
+        assert_eq!(d, vec![Vec3::Z; 3]);
+    }
+
+    #[test]
+    fn rounding_that_tips_a_tiny_triangle_is_caught() {
+        // a one-step triangle whose layer corners round the wrong way
+        let base = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let mut d = vec![Vec3::new(0.0, 0.0, 3.0), Vec3::new(-1.4, 0.0, 3.0), Vec3::new(0.0, 0.0, 3.0)];
+        let check = RoundedLayers { base: &base, t: &[0.0, 0.5, 1.0], top_level: 16383.0 };
+        assert!(check.check([0, 1, 2], &d, 0).is_some());
+        guard(&base, &mut d, &[0, 1, 2], &check);
+        assert!(check.check([0, 1, 2], &d, 0).is_none());
+    }
+
+    #[test]
+    fn vertices_at_one_position_keep_one_delta() {
+        // vertex 3 duplicates vertex 1 (a UV seam): both are shortened together
+        let base = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X, Vec3::new(1.0, 1.0, 0.0)];
+        let bad = Vec3::new(-2.0, 0.0, 1.0);
+        let mut d = vec![Vec3::Z, bad, Vec3::Z, bad, Vec3::Z];
+        guard(&base, &mut d, &[0, 1, 2, 3, 4, 2], &MorphPath { base: &base, top: 1.0 });
+        assert_eq!(d[1], d[3]);
+    }
+}
