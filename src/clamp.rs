@@ -231,7 +231,11 @@ fn inversion_scales(
     }
     let tri = |t: u32| {
         let i = 3 * t as usize;
-        [welded.indices[i], welded.indices[i + 1], welded.indices[i + 2]]
+        [
+            welded.indices[i],
+            welded.indices[i + 1],
+            welded.indices[i + 2],
+        ]
     };
     let mut check: Vec<u32> = (0..(welded.indices.len() / 3) as u32).collect();
     for round in 0.. {
@@ -243,7 +247,11 @@ fn inversion_scales(
                 let g = v.map(|v| dirs[v as usize] * (height * scale[v as usize]));
                 let root = ray_inversion(p, g)?;
                 (root <= 1.0).then(|| {
-                    let f = if round < BOUND_ROUNDS { root as f32 * keep } else { 0.0 };
+                    let f = if round < BOUND_ROUNDS {
+                        root as f32 * keep
+                    } else {
+                        0.0
+                    };
                     (t, f)
                 })
             })
@@ -336,9 +344,16 @@ pub fn smooth_directions(welded: &Welded, dirs: &[Vec3], height: f32) -> (Vec<Ve
         })
         .collect();
     let faces = incident_faces(welded);
-    let edges = tris
-        .iter()
-        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0]), (t[1], t[0]), (t[2], t[1]), (t[0], t[2])]);
+    let edges = tris.iter().flat_map(|t| {
+        [
+            (t[0], t[1]),
+            (t[1], t[2]),
+            (t[2], t[0]),
+            (t[1], t[0]),
+            (t[2], t[1]),
+            (t[0], t[2]),
+        ]
+    });
     let ring = Csr::build(n, edges);
     let inverts = |d: &[Vec3], t: usize| {
         let tri = tris[t];
@@ -381,9 +396,9 @@ pub fn smooth_directions(welded: &Welded, dirs: &[Vec3], height: f32) -> (Vec<Ve
                     }
                     d = d.normalize_or_zero();
                 }
-                let outer = incident
-                    .iter()
-                    .all(|&f| normals[f as usize] == Vec3::ZERO || d.dot(normals[f as usize]) > 0.0);
+                let outer = incident.iter().all(|&f| {
+                    normals[f as usize] == Vec3::ZERO || d.dot(normals[f as usize]) > 0.0
+                });
                 (outer && d != Vec3::ZERO && d != own).then_some((v, d))
             })
             .collect();
@@ -445,7 +460,12 @@ fn incident(welded: &Welded, tri: usize, v: u32) -> bool {
 }
 
 /// The directions the bounds work with: smoothed, or as framed.
-fn directions(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams) -> (Vec<Vec3>, usize) {
+fn directions(
+    welded: &Welded,
+    frames: &Frames,
+    height: f32,
+    params: &ClampParams,
+) -> (Vec<Vec3>, usize) {
     if params.smooth && height > 0.0 {
         smooth_directions(welded, &frames.welded, height)
     } else {
@@ -533,10 +553,21 @@ fn finish(
     let h = height as f64;
     let by_collision: Vec<f32> = collision
         .iter()
-        .map(|&c| if h > 0.0 { (c / h).clamp(0.0, 1.0) as f32 } else { 1.0 })
+        .map(|&c| {
+            if h > 0.0 {
+                (c / h).clamp(0.0, 1.0) as f32
+            } else {
+                1.0
+            }
+        })
         .collect();
-    let welded_scale =
-        inversion_scales(welded, &dirs, height, params.inversion_keep, by_collision.clone());
+    let welded_scale = inversion_scales(
+        welded,
+        &dirs,
+        height,
+        params.inversion_keep,
+        by_collision.clone(),
+    );
     let mut out = Clamp {
         smoothed,
         ..Default::default()

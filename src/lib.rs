@@ -159,7 +159,12 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     report.count("mask_texels", (mask.size * mask.size) as f64);
     report.count("cells_per_tile", mask.cells_per_tile as f64);
     let tiling = report.run("tiling", || {
-        tiling::mask_tiling(&mesh, density, params.strands.uv_density, mask.cells_per_tile)
+        tiling::mask_tiling(
+            &mesh,
+            density,
+            params.strands.uv_density,
+            mask.cells_per_tile,
+        )
     });
     report.warnings.extend(tiling.warning());
     let tiles_per_uv = tiling.tiles_per_uv;

@@ -316,7 +316,12 @@ mod tests {
         assert!(
             parse_bool_flags(&["bake", "a.obj", "--clamp"])
                 .clamp
-                .enabled
+                .collision
+        );
+        let p = parse_bool_flags(&["bake", "a.obj", "--orient", "keep"]);
+        assert_eq!(p.orient.mode, shellbake::orient::OrientMode::Keep);
+        assert!(
+            Cli::try_parse_from(["shellbake", "bake", "a.obj", "--orient", "sideways"]).is_err()
         );
     }
 

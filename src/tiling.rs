@@ -114,8 +114,16 @@ pub fn mask_tiling(
         (None, None) => (DVec2::ONE, 1.0),
     };
     let requested = DVec2::new(
-        if requested.x.is_finite() && requested.x > 0.0 { requested.x } else { 1.0 },
-        if requested.y.is_finite() && requested.y > 0.0 { requested.y } else { 1.0 },
+        if requested.x.is_finite() && requested.x > 0.0 {
+            requested.x
+        } else {
+            1.0
+        },
+        if requested.y.is_finite() && requested.y > 0.0 {
+            requested.y
+        } else {
+            1.0
+        },
     );
     let (lo, hi) = mesh
         .uvs

@@ -57,7 +57,12 @@ pub struct Welded {
 impl Welded {
     /// Sides split off a render vertex shared by both sides of a sheet.
     pub fn split_vertices(&self) -> usize {
-        self.vertex_source.len() - self.vertex_source.iter().max().map_or(0, |&m| m as usize + 1)
+        self.vertex_source.len()
+            - self
+                .vertex_source
+                .iter()
+                .max()
+                .map_or(0, |&m| m as usize + 1)
     }
 }
 
@@ -214,10 +219,17 @@ pub fn weld(positions: &[Vec3], indices: &[u32]) -> Welded {
             for end in [group[0].a, group[0].b] {
                 let corner = |t: u32, k: u8| {
                     let tri = tris[t as usize];
-                    let k = if tri[k as usize] == end { k } else { (k + 1) % 3 };
+                    let k = if tri[k as usize] == end {
+                        k
+                    } else {
+                        (k + 1) % 3
+                    };
                     3 * t + k as u32
                 };
-                let (x, y) = (find(&mut parent, corner(ti, ki)), find(&mut parent, corner(tj, kj)));
+                let (x, y) = (
+                    find(&mut parent, corner(ti, ki)),
+                    find(&mut parent, corner(tj, kj)),
+                );
                 if x != y {
                     parent[x.max(y) as usize] = x.min(y);
                 }
@@ -334,7 +346,11 @@ mod tests {
             ix.extend([t[0] + 6, t[2] + 6, t[1] + 6]);
         }
         let w = weld(&p, &ix);
-        assert_eq!(w.positions.len(), 12, "each side keeps its own welded vertices");
+        assert_eq!(
+            w.positions.len(),
+            12,
+            "each side keeps its own welded vertices"
+        );
         for v in 0..6 {
             assert_ne!(w.remap[v], w.remap[v + 6]);
         }
@@ -365,12 +381,7 @@ mod tests {
         // a closed thin wedge opening 30°: still one surface (continues round the blade)
         let c = libm::cosf(30f32.to_radians());
         let s = libm::sinf(30f32.to_radians());
-        let p = [
-            Vec3::ZERO,
-            Vec3::Z,
-            Vec3::X,
-            Vec3::new(c, s, 0.0),
-        ];
+        let p = [Vec3::ZERO, Vec3::Z, Vec3::X, Vec3::new(c, s, 0.0)];
         let w = weld(&p, &[0, 1, 2, 0, 3, 1]);
         assert_eq!(w.positions.len(), 4);
     }

@@ -481,7 +481,8 @@ fn oversize_outputs() {
 
 #[test]
 fn clamp_is_needed_for_the_concave_box() {
-    // Without the clamp the inside of a box inverts; with it, it does not (the test above). This
+    // The same box with its extrusion at the full height along the (unsmoothed) frames, as it
+    // would be without the inversion bound, inverts; the bake (the test above) does not. This
     // shows the invariant checker can fail.
     let m = open_box_inside();
     let dir = scratch("clamp_needed");
@@ -490,7 +491,16 @@ fn clamp_is_needed_for_the_concave_box() {
     let scene = shellbake::load::load(Path::new(&input)).unwrap();
     let mut p = BakeParams::default();
     p.shells.height_fraction = 0.6;
-    let baked = shellbake::bake(&scene, &p);
-    let r = std::panic::catch_unwind(|| no_layer_inverts(&baked, "unclamped"));
-    assert!(r.is_err(), "an unclamped concave box must invert");
+    let mut baked = shellbake::bake(&scene, &p);
+    no_layer_inverts(&baked, "bounded");
+    let w = shellbake::weld::weld(&baked.mesh.positions, &baked.mesh.indices);
+    let f = shellbake::frames::extrusion_frames(&w, None);
+    assert_eq!(w.vertex_source.len(), baked.mesh.vertex_count());
+    baked.shells.delta = f
+        .direction
+        .iter()
+        .map(|d| *d * baked.shells.height)
+        .collect();
+    let r = std::panic::catch_unwind(|| no_layer_inverts(&baked, "unbounded"));
+    assert!(r.is_err(), "an unbounded concave box must invert");
 }

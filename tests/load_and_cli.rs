@@ -170,10 +170,21 @@ fn cli_bakes_with_report_and_summary() {
         .iter()
         .map(|s| (s["name"].as_str().unwrap(), s["ran"].as_bool().unwrap()))
         .collect();
+    // the inversion bound always runs; collision only with --clamp (noted in the report)
     assert!(
-        stages.contains(&("clamp", false)) && stages.contains(&("pack", true)),
+        stages.contains(&("orient", true))
+            && stages.contains(&("clamp", true))
+            && stages.contains(&("tiling", true))
+            && stages.contains(&("pack", true)),
         "{stages:?}"
     );
+    let clamp = r["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "clamp")
+        .unwrap();
+    assert!(clamp["note"].as_str().unwrap().contains("collision"));
     assert_eq!(r["bytes_per_layer"].as_array().unwrap().len(), 10);
     assert!(r["streams"]["position"].as_u64().unwrap() > 0);
     assert_eq!(

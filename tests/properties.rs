@@ -54,15 +54,25 @@ proptest! {
     #[test]
     fn weld_keeps_positions_and_drops_only_collapsed_triangles(m in arb_mesh()) {
         let w = shellbake::weld::weld(&m.positions, &m.indices);
-        prop_assert_eq!(w.remap.len(), m.positions.len());
+        prop_assert_eq!(w.remap.len(), w.vertex_source.len());
+        prop_assert!(w.vertex_source.len() >= m.positions.len());
         for (v, &id) in w.remap.iter().enumerate() {
-            prop_assert_eq!(w.positions[id as usize], m.positions[v]);
+            prop_assert_eq!(w.positions[id as usize], m.positions[w.vertex_source[v] as usize]);
         }
         for t in w.indices.chunks_exact(3) {
             prop_assert!(t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
         }
-        let kept = (0..m.triangle_count()).filter(|&t| w.keeps(&m.indices, t)).count();
+        // exactly the triangles with three distinct positions are kept, each on render vertices
+        // at the welded vertex's position
+        let distinct = |t: &[u32]| {
+            let p = [0, 1, 2].map(|k| m.positions[t[k] as usize].to_array().map(|x| (x + 0.0).to_bits()));
+            p[0] != p[1] && p[1] != p[2] && p[0] != p[2]
+        };
+        let kept = m.indices.chunks_exact(3).filter(|t| distinct(t)).count();
         prop_assert_eq!(kept * 3, w.indices.len());
+        for (&r, &wv) in w.render_indices.iter().zip(&w.indices) {
+            prop_assert_eq!(w.remap[r as usize], wv);
+        }
     }
 
     #[test]
@@ -83,6 +93,7 @@ proptest! {
         let params = shellbake::clamp::ClampParams { collision: true, ..Default::default() };
         let c = shellbake::clamp::clamp_heights(&w, &f, h, &params);
         prop_assert!(c.welded_scale.iter().all(|s| s.is_finite() && (0.0..=1.0).contains(s)));
+        let dirs = &c.welded_direction;
         for tri in w.indices.chunks_exact(3) {
             let p = [0, 1, 2].map(|k| w.positions[tri[k] as usize].as_dvec3());
             let n0 = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -92,7 +103,7 @@ proptest! {
             for t in [0.25, 0.5, 1.0] {
                 let q = [0, 1, 2].map(|k| {
                     let v = tri[k] as usize;
-                    p[k] + (f.welded[v] * h * c.welded_scale[v]).as_dvec3() * t
+                    p[k] + (dirs[v] * h * c.welded_scale[v]).as_dvec3() * t
                 });
                 let n = (q[1] - q[0]).cross(q[2] - q[0]);
                 prop_assert!(n.dot(n0) > 0.0, "triangle {:?} inverts at t={}", tri, t);

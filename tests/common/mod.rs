@@ -163,7 +163,9 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
     let row = |v: &Vec<f64>| [v[0], v[1], v[2]];
     let (mut inverted, mut checked) = (0, 0);
     let meshes = g.json["meshes"].as_array().unwrap();
-    let layout = g.json["nodes"][0]["extras"]["shellbake"]["layout"].as_str().unwrap();
+    let layout = g.json["nodes"][0]["extras"]["shellbake"]["layout"]
+        .as_str()
+        .unwrap();
     if layout == "compact" {
         let base_prim = &meshes[0]["primitives"][0];
         let pos = g.accessor(base_prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
@@ -200,10 +202,15 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
             .iter()
             .map(|v| v[0] as usize)
             .collect();
-        let layers = g.json["nodes"][0]["extras"]["shellbake"]["layers"].as_u64().unwrap() as usize;
+        let layers = g.json["nodes"][0]["extras"]["shellbake"]["layers"]
+            .as_u64()
+            .unwrap() as usize;
         let per = ix.len() / layers;
         for j in 1..layers {
-            for (b, l) in ix[..per].chunks_exact(3).zip(ix[j * per..(j + 1) * per].chunks_exact(3)) {
+            for (b, l) in ix[..per]
+                .chunks_exact(3)
+                .zip(ix[j * per..(j + 1) * per].chunks_exact(3))
+            {
                 let n0 = normal(&[0, 1, 2].map(|k| row(&pos[b[k]])));
                 if n0 == [0.0; 3] {
                     continue;
