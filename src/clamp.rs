@@ -59,10 +59,11 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::frames::Frames;
+use crate::mesh::Adjacency;
 use crate::weld::Welded;
 
 /// Jacobi smoothing iterations at most (each re-examines only what the previous one changed).
-pub const SMOOTH_ITERATIONS: usize = 8;
+pub const SMOOTH_ITERATIONS: usize = 4;
 
 /// Clamp stage parameters.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -284,43 +285,14 @@ fn inversion_scales(
     scale
 }
 
-/// Compressed adjacency: `items[start[v]..start[v + 1]]` for each of `n` keys.
-struct Csr {
-    start: Vec<u32>,
-    items: Vec<u32>,
-}
-
-impl Csr {
-    fn build(n: usize, pairs: impl Iterator<Item = (u32, u32)> + Clone) -> Csr {
-        let mut start = vec![0u32; n + 1];
-        for (k, _) in pairs.clone() {
-            start[k as usize + 1] += 1;
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut items = vec![0u32; start[n] as usize];
-        for (k, v) in pairs {
-            items[fill[k as usize] as usize] = v;
-            fill[k as usize] += 1;
-        }
-        Csr { start, items }
-    }
-
-    fn of(&self, k: u32) -> &[u32] {
-        &self.items[self.start[k as usize] as usize..self.start[k as usize + 1] as usize]
-    }
-}
-
 /// The triangles around each welded vertex.
-fn incident_faces(welded: &Welded) -> Csr {
+fn incident_faces(welded: &Welded) -> Adjacency {
     let corners = welded
         .indices
         .iter()
         .enumerate()
         .map(|(i, &v)| (v, (i / 3) as u32));
-    Csr::build(welded.positions.len(), corners)
+    Adjacency::build(welded.positions.len(), corners)
 }
 
 /// Smallest `d · n_f` a smoothed direction may have against an incident face normal.
@@ -354,7 +326,7 @@ pub fn smooth_directions(welded: &Welded, dirs: &[Vec3], height: f32) -> (Vec<Ve
             (t[0], t[2]),
         ]
     });
-    let ring = Csr::build(n, edges);
+    let ring = Adjacency::build(n, edges);
     let inverts = |d: &[Vec3], t: usize| {
         let tri = tris[t];
         let g = tri.map(|v| d[v as usize] * height);

@@ -100,7 +100,12 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         load::generate_box_uvs(&mut mesh);
     }
 
-    let orientation = report.run("orient", || orient::orient(&mut mesh, &params.orient));
+    // One exact-position topology serves orient and weld (orienting changes no edge).
+    let (topology, orientation) = report.run("orient", || {
+        let topology = weld::Topology::new(&mesh.positions, &mesh.indices);
+        let orientation = orient::orient_on(&mut mesh, &topology, &params.orient);
+        (topology, orientation)
+    });
     report.count("components", orientation.components as f64);
     report.count("closed_components", orientation.closed as f64);
     report.count("turned_outward", orientation.turned_outward as f64);
@@ -111,7 +116,8 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         report.note("orient", &format!("--orient {}", params.orient.mode.name()));
     }
 
-    let welded = report.run("weld", || weld::weld(&mesh.positions, &mesh.indices));
+    let welded = report.run("weld", || weld::weld_on(&topology, &mesh.indices));
+    drop(topology);
     report.count("welded_vertices", welded.positions.len() as f64);
     report.count(
         "collapsed_triangles",

@@ -191,6 +191,36 @@ impl Scene {
     }
 }
 
+/// Compressed adjacency lists: `of(k)` = the items paired with key `k`, in the order the pairs
+/// were given; one allocation for all keys.
+pub struct Adjacency {
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Adjacency {
+    pub fn build(n: usize, pairs: impl Iterator<Item = (u32, u32)> + Clone) -> Adjacency {
+        let mut start = vec![0u32; n + 1];
+        for (k, _) in pairs.clone() {
+            start[k as usize + 1] += 1;
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut items = vec![0u32; start[n] as usize];
+        for (k, v) in pairs {
+            items[fill[k as usize] as usize] = v;
+            fill[k as usize] += 1;
+        }
+        Adjacency { start, items }
+    }
+
+    pub fn of(&self, k: u32) -> &[u32] {
+        &self.items[self.start[k as usize] as usize..self.start[k as usize + 1] as usize]
+    }
+}
+
 /// Unit face normal and doubled area of triangle `(a, b, c)`; zero normal for degenerate ones.
 pub fn face_normal(a: Vec3, b: Vec3, c: Vec3) -> (Vec3, f32) {
     let n = (b - a).cross(c - a);

@@ -34,7 +34,7 @@ use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::mesh::{face_normal, Mesh};
-use crate::weld::{edge_sides, folded, position_ids};
+use crate::weld::{folded, Topology};
 
 /// Two triangles across an edge closer than this (radians, measured around the edge) lie on
 /// top of each other: a fold, not a continuation of the surface.
@@ -131,6 +131,12 @@ pub(crate) fn angle_around(a: DVec3, b: DVec3, r: DVec3) -> f64 {
 
 /// Orients `mesh` in place.
 pub fn orient(mesh: &mut Mesh, params: &OrientParams) -> Orientation {
+    let topo = Topology::new(&mesh.positions, &mesh.indices);
+    orient_on(mesh, &topo, params)
+}
+
+/// [`orient`] on a topology already built for `mesh` (which `weld` can then reuse).
+pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Orientation {
     let nt = mesh.triangle_count();
     let mut out = Orientation::default();
     match params.mode {
@@ -142,18 +148,13 @@ pub fn orient(mesh: &mut Mesh, params: &OrientParams) -> Orientation {
         }
         OrientMode::Auto => {}
     }
-    let (ids, positions) = position_ids(&mesh.positions);
-    let tris: Vec<[u32; 3]> = mesh
-        .indices
-        .chunks_exact(3)
-        .map(|t| [ids[t[0] as usize], ids[t[1] as usize], ids[t[2] as usize]])
-        .collect();
-    let pos = |i: u32| positions[i as usize].as_dvec3();
+    let tris = topo.tris(&mesh.indices);
+    let pos = |i: u32| topo.positions[i as usize].as_dvec3();
 
     // Neighbours: (other triangle, must-differ-in-flip), at most one per edge of a triangle.
     let mut links = vec![[(u32::MAX, false); 3]; nt];
     let mut open_edge = vec![false; nt];
-    let sides = edge_sides(&tris);
+    let sides = topo.sides(&tris);
     for m in sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
         let third = |i: usize| pos(tris[m[i].t as usize][(m[i].k as usize + 2) % 3]);
         if m.len() == 2 && !folded(pos(m[0].a), pos(m[0].b), third(0), third(1)) {

@@ -31,6 +31,7 @@
 //! angle between their face normals (splits sharp cone tips and needles into pieces).
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::{DVec3, Vec3};
 
@@ -66,6 +67,35 @@ impl Welded {
     }
 }
 
+/// A small multiplicative hasher for integer keys (positions as bits, vertex ids): several times
+/// faster than the default SipHash on the million-entry maps of a large mesh, and deterministic.
+/// Keys come from the mesh, not from an adversary who could aim collisions at a service.
+#[derive(Default)]
+pub struct IdHasher(u64);
+
+impl Hasher for IdHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u32(&mut self, x: u32) {
+        self.write_u64(x as u64);
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_usize(&mut self, x: usize) {
+        self.write_u64(x as u64);
+    }
+}
+
+/// A `HashMap` with [`IdHasher`].
+pub type IdMap<K, V> = HashMap<K, V, BuildHasherDefault<IdHasher>>;
+
 fn key(p: Vec3) -> [u32; 3] {
     // +0.0 folds -0.0 into 0.0; every other value keeps its bits.
     [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f32::to_bits)
@@ -74,7 +104,8 @@ fn key(p: Vec3) -> [u32; 3] {
 /// Exact-position ids: for each vertex its position id (first-occurrence order), and the
 /// position of each id.
 pub fn position_ids(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
-    let mut ids: HashMap<[u32; 3], u32> = HashMap::with_capacity(positions.len());
+    let mut ids: IdMap<[u32; 3], u32> = IdMap::default();
+    ids.reserve(positions.len());
     let mut unique = Vec::new();
     let remap = positions
         .iter()
@@ -101,28 +132,74 @@ pub struct EdgeSide {
     pub forward: bool,
 }
 
-/// Every edge side of `tris`, sorted so that the sides of one edge are adjacent (group them with
-/// `chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))`). Collapsed triangles (two corners on one id)
-/// contribute no edges.
-pub fn edge_sides(tris: &[[u32; 3]]) -> Vec<EdgeSide> {
-    let mut edges: Vec<EdgeSide> = Vec::with_capacity(tris.len() * 3);
-    for (t, tri) in tris.iter().enumerate() {
-        if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
-            continue;
+/// Exact-position topology of a triangle list, built once and shared by `orient` and `weld`:
+/// position ids per vertex and every edge with its triangles, sorted by edge. Reversing a
+/// triangle's winding (what `orient` does) changes no edge, so the same topology serves before
+/// and after; [`Topology::sides`] reads each side's direction from the current winding.
+pub struct Topology {
+    /// Position id of each vertex (first-occurrence order).
+    pub ids: Vec<u32>,
+    /// Position of each id.
+    pub positions: Vec<Vec3>,
+    /// `(a << 32 | b, triangle)` for each edge `a < b` of each non-collapsed triangle, sorted.
+    edges: Vec<(u64, u32)>,
+}
+
+impl Topology {
+    pub fn new(positions: &[Vec3], indices: &[u32]) -> Topology {
+        let (ids, unique) = position_ids(positions);
+        let mut edges = Vec::with_capacity(indices.len());
+        for (t, tri) in indices.chunks_exact(3).enumerate() {
+            let w = [0, 1, 2].map(|k| ids[tri[k] as usize]);
+            if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+                continue;
+            }
+            for k in 0..3 {
+                let (p, q) = (w[k], w[(k + 1) % 3]);
+                edges.push(((p.min(q) as u64) << 32 | p.max(q) as u64, t as u32));
+            }
         }
-        for k in 0..3 {
-            let (p, q) = (tri[k], tri[(k + 1) % 3]);
-            edges.push(EdgeSide {
-                a: p.min(q),
-                b: p.max(q),
-                t: t as u32,
-                k: k as u8,
-                forward: p < q,
-            });
+        edges.sort_unstable();
+        Topology {
+            ids,
+            positions: unique,
+            edges,
         }
     }
-    edges.sort_unstable();
-    edges
+
+    /// The triangles of `indices` on position ids.
+    pub fn tris(&self, indices: &[u32]) -> Vec<[u32; 3]> {
+        indices
+            .chunks_exact(3)
+            .map(|t| [0, 1, 2].map(|k| self.ids[t[k] as usize]))
+            .collect()
+    }
+
+    /// Every edge side, sorted so that the sides of one edge are adjacent (group them with
+    /// `chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))`), directions read from `tris` (the current
+    /// winding of the triangles the topology was built on).
+    pub fn sides(&self, tris: &[[u32; 3]]) -> Vec<EdgeSide> {
+        self.edges
+            .iter()
+            .map(|&(key, t)| {
+                let (a, b) = ((key >> 32) as u32, key as u32);
+                let tri = tris[t as usize];
+                let k = (0..3)
+                    .find(|&k| {
+                        let (p, q) = (tri[k], tri[(k + 1) % 3]);
+                        (p == a && q == b) || (p == b && q == a)
+                    })
+                    .expect("the edge belongs to its triangle");
+                EdgeSide {
+                    a,
+                    b,
+                    t,
+                    k: k as u8,
+                    forward: tri[k] == a,
+                }
+            })
+            .collect()
+    }
 }
 
 /// Whether two triangles on edge `(pa, pb)` with third corners `r0`, `r1` lie on top of each
@@ -197,23 +274,21 @@ fn find(parent: &mut [u32], mut x: u32) -> u32 {
 
 /// Welds `positions` by position and side, and rewrites `indices` on the welded vertices.
 pub fn weld(positions: &[Vec3], indices: &[u32]) -> Welded {
-    debug_assert!(indices.len().is_multiple_of(3));
-    let (ids, upos) = position_ids(positions);
-    let mut source_triangle = Vec::new();
-    let mut tris: Vec<[u32; 3]> = Vec::new();
-    for (t, tri) in indices.chunks_exact(3).enumerate() {
-        let w = [0, 1, 2].map(|k| ids[tri[k] as usize]);
-        if w[0] != w[1] && w[1] != w[2] && w[0] != w[2] {
-            tris.push(w);
-            source_triangle.push(t as u32);
-        }
-    }
+    weld_on(&Topology::new(positions, indices), indices)
+}
 
-    // Corners (3 per kept triangle) joined across continuing edges.
+/// [`weld`] on a topology already built for `indices`' positions.
+pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
+    debug_assert!(indices.len().is_multiple_of(3));
+    let nv = topo.ids.len();
+    let tris = topo.tris(indices);
+    let kept = |t: &[u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
+
+    // Corners (3 per triangle) joined across continuing edges.
     let mut parent: Vec<u32> = (0..3 * tris.len() as u32).collect();
-    let sides = edge_sides(&tris);
+    let sides = topo.sides(&tris);
     for group in sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
-        for (i, j) in continuations(group, &tris, &upos) {
+        for (i, j) in continuations(group, &tris, &topo.positions) {
             let (ti, ki) = (group[i].t, group[i].k);
             let (tj, kj) = (group[j].t, group[j].k);
             for end in [group[0].a, group[0].b] {
@@ -239,23 +314,26 @@ pub fn weld(positions: &[Vec3], indices: &[u32]) -> Welded {
 
     // Welded ids in first-use order; render vertices split where their corners disagree.
     let mut out = Welded {
-        vertex_source: (0..positions.len() as u32).collect(),
-        source_triangle,
+        vertex_source: (0..nv as u32).collect(),
+        remap: vec![u32::MAX; nv],
         ..Default::default()
     };
-    out.remap = vec![u32::MAX; positions.len()];
     let mut welded_of_class = vec![u32::MAX; parent.len()];
     // (render vertex, welded vertex) → output render vertex, for split copies
-    let mut copies: HashMap<(u32, u32), u32> = HashMap::new();
-    for (kt, &t) in out.source_triangle.iter().enumerate() {
+    let mut copies: IdMap<(u32, u32), u32> = IdMap::default();
+    for (t, tri) in tris.iter().enumerate() {
+        if !kept(tri) {
+            continue;
+        }
+        out.source_triangle.push(t as u32);
         for k in 0..3 {
-            let class = find(&mut parent, 3 * kt as u32 + k as u32);
-            if welded_of_class[class as usize] == u32::MAX {
-                welded_of_class[class as usize] = out.positions.len() as u32;
-                out.positions.push(upos[tris[kt][k] as usize]);
+            let class = find(&mut parent, 3 * t as u32 + k as u32) as usize;
+            if welded_of_class[class] == u32::MAX {
+                welded_of_class[class] = out.positions.len() as u32;
+                out.positions.push(topo.positions[tri[k] as usize]);
             }
-            let w = welded_of_class[class as usize];
-            let v = indices[3 * t as usize + k];
+            let w = welded_of_class[class];
+            let v = indices[3 * t + k];
             let rv = if out.remap[v as usize] == u32::MAX || out.remap[v as usize] == w {
                 out.remap[v as usize] = w;
                 v
@@ -271,13 +349,13 @@ pub fn weld(positions: &[Vec3], indices: &[u32]) -> Welded {
         }
     }
     // Render vertices no kept triangle uses: one welded vertex per position.
-    let mut unused_at: HashMap<u32, u32> = HashMap::new();
-    for v in 0..positions.len() {
+    let mut unused_at: IdMap<u32, u32> = IdMap::default();
+    for v in 0..nv {
         if out.remap[v] == u32::MAX {
             let next = out.positions.len() as u32;
-            let w = *unused_at.entry(ids[v]).or_insert(next);
+            let w = *unused_at.entry(topo.ids[v]).or_insert(next);
             if w == next {
-                out.positions.push(upos[ids[v] as usize]);
+                out.positions.push(topo.positions[topo.ids[v] as usize]);
             }
             out.remap[v] = w;
         }

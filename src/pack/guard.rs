@@ -14,9 +14,9 @@
 //! Triangles whose stored base is degenerate (zero area after quantization) have no facing and
 //! are not checked.
 
-use std::collections::HashMap;
-
 use glam::Vec3;
+
+use crate::mesh::Adjacency;
 use rayon::prelude::*;
 
 /// Rounds of proportional shortening before offenders are flattened.
@@ -31,7 +31,7 @@ pub trait Check: Sync {
 /// Shortens `deltas` (per vertex) until `check` passes for every triangle of `indices`.
 /// `base` groups vertices that must keep equal deltas. Returns the number of vertices shortened.
 pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl Check) -> usize {
-    let mut group_of: HashMap<([u32; 3], [u32; 3]), u32> = HashMap::new();
+    let mut group_of: crate::weld::IdMap<([u32; 3], [u32; 3]), u32> = Default::default();
     let group: Vec<u32> = base
         .iter()
         .zip(deltas.iter())
@@ -44,16 +44,17 @@ pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl C
             *group_of.entry(key).or_insert(next)
         })
         .collect();
-    let mut members: Vec<Vec<u32>> = vec![Vec::new(); group_of.len()];
-    for (v, &g) in group.iter().enumerate() {
-        members[g as usize].push(v as u32);
-    }
-    let mut around: Vec<Vec<u32>> = vec![Vec::new(); group_of.len()];
-    for (t, tri) in indices.chunks_exact(3).enumerate() {
-        for &v in tri {
-            around[group[v as usize] as usize].push(t as u32);
-        }
-    }
+    let members = Adjacency::build(
+        group_of.len(),
+        group.iter().enumerate().map(|(v, &g)| (g, v as u32)),
+    );
+    let around = Adjacency::build(
+        group_of.len(),
+        indices
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| (group[v as usize], (i / 3) as u32)),
+    );
     let tri = |t: u32| {
         let i = 3 * t as usize;
         [indices[i], indices[i + 1], indices[i + 2]]
@@ -86,11 +87,11 @@ pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl C
         factor.dedup_by_key(|x| x.0);
         check_list.clear();
         for &(g, f) in &factor {
-            for &v in &members[g as usize] {
+            for &v in members.of(g) {
                 deltas[v as usize] *= f;
                 shortened[v as usize] = true;
             }
-            check_list.extend(&around[g as usize]);
+            check_list.extend(around.of(g));
         }
         check_list.sort_unstable();
         check_list.dedup();
