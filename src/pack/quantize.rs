@@ -6,8 +6,9 @@
 //!   (a non-uniform node scale would bend them). Error ≤ step/2 per component.
 //! - Extrusion delta (morph target): 32-bit float in grid units (a precision of its own, see
 //!   `mod.rs`); the single-draw layout rounds each layer's positions to the grid instead.
-//! - NORMAL: normalized `i8`, searched in the 3×3×3 integer neighbourhood of the rounded value
-//!   for the vector closest to unit length, so dequantized normals are unit to ~1e-3.
+//! - NORMAL: normalized `i8`, searched among the 8 integer vectors around the exact one (each
+//!   component rounded down or up) for the one closest to unit length, so dequantized normals
+//!   are unit to ~4e-3.
 //! - TEXCOORD_0: normalized `u16` over the UV bounds, undone by `KHR_texture_transform`; float
 //!   when 16 bits would misplace a mask texel by more than 1/8 texel (huge tiling counts).
 //!
@@ -74,27 +75,25 @@ impl PositionGrid {
     }
 }
 
-/// Unit normal as normalized `i8`, the closest-to-unit integer vector near the rounded value.
+/// Unit normal as normalized `i8`: of the 8 integer vectors around `127·n` (each component
+/// rounded down or up), the one closest to unit length, direction breaking near-ties.
 pub fn quantize_normal(n: Vec3) -> [i8; 3] {
     let n = n.normalize_or(Vec3::Y);
-    let base = (n * 127.0).round();
+    let lo = (n * 127.0).floor();
     let mut best = [0i8; 3];
     let mut best_err = f32::INFINITY;
-    for dz in -1..=1 {
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                let c = base + Vec3::new(dx as f32, dy as f32, dz as f32);
-                if c.abs().max_element() > 127.0 {
-                    continue;
-                }
-                let v = c / 127.0;
-                // unit length first, direction second
-                let err = (v.length() - 1.0).abs() + 0.1 * (v.normalize_or_zero() - n).length();
-                if err < best_err {
-                    best_err = err;
-                    best = [c.x as i8, c.y as i8, c.z as i8];
-                }
-            }
+    for corner in 0..8 {
+        let c = lo + Vec3::new((corner & 1) as f32, ((corner >> 1) & 1) as f32, (corner >> 2) as f32);
+        if c.abs().max_element() > 127.0 {
+            continue;
+        }
+        let v = c / 127.0;
+        let len = v.length();
+        // unit length first, direction second
+        let err = (len - 1.0).abs() + 0.1 * (v / len - n).length();
+        if err < best_err {
+            best_err = err;
+            best = [c.x as i8, c.y as i8, c.z as i8];
         }
     }
     best
