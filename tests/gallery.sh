@@ -38,13 +38,13 @@ done
 for input in fixtures/bunny.obj fixtures/teapot.obj "$inputs/dragon.obj" \
              "$inputs/torus-inside-out.obj" "$inputs/sheet-two-sided.obj"; do
   name=$(basename "$input" .obj)
-  "$bin" bake "$input" -o "out/gallery/sheet-$name.glb" -q
+  "$bin" bake "$input" -o "out/gallery/contact-$name.glb" -q
   if [ "$name" = sheet-two-sided ]; then
-    job "out/gallery/sheet-$name.glb" "out/gallery/sheet-$name-overall.png" 25 35 2.2 40
-    job "out/gallery/sheet-$name.glb" "out/gallery/sheet-$name-close.png" 25 -35 2.2 40
+    job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-overall.png" 25 35 2.2 40
+    job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-close.png" 25 -35 2.2 40
   else
-    job "out/gallery/sheet-$name.glb" "out/gallery/sheet-$name-overall.png" 25 20 2.6 40
-    job "out/gallery/sheet-$name.glb" "out/gallery/sheet-$name-close.png" 30 30 1.6 20
+    job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-overall.png" 25 20 2.6 40
+    job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-close.png" 30 30 1.6 20
   fi
 done
 jobs+="]"
