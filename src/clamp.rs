@@ -670,4 +670,54 @@ mod tests {
         );
         assert!(a.limited_by_inversion + a.limited_by_collision > 0);
     }
+
+    #[test]
+    fn smoothing_leaves_fewer_vertices_limited_and_stays_outside() {
+        // a sphere with hashed bumps: neighbouring directions disagree, tall shells invert
+        let mut m = crate::procedural::sphere(1.0, 24, 48);
+        for p in m.positions.iter_mut() {
+            let h = crate::strands::mix32(
+                p.x.to_bits() ^ p.y.to_bits().rotate_left(11) ^ p.z.to_bits().rotate_left(22),
+            );
+            *p *= 1.0 + 0.03 * ((h % 7) as f32 / 7.0);
+        }
+        let w = weld(&m.positions, &m.indices);
+        let f = extrusion_frames(&w, None);
+        let rough = ClampParams {
+            smooth: false,
+            ..Default::default()
+        };
+        let a = clamp_heights(&w, &f, 0.3, &rough);
+        let b = clamp_heights(&w, &f, 0.3, &ClampParams::default());
+        assert!(a.smoothed == 0 && b.smoothed > 0);
+        assert!(
+            b.limited_by_inversion * 2 < a.limited_by_inversion,
+            "{} vs {}",
+            b.limited_by_inversion,
+            a.limited_by_inversion
+        );
+        // every smoothed direction is on the outer side of each face around it
+        for tri in w.indices.chunks_exact(3) {
+            let p = [0, 1, 2].map(|k| w.positions[tri[k] as usize]);
+            let (n, _) = crate::mesh::face_normal(p[0], p[1], p[2]);
+            for &v in tri {
+                if b.welded_direction[v as usize] != f.welded[v as usize] {
+                    assert!(b.welded_direction[v as usize].dot(n) > 0.0);
+                }
+            }
+        }
+        // and both bounds hold: no triangle inverts along its path
+        for c in [&a, &b] {
+            for tri in w.indices.chunks_exact(3) {
+                let p = [0, 1, 2].map(|k| w.positions[tri[k] as usize]);
+                let g = [0, 1, 2].map(|k| {
+                    let v = tri[k] as usize;
+                    c.welded_direction[v] * 0.3 * c.welded_scale[v]
+                });
+                if let Some(r) = ray_inversion(p, g) {
+                    assert!(r > 1.0, "{r}");
+                }
+            }
+        }
+    }
 }
