@@ -27,6 +27,14 @@
 //! hash input, whatever the density, and the value is the same on every machine and thread count.
 //! The mask is a tileable square: cells wrap at the tile edge, and the texture repeats with
 //! `REPEAT` wrapping. Sampling is `NEAREST` so a texel's code is what the alpha test sees.
+//!
+//! ## Mipmaps that keep coverage
+//! [`coverage_mips`] builds mip levels of an alpha channel for renderers that minify the mask:
+//! level `L` is the 2×2 box filter of level `L − 1`, then a monotone remap of its values so that
+//! its histogram matches level 0's (ties broken by texel index). A monotone remap that matches
+//! the full-resolution histogram keeps the covered fraction at *every* cutoff at once (to within
+//! half a texel of the level), so every layer keeps its coverage with distance; plain box
+//! filtering ([`box_mips`]) averages strands into their surroundings and the upper layers vanish.
 
 use crate::params::{StrandModel, StrandParams};
 
@@ -203,6 +211,79 @@ pub fn bake_mask(p: &StrandParams) -> Mask {
     }
 }
 
+/// Sizes of the mip levels below a `width × height` level 0, down to 1×1 (wgpu's rule:
+/// halve and round down, never below 1).
+pub fn mip_sizes(width: u32, height: u32) -> Vec<(u32, u32)> {
+    let mut out = Vec::new();
+    let (mut w, mut h) = (width, height);
+    while w > 1 || h > 1 {
+        w = (w / 2).max(1);
+        h = (h / 2).max(1);
+        out.push((w, h));
+    }
+    out
+}
+
+/// 2×2 sums of one channel, `(w, h)` → half size (edge texels repeat for odd sizes).
+fn box_sums(prev: &[u8], w: u32, h: u32) -> (Vec<u16>, u32, u32) {
+    let (w2, h2) = ((w / 2).max(1), (h / 2).max(1));
+    let at = |x: u32, y: u32| prev[(y.min(h - 1) * w + x.min(w - 1)) as usize] as u16;
+    let mut out = Vec::with_capacity((w2 * h2) as usize);
+    for y in 0..h2 {
+        for x in 0..w2 {
+            let (x0, y0) = (2 * x, 2 * y);
+            out.push(at(x0, y0) + at(x0 + 1, y0) + at(x0, y0 + 1) + at(x0 + 1, y0 + 1));
+        }
+    }
+    (out, w2, h2)
+}
+
+/// Mip levels 1.. of one 8-bit channel by the rounded 2×2 box filter.
+pub fn box_mips(level0: &[u8], width: u32, height: u32) -> Vec<Vec<u8>> {
+    assert_eq!(level0.len(), (width * height) as usize);
+    let mut levels: Vec<Vec<u8>> = Vec::new();
+    let (mut w, mut h) = (width, height);
+    let mut prev = level0.to_vec();
+    while w > 1 || h > 1 {
+        let (sums, w2, h2) = box_sums(&prev, w, h);
+        prev = sums.iter().map(|&s| ((s + 2) / 4) as u8).collect();
+        levels.push(prev.clone());
+        (w, h) = (w2, h2);
+    }
+    levels
+}
+
+/// Mip levels 1.. of one 8-bit alpha channel that keep level 0's coverage at every cutoff.
+///
+/// Level `L` is the 2×2 box filter of level `L − 1`, then remapped monotonically so that its
+/// histogram matches level 0's: its texels, sorted by (box value, texel index), take level 0's
+/// sorted values at the middles of `n` equal slices (`n` = its texel count). For any cutoff the
+/// fraction of texels at or above it then differs from level 0's by at most half a texel of the
+/// level, for every cutoff at once.
+pub fn coverage_mips(level0: &[u8], width: u32, height: u32) -> Vec<Vec<u8>> {
+    assert_eq!(level0.len(), (width * height) as usize);
+    let mut sorted0 = level0.to_vec();
+    sorted0.sort_unstable();
+    let total = sorted0.len() as u64;
+    let mut levels: Vec<Vec<u8>> = Vec::new();
+    let (mut w, mut h) = (width, height);
+    let mut prev = level0.to_vec();
+    while w > 1 || h > 1 {
+        let (sums, w2, h2) = box_sums(&prev, w, h);
+        let n = sums.len() as u64;
+        let mut order: Vec<u32> = (0..sums.len() as u32).collect();
+        order.sort_unstable_by_key(|&i| (sums[i as usize], i));
+        let mut level = vec![0u8; sums.len()];
+        for (rank, &i) in order.iter().enumerate() {
+            level[i as usize] = sorted0[((2 * rank as u64 + 1) * total / (2 * n)) as usize];
+        }
+        levels.push(level.clone());
+        prev = level;
+        (w, h) = (w2, h2);
+    }
+    levels
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -327,5 +408,77 @@ mod tests {
         // fixed values: the same on every machine
         assert_eq!(mix32(0), 0);
         assert_eq!([mix32(1), mix32(0xdead_beef)], [0x6889_90c0, 0xe628_c683]);
+    }
+
+    /// Texels at or above `v`, for every `v`.
+    fn counts(level: &[u8]) -> Vec<u64> {
+        let mut hist = [0u64; 256];
+        for &a in level {
+            hist[a as usize] += 1;
+        }
+        let mut out = vec![0u64; 257];
+        for v in (0..256).rev() {
+            out[v] = out[v + 1] + hist[v];
+        }
+        out
+    }
+
+    #[test]
+    fn coverage_mips_keep_the_coverage_of_every_cutoff_at_every_level() {
+        let fur = bake_mask(&BakeParams::preset(Preset::Fur).strands);
+        let grass = bake_mask(&BakeParams::preset(Preset::Grass).strands);
+        let noise = bake_mask(&noise_params(0.3));
+        let odd: Vec<u8> = (0..37 * 12).map(|i| (mix32(i) >> 24) as u8).collect();
+        for (level0, w, h) in [
+            (&fur.code, 256, 256),
+            (&grass.code, 256, 256),
+            (&noise.code, 64, 64),
+            (&odd, 37, 12),
+        ] {
+            let c0 = counts(level0);
+            let n0 = level0.len() as f64;
+            let levels = coverage_mips(level0, w, h);
+            assert_eq!(levels.len(), mip_sizes(w, h).len());
+            for (level, (lw, lh)) in levels.iter().zip(mip_sizes(w, h)) {
+                assert_eq!(level.len(), (lw * lh) as usize);
+                let n = level.len() as f64;
+                let c = counts(level);
+                for v in 0..=255 {
+                    // within half a texel of this level
+                    let want = c0[v] as f64 / n0 * n;
+                    assert!(
+                        (c[v] as f64 - want).abs() <= 0.5 + 1e-9,
+                        "{w}x{h} level {lw}x{lh} v={v}"
+                    );
+                }
+            }
+        }
+        // Plain box filtering, by contrast, loses the fur's upper layers within a few levels.
+        let top = (step_cutoff(layer_step(24, 32)) * 255.0).ceil() as usize;
+        let box3 = &box_mips(&fur.code, 256, 256)[2];
+        let kept = counts(box3)[top] as f64 / box3.len() as f64;
+        let full = counts(&fur.code)[top] as f64 / fur.code.len() as f64;
+        assert!(kept < 0.5 * full, "box filter kept {kept} of {full}");
+    }
+
+    #[test]
+    fn coverage_mips_are_a_monotone_remap_of_the_box_filter() {
+        let fur = bake_mask(&BakeParams::preset(Preset::Fur).strands);
+        let levels = coverage_mips(&fur.code, 256, 256);
+        let mut prev: &[u8] = &fur.code;
+        let mut w = 256;
+        for level in &levels {
+            let (sums, _, _) = box_sums(prev, w, w);
+            for i in 0..sums.len() {
+                for j in [i + 1, i + 7, i + 64] {
+                    if j < sums.len() && sums[i] < sums[j] {
+                        assert!(level[i] <= level[j]);
+                    }
+                }
+            }
+            prev = level;
+            w /= 2;
+        }
+        assert_eq!(levels, coverage_mips(&fur.code, 256, 256), "deterministic");
     }
 }
