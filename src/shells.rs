@@ -3,7 +3,9 @@
 //! Layer `j` of `N` (base included, `j = 0` is the base) sits at normalised height
 //! `t_j = k_j / HEIGHT_STEPS` with `k_j = round(j · HEIGHT_STEPS / N)`: evenly spaced to within
 //! half a step, and on the grid that makes the 8-bit mask exact (`strands.rs`). The top layer is
-//! at `t = (N−1)/N`, not 1: at `t = 1` every strand law has already vanished.
+//! at `t = (N−1)/N`, not 1: at `t = 1` every strand law has already vanished. A layer's alpha
+//! cutoff depends on how the mask encodes its law, so it comes from the mask
+//! ([`crate::strands::Mask::cutoff`] of the layer's step), not from here.
 //!
 //! The extrusion delta of a vertex is `direction × height × scale`, where `scale` is 1 or the
 //! clamp stage's per-vertex factor. Layer `j`'s position is `base + t_j × delta`; that is exactly
@@ -14,7 +16,7 @@
 use glam::Vec3;
 
 use crate::params::{ShadeParams, ShellParams};
-use crate::strands::{layer_step, step_cutoff, step_height};
+use crate::strands::{layer_step, step_height};
 
 /// The layers of a bake and the per-vertex extrusion.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -25,8 +27,6 @@ pub struct ShellStack {
     pub steps: Vec<u32>,
     /// Normalised height of each layer.
     pub t: Vec<f32>,
-    /// glTF alpha cutoff of each layer.
-    pub cutoff: Vec<f32>,
     /// Linear RGB shade of each layer.
     pub color: Vec<[f32; 3]>,
     /// Extrusion delta at t = 1, per render vertex.
@@ -60,7 +60,6 @@ pub fn build_shells(
         .collect();
     ShellStack {
         height,
-        cutoff: steps.iter().map(|&k| step_cutoff(k)).collect(),
         color: t.iter().map(|&t| layer_color(shade, t)).collect(),
         steps,
         t,

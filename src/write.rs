@@ -164,7 +164,9 @@ pub fn gltf_json(packed: &Packed, shells: &ShellStack) -> (Value, Vec<u8>) {
         "materials": materials,
         "textures": [{ "sampler": 0, "source": 0 }],
         "images": [{ "bufferView": packed.image_view, "mimeType": "image/png" }],
-        "samplers": [{ "magFilter": 9728, "minFilter": 9728 }],
+        // LINEAR / LINEAR_MIPMAP_LINEAR, REPEAT (the default): round strands up close, no
+        // shimmer far away; clients build the mips (`strands.rs`, "Sampling and mipmaps").
+        "samplers": [{ "magFilter": 9729, "minFilter": 9987 }],
         "accessors": accessors,
         "bufferViews": views,
         "buffers": [{ "byteLength": bin.len() }],

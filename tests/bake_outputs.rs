@@ -33,6 +33,7 @@ struct Case {
     layers: usize,
     layout: Layout,
     cutoffs: Vec<f32>,
+    single_draw_cutoff: f32,
     t: Vec<f32>,
 }
 
@@ -62,7 +63,13 @@ fn bake_matrix() -> Vec<Case> {
                     file,
                     layers: baked.shells.t.len(),
                     layout,
-                    cutoffs: baked.shells.cutoff.clone(),
+                    cutoffs: baked
+                        .shells
+                        .steps
+                        .iter()
+                        .map(|&k| baked.mask.cutoff(k))
+                        .collect(),
+                    single_draw_cutoff: shellbake::pack::single_draw_cutoff(&baked.mask),
                     t: baked.shells.t.clone(),
                 });
             }
@@ -176,7 +183,7 @@ fn every_fixture_preset_and_layout_is_valid_loads_in_three_and_is_exact() {
                 assert_eq!(meshes.len(), 1, "{name}: one mesh");
                 assert_eq!(meshes[0]["vertexColors"].as_bool(), Some(true));
                 let alpha_test = meshes[0]["alphaTest"].as_f64().unwrap();
-                assert!((alpha_test - shellbake::pack::single_draw_cutoff() as f64).abs() < 1e-6);
+                assert!((alpha_test - c.single_draw_cutoff as f64).abs() < 1e-6);
             }
         }
     }

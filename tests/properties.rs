@@ -126,9 +126,9 @@ proptest! {
         };
         let p = StrandParams { model, mask_size: 32, seed, ..BakeParams::default().strands };
         let mask = shellbake::strands::bake_mask(&p);
-        prop_assert!(mask.code.iter().all(|&c| c as u32 >= shellbake::strands::BASE_CODE));
+        prop_assert!(mask.alpha.iter().all(|&c| c as u32 >= shellbake::strands::BASE_CODE));
         let mut last = 1.0;
-        for k in (0..=shellbake::strands::HEIGHT_STEPS).step_by(17) {
+        for k in (1..=shellbake::strands::HEIGHT_STEPS).step_by(17) {
             let c = mask.coverage(k);
             prop_assert!(c <= last);
             last = c;

@@ -149,7 +149,7 @@ fn off_by_one_layer(baked: &shellbake::Baked) -> Vec<u8> {
                 .enumerate()
                 .skip(1)
             {
-                m["alphaCutoff"] = serde_json::json!(shellbake::strands::step_cutoff(next(j)));
+                m["alphaCutoff"] = serde_json::json!(baked.mask.cutoff(next(j)));
             }
         }
         Layout::SingleDraw => {
@@ -161,7 +161,7 @@ fn off_by_one_layer(baked: &shellbake::Baked) -> Vec<u8> {
             let per_layer =
                 doc["accessors"][color]["count"].as_u64().unwrap() as usize / steps.len();
             for j in 1..steps.len() {
-                let a = shellbake::pack::single_draw_alpha(next(j)).to_le_bytes();
+                let a = shellbake::pack::single_draw_alpha(&baked.mask, next(j)).to_le_bytes();
                 for v in 0..per_layer {
                     let o = offset + 8 * (j * per_layer + v) + 6;
                     bin[o..o + 2].copy_from_slice(&a);

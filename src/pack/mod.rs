@@ -11,13 +11,17 @@
 //!
 //! - **compact**: one quantized geometry (POSITION u16, NORMAL i8, TEXCOORD_0 u16, morph target 0
 //!   = extrusion delta as float, see below) shared by every layer; layer `j` is a primitive reusing the same
-//!   accessors with its own material (`MASK`, `alphaCutoff`, per-layer colour) and weight `t_j`.
-//!   The base layer is opaque and has no morph target. Adding a layer costs JSON only.
+//!   accessors with its own material (`MASK`, `alphaCutoff` = the mask's cutoff for the layer's
+//!   step, per-layer colour) and weight `t_j`. The base layer is opaque (still textured: the
+//!   mask's grey carries the strands' shade onto the skin) and has no morph target. Adding a
+//!   layer costs JSON only.
 //! - **single-draw**: every layer's vertices explicitly (positions quantized per layer), all in
 //!   one primitive with one material; `COLOR_0` (u16 normalized RGBA) carries the layer's shade
-//!   and `a_j = (BASE_CODE − ½)/(BASE_CODE + k_j − ½)` against the fixed cutoff
-//!   `(BASE_CODE − ½)/255`, which reproduces `s >= t_j` (see `strands.rs`). Indices run from the
-//!   inner to the outer layer.
+//!   and an alpha `a_j = C/cutoff_j` against one fixed cutoff `C`, so `a_j·alpha >= C ⇔
+//!   alpha >= cutoff_j` for any (interpolated) mask alpha: the compact layer's test. `C` is the
+//!   lower of `(BASE_CODE − ½)/255` and the base layer's law cutoff, so `C <= cutoff_j` for every
+//!   layer (`a_j <= 1`) and every texel, whose alpha is at least `BASE_CODE/255`, passes the base
+//!   layer (`a_0 = 1`): the base stays opaque. Indices run from the inner to the outer layer.
 //!
 //! The extrusion delta has a precision of its own: 32-bit float in grid units, not integers on
 //! the position grid. On the grid, a delta the clamp shortened to a few steps loses its
@@ -442,9 +446,9 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
                     alpha: if base {
                         Alpha::Opaque
                     } else {
-                        Alpha::Mask(shells.cutoff[j])
+                        Alpha::Mask(input.mask.cutoff(shells.steps[j]))
                     },
-                    textured: !base,
+                    textured: true,
                     roughness: input.roughness,
                 },
             }
@@ -492,15 +496,20 @@ pub fn estimate_scene_bytes(scene: &crate::mesh::Scene, params: &crate::params::
     )
 }
 
-/// `COLOR_0` alpha of a single-draw layer at height step `k`, as normalized u16.
-pub fn single_draw_alpha(k: u32) -> u16 {
-    let a = (BASE_CODE as f64 - 0.5) / (BASE_CODE as f64 + k as f64 - 0.5);
+/// `COLOR_0` alpha of a single-draw layer at height step `k`, as normalized u16: 1 for the base
+/// layer, [`single_draw_cutoff`]` / cutoff(k)` above it (see the module notes).
+pub fn single_draw_alpha(mask: &Mask, k: u32) -> u16 {
+    if k == 0 {
+        return u16::MAX;
+    }
+    let a = single_draw_cutoff(mask) as f64 / mask.cutoff(k) as f64;
     (a * 65535.0).round() as u16
 }
 
-/// The fixed alpha cutoff of the single-draw material.
-pub fn single_draw_cutoff() -> f32 {
-    (BASE_CODE as f32 - 0.5) / 255.0
+/// The fixed alpha cutoff of the single-draw material: half a code below the lowest alpha any
+/// texel holds, or the base layer's law cutoff when that is lower.
+pub fn single_draw_cutoff(mask: &Mask) -> f32 {
+    ((BASE_CODE as f32 - 0.5) / 255.0).min(mask.cutoff(0))
 }
 
 fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
@@ -522,7 +531,7 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive
             (c[0].clamp(0.0, 1.0) * 65535.0).round() as u16,
             (c[1].clamp(0.0, 1.0) * 65535.0).round() as u16,
             (c[2].clamp(0.0, 1.0) * 65535.0).round() as u16,
-            single_draw_alpha(shells.steps[j]),
+            single_draw_alpha(input.mask, shells.steps[j]),
         ];
         for _ in 0..nv {
             colors.u16s(&rgba, 8);
@@ -559,20 +568,20 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive
         material: Material {
             name: "shells".into(),
             base_color: [1.0; 4],
-            alpha: Alpha::Mask(single_draw_cutoff()),
+            alpha: Alpha::Mask(single_draw_cutoff(input.mask)),
             textured: true,
             roughness: input.roughness,
         },
     }]
 }
 
-/// The mask as a grey+alpha PNG (grey = 255, alpha = survival code), deflated at the highest
-/// level with adaptive filtering. Deterministic.
+/// The mask as a grey+alpha PNG (grey = the strands' shade, alpha = the noise byte or the
+/// survival code), deflated at the highest level with adaptive filtering. Deterministic.
 pub fn encode_mask_png(mask: &Mask) -> Vec<u8> {
-    let mut pixels = Vec::with_capacity(mask.code.len() * 2);
-    for &c in &mask.code {
-        pixels.push(255);
-        pixels.push(c);
+    let mut pixels = Vec::with_capacity(mask.alpha.len() * 2);
+    for (&a, &g) in mask.alpha.iter().zip(&mask.shade) {
+        pixels.push(g);
+        pixels.push(a);
     }
     let mut out = Vec::new();
     let enc = image::codecs::png::PngEncoder::new_with_quality(
@@ -591,16 +600,34 @@ mod tests {
 
     #[test]
     fn single_draw_alpha_reproduces_every_layer_cutoff() {
-        // For every layer step k and every mask code m: m/255 · a_k >= c  ⇔  m >= BASE + k.
-        let c = single_draw_cutoff() as f64;
-        for k in 0..=crate::strands::HEIGHT_STEPS {
-            let a = single_draw_alpha(k) as f64 / 65535.0;
-            for m in BASE_CODE..=255 {
-                let shown = (m as f64 / 255.0) * a >= c;
-                assert_eq!(shown, m >= BASE_CODE + k, "k={k} m={m}");
-                // and with margin: f32 rounding on a GPU cannot flip it
-                let margin = ((m as f64 / 255.0) * a - c).abs() / c;
-                assert!(margin > 1e-4, "k={k} m={m} margin={margin}");
+        // For every law of the presets (and a threshold below the code floor), every layer step
+        // k and every mask value m: m/255 · a_k >= C  ⇔  m/255 >= cutoff(k) (the compact layer's
+        // test), with a margin that f32 rounding on a GPU cannot cross; and the base layer shows
+        // every texel.
+        let params = crate::params::Preset::ALL
+            .map(|p| crate::params::BakeParams::preset(p).strands)
+            .into_iter()
+            .chain([crate::params::StrandParams {
+                model: crate::params::StrandModel::Noise { threshold: 0.02 },
+                ..crate::params::BakeParams::default().strands
+            }]);
+        for p in params {
+            let mask =
+                crate::strands::bake_mask(&crate::params::StrandParams { mask_size: 16, ..p });
+            let c = single_draw_cutoff(&mask) as f64;
+            assert!(single_draw_alpha(&mask, 0) == u16::MAX && c < BASE_CODE as f64 / 255.0);
+            for k in 1..=crate::strands::HEIGHT_STEPS {
+                let a = single_draw_alpha(&mask, k) as f64 / 65535.0;
+                let cutoff = mask.cutoff(k) as f64;
+                for m in BASE_CODE..=255 {
+                    let v = m as f64 / 255.0;
+                    if (v - cutoff).abs() < 1e-6 * cutoff {
+                        continue; // a tie of the law itself
+                    }
+                    assert_eq!(v * a >= c, v >= cutoff, "{:?} k={k} m={m}", p.model);
+                    let margin = (v * a - c).abs() / c;
+                    assert!(margin > 1e-6, "{:?} k={k} m={m} margin={margin}", p.model);
+                }
             }
         }
     }
@@ -636,15 +663,12 @@ mod tests {
     #[test]
     fn png_is_deterministic_and_decodes_to_the_codes() {
         let p = crate::params::BakeParams::default().strands;
-        let m = crate::strands::bake_mask(&crate::params::StrandParams {
-            mask_size: 32,
-            model: crate::params::StrandModel::Noise { threshold: 0.3 },
-            ..p
-        });
+        let m = crate::strands::bake_mask(&crate::params::StrandParams { mask_size: 32, ..p });
         let a = encode_mask_png(&m);
         assert_eq!(a, encode_mask_png(&m));
         let img = image::load_from_memory(&a).unwrap().to_luma_alpha8();
         let alpha: Vec<u8> = img.pixels().map(|p| p.0[1]).collect();
-        assert_eq!(alpha, m.code);
+        let grey: Vec<u8> = img.pixels().map(|p| p.0[0]).collect();
+        assert_eq!((alpha, grey), (m.alpha.clone(), m.shade.clone()));
     }
 }

@@ -16,8 +16,9 @@
 //!   `KHR_texture_transform`, `alphaMode` (`OPAQUE`, `MASK` + `alphaCutoff`, `BLEND`),
 //!   `doubleSided`, `emissiveFactor`. Other textures (normal, occlusion, metallic-roughness maps)
 //!   are ignored: shellbake writes none.
-//! - **Images**: PNG from a buffer view or a `data:` URI; sampler filters and wrap modes
-//!   (mipmapped minification filters fall back to their base filter: no mip chain is built).
+//! - **Images**: PNG from a buffer view or a `data:` URI; sampler filters (mipmapped ones get a
+//!   mip chain, see `gltf.rs`; a sampler without `minFilter` is read as `LINEAR_MIPMAP_LINEAR`,
+//!   as three.js does) and wrap modes.
 //! - **Morph targets**: `POSITION` deltas only (the only kind shellbake writes), at most
 //!   [`MAX_MORPH_TARGETS`] per primitive.
 //!
@@ -113,8 +114,17 @@ impl Floats {
 pub struct SamplerDesc {
     pub mag_nearest: bool,
     pub min_nearest: bool,
+    /// Filter between mip levels; `None`: no mip chain (level 0 only).
+    pub mip: Option<MipFilter>,
     pub wrap_u: Wrap,
     pub wrap_v: Wrap,
+}
+
+/// How a mipmapped minification filter picks between levels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MipFilter {
+    Nearest,
+    Linear,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -129,6 +139,7 @@ impl Default for SamplerDesc {
         SamplerDesc {
             mag_nearest: false,
             min_nearest: false,
+            mip: Some(MipFilter::Linear),
             wrap_u: Wrap::Repeat,
             wrap_v: Wrap::Repeat,
         }
@@ -482,10 +493,17 @@ impl Asset {
                 Some(33648) => Wrap::Mirror,
                 _ => Wrap::Repeat,
             };
+            let min = s["minFilter"].as_u64();
             let sampler = SamplerDesc {
                 mag_nearest: s["magFilter"].as_u64() == Some(9728),
-                // 9728 NEAREST, 9984 NEAREST_MIPMAP_NEAREST, 9986 NEAREST_MIPMAP_LINEAR
-                min_nearest: matches!(s["minFilter"].as_u64(), Some(9728 | 9984 | 9986)),
+                // 9728 NEAREST, 9729 LINEAR, 9984 NEAREST_MIPMAP_NEAREST,
+                // 9985 LINEAR_MIPMAP_NEAREST, 9986 NEAREST_MIPMAP_LINEAR, 9987 LINEAR_MIPMAP_LINEAR
+                min_nearest: matches!(min, Some(9728 | 9984 | 9986)),
+                mip: match min {
+                    Some(9728 | 9729) => None,
+                    Some(9984 | 9985) => Some(MipFilter::Nearest),
+                    _ => Some(MipFilter::Linear),
+                },
                 wrap_u: wrap("wrapS"),
                 wrap_v: wrap("wrapT"),
             };

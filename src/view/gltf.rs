@@ -9,6 +9,17 @@
 //! and the morph weights; per material, a bind group holds its base colour texture (`*Srgb`, so
 //! the sampler returns linear colour and untouched alpha) and sampler, or a 1×1 white texture.
 //!
+//! ## Texture filtering
+//! The file's sampler is honoured: mag and min filters, and for a mipmapped min filter a mip
+//! chain built on upload (the fragment shader samples with implicit derivatives). glTF leaves
+//! mip generation to the client; the viewer box filters colour, and for a texture that a `MASK`
+//! material alpha-tests it remaps each alpha level to keep level 0's coverage at every cutoff
+//! (`strands::coverage_mips`), as engines with coverage-preserving alpha mips do — otherwise
+//! alpha-tested fur thins out with distance. The runtime reference uploads its law texture
+//! through the same function ([`gpu::upload_rgba_texture`]), so both sample the same levels.
+//! [`MaskMips::Box`] builds plain box-filtered alpha mips instead, as three.js (WebGL's
+//! `generateMipmap`) does, for comparing with such clients.
+//!
 //! ## Pipelines
 //! One pipeline per (morph target count, COLOR_0 present, BLEND, culled, mirrored, target
 //! format), built on first use. The WGSL is specialised by text substitution rather than by
@@ -34,7 +45,7 @@ use glam::{DMat3, DMat4, DVec3};
 use wgpu::util::DeviceExt as _;
 
 use super::camera::{Camera, Sphere};
-use super::glb::{AlphaMode, Asset, Material, SamplerDesc, Wrap};
+use super::glb::{AlphaMode, Asset, Material, MipFilter, SamplerDesc, Wrap};
 use super::gpu::{self, Frame, Gpu, Light, Result};
 
 const DRAW_SLOT: u64 = 256;
@@ -116,9 +127,26 @@ pub struct GltfRenderer {
     pub bounds: Sphere,
 }
 
+/// How the viewer builds the alpha mips of a texture that a `MASK` material tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MaskMips {
+    /// Each level keeps level 0's coverage at every cutoff (`strands::coverage_mips`), as
+    /// engines with coverage-preserving alpha mips do: fur keeps its density with distance.
+    #[default]
+    CoveragePreserving,
+    /// Plain box filtering, what WebGL's `generateMipmap` (three.js) and most clients do:
+    /// alpha-tested fur thins out with distance. For comparing with such clients.
+    Box,
+}
+
 impl GltfRenderer {
-    /// Uploads `asset`.
+    /// Uploads `asset`, with coverage-preserving alpha mips for alpha-tested textures.
     pub fn new(gpu: &Gpu, asset: Asset) -> Result<GltfRenderer> {
+        GltfRenderer::with_mask_mips(gpu, asset, MaskMips::default())
+    }
+
+    /// Uploads `asset`, building the alpha mips of alpha-tested textures as `mask_mips` says.
+    pub fn with_mask_mips(gpu: &Gpu, asset: Asset, mask_mips: MaskMips) -> Result<GltfRenderer> {
         let device = &gpu.device;
         let frame = Frame::new(gpu);
         let draw_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -151,14 +179,26 @@ impl GltfRenderer {
             immediate_size: 0,
         });
 
-        // Textures: one GPU texture per glTF texture, plus white for untextured materials.
-        let white = upload_texture(gpu, 1, 1, &[255; 4]);
+        // Textures: one GPU texture per glTF texture, plus white for untextured materials. A
+        // mipmapped sampler gets a mip chain; the alpha of a texture that a MASK material tests
+        // keeps its coverage at every cutoff (see the module notes).
+        let white = gpu::upload_rgba_texture(gpu, 1, 1, &[255; 4], gpu::Mips::None);
         let textures: Vec<(wgpu::TextureView, wgpu::Sampler)> = asset
             .textures
             .iter()
-            .map(|t| {
+            .enumerate()
+            .map(|(i, t)| {
+                let alpha_tested = asset
+                    .materials
+                    .iter()
+                    .any(|m| m.texture == Some(i) && matches!(m.alpha, AlphaMode::Mask(_)));
+                let mips = match (t.sampler.mip, alpha_tested, mask_mips) {
+                    (None, _, _) => gpu::Mips::None,
+                    (Some(_), true, MaskMips::CoveragePreserving) => gpu::Mips::CoverageAlpha,
+                    (Some(_), _, _) => gpu::Mips::Box,
+                };
                 (
-                    upload_texture(gpu, t.width, t.height, &t.rgba),
+                    gpu::upload_rgba_texture(gpu, t.width, t.height, &t.rgba, mips),
                     make_sampler(gpu, t.sampler),
                 )
             })
@@ -654,30 +694,6 @@ fn make_draw_group(
     })
 }
 
-/// Uploads RGBA8 pixels as an sRGB texture (base colour textures are sRGB in glTF).
-fn upload_texture(gpu: &Gpu, width: u32, height: u32, rgba: &[u8]) -> wgpu::TextureView {
-    let texture = gpu.device.create_texture_with_data(
-        &gpu.queue,
-        &wgpu::TextureDescriptor {
-            label: Some("base colour"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8UnormSrgb,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        rgba,
-    );
-    texture.create_view(&Default::default())
-}
-
 fn make_sampler(gpu: &Gpu, s: SamplerDesc) -> wgpu::Sampler {
     let wrap = |w: Wrap| match w {
         Wrap::Repeat => wgpu::AddressMode::Repeat,
@@ -697,6 +713,10 @@ fn make_sampler(gpu: &Gpu, s: SamplerDesc) -> wgpu::Sampler {
         address_mode_v: wrap(s.wrap_v),
         mag_filter: filter(s.mag_nearest),
         min_filter: filter(s.min_nearest),
+        mipmap_filter: match s.mip {
+            Some(MipFilter::Linear) => wgpu::MipmapFilterMode::Linear,
+            _ => wgpu::MipmapFilterMode::Nearest,
+        },
         ..Default::default()
     })
 }

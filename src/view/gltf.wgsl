@@ -57,7 +57,8 @@ fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f
         flat_n = -flat_n;
     }
     let uv = vec2<f32>(dot(draw.uv_row0.xyz, vec3<f32>(in.uv, 1.0)), dot(draw.uv_row1.xyz, vec3<f32>(in.uv, 1.0)));
-    let texel = textureSampleLevel(base_texture, base_sampler, uv, 0.0);
+    // Implicit derivatives pick the mip level (uniform control flow: before any discard).
+    let texel = textureSample(base_texture, base_sampler, uv);
     let base = draw.base_color * texel * in.color;
     // glTF 3.9.4: MASK renders the fragment iff alpha >= alphaCutoff.
     if (draw.material.w == 1.0 && base.a < draw.material.z) {

@@ -20,6 +20,7 @@ use std::time::Instant;
 
 use glam::{Mat4, Vec3, Vec4};
 use image::RgbaImage;
+use wgpu::util::DeviceExt as _;
 
 use super::camera::Camera;
 use super::glb::GlbError;
@@ -384,6 +385,69 @@ impl Default for Light {
             ambient: Vec3::splat(0.2),
         }
     }
+}
+
+/// Which mip chain [`upload_rgba_texture`] builds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mips {
+    /// Level 0 only.
+    None,
+    /// Every channel box filtered ([`crate::strands::box_mips`]).
+    Box,
+    /// Colour box filtered, alpha remapped to keep its coverage at every cutoff
+    /// ([`crate::strands::coverage_mips`]): textures that `MASK` materials alpha-test.
+    CoverageAlpha,
+}
+
+/// Uploads RGBA8 pixels (row 0 first) as an `Rgba8UnormSrgb` texture with the mip chain `mips`
+/// asks for. Both renderers upload their strand textures through here, so baked and reference
+/// sample identical levels.
+pub fn upload_rgba_texture(
+    gpu: &Gpu,
+    width: u32,
+    height: u32,
+    rgba: &[u8],
+    mips: Mips,
+) -> wgpu::TextureView {
+    assert_eq!(rgba.len(), (width * height * 4) as usize);
+    let mut data = rgba.to_vec();
+    let mut levels = 1;
+    if mips != Mips::None {
+        let channel = |c: usize| rgba.iter().skip(c).step_by(4).copied().collect::<Vec<u8>>();
+        let [r, g, b, a]: [Vec<Vec<u8>>; 4] = std::array::from_fn(|c| {
+            if c == 3 && mips == Mips::CoverageAlpha {
+                crate::strands::coverage_mips(&channel(c), width, height)
+            } else {
+                crate::strands::box_mips(&channel(c), width, height)
+            }
+        });
+        levels += r.len() as u32;
+        for (((r, g), b), a) in r.iter().zip(&g).zip(&b).zip(&a) {
+            for (((&r, &g), &b), &a) in r.iter().zip(g).zip(b).zip(a) {
+                data.extend_from_slice(&[r, g, b, a]);
+            }
+        }
+    }
+    let texture = gpu.device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("base colour"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: levels,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        &data,
+    );
+    texture.create_view(&Default::default())
 }
 
 /// Bind group layout entry of a filterable 2D texture read by the fragment stage.

@@ -25,7 +25,8 @@
 //! pictures comes from geometry and coverage, not from lighting code.
 //!
 //! ## Library entry points
-//! - [`render_glb_to_png`]: GLB bytes + camera → picture, one call (creates its own [`Gpu`]).
+//! - [`render_glb_to_png`]: GLB bytes + camera → picture, one call (creates its own [`Gpu`]);
+//!   [`render_glb_to_png_with`] chooses how alpha-tested textures get their mips.
 //! - [`camera_for_glb`]: the [`Camera`] a view uses for a file, with world-space
 //!   [`Camera::view_matrix`], [`Camera::projection`] (wgpu depth) and [`Camera::projection_gl`]
 //!   (three.js depth) so another renderer can stand at the same place.
@@ -46,14 +47,25 @@ pub mod window;
 use image::RgbaImage;
 
 pub use camera::{Camera, NamedView, Orbit, Sphere};
-pub use gltf::GltfRenderer;
+pub use gltf::{GltfRenderer, MaskMips};
 pub use gpu::{Gpu, Light, Result, Timing, ViewError};
 pub use reference::{ReferenceInput, ReferenceRenderer};
 
 /// Renders GLB bytes from `orbit` at `size` = (width, height) on a fresh headless [`Gpu`].
 pub fn render_glb_to_png(glb: &[u8], orbit: Orbit, size: (u32, u32)) -> Result<RgbaImage> {
+    render_glb_to_png_with(glb, orbit, size, MaskMips::default())
+}
+
+/// [`render_glb_to_png`] with the alpha mips of alpha-tested textures built as `mask_mips` says
+/// (`MaskMips::Box` draws what a client with plain mips, such as three.js, draws).
+pub fn render_glb_to_png_with(
+    glb: &[u8],
+    orbit: Orbit,
+    size: (u32, u32),
+    mask_mips: MaskMips,
+) -> Result<RgbaImage> {
     let gpu = Gpu::new()?;
-    let mut r = GltfRenderer::from_glb(&gpu, glb)?;
+    let mut r = GltfRenderer::with_mask_mips(&gpu, glb::Asset::from_glb(glb)?, mask_mips)?;
     let camera = Camera::frame(r.bounds, orbit, size.0 as f64 / size.1 as f64);
     Ok(render_gltf(&gpu, &mut r, &camera, &Light::default(), size))
 }

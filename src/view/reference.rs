@@ -4,26 +4,40 @@
 //! The geometry-shader technique of the references (re-emit every triangle N times pushed out
 //! along the normal, discard texels by a noise texture) expressed as WebGPU can: one instanced
 //! draw, **layer = instance**. The vertex shader extrudes `position + delta · t_j`; the fragment
-//! shader evaluates the strand law itself and discards:
+//! shader samples the technique's **law texture** at `uv × tiles_per_uv` and discards:
 //!
-//! - **Noise law**: a raw 8-bit noise texture (`R8Unorm`, `NEAREST`, `REPEAT`), texel `(x, y)` =
-//!   [`strands::noise8`]`(x, y, size, seed)`, sampled at `uv × tiles_per_uv`; discard when
-//!   `n·(1 − t) < c`. The baked mask's survival codes are never consulted.
-//! - **Cells law**: texel index `floor(fract(uv × tiles) × size)`, then `mix32` / `cell_hash` /
-//!   `cell_rand` and the cell formula in WGSL, exactly as [`strands::survival`] computes them
-//!   (wrapping `u32` arithmetic, same `f32` operation order).
+//! - **Noise law**: the raw noise texture, texel `(x, y)` = [`strands::noise8`]`(x, y, size,
+//!   seed)`; discard when the seed's `n·(1 − t) < c`, in that form (the baked file tests the
+//!   equivalent `n >= c/(1 − t)` in its `alphaCutoff`).
+//! - **Cells law**: per texel the survival code `BASE_CODE + q` and the strand's shade, computed
+//!   here on the CPU by [`law_texture`] — its own implementation of the strand law: it *scatters*
+//!   each strand's jittered disc over the texels it covers (every periodic image, wrapped into
+//!   the tile), and finds each code by a linear scan of the height steps, where `strands.rs`
+//!   *gathers* the strands of a fixed neighbourhood per texel and binary-searches. A neighbourhood
+//!   that misses a strand, a wrap error or a search bug shows as a different code. Discard when
+//!   the sampled code is below the layer's cutoff `(BASE_CODE + k_j − ½)/255`.
+//!
+//! The texture is sampled as the baked file's is — `Rgba8UnormSrgb`, `LINEAR` magnification,
+//! `LINEAR_MIPMAP_LINEAR` minification, `REPEAT`, and the same coverage-preserving mip chain
+//! (uploaded through [`gpu::upload_rgba_texture`], as the glTF renderer does) — so both sides
+//! compare the *same interpolated quantity* with the same per-layer threshold: the law is exact
+//! under filtering, not only at texel centres. The grey channel (the strand's shade) multiplies
+//! the layer colour, the base layer included.
 //!
 //! What the reference takes from the bake are the **decisions of the frames stage** — the float
 //! render mesh ([`Baked::mesh`]) and its per-vertex extrusion ([`ShellStack::delta`]) — plus the
 //! layer heights, shades and the mask tiling: the inputs of the technique, not its output. The
-//! baked file must then match it to rasterization noise (quantized positions and UVs); any
-//! disagreement in which strand texels survive which layer is a bake bug.
+//! baked mask is never consulted. The baked file must then match it to rasterization noise
+//! (quantized positions and UVs); any disagreement in which strand texels survive which layer
+//! is a bake bug.
 //!
 //! Rejected: deriving the reference from the baked mask texture (it would verify nothing about
-//! the mask), and CPU ray casting (slow, and a second rasterizer would add its own noise).
-//! Possible disagreements that are not bugs: f32 rounding of the law exactly at a threshold
-//! (`sqrt` and division are not correctly rounded in WGSL; `strands.rs` tests that such ties are
-//! a handful of texels per mask) and texel-edge decisions moved by 16-bit UV quantization.
+//! the mask); evaluating the cells law per fragment in WGSL, as the first version did (a
+//! fragment cannot interpolate the law between texels nor build mip levels, so it could not
+//! follow a filtered mask; and WGSL's `sqrt` and division are not correctly rounded, which made
+//! a handful of ties per mask); CPU ray casting (slow, and a second rasterizer would add its own
+//! noise). Possible disagreements that are not bugs: `f32` rounding of the noise law exactly at
+//! a threshold, and contour positions moved by 16-bit UV quantization.
 //!
 //! The base layer (instance 0, t = 0) never discards: it is the opaque skin.
 
@@ -81,6 +95,120 @@ struct ShellData {
     ints: [u32; 4],
     material: [f32; 4],
     layers: [[f32; 4]; MAX_LAYERS],
+    /// Cells law: per-layer code cutoff, four to a vector.
+    cutoffs: [[f32; 4]; MAX_LAYERS / 4],
+}
+
+/// One strand as the reference derives it from its cell hash.
+struct RefStrand {
+    x: f32,
+    y: f32,
+    len: f32,
+    grey: u8,
+}
+
+fn ref_strand(cx: u32, cy: u32, cells: u32, seed: u32, min_length: f32) -> RefStrand {
+    let h = strands::cell_hash(cx, cy, cells, seed);
+    let unit = |v: u32| (v >> 8) as f32 / 16_777_216.0;
+    let offset = |salt: u32| 0.5 + (unit(strands::mix32(h ^ salt)) - 0.5) * (2.0 * strands::JITTER);
+    let shade_bits = strands::mix32(h ^ strands::SHADE_SALT) >> 24;
+    RefStrand {
+        x: offset(strands::JITTER_X_SALT),
+        y: offset(strands::JITTER_Y_SALT),
+        len: min_length + (1.0 - min_length) * unit(h),
+        grey: (255 - ((shade_bits * shade_bits * strands::SHADE_SPAN) >> 16)) as u8,
+    }
+}
+
+/// The strand law at squared distance `dd` (cell widths²) and height `t`:
+/// `len − dist/thickness >= t`, as `r = (len − t)·thickness >= 0 && dd <= r²`.
+fn inside(len: f32, thickness: f32, dd: f32, t: f32) -> bool {
+    let r = (len - t) * thickness;
+    r >= 0.0 && dd <= r * r
+}
+
+/// The reference's law texture, RGBA8 row-major (grey = shade, alpha = the law's quantity): the
+/// raw noise, or the cells law's survival codes computed by scattering every strand.
+pub fn law_texture(p: &StrandParams) -> Vec<u8> {
+    let size = p.mask_size;
+    let mut rgba = Vec::with_capacity((size * size * 4) as usize);
+    let (thickness, min_length, tpc) = match p.model {
+        StrandModel::Noise { .. } => {
+            for y in 0..size {
+                for x in 0..size {
+                    let n = strands::noise8(x, y, size, p.seed);
+                    rgba.extend_from_slice(&[
+                        strands::NO_SHADE,
+                        strands::NO_SHADE,
+                        strands::NO_SHADE,
+                        n,
+                    ]);
+                }
+            }
+            return rgba;
+        }
+        StrandModel::Cells {
+            thickness,
+            min_length,
+            texels_per_cell,
+        } => (thickness, min_length, texels_per_cell as i64),
+    };
+    let cells = size / tpc as u32;
+    let inv = 1.0 / tpc as f32;
+    let heights: Vec<f32> = (0..=strands::HEIGHT_STEPS)
+        .map(strands::step_height)
+        .collect();
+    // per texel: (step, squared distance, cell index, grey) of the tallest covering strand
+    let mut best: Vec<Option<(u32, f32, u32, u8)>> = vec![None; (size * size) as usize];
+    for cy in 0..cells {
+        for cx in 0..cells {
+            let s = ref_strand(cx, cy, cells, p.seed, min_length);
+            let reach = s.len * thickness;
+            let span = |c: f32| {
+                (
+                    ((c - reach) * tpc as f32).floor() as i64 - 1,
+                    ((c + reach) * tpc as f32).ceil() as i64 + 1,
+                )
+            };
+            let (x0, x1) = span(cx as f32 + s.x);
+            let (y0, y1) = span(cy as f32 + s.y);
+            for ty in y0..=y1 {
+                let ey = (ty.rem_euclid(tpc) as f32 + 0.5) * inv
+                    - ((cy as i64 - ty.div_euclid(tpc)) as f32 + s.y);
+                for tx in x0..=x1 {
+                    let ex = (tx.rem_euclid(tpc) as f32 + 0.5) * inv
+                        - ((cx as i64 - tx.div_euclid(tpc)) as f32 + s.x);
+                    let dd = ex * ex + ey * ey;
+                    if !inside(s.len, thickness, dd, heights[0]) {
+                        continue;
+                    }
+                    let mut q = 0;
+                    while q < strands::HEIGHT_STEPS
+                        && inside(s.len, thickness, dd, heights[q as usize + 1])
+                    {
+                        q += 1;
+                    }
+                    let index = cy * cells + cx;
+                    let texel = (ty.rem_euclid(size as i64) * size as i64
+                        + tx.rem_euclid(size as i64)) as usize;
+                    let wins = best[texel].is_none_or(|(bq, bdd, bi, _)| {
+                        q > bq || (q == bq && (dd < bdd || (dd == bdd && index < bi)))
+                    });
+                    if wins {
+                        best[texel] = Some((q, dd, index, s.grey));
+                    }
+                }
+            }
+        }
+    }
+    for b in best {
+        let (code, grey) = match b {
+            Some((q, _, _, grey)) => ((strands::BASE_CODE + q) as u8, grey),
+            None => (strands::BASE_CODE as u8, strands::SKIN_SHADE),
+        };
+        rgba.extend_from_slice(&[grey, grey, grey, code]);
+    }
+    rgba
 }
 
 /// Draws the runtime reference.
@@ -145,52 +273,30 @@ impl ReferenceRenderer {
             usage: wgpu::BufferUsages::INDEX,
         });
 
-        // The raw noise texture of the noise law (one tile).
+        // The law texture, sampled exactly as the viewer samples the baked mask.
         let size = input.strands.mask_size;
         let seed = input.strands.seed;
-        let noise: Vec<u8> = match input.strands.model {
-            StrandModel::Noise { .. } => (0..size)
-                .flat_map(|y| (0..size).map(move |x| strands::noise8(x, y, size, seed)))
-                .collect(),
-            StrandModel::Cells { .. } => vec![0; (size * size) as usize],
-        };
-        let noise_texture = device.create_texture_with_data(
-            &gpu.queue,
-            &wgpu::TextureDescriptor {
-                label: Some("noise"),
-                size: wgpu::Extent3d {
-                    width: size,
-                    height: size,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::R8Unorm,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            },
-            wgpu::util::TextureDataOrder::LayerMajor,
-            &noise,
+        let law_view = gpu::upload_rgba_texture(
+            gpu,
+            size,
+            size,
+            &law_texture(input.strands),
+            gpu::Mips::CoverageAlpha,
         );
-        let noise_view = noise_texture.create_view(&Default::default());
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("noise"),
+            label: Some("law"),
             address_mode_u: wgpu::AddressMode::Repeat,
             address_mode_v: wgpu::AddressMode::Repeat,
-            mag_filter: wgpu::FilterMode::Nearest,
-            min_filter: wgpu::FilterMode::Nearest,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
 
         let mut data: Box<ShellData> = bytemuck::zeroed_box();
-        let (kind, law) = match input.strands.model {
-            StrandModel::Noise { threshold } => (0.0, [threshold, 0.0, 0.0, 0.0]),
-            StrandModel::Cells {
-                thickness,
-                min_length,
-                texels_per_cell,
-            } => (1.0, [thickness, min_length, texels_per_cell as f32, 0.0]),
+        let (kind, threshold) = match input.strands.model {
+            StrandModel::Noise { threshold } => (0.0, threshold),
+            StrandModel::Cells { .. } => (1.0, 0.0),
         };
         data.tiles = [
             input.tiles_per_uv.x,
@@ -198,11 +304,12 @@ impl ReferenceRenderer {
             size as f32,
             kind,
         ];
-        data.law = law;
+        data.law = [threshold, 0.0, 0.0, 0.0];
         data.ints = [seed, shells.t.len() as u32, 0, 0];
         data.material = [0.0, input.roughness, 0.0, 0.0];
         for (j, (c, &t)) in shells.color.iter().zip(&shells.t).enumerate() {
             data.layers[j] = [c[0], c[1], c[2], t];
+            data.cutoffs[j / 4][j % 4] = strands::step_cutoff(shells.steps[j]);
         }
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shell"),
@@ -237,7 +344,7 @@ impl ReferenceRenderer {
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&noise_view),
+                    resource: wgpu::BindingResource::TextureView(&law_view),
                 },
                 wgpu::BindGroupEntry {
                     binding: 2,
@@ -396,5 +503,45 @@ impl ReferenceRenderer {
         }
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..self.index_count, 0, 0..self.instances());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::{BakeParams, Preset};
+
+    /// The reference's scatter and the bake's gather must give the same texture byte for byte:
+    /// the cells law is evaluated with correctly rounded operations only.
+    #[test]
+    fn law_texture_matches_the_baked_mask_for_every_preset_and_odd_parameters() {
+        let mut cases: Vec<StrandParams> = Preset::ALL
+            .iter()
+            .map(|&p| BakeParams::preset(p).strands)
+            .collect();
+        for (thickness, min_length, tpc, size, seed) in [
+            (2.0, 0.0, 4, 32, 3),
+            (0.05, 1.0, 2, 16, 9),
+            (1.3, 0.2, 16, 32, 0xffff_ffff),
+        ] {
+            cases.push(StrandParams {
+                model: StrandModel::Cells {
+                    thickness,
+                    min_length,
+                    texels_per_cell: tpc,
+                },
+                mask_size: size,
+                seed,
+                ..BakeParams::default().strands
+            });
+        }
+        for p in cases {
+            let mask = strands::bake_mask(&p);
+            let law = law_texture(&p);
+            let alpha: Vec<u8> = law.iter().skip(3).step_by(4).copied().collect();
+            let grey: Vec<u8> = law.iter().step_by(4).copied().collect();
+            assert!(alpha == mask.alpha, "{:?}: alpha differs", p.model);
+            assert!(grey == mask.shade, "{:?}: shade differs", p.model);
+        }
     }
 }

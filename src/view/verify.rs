@@ -9,11 +9,13 @@
 //! ## Tolerances
 //! Stated per view as a FLIP mean and a fraction of differing pixels (see `compare.rs`), set on
 //! **llvmpipe (Mesa lavapipe, Vulkan)** at 256×256 over every fixture × preset × layout, with
-//! headroom over the worst figure observed. What remains between a correct bake and the
-//! reference is rasterization noise: 14-bit positions move silhouettes and layer edges by a
-//! fraction of a pixel, 16-bit UVs move strand-texel edges by at most 1/8 texel, 8-bit normals
-//! move shading by a level or two. A bake that is wrong by as little as one layer's cutoff moves
-//! whole strand rings and exceeds them (the tests check that it does).
+//! headroom over the worst figure observed. Both sides sample their strand texture with the same
+//! filtering and mip chain and compare the same interpolated quantity with the same threshold,
+//! so what remains between a correct bake and the reference is rasterization noise: 14-bit
+//! positions move silhouettes and layer edges by a fraction of a pixel, 16-bit UVs move strand
+//! contours by at most 1/8 texel and shift the mip level a hair, 8-bit normals move shading by a
+//! level or two. A bake that is wrong by as little as one layer's cutoff moves whole strand rings
+//! and exceeds them (the tests check that it does, and that strands from another seed do).
 
 use std::path::Path;
 
@@ -46,27 +48,30 @@ pub struct Tolerance {
 }
 
 /// Tolerances per view, set on **llvmpipe** (Mesa lavapipe, Vulkan, LLVM 15) at 256×256 over the
-/// six fixtures × four presets × two layouts: about twice the worst figure seen for a correct
-/// bake (worst seen: front 0.0068 / 0.70 %, side 0.0056 / 0.39 %, close 0.0249 / 3.19 %, far
-/// 0.0017 / 0.10 %). The close view is the noisiest: strand texels about a pixel wide, seen
-/// through up to 48 layers, where a sub-pixel move of a layer edge changes a pixel.
+/// six fixtures × four presets × two layouts, with the mask sampled `LINEAR` /
+/// `LINEAR_MIPMAP_LINEAR`: about twice the worst figure seen for a correct bake (worst seen:
+/// front 0.0030 / 0.11 %, side 0.0027 / 0.32 %, close 0.0197 / 2.26 %, far 0.0005 / 0.01 %). The
+/// close view is the noisiest: strand contours a few pixels wide, seen through up to 48 layers,
+/// where a sub-pixel move of a layer edge changes a pixel. The must-fail controls exceed them
+/// on front, close and far: a cutoff one layer off reads at least 0.0176 / 0.090 / 0.0028 FLIP
+/// (2.9× / 2.3× / 2.8× the tolerance), strands from another seed 0.041 / 0.33 / 0.0070.
 pub const fn tolerance(view: NamedView) -> Tolerance {
     match view {
         NamedView::Front | NamedView::Top => Tolerance {
-            flip_mean: 0.012,
-            differing: 0.012,
+            flip_mean: 0.006,
+            differing: 0.0025,
         },
         NamedView::Side => Tolerance {
-            flip_mean: 0.011,
-            differing: 0.008,
+            flip_mean: 0.0055,
+            differing: 0.0065,
         },
         NamedView::Close => Tolerance {
-            flip_mean: 0.045,
-            differing: 0.055,
+            flip_mean: 0.04,
+            differing: 0.045,
         },
         NamedView::Far => Tolerance {
-            flip_mean: 0.0035,
-            differing: 0.002,
+            flip_mean: 0.001,
+            differing: 0.0003,
         },
     }
 }
@@ -91,7 +96,7 @@ impl ViewResult {
         let c = &self.comparison;
         let t = tolerance(self.view);
         format!(
-            "{:<6} FLIP mean {:.5} (max {})  differing pixels {:>5} of {} = {:.3}% (max {:.1}%; {} differ at all)  {}",
+            "{:<6} FLIP mean {:.5} (max {})  differing pixels {:>5} of {} = {:.3}% (max {:.2}%; {} differ at all)  {}",
             self.view.name(),
             c.flip_mean,
             t.flip_mean,
