@@ -148,18 +148,35 @@ pub struct Topology {
 impl Topology {
     pub fn new(positions: &[Vec3], indices: &[u32]) -> Topology {
         let (ids, unique) = position_ids(positions);
-        let mut edges = Vec::with_capacity(indices.len());
-        for (t, tri) in indices.chunks_exact(3).enumerate() {
-            let w = [0, 1, 2].map(|k| ids[tri[k] as usize]);
-            if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
-                continue;
+        // Bucketed by the lower end (a counting sort), then each small bucket sorted: the same
+        // order as sorting the whole list, in linear time.
+        let n = unique.len();
+        let mut start = vec![0u32; n + 1];
+        let corners = |f: &mut dyn FnMut(u32, u32, u32)| {
+            for (t, tri) in indices.chunks_exact(3).enumerate() {
+                let w = [0, 1, 2].map(|k| ids[tri[k] as usize]);
+                if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+                    continue;
+                }
+                for k in 0..3 {
+                    let (p, q) = (w[k], w[(k + 1) % 3]);
+                    f(p.min(q), p.max(q), t as u32);
+                }
             }
-            for k in 0..3 {
-                let (p, q) = (w[k], w[(k + 1) % 3]);
-                edges.push(((p.min(q) as u64) << 32 | p.max(q) as u64, t as u32));
-            }
+        };
+        corners(&mut |a, _, _| start[a as usize + 1] += 1);
+        for i in 0..n {
+            start[i + 1] += start[i];
         }
-        edges.sort_unstable();
+        let mut fill = start.clone();
+        let mut edges = vec![(0u64, 0u32); start[n] as usize];
+        corners(&mut |a, b, t| {
+            edges[fill[a as usize] as usize] = ((a as u64) << 32 | b as u64, t);
+            fill[a as usize] += 1;
+        });
+        for a in 0..n {
+            edges[start[a] as usize..start[a + 1] as usize].sort_unstable();
+        }
         Topology {
             ids,
             positions: unique,
