@@ -100,13 +100,12 @@ impl Mesh {
         {
             return;
         }
-        let pick3 = |v: &[Vec3]| source.iter().map(|&s| v[s as usize]).collect::<Vec<_>>();
-        self.positions = pick3(&self.positions);
-        self.normals = self.normals.as_deref().map(pick3);
-        self.uvs = self
-            .uvs
-            .as_deref()
-            .map(|uv| source.iter().map(|&s| uv[s as usize]).collect());
+        fn pick<T: Copy>(v: &[T], source: &[u32]) -> Vec<T> {
+            source.iter().map(|&s| v[s as usize]).collect()
+        }
+        self.positions = pick(&self.positions, source);
+        self.normals = self.normals.as_deref().map(|n| pick(n, source));
+        self.uvs = self.uvs.as_deref().map(|uv| pick(uv, source));
     }
 
     /// Negates the shading normal of each vertex from `first` on (copies split off for the other

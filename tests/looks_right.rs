@@ -59,9 +59,11 @@ fn params(preset: Preset, layout: Layout) -> BakeParams {
     p
 }
 
-/// Base-layer positions (grid units) and extrusion deltas (grid units, at t = 1) per stored
-/// vertex, and the base triangles, read from a compact file.
-fn compact_geometry(g: &Glb) -> (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[usize; 3]>) {
+/// Base-layer positions, extrusion deltas (both in grid units, the delta at weight 1) and base
+/// triangles, read from a compact file.
+type Geometry = (Vec<[f64; 3]>, Vec<[f64; 3]>, Vec<[usize; 3]>);
+
+fn compact_geometry(g: &Glb) -> Geometry {
     let prim = &g.json["meshes"][1]["primitives"][0];
     let pos = g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
     let d = g.accessor(prim["targets"][0]["POSITION"].as_u64().unwrap() as usize);

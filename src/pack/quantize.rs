@@ -83,7 +83,12 @@ pub fn quantize_normal(n: Vec3) -> [i8; 3] {
     let mut best = [0i8; 3];
     let mut best_err = f32::INFINITY;
     for corner in 0..8 {
-        let c = lo + Vec3::new((corner & 1) as f32, ((corner >> 1) & 1) as f32, (corner >> 2) as f32);
+        let c = lo
+            + Vec3::new(
+                (corner & 1) as f32,
+                ((corner >> 1) & 1) as f32,
+                (corner >> 2) as f32,
+            );
         if c.abs().max_element() > 127.0 {
             continue;
         }
