@@ -255,28 +255,18 @@ fn fill_report(
         Some(d) => report.resolved.insert("uv_density".into(), d as f64),
         None => report.resolved.insert("density".into(), density as f64),
     };
-    report
-        .resolved
-        .insert("diagonal".into(), mesh.diagonal() as f64);
-    report
-        .resolved
-        .insert("mask_size".into(), params.strands.mask_size as f64);
-    report
-        .resolved
-        .insert("tiles_per_uv_u".into(), tiles.x as f64);
-    report
-        .resolved
-        .insert("tiles_per_uv_v".into(), tiles.y as f64);
     let deviation = tiling.deviation();
-    report
-        .resolved
-        .insert("tiling_deviation_u".into(), deviation.x as f64);
-    report
-        .resolved
-        .insert("tiling_deviation_v".into(), deviation.y as f64);
-    report
-        .resolved
-        .insert("uv_scale_spread".into(), tiling.spread);
+    for (key, value) in [
+        ("diagonal", mesh.diagonal() as f64),
+        ("mask_size", params.strands.mask_size as f64),
+        ("tiles_per_uv_u", tiles.x as f64),
+        ("tiles_per_uv_v", tiles.y as f64),
+        ("tiling_deviation_u", deviation.x as f64),
+        ("tiling_deviation_v", deviation.y as f64),
+        ("uv_scale_spread", tiling.spread),
+    ] {
+        report.resolved.insert(key.into(), value);
+    }
 
     report.resolved.insert("position_step".into(), packed.scale);
     report.base_vertices = packed.base_vertices;

@@ -166,14 +166,20 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
     let layout = g.json["nodes"][0]["extras"]["shellbake"]["layout"]
         .as_str()
         .unwrap();
-    if layout == "compact" {
-        let base_prim = &meshes[0]["primitives"][0];
-        let pos = g.accessor(base_prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
+    // POSITION rows and indices of the first mesh's primitive
+    let (pos, ix) = {
+        let prim = &meshes[0]["primitives"][0];
         let ix: Vec<usize> = g
-            .accessor(base_prim["indices"].as_u64().unwrap() as usize)
+            .accessor(prim["indices"].as_u64().unwrap() as usize)
             .iter()
             .map(|v| v[0] as usize)
             .collect();
+        (
+            g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize),
+            ix,
+        )
+    };
+    if layout == "compact" {
         for mesh in &meshes[1..] {
             let prim = &mesh["primitives"][0];
             let w = mesh["weights"][0].as_f64().unwrap();
@@ -195,13 +201,6 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
             }
         }
     } else {
-        let prim = &meshes[0]["primitives"][0];
-        let pos = g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
-        let ix: Vec<usize> = g
-            .accessor(prim["indices"].as_u64().unwrap() as usize)
-            .iter()
-            .map(|v| v[0] as usize)
-            .collect();
         let layers = g.json["nodes"][0]["extras"]["shellbake"]["layers"]
             .as_u64()
             .unwrap() as usize;
