@@ -669,6 +669,7 @@ mod tests {
         }
     }
 
+    #[test]
     fn png_is_deterministic_and_decodes_to_the_codes() {
         let p = crate::params::BakeParams::default().strands;
         let m = crate::strands::bake_mask(&crate::params::StrandParams { mask_size: 32, ..p });
