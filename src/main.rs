@@ -188,10 +188,10 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     let estimate = shellbake::pack::estimate_scene_bytes(&scene, &params);
     if estimate > args.max_output {
         anyhow::bail!(
-            "{}: the output would be at most {} bytes ({:.1} MiB), above --max-output {} bytes; nothing was written",
+            "{}: the output would be about {:.1} MiB (at most {} bytes), above --max-output {} bytes; nothing was written",
             args.input.display(),
-            estimate,
             estimate as f64 / (1 << 20) as f64,
+            estimate,
             args.max_output
         );
     }
