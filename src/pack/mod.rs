@@ -498,7 +498,7 @@ pub fn estimate_bytes(
 /// per projection plane; welding copies a vertex shared by the two sides of a sheet (or by several
 /// sheets) once per side — but it packs only vertices some triangle uses. Counting the loaded
 /// vertices undercounts exactly those inputs; on a closed, UV-mapped mesh (about one vertex per
-/// two triangles) the bound is about 4× the file.
+/// two triangles) the bound is 3–5× the file.
 pub fn estimate_scene_bytes(scene: &crate::mesh::Scene, params: &crate::params::BakeParams) -> u64 {
     let triangles = scene
         .meshes
