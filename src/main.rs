@@ -278,6 +278,9 @@ fn main() -> ExitCode {
         #[cfg(feature = "view")]
         Command::Verify { bake, verify } => bake.params().and_then(|p| {
             let out = bake.output.as_deref();
+            if let Some(out) = out {
+                shellbake::write::check_outputs(&bake.input, &[("output", out)])?;
+            }
             Ok(shellbake::view::cli::verify(
                 &bake.input,
                 &p,

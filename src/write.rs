@@ -250,8 +250,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 ///
 /// Each file first goes to a new temporary beside its target, created exclusively (`O_EXCL`:
 /// never through an existing file or a planted symlink) under a random name, and is synced;
-/// only when every temporary is complete are they renamed over their targets, in order. A
-/// failure before that removes the temporaries and leaves every target as it was. A target that
+/// only when every temporary is complete are they renamed over their targets, the first file
+/// last. A failure before that removes the temporaries and leaves every target as it was; a
+/// rename that fails leaves the first file's target as it was. A target that
 /// exists and is not a regular file (a folder, a device, a FIFO) is refused, and stale temporaries
 /// of an earlier, killed write in the same folder are removed (see [`STALE_AFTER`]).
 pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
@@ -280,7 +281,8 @@ pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
             .map_err(|e| Error::io(path, e))?;
         temps.push((tmp, path));
     }
-    for (tmp, path) in temps {
+    // the first file (the GLB) last: it replaces its target only once every other one did
+    for (tmp, path) in temps.into_iter().rev() {
         tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
     }
     Ok(())
@@ -436,6 +438,33 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names.len(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_failed_second_file_leaves_the_first_target_alone() {
+        let dir = std::env::temp_dir().join(format!("shellbake-write-all-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let glb = dir.join("a.glb");
+        std::fs::write(&glb, b"old").unwrap();
+        // a folder cannot be created under a file
+        let report = glb.join("a.json");
+        assert!(write_all_atomic(&[(&glb, b"new"), (&report, b"{}")]).is_err());
+        assert_eq!(std::fs::read(&glb).unwrap(), b"old");
+        assert_eq!(
+            std::fs::read_dir(&dir).unwrap().count(),
+            1,
+            "no temporary left"
+        );
+        // a target that is a folder is refused before anything is written
+        let folder = dir.join("f.glb");
+        std::fs::create_dir(&folder).unwrap();
+        let e = write_all_atomic(&[(&glb, b"new"), (&folder, b"{}")]).unwrap_err();
+        assert!(matches!(e, Error::Output { .. }), "{e}");
+        assert_eq!(std::fs::read(&glb).unwrap(), b"old");
+        write_all_atomic(&[(&glb, b"new"), (&dir.join("a.json"), b"{}")]).unwrap();
+        assert_eq!(std::fs::read(&glb).unwrap(), b"new");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
