@@ -26,6 +26,10 @@ pub enum Error {
     /// The file type is not one we read.
     #[error("{path}: unsupported input format (expected .obj, .gltf or .glb)")]
     Format { path: PathBuf },
+    /// An output path that would overwrite the input, another output, or something that is not
+    /// a regular file.
+    #[error("{path}: {message}")]
+    Output { path: PathBuf, message: String },
     /// Parameters out of range.
     #[error("invalid parameters: {0}")]
     Params(String),

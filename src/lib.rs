@@ -202,8 +202,8 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     report.count("float_uvs", if packed.float_uvs { 1.0 } else { 0.0 });
     report.count("guarded_vertices", packed.guarded as f64);
     let (json, glb) = report.run("write", || {
-        let (doc, bin) = write::gltf_json(&packed, &shells);
-        let glb = write::glb_bytes(&doc, &bin);
+        let (doc, bin_len) = write::gltf_json(&packed, &shells);
+        let glb = write::glb_of_packed(&doc, bin_len, &packed);
         (doc, glb)
     });
 
@@ -230,6 +230,32 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         packed,
         tiles_per_uv,
     }
+}
+
+/// Refuses a scene with nothing a bake can grow fur on: every triangle collapses (two corners at
+/// one position — identical vertices, a zero-scale node) or has no area in `f32` (denormal or
+/// collinear coordinates). Such a bake would write an empty, invalid file with an infinite
+/// density. `bake` itself never fails; the binary calls this first. `path` names the input.
+pub fn check_bakeable(scene: &Scene, path: &std::path::Path) -> Result<()> {
+    let surface = scene.meshes.iter().any(|m| {
+        m.indices.chunks_exact(3).any(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| m.positions[t[k] as usize]);
+            let (_, area2) = mesh::face_normal(a, b, c);
+            a != b && b != c && a != c && area2.is_normal()
+        })
+    });
+    let diagonal = scene.meshes.iter().map(Mesh::diagonal).fold(0.0, f32::max);
+    if surface && diagonal.is_normal() {
+        return Ok(());
+    }
+    let triangles: usize = scene.meshes.iter().map(Mesh::triangle_count).sum();
+    Err(Error::Empty {
+        path: path.to_path_buf(),
+        message: format!(
+            "every triangle collapses ({triangles} triangle(s), none with an area: identical, \
+             denormal or collinear vertices, or a zero scale); nothing to bake"
+        ),
+    })
 }
 
 #[allow(clippy::too_many_arguments)]

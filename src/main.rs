@@ -1,13 +1,14 @@
 //! The `shellbake` command line. Arguments are parsed in two tiers: clap structs close to the
 //! flags, then [`BakeArgs::params`] turns them into the library's `BakeParams` (preset first,
 //! flags override). Library errors are mapped to messages and exit codes here and only here:
-//! 0 success, 1 bad input or I/O, 2 bad usage or parameters.
+//! 0 success, 1 bad input or I/O, 2 bad usage or parameters (including outputs that would
+//! overwrite the input or each other). What is printed passes through [`printable`]: paths and
+//! names from the input reach the terminal with their control characters escaped.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
-use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 use shellbake::params::{BakeParams, Layout, Preset};
 
@@ -168,38 +169,83 @@ fn default_output(input: &Path) -> PathBuf {
 fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     let params = args.params()?;
     let out = args.output();
+    let mut outputs = vec![("output", out.as_path())];
+    if let Some(report) = &args.report {
+        outputs.push(("report", report.as_path()));
+    }
+    shellbake::write::check_outputs(&args.input, &outputs)?;
     let spinner = (!args.quiet).then(|| {
         let pb = indicatif::ProgressBar::new_spinner();
-        pb.set_message(format!("baking {}", args.input.display()));
+        pb.set_message(printable(
+            &format!("baking {}", args.input.display()),
+            false,
+        ));
         pb.enable_steady_tick(Duration::from_millis(120));
         pb
     });
     let scene = shellbake::load::load(&args.input)?;
+    shellbake::check_bakeable(&scene, &args.input)?;
     let estimate = shellbake::pack::estimate_scene_bytes(&scene, &params);
     if estimate > args.max_output {
         anyhow::bail!(
-            "{}: the output would be about {} bytes ({:.1} MiB), above --max-output {} bytes; nothing was written",
+            "{}: the output would be about {:.1} MiB (at most {} bytes), above --max-output {} bytes; nothing was written",
             args.input.display(),
-            estimate,
             estimate as f64 / (1 << 20) as f64,
+            estimate,
             args.max_output
         );
     }
     let mut baked = shellbake::bake(&scene, &params);
+    drop(scene);
     if let Some(pb) = spinner {
         pb.finish_and_clear();
     }
-    shellbake::write::write_glb(&out, &baked.glb)?;
     baked.report.input = args.input.display().to_string();
     baked.report.output = out.display().to_string();
-    if let Some(path) = &args.report {
-        shellbake::write::write_atomic(path, baked.report.to_json().as_bytes())
-            .with_context(|| format!("writing the report {}", path.display()))?;
+    let json = args.report.as_ref().map(|_| baked.report.to_json());
+    let mut files = vec![(out.as_path(), baked.glb.as_slice())];
+    if let (Some(path), Some(json)) = (&args.report, &json) {
+        files.push((path.as_path(), json.as_bytes()));
     }
+    // both complete before either replaces what was there
+    shellbake::write::write_all_atomic(&files)?;
     if !args.quiet {
-        print!("{}", baked.report.summary());
+        print!("{}", printable(&baked.report.summary(), true));
     }
     Ok(())
+}
+
+/// `text` safe to print on a terminal: control characters (escape sequences, carriage returns,
+/// and newlines unless `lines`) and bidirectional overrides, which can come from file names and
+/// names inside the input, are written as Rust escapes (`\u{1b}`).
+fn printable(text: &str, lines: bool) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        let bidi = matches!(c, '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}');
+        if (c.is_control() && !(lines && c == '\n')) || bidi {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// The error and its causes on one line, each cause once: a library error that already shows its
+/// OS error (`a.glb: Permission denied`) is not followed by the same OS error again.
+fn message(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    printable(&out, false)
 }
 
 fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
@@ -232,6 +278,9 @@ fn main() -> ExitCode {
         #[cfg(feature = "view")]
         Command::Verify { bake, verify } => bake.params().and_then(|p| {
             let out = bake.output.as_deref();
+            if let Some(out) = out {
+                shellbake::write::check_outputs(&bake.input, &[("output", out)])?;
+            }
             Ok(shellbake::view::cli::verify(
                 &bake.input,
                 &p,
@@ -244,10 +293,10 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", message(&e));
             let usage = matches!(
                 e.downcast_ref::<shellbake::Error>(),
-                Some(shellbake::Error::Params(_))
+                Some(shellbake::Error::Params(_) | shellbake::Error::Output { .. })
             );
             ExitCode::from(if usage { 2 } else { 1 })
         }
@@ -327,6 +376,25 @@ mod tests {
 
     fn parse_bool_flags(args: &[&str]) -> BakeParams {
         parse(args).params().unwrap()
+    }
+
+    #[test]
+    fn printed_text_escapes_control_characters() {
+        assert_eq!(printable("a\u{1b}[2Jb\r", false), "a\\u{1b}[2Jb\\r");
+        assert_eq!(printable("x\ny", true), "x\ny");
+        assert_eq!(printable("x\ny", false), "x\\ny");
+        assert_eq!(printable("\u{202e}gnp.exe", false), "\\u{202e}gnp.exe");
+        assert_eq!(printable("fourrure é", false), "fourrure é");
+    }
+
+    #[test]
+    fn causes_already_shown_are_not_repeated() {
+        let io = std::io::Error::new(std::io::ErrorKind::PermissionDenied, "Permission denied");
+        let e = anyhow::Error::new(shellbake::Error::Io {
+            path: "a.glb".into(),
+            source: io,
+        });
+        assert_eq!(message(&e), "a.glb: Permission denied");
     }
 
     #[test]

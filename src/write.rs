@@ -8,7 +8,11 @@
 //! the grid origin in `f64`, uniform scale = grid step) and, in `extras.shellbake`, the layer
 //! heights and the shell height for engines that want them; its children are one node per layer
 //! mesh. Files are written atomically: to a temporary file beside the target, then renamed, so an
-//! error or an interruption never leaves a partial file at the output path.
+//! error or an interruption never leaves a partial file at the output path. Temporaries are
+//! created exclusively under random names (the `tempfile` crate), a GLB and its report are
+//! renamed only when both are complete, and a temporary a killed bake left behind is removed by
+//! the next write into that folder. Outputs that would overwrite the input, each other, or
+//! something that is not a regular file are refused before any work ([`check_outputs`]).
 
 use std::io::Write as _;
 use std::path::Path;
@@ -28,18 +32,17 @@ fn num(x: f32) -> Value {
     json!(v)
 }
 
-/// The glTF document for `packed` (buffer 0 = the GLB binary chunk) and that chunk.
-pub fn gltf_json(packed: &Packed, shells: &ShellStack) -> (Value, Vec<u8>) {
-    let mut bin = Vec::new();
+/// The glTF document for `packed` (buffer 0 = the GLB binary chunk: the views in order, each
+/// starting on a 4-byte boundary) and the length of that chunk.
+pub fn gltf_json(packed: &Packed, shells: &ShellStack) -> (Value, usize) {
+    let mut len = 0usize;
     let mut views = Vec::new();
     for v in &packed.views {
-        while bin.len() % 4 != 0 {
-            bin.push(0);
-        }
+        len = len.next_multiple_of(4);
         let mut o = Map::new();
         o.insert("buffer".into(), json!(0));
-        if !bin.is_empty() {
-            o.insert("byteOffset".into(), json!(bin.len()));
+        if len != 0 {
+            o.insert("byteOffset".into(), json!(len));
         }
         o.insert("byteLength".into(), json!(v.bytes.len()));
         if let Some(s) = v.stride {
@@ -52,11 +55,9 @@ pub fn gltf_json(packed: &Packed, shells: &ShellStack) -> (Value, Vec<u8>) {
         };
         o.insert("name".into(), json!(v.name));
         views.push(Value::Object(o));
-        bin.extend_from_slice(&v.bytes);
+        len += v.bytes.len();
     }
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
+    let len = len.next_multiple_of(4);
     let accessors: Vec<Value> = packed
         .accessors
         .iter()
@@ -169,9 +170,21 @@ pub fn gltf_json(packed: &Packed, shells: &ShellStack) -> (Value, Vec<u8>) {
         "samplers": [{ "magFilter": 9729, "minFilter": 9987 }],
         "accessors": accessors,
         "bufferViews": views,
-        "buffers": [{ "byteLength": bin.len() }],
+        "buffers": [{ "byteLength": len }],
     });
-    (doc, bin)
+    (doc, len)
+}
+
+/// The GLB of `doc` (from [`gltf_json`]) around `packed`'s views, copied once straight into the
+/// container: no separate binary chunk is held, so a bake's peak memory is the views plus the
+/// file, not three copies of it.
+pub fn glb_of_packed(doc: &Value, bin_len: usize, packed: &Packed) -> Vec<u8> {
+    glb_with(doc, bin_len, |out| {
+        for v in &packed.views {
+            out.resize(out.len().next_multiple_of(4), 0);
+            out.extend_from_slice(&v.bytes);
+        }
+    })
 }
 
 /// JSON bytes the document spends on each layer (its mesh, material and node).
@@ -187,11 +200,18 @@ pub fn json_bytes_per_layer(doc: &Value) -> Vec<usize> {
 
 /// A GLB container around `doc` and `bin`.
 pub fn glb_bytes(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    glb_with(doc, bin.len(), |out| out.extend_from_slice(bin))
+}
+
+/// A GLB container around `doc`; `bin` appends the `bin_len` bytes of the binary chunk (a
+/// multiple of 4, or padded here).
+fn glb_with(doc: &Value, bin_len: usize, bin: impl FnOnce(&mut Vec<u8>)) -> Vec<u8> {
     let mut json = serde_json::to_vec(doc).expect("JSON values serialize");
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    let total = 12 + 8 + json.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };
+    let padded = bin_len.next_multiple_of(4);
+    let total = 12 + 8 + json.len() + if bin_len == 0 { 0 } else { 8 + padded };
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(b"glTF");
     out.extend_from_slice(&2u32.to_le_bytes());
@@ -199,35 +219,71 @@ pub fn glb_bytes(doc: &Value, bin: &[u8]) -> Vec<u8> {
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
     out.extend_from_slice(b"JSON");
     out.extend_from_slice(&json);
-    if !bin.is_empty() {
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    if bin_len != 0 {
+        out.extend_from_slice(&(padded as u32).to_le_bytes());
         out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(bin);
+        let start = out.len();
+        bin(&mut out);
+        assert!(
+            out.len() - start <= padded,
+            "binary chunk longer than declared"
+        );
+        out.resize(start + padded, 0);
     }
+    debug_assert_eq!(out.len(), total);
     out
 }
 
-/// Writes `bytes` to `path` atomically (temporary file in the same folder, then rename).
+/// Name ending of every temporary file a write creates: `.<target name>.<pid>.<random>` + this.
+pub const TEMP_SUFFIX: &str = ".shellbake-tmp";
+
+/// A temporary whose writer is gone (or, where that cannot be told, untouched this long) is
+/// stale; the next write into its folder removes it.
+pub const STALE_AFTER: std::time::Duration = std::time::Duration::from_secs(3600);
+
+/// Writes `bytes` to `path` atomically; see [`write_all_atomic`].
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(Error::io(path, e));
+    write_all_atomic(&[(path, bytes)])
+}
+
+/// Writes each `(path, bytes)` so that either every target is replaced or none is.
+///
+/// Each file first goes to a new temporary beside its target, created exclusively (`O_EXCL`:
+/// never through an existing file or a planted symlink) under a random name, and is synced;
+/// only when every temporary is complete are they renamed over their targets, the first file
+/// last. A failure before that removes the temporaries and leaves every target as it was; a
+/// rename that fails leaves the first file's target as it was. A target that
+/// exists and is not a regular file (a folder, a device, a FIFO) is refused, and stale temporaries
+/// of an earlier, killed write in the same folder are removed (see [`STALE_AFTER`]).
+pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
+    let mut temps = Vec::with_capacity(files.len());
+    for &(path, bytes) in files {
+        check_target(path)?;
+        let dir = folder_of(path);
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        remove_stale_temps(dir);
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "out".into());
+        let prefix = format!(".{name}.{}.", std::process::id());
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(TEMP_SUFFIX);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt as _;
+            // what `File::create` gives (before the umask); tempfile's default is owner-only
+            builder.permissions(std::fs::Permissions::from_mode(0o666));
+        }
+        let mut tmp = builder.tempfile_in(dir).map_err(|e| Error::io(path, e))?;
+        tmp.write_all(bytes)
+            .and_then(|()| tmp.as_file().sync_all())
+            .map_err(|e| Error::io(path, e))?;
+        temps.push((tmp, path));
+    }
+    // the first file (the GLB) last: it replaces its target only once every other one did
+    for (tmp, path) in temps.into_iter().rev() {
+        tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
     }
     Ok(())
 }
@@ -235,6 +291,117 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// Writes a baked GLB to `path` atomically.
 pub fn write_glb(path: &Path, glb: &[u8]) -> Result<()> {
     write_atomic(path, glb)
+}
+
+fn folder_of(path: &Path) -> &Path {
+    path.parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+}
+
+/// Refuses an output path that names something other than a regular file (followed through
+/// symlinks): replacing a folder, a device or a FIFO is never what a bake means.
+pub fn check_target(path: &Path) -> Result<()> {
+    match std::fs::metadata(path) {
+        Ok(m) if !m.is_file() => Err(Error::Output {
+            path: path.to_path_buf(),
+            message: "exists and is not a regular file (a folder, a device or a pipe); refusing to replace it".into(),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Refuses output paths that would overwrite the input or each other: `-o` equal to the input,
+/// the report equal to the input or to the GLB, through any spelling of the path (`./a.obj`,
+/// symlinks, hard links). Also runs [`check_target`] on each output.
+pub fn check_outputs(input: &Path, outputs: &[(&str, &Path)]) -> Result<()> {
+    let refuse = |path: &Path, message: String| Error::Output {
+        path: path.to_path_buf(),
+        message,
+    };
+    for (i, &(what, path)) in outputs.iter().enumerate() {
+        check_target(path)?;
+        if same_file(path, input) {
+            return Err(refuse(
+                path,
+                format!("the {what} would overwrite the input {}", input.display()),
+            ));
+        }
+        for &(other, earlier) in &outputs[..i] {
+            if same_file(path, earlier) {
+                return Err(refuse(
+                    path,
+                    format!("the {what} and the {other} name the same file"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether `a` and `b` name one file: the same device and inode where both exist (unix), else
+/// the same canonical folder and name.
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+        use std::os::unix::fs::MetadataExt as _;
+        return (x.dev(), x.ino()) == (y.dev(), y.ino());
+    }
+    let canonical = |p: &Path| {
+        p.canonicalize().ok().or_else(|| {
+            let dir = folder_of(p).canonicalize().ok()?;
+            Some(dir.join(p.file_name()?))
+        })
+    };
+    match (canonical(a), canonical(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => a == b,
+    }
+}
+
+/// Removes temporaries in `dir` left by a write that never finished (a killed bake): files named
+/// like ours whose writing process is gone (Linux) or that are older than [`STALE_AFTER`].
+/// Symlinks are removed as links, never followed. Errors are ignored: cleaning is a courtesy.
+pub fn remove_stale_temps(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(stem) = name.strip_suffix(TEMP_SUFFIX) else {
+            continue;
+        };
+        if !name.starts_with('.') {
+            continue;
+        }
+        // `.<target>.<pid>.<random>`
+        let mut parts = stem.rsplitn(3, '.');
+        let pid = match (
+            parts.next(),
+            parts.next().and_then(|p| p.parse::<u32>().ok()),
+        ) {
+            (Some(_), Some(pid)) => pid,
+            _ => continue,
+        };
+        if pid == std::process::id() {
+            continue;
+        }
+        let Ok(meta) = entry.path().symlink_metadata() else {
+            continue;
+        };
+        let old = meta
+            .modified()
+            .ok()
+            .and_then(|t| t.elapsed().ok())
+            .is_some_and(|age| age >= STALE_AFTER);
+        let gone = cfg!(target_os = "linux")
+            && Path::new("/proc/self").exists()
+            && !Path::new(&format!("/proc/{pid}")).exists();
+        if old || gone {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 #[cfg(test)]
@@ -271,6 +438,33 @@ mod tests {
             .map(|e| e.unwrap().file_name())
             .collect();
         assert_eq!(names.len(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_failed_second_file_leaves_the_first_target_alone() {
+        let dir = std::env::temp_dir().join(format!("shellbake-write-all-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let glb = dir.join("a.glb");
+        std::fs::write(&glb, b"old").unwrap();
+        // a folder cannot be created under a file
+        let report = glb.join("a.json");
+        assert!(write_all_atomic(&[(&glb, b"new"), (&report, b"{}")]).is_err());
+        assert_eq!(std::fs::read(&glb).unwrap(), b"old");
+        assert_eq!(
+            std::fs::read_dir(&dir).unwrap().count(),
+            1,
+            "no temporary left"
+        );
+        // a target that is a folder is refused before anything is written
+        let folder = dir.join("f.glb");
+        std::fs::create_dir(&folder).unwrap();
+        let e = write_all_atomic(&[(&glb, b"new"), (&folder, b"{}")]).unwrap_err();
+        assert!(matches!(e, Error::Output { .. }), "{e}");
+        assert_eq!(std::fs::read(&glb).unwrap(), b"old");
+        write_all_atomic(&[(&glb, b"new"), (&dir.join("a.json"), b"{}")]).unwrap();
+        assert_eq!(std::fs::read(&glb).unwrap(), b"new");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -161,3 +161,65 @@ proptest! {
         }
     }
 }
+
+/// `m` as a bake may receive it: UVs missing (`uv == 0`), present but without area (`1`, all at
+/// one point: the bake regenerates them and splits vertices) or random (`2`); with `sheet`, every
+/// face listed a second time reversed on the same vertices (welding splits those vertices).
+fn scene_with(m: &Mesh, uv: u8, sheet: bool, seed: u32) -> Scene {
+    let mut m = m.clone();
+    if sheet {
+        let back: Vec<u32> = m
+            .indices
+            .chunks_exact(3)
+            .flat_map(|t| [t[0], t[2], t[1]])
+            .collect();
+        m.indices.extend(back);
+    }
+    m.uvs = match uv {
+        0 => None,
+        1 => Some(vec![glam::Vec2::splat(0.5); m.positions.len()]),
+        _ => Some(
+            (0..m.positions.len() as u32)
+                .map(|i| {
+                    let h = (i ^ seed).wrapping_mul(0x9e37_79b9);
+                    glam::Vec2::new((h >> 16) as f32 / 65536.0, (h & 0xffff) as f32 / 4096.0)
+                })
+                .collect(),
+        ),
+    };
+    Scene {
+        meshes: vec![m],
+        warnings: vec![],
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
+
+    /// `--max-output` holds: the estimate made before any work bounds the written file, whatever
+    /// the bake splits (generated UVs, sheet sides) and for every layout, layer count and mask.
+    #[test]
+    fn the_size_estimate_bounds_the_written_file(
+        m in arb_mesh(),
+        uv in 0u8..3,
+        sheet in prop::bool::ANY,
+        single in prop::bool::ANY,
+        layers in 1u32..=48,
+        mask_size in prop::sample::select(vec![16u32, 64, 128]),
+        seed in any::<u32>(),
+    ) {
+        let scene = scene_with(&m, uv, sheet, seed);
+        let mut p = BakeParams::default();
+        p.shells.layers = layers;
+        p.strands.mask_size = mask_size;
+        p.strands.seed = seed;
+        p.pack.layout = if single { Layout::SingleDraw } else { Layout::Compact };
+        let estimate = shellbake::pack::estimate_scene_bytes(&scene, &p);
+        let baked = shellbake::bake(&scene, &p);
+        prop_assert!(
+            estimate >= baked.glb.len() as u64,
+            "estimate {} < written {} ({} vertices packed from {} loaded)",
+            estimate, baked.glb.len(), baked.packed.base_vertices, m.positions.len()
+        );
+    }
+}

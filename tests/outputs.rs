@@ -1,0 +1,328 @@
+//! The output side of the command line under hostile paths and faults: outputs that would
+//! clobber the input or each other, a report that cannot be written, temporaries (random names,
+//! planted links, stale leftovers of a killed bake), inputs with nothing to bake, and what reaches
+//! the terminal (each OS error once, control characters escaped).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use base64::Engine as _;
+use common::{fixture, scratch};
+use serde_json::json;
+
+struct Run {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+fn shellbake(args: &[&Path]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_shellbake"))
+        .arg("bake")
+        .args(args)
+        .output()
+        .unwrap();
+    Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into(),
+        stderr: String::from_utf8_lossy(&out.stderr).into(),
+    }
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// A folder holding `cube.obj`, and the input's path.
+fn with_input(name: &str) -> (PathBuf, PathBuf) {
+    let dir = scratch(name);
+    let input = dir.join("cube.obj");
+    std::fs::copy(fixture("cube.obj"), &input).unwrap();
+    (dir, input)
+}
+
+#[test]
+fn outputs_that_would_overwrite_the_input_or_each_other_are_refused() {
+    let (dir, input) = with_input("outputs_clobber");
+    let original = std::fs::read(&input).unwrap();
+    let glb = dir.join("cube.glb");
+    let spelled = dir.join(".").join("cube.obj");
+    let link = dir.join("link.obj");
+    let hard = dir.join("hard.obj");
+    std::os::unix::fs::symlink(&input, &link).unwrap();
+    std::fs::hard_link(&input, &hard).unwrap();
+    let report_link = dir.join("report.json");
+    std::os::unix::fs::symlink(&glb, &report_link).unwrap();
+    std::fs::write(&glb, b"previous").unwrap();
+    let q = Path::new("-q");
+    let (o, r) = (Path::new("-o"), Path::new("--report"));
+    let cases: [(&[&Path], &str); 7] = [
+        (&[&input, o, &input, q], "would overwrite the input"),
+        (&[&input, o, &spelled, q], "would overwrite the input"),
+        (&[&input, o, &link, q], "would overwrite the input"),
+        (&[&input, o, &hard, q], "would overwrite the input"),
+        (
+            &[&input, o, &glb, r, &input, q],
+            "report would overwrite the input",
+        ),
+        (&[&input, o, &glb, r, &glb, q], "name the same file"),
+        (&[&input, o, &glb, r, &report_link, q], "name the same file"),
+    ];
+    for (args, why) in cases {
+        let run = shellbake(args);
+        assert_eq!(run.code, 2, "{args:?}: {}", run.stderr);
+        assert!(run.stderr.contains(why), "{args:?}: {}", run.stderr);
+        assert_eq!(std::fs::read(&input).unwrap(), original, "{args:?}");
+        assert_eq!(std::fs::read(&glb).unwrap(), b"previous", "{args:?}");
+    }
+    let mut want = vec![
+        "cube.glb",
+        "cube.obj",
+        "hard.obj",
+        "link.obj",
+        "report.json",
+    ];
+    want.sort();
+    assert_eq!(names(&dir), want, "no temporary is left");
+}
+
+#[test]
+fn outputs_that_are_not_regular_files_are_refused() {
+    let (dir, input) = with_input("outputs_not_regular");
+    let folder = dir.join("folder.glb");
+    std::fs::create_dir(&folder).unwrap();
+    let fifo = dir.join("fifo.glb");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    for target in [Path::new("/dev/null"), &folder, &fifo] {
+        for flag in ["-o", "--report"] {
+            let run = shellbake(&[&input, Path::new(flag), target, Path::new("-q")]);
+            assert_eq!(run.code, 2, "{flag} {target:?}: {}", run.stderr);
+            assert!(
+                run.stderr.contains("not a regular file") && run.stderr.contains("glb")
+                    || target == Path::new("/dev/null"),
+                "{}",
+                run.stderr
+            );
+        }
+    }
+    assert!(folder.is_dir() && std::fs::read_dir(&folder).unwrap().next().is_none());
+}
+
+#[test]
+fn a_report_that_cannot_be_written_leaves_the_previous_output_in_place() {
+    let (dir, input) = with_input("outputs_report_fails");
+    let glb = dir.join("cube.glb");
+    std::fs::write(&glb, b"previous").unwrap();
+    // the report's folder is a file: the report cannot be created, after the GLB was baked
+    let report = dir.join("cube.obj").join("report.json");
+    let run = shellbake(&[
+        &input,
+        Path::new("-o"),
+        &glb,
+        Path::new("--report"),
+        &report,
+    ]);
+    assert_eq!(run.code, 1, "{}", run.stderr);
+    assert!(run.stderr.contains("cube.obj"), "{}", run.stderr);
+    assert_eq!(std::fs::read(&glb).unwrap(), b"previous");
+    assert_eq!(
+        names(&dir),
+        ["cube.glb", "cube.obj"],
+        "no temporary is left"
+    );
+    // and with a writable report both are replaced together
+    let report = dir.join("report.json");
+    let run = shellbake(&[
+        &input,
+        Path::new("-o"),
+        &glb,
+        Path::new("--report"),
+        &report,
+    ]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    assert_eq!(&std::fs::read(&glb).unwrap()[0..4], b"glTF");
+    assert!(std::fs::read_to_string(&report)
+        .unwrap()
+        .contains("cube.glb"));
+}
+
+#[test]
+fn temporaries_are_random_never_followed_and_stale_ones_are_removed() {
+    let (dir, input) = with_input("outputs_temporaries");
+    let glb = dir.join("cube.glb");
+    // a victim behind links planted at every name the old scheme could have used
+    let victim = dir.join("victim.txt");
+    std::fs::write(&victim, b"keep me").unwrap();
+    // a dead writer's partial file, an old one of a live process (pid 1), a fresh one of a live
+    // process (another bake may be writing it), and a planted link named like a stale temporary
+    let dead = dir.join(".cube.glb.4294967295.AbCdEf.shellbake-tmp");
+    let old = dir.join(".cube.glb.1.GhIjKl.shellbake-tmp");
+    let fresh = dir.join(".cube.glb.1.MnOpQr.shellbake-tmp");
+    let planted = dir.join(".cube.glb.4294967294.StUvWx.shellbake-tmp");
+    for p in [&dead, &old, &fresh] {
+        std::fs::write(p, b"partial").unwrap();
+    }
+    let hour_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(7200);
+    std::fs::File::options()
+        .write(true)
+        .open(&old)
+        .unwrap()
+        .set_modified(hour_ago)
+        .unwrap();
+    std::os::unix::fs::symlink(&victim, &planted).unwrap();
+    for pid in 0..64u32 {
+        let _ = std::os::unix::fs::symlink(&victim, dir.join(format!(".cube.glb.tmp-{pid}")));
+    }
+    let run = shellbake(&[&input, Path::new("-o"), &glb, Path::new("-q")]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    assert_eq!(std::fs::read(&victim).unwrap(), b"keep me");
+    assert!(
+        std::fs::symlink_metadata(&dead).is_err(),
+        "dead writer's temporary removed"
+    );
+    assert!(
+        std::fs::symlink_metadata(&old).is_err(),
+        "old temporary removed"
+    );
+    assert!(
+        std::fs::symlink_metadata(&planted).is_err(),
+        "link removed, not followed"
+    );
+    assert!(fresh.exists(), "a live writer's fresh temporary is kept");
+    let temps = names(&dir)
+        .into_iter()
+        .filter(|n| n.ends_with(".shellbake-tmp"))
+        .count();
+    assert_eq!(temps, 1, "only the live writer's temporary remains");
+    assert_eq!(&std::fs::read(&glb).unwrap()[0..4], b"glTF");
+}
+
+/// A glTF of one triangle at `positions` under a node with `scale`.
+fn gltf_triangle(positions: [[f32; 3]; 3], scale: [f32; 3]) -> serde_json::Value {
+    let bytes: Vec<u8> = positions
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    let data = base64::engine::general_purpose::STANDARD.encode(&bytes);
+    json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "scale": scale}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 1.0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "buffers": [{"byteLength": 36, "uri": format!("data:application/octet-stream;base64,{data}")}],
+    })
+}
+
+#[test]
+fn inputs_whose_every_triangle_collapses_are_refused() {
+    let dir = scratch("outputs_collapse");
+    let unit = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let cases: [(&str, Vec<u8>); 5] = [
+        (
+            "identical.obj",
+            b"v 1 2 3\nv 1 2 3\nv 1 2 3\nf 1 2 3\nf 3 2 1\n".to_vec(),
+        ),
+        (
+            "denormal.obj",
+            b"v 0 0 0\nv 1e-40 0 0\nv 0 1e-40 0\nf 1 2 3\n".to_vec(),
+        ),
+        (
+            "collinear.obj",
+            b"v 0 0 0\nv 1 1 1\nv 2 2 2\nf 1 2 3\n".to_vec(),
+        ),
+        (
+            "zero-scale.gltf",
+            serde_json::to_vec(&gltf_triangle(unit, [0.0, 0.0, 0.0])).unwrap(),
+        ),
+        (
+            "flat-scale.gltf",
+            serde_json::to_vec(&gltf_triangle(unit, [1.0, 0.0, 1.0])).unwrap(),
+        ),
+    ];
+    for (name, content) in cases {
+        let input = dir.join(name);
+        std::fs::write(&input, content).unwrap();
+        let glb = dir.join(format!("{name}.glb"));
+        let run = shellbake(&[&input, Path::new("-o"), &glb]);
+        assert_eq!(run.code, 1, "{name}: {}{}", run.stdout, run.stderr);
+        assert!(
+            run.stderr.contains(name) && run.stderr.contains("every triangle collapses"),
+            "{name}: {}",
+            run.stderr
+        );
+        assert!(!run.stdout.contains("inf"), "{name}: {}", run.stdout);
+        assert!(!glb.exists(), "{name}: nothing written");
+    }
+    // one good triangle among collapsed ones is enough
+    let input = dir.join("one-good.obj");
+    std::fs::write(&input, b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 1 2\nf 1 2 3\n").unwrap();
+    let run = shellbake(&[&input, Path::new("-q")]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+}
+
+#[test]
+fn io_errors_name_the_file_and_the_os_error_once() {
+    let (dir, input) = with_input("outputs_io_once");
+    let missing = dir.join("missing.obj");
+    let under_file = dir.join("cube.obj").join("out.glb");
+    for args in [
+        vec![missing.as_path()],
+        vec![input.as_path(), Path::new("-o"), &under_file],
+    ] {
+        let run = shellbake(&args);
+        assert_eq!(run.code, 1, "{}", run.stderr);
+        assert_eq!(run.stderr.matches("os error").count(), 1, "{}", run.stderr);
+        assert_eq!(run.stderr.lines().count(), 1, "{}", run.stderr);
+    }
+}
+
+#[test]
+fn control_characters_from_paths_are_escaped_on_the_terminal() {
+    let dir = scratch("outputs_escape");
+    let input = dir.join("cu\u{1b}[2Jbe\r.obj");
+    std::fs::copy(fixture("cube.obj"), &input).unwrap();
+    let glb = dir.join("out\u{7}.glb");
+    let run = shellbake(&[&input, Path::new("-o"), &glb]);
+    assert_eq!(run.code, 0, "{}", run.stderr);
+    for text in [&run.stdout, &run.stderr] {
+        assert!(
+            !text.contains(['\u{1b}', '\r', '\u{7}']),
+            "raw control character in {text:?}"
+        );
+    }
+    assert!(
+        run.stdout.contains("cu\\u{1b}[2Jbe\\r.obj"),
+        "{}",
+        run.stdout
+    );
+    // and in errors
+    let missing = dir.join("gone\u{1b}]0;title\u{7}.obj");
+    let run = shellbake(&[&missing]);
+    assert_eq!(run.code, 1);
+    assert!(
+        !run.stderr.contains(['\u{1b}', '\u{7}']),
+        "{:?}",
+        run.stderr
+    );
+    assert!(
+        run.stderr.contains("gone\\u{1b}]0;title\\u{7}.obj"),
+        "{}",
+        run.stderr
+    );
+}
