@@ -45,7 +45,7 @@ fn load_json(name: &str, v: &Value) -> Result<shellbake::mesh::Scene, String> {
 }
 
 fn assert_refused(r: Result<shellbake::mesh::Scene, String>, words: &[&str]) {
-    let e = r.err().expect("should be refused");
+    let e = r.expect_err("should be refused");
     for w in words {
         assert!(e.contains(w), "'{w}' missing from: {e}");
     }

@@ -151,7 +151,14 @@ pub fn gltf(data: &[u8]) -> Vec<u8> {
             match c.below(4) {
                 0 => n["scale"] = json!([c.pick(&scales), c.pick(&scales), c.pick(&scales)]),
                 1 => n["translation"] = json!([c.pick(&scales), 0.0, 1.0]),
-                2 if c.flag() => n["rotation"] = json!([0.0, 0.7071068, 0.0, 0.7071068]),
+                2 if c.flag() => {
+                    n["rotation"] = json!([
+                        0.0,
+                        std::f64::consts::FRAC_1_SQRT_2,
+                        0.0,
+                        std::f64::consts::FRAC_1_SQRT_2
+                    ])
+                }
                 _ => {}
             }
             n
