@@ -10,9 +10,10 @@
 //! **Accessors** are read here, not by the gltf crate's readers: those assert on legal-looking
 //! inputs (a `byteStride` smaller than the element, found by fuzzing, reaches an assertion;
 //! unexpected component types reach `unreachable!`). Every accessor is checked against the spec
-//! before a byte is read — a buffer view, `count >= 1`, `byteStride` at least the element size,
-//! every element inside its view and its buffer, computed without overflow — and then decoded by
-//! one function for every component type, `normalized` or not. So quantized attributes
+//! before a byte is read — a buffer view inside its buffer, `count >= 1`, `byteStride` at least
+//! the element size, every element inside its view, computed without overflow — and then decoded
+//! for every component type, `normalized` or not, by `accessor.rs`, the decoder the viewer's
+//! reader (`view/glb.rs`) uses too. So quantized attributes
 //! (`KHR_mesh_quantization`, written by shellbake itself and by gltfpack: POSITION as (u)int8/16,
 //! NORMAL as normalized (u)int8/16, TEXCOORD_0 as (u)int8/16 normalized or not) load like float
 //! ones; their dequantization lives in the node transform, which is applied in `f64`. Sparse
@@ -50,7 +51,7 @@ use std::path::{Component, Path, PathBuf};
 use base64::Engine as _;
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 
-use super::{escape, MAX_INPUT_BYTES};
+use super::{accessor, escape, MAX_INPUT_BYTES};
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, Scene};
 
@@ -390,26 +391,16 @@ fn check_kind(
     ))
 }
 
-/// Reads every component of an accessor as `f64` (`normalized` integers mapped to [0, 1] or
-/// [-1, 1] as the spec says), after checking it against the spec: a buffer view, at least one
-/// element, a `byteStride` no smaller than the element, every byte inside the view and the
-/// buffer (all computed without overflow).
+/// Reads every component of an accessor as `f64` through the shared decoder
+/// ([`accessor::decode`], which checks the layout against the spec), after checking that it has
+/// a buffer view lying inside its buffer.
 fn read_accessor(
     path: &Path,
     element: &str,
     acc: &::gltf::Accessor,
     buffers: &[Vec<u8>],
 ) -> Result<Vec<f64>> {
-    use ::gltf::accessor::DataType as T;
     let here = || format!("{element}: accessor {}", acc.index());
-    // The spec requires count >= 1; the gltf crate computes `count - 1` (found by fuzzing).
-    if acc.count() == 0 {
-        return Err(Error::invalid(
-            path,
-            here(),
-            "has no elements (count must be at least 1)",
-        ));
-    }
     if acc.sparse().is_some() {
         return Err(Error::invalid(
             path,
@@ -420,93 +411,37 @@ fn read_accessor(
     let Some(view) = acc.view() else {
         return Err(Error::invalid(path, here(), "has no buffer view"));
     };
-    let comp = acc.data_type().size();
-    let n = acc.dimensions().multiplicity();
-    let elem = comp * n;
-    let stride = view.stride().unwrap_or(elem);
-    if stride < elem {
-        return Err(Error::invalid(
-            path,
-            here(),
-            format!(
-                "buffer view {} has byteStride {stride}, smaller than the accessor's {elem}-byte \
-                 element",
-                view.index()
-            ),
-        ));
-    }
-    let need = stride
-        .checked_mul(acc.count() - 1)
-        .and_then(|s| s.checked_add(acc.offset()))
-        .and_then(|s| s.checked_add(elem));
-    let have_view = view.length();
     let buffer = buffers
         .get(view.buffer().index())
         .map_or(&[][..], |b| &b[..]);
-    let view_end = view.offset().checked_add(have_view);
-    let (Some(need), Some(view_end)) = (need, view_end) else {
-        return Err(Error::invalid(path, here(), "byte range overflows"));
+    let bytes = view
+        .offset()
+        .checked_add(view.length())
+        .and_then(|end| buffer.get(view.offset()..end))
+        .ok_or_else(|| {
+            Error::invalid(
+                path,
+                here(),
+                format!(
+                    "buffer view {} ({} bytes at offset {}) runs past buffer {} ({} bytes)",
+                    view.index(),
+                    view.length(),
+                    view.offset(),
+                    view.buffer().index(),
+                    buffer.len()
+                ),
+            )
+        })?;
+    let layout = accessor::Layout {
+        component_type: acc.data_type().as_gl_enum() as u64,
+        normalized: acc.normalized(),
+        components: acc.dimensions().multiplicity(),
+        count: acc.count(),
+        offset: acc.offset(),
+        stride: view.stride(),
     };
-    if need > have_view || view_end > buffer.len() {
-        return Err(Error::invalid(
-            path,
-            here(),
-            format!(
-                "reads {need} bytes of buffer view {} ({have_view} bytes at offset {}), buffer {} \
-                 has {}",
-                view.index(),
-                view.offset(),
-                view.buffer().index(),
-                buffer.len()
-            ),
-        ));
-    }
-    let data = &buffer[view.offset()..view_end];
-    let norm = acc.normalized();
-    let mut out = Vec::with_capacity(acc.count() * n);
-    for e in 0..acc.count() {
-        let start = acc.offset() + e * stride;
-        for c in data[start..start + elem].chunks_exact(comp) {
-            let v = match acc.data_type() {
-                T::I8 => {
-                    let v = c[0] as i8 as f64;
-                    if norm {
-                        (v / 127.0).max(-1.0)
-                    } else {
-                        v
-                    }
-                }
-                T::U8 => {
-                    let v = c[0] as f64;
-                    if norm {
-                        v / 255.0
-                    } else {
-                        v
-                    }
-                }
-                T::I16 => {
-                    let v = i16::from_le_bytes([c[0], c[1]]) as f64;
-                    if norm {
-                        (v / 32767.0).max(-1.0)
-                    } else {
-                        v
-                    }
-                }
-                T::U16 => {
-                    let v = u16::from_le_bytes([c[0], c[1]]) as f64;
-                    if norm {
-                        v / 65535.0
-                    } else {
-                        v
-                    }
-                }
-                T::U32 => u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64,
-                T::F32 => f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64,
-            };
-            out.push(v);
-        }
-    }
-    Ok(out)
+    accessor::decode(bytes, &layout)
+        .map_err(|e| Error::invalid(path, here(), format!("buffer view {}: {e}", view.index())))
 }
 
 fn resolve_buffers(path: &Path, gltf: &::gltf::Gltf) -> Result<Vec<Vec<u8>>> {

@@ -19,6 +19,7 @@
 //!
 //! Missing normals are left `None`; the bake then shades with the extrusion directions.
 
+pub mod accessor;
 mod gltf;
 mod obj;
 
