@@ -442,4 +442,14 @@ fn a_short_vertex_line_is_named() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("short.obj") && e.contains("line 2"), "{e}");
+    for (text, line) in [
+        (&b"v 0 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"[..], "line 1"),
+        (b"v 0 0 0\nv 1 0 0 1 1\nv 0 1 0\nf 1 2 3\n", "line 2"),
+        (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.5\nf 1 2 3\n", "line 4"),
+    ] {
+        let e = load_bytes(Path::new("w.obj"), text)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(line), "{e}");
+    }
 }

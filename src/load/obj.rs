@@ -272,14 +272,22 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
                     _ => &mut nn,
                 };
                 *count += 1;
-                let needed = if tag == "vt" { 1 } else { 3 };
+                // What tobj accepts: `vt u v`, `vn x y z`, `v x y z [w | r g b]` with w != 0.
+                let needed = if tag == "vt" { 2 } else { 3 };
                 let given = words.clone().count();
-                if given < needed {
-                    return Err(Error::invalid(
-                        path,
-                        format!("line {line_no}"),
-                        format!("'{tag}' needs {needed} number(s), has {given}"),
-                    ));
+                let extra = given.saturating_sub(needed);
+                let w = words.clone().nth(3).map(str::parse::<f64>);
+                let bad = if given < needed {
+                    Some(format!("'{tag}' needs {needed} numbers, has {given}"))
+                } else if tag == "v" && !matches!(extra, 0 | 1 | 3) {
+                    Some(format!("'v' has {given} numbers (3, 4 or 6 expected)"))
+                } else if tag == "v" && extra == 1 && !matches!(w, Some(Ok(w)) if w != 0.0) {
+                    Some("'v' has a zero or unreadable w".to_string())
+                } else {
+                    None
+                };
+                if let Some(message) = bad {
+                    return Err(Error::invalid(path, format!("line {line_no}"), message));
                 }
                 for w in words.take(if tag == "vt" { 2 } else { 3 }) {
                     let value: f64 = w.parse().map_err(|_| {
