@@ -370,8 +370,13 @@ impl Asset {
                 .unwrap_or_default(),
             // No scene: draw every node that is nobody's child.
             None => {
-                let children: Vec<usize> = nodes.iter().flat_map(|n| n.children.clone()).collect();
-                (0..nodes.len()).filter(|i| !children.contains(i)).collect()
+                let mut is_child = vec![false; nodes.len()];
+                for &c in nodes.iter().flat_map(|n| &n.children) {
+                    if let Some(slot) = is_child.get_mut(c) {
+                        *slot = true;
+                    }
+                }
+                (0..nodes.len()).filter(|&i| !is_child[i]).collect()
             }
         };
 
@@ -434,6 +439,31 @@ impl Asset {
             {
                 return Err(err(format!(
                     "node {i} refers to a mesh or node that does not exist"
+                )));
+            }
+        }
+        // The nodes must form a forest (as the loader requires): a node under two parents, or a
+        // root listed twice or also a child, would multiply the instances exponentially.
+        let mut parent: Vec<Option<usize>> = vec![None; self.nodes.len()];
+        for (i, n) in self.nodes.iter().enumerate() {
+            for &c in &n.children {
+                if let Some(p) = parent[c].replace(i) {
+                    return Err(err(format!(
+                        "node {c} is a child of node {p} and node {i} (a node may have one parent)"
+                    )));
+                }
+            }
+        }
+        let mut listed = vec![false; self.nodes.len()];
+        for &r in &self.roots {
+            if r >= self.nodes.len() || std::mem::replace(&mut listed[r], true) {
+                return Err(err(format!(
+                    "the scene lists node {r} twice or it does not exist"
+                )));
+            }
+            if let Some(p) = parent[r] {
+                return Err(err(format!(
+                    "the scene lists node {r}, which is a child of node {p}"
                 )));
             }
         }
@@ -788,6 +818,17 @@ mod tests {
             inst[0].world.transform_point3(DVec3::ONE),
             DVec3::new(1e6 + 2.0, 2.0, 2.0)
         );
+    }
+
+    #[test]
+    fn shared_children_are_refused() {
+        let mut nodes: Vec<Value> = (0..40)
+            .map(|i| json!({"children": [i + 1, i + 1]}))
+            .collect();
+        nodes.push(json!({}));
+        let j = json!({"asset": {"version": "2.0"}, "nodes": nodes, "scenes": [{"nodes": [0]}]});
+        let e = Asset::from_parts(j, Vec::new()).unwrap_err();
+        assert!(e.what.contains("one parent"), "{}", e.what);
     }
 
     #[test]
