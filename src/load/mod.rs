@@ -2,8 +2,11 @@
 //!
 //! Everything is checked here, at the boundary, so the stages can assert instead of fail: a
 //! non-finite coordinate, an index past the vertex count, an unreadable or empty file is an
-//! [`Error`] naming the file and the element. Polygons are triangulated (fan, by tobj), points
-//! and lines are ignored, node transforms are applied (glTF) in `f64`.
+//! [`Error`] naming the file and the element. OBJ polygons are triangulated (ear clipping where
+//! concave, `obj.rs`), points and lines are ignored, node transforms are applied (glTF) in `f64`.
+//! Files are read only if they are regular files under [`MAX_INPUT_BYTES`] (never a FIFO or a
+//! device), meshes must span at least [`MIN_EXTENT`], and text from a file is escaped
+//! ([`escape`]) before it reaches a message.
 //!
 //! Missing UVs: a **per-face box projection** is generated — each triangle is projected on the
 //! axis plane most facing its normal, with coordinates in units of the bounding-box diagonal, and
@@ -16,6 +19,7 @@
 //!
 //! Missing normals are left `None`; the bake then shades with the extrusion directions.
 
+pub mod accessor;
 mod gltf;
 mod obj;
 
@@ -30,25 +34,92 @@ use crate::mesh::{face_normal, Mesh, Scene};
 /// height means anything; 1e15 is far past any real asset (a planet in millimetres is 1.3e10).
 pub const MAX_COORDINATE: f64 = 1e15;
 
-/// Checks world coordinates (before they become `f32` offsets) against [`MAX_COORDINATE`].
+/// Smallest accepted bounding-box diagonal of one mesh (world units), unless it is exactly 0.
+/// Below it, edge products underflow `f32` (a node scale of 1e-20 zeroed the extrusion of some
+/// triangles); 1e-7 leaves two orders of magnitude under the smallest tested model (1e-5).
+pub const MIN_EXTENT: f64 = 1e-7;
+
+/// Largest input file (and glTF buffer file) read, in bytes.
+pub const MAX_INPUT_BYTES: u64 = 1 << 31;
+
+/// Checks world coordinates (before they become `f32` offsets) against [`MAX_COORDINATE`], and
+/// the mesh's extent against [`MIN_EXTENT`].
 pub(crate) fn check_range(path: &Path, element: &str, world: &[glam::DVec3]) -> Result<()> {
-    match world
+    if let Some(v) = world
         .iter()
         .position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
     {
-        Some(v) => Err(Error::invalid(
+        return Err(Error::invalid(
             path,
             element,
             format!("vertex {v} lies outside the supported range of ±{MAX_COORDINATE:e} units"),
-        )),
-        None => Ok(()),
+        ));
     }
+    let lo = world.iter().fold(glam::DVec3::INFINITY, |a, &p| a.min(p));
+    let hi = world
+        .iter()
+        .fold(glam::DVec3::NEG_INFINITY, |a, &p| a.max(p));
+    let extent = (hi - lo).length();
+    if !world.is_empty() && extent > 0.0 && extent < MIN_EXTENT {
+        return Err(Error::invalid(
+            path,
+            element,
+            format!(
+                "spans only {extent:e} units, below the smallest supported extent of \
+                 {MIN_EXTENT:e} (a node scale near zero?); scale the model up"
+            ),
+        ));
+    }
+    Ok(())
 }
 
-/// Reads an `.obj`, `.gltf` or `.glb` file. Fails with an error that names the file and the
+/// `s` with control and bidirectional-override characters escaped, for names and text taken
+/// from a file and put into messages (a terminal must not interpret them).
+pub(crate) fn escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        let hostile = c.is_control()
+            || matches!(c, '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}');
+        if hostile {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// Reads a regular file of at most `limit` bytes. The type is checked before opening (opening a
+/// FIFO blocks until a writer comes; a device such as `/dev/zero` never ends), and again on the
+/// open handle; the read itself stops past `limit`.
+pub(crate) fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::{Error as IoError, ErrorKind, Read};
+    let refuse = |m: String| IoError::new(ErrorKind::InvalidInput, m);
+    let not_regular = || refuse("not a regular file; refused".into());
+    let too_large = || refuse(format!("larger than the {limit}-byte input limit; refused"));
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        return Err(not_regular());
+    }
+    if meta.len() > limit {
+        return Err(too_large());
+    }
+    let file = std::fs::File::open(path)?;
+    if !file.metadata()?.is_file() {
+        return Err(not_regular());
+    }
+    let mut out = Vec::new();
+    file.take(limit + 1).read_to_end(&mut out)?;
+    if out.len() as u64 > limit {
+        return Err(too_large());
+    }
+    Ok(out)
+}
+
+/// Reads an `.obj`, `.gltf` or `.glb` file (a regular file of at most [`MAX_INPUT_BYTES`]). Fails with an error that names the file and the
 /// offending element; never returns a scene with no triangles.
 pub fn load(path: &Path) -> Result<Scene> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = read_regular_file(path, MAX_INPUT_BYTES).map_err(|e| Error::io(path, e))?;
     load_bytes(path, &bytes)
 }
 

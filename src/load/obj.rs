@@ -3,7 +3,21 @@
 //! tobj parses coordinates as `f64` (feature `use_f64`), so a model far from the origin loses no
 //! precision before `Mesh::recentre`. Before handing the bytes to tobj we scan them once for what
 //! tobj would accept silently or report without a location: non-finite coordinates and face
-//! indices outside the vertices declared so far. Errors name the line and the vertex.
+//! indices outside the vertices declared so far, and what tobj would refuse without a location
+//! (a `v` with fewer than three numbers). Errors name the line and the vertex; text from the file
+//! (object names, bad tokens) is escaped before it reaches a message. A UTF-8 byte-order mark is
+//! skipped.
+//!
+//! **Polygons** are triangulated here, not by tobj (whose fan flips the triangles of a concave
+//! polygon): convex polygons as a fan from their first corner (what tobj did, so triangle input and
+//! convex quads load as before); concave ones by ear clipping in the plane of their Newell
+//! normal, which keeps every triangle facing the polygon's way. A polygon with no ear to clip
+//! (self-intersecting, badly non-planar) or more than [`MAX_EAR_CLIP`] corners falls back to the
+//! fan, with a warning counting such polygons.
+//!
+//! **Lines and points** (`l`, `p`) are not surfaces: tobj would turn an `l` of three or more
+//! vertices into a triangle, so `l` statements are removed before parsing, with a warning
+//! counting them.
 
 use std::path::Path;
 
@@ -12,26 +26,48 @@ use glam::{DVec3, Vec2, Vec3};
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, Scene};
 
+/// Largest polygon triangulated by ear clipping (its cost grows with the cube of the corner
+/// count on adversarial shapes); larger ones are fanned with a warning.
+pub const MAX_EAR_CLIP: usize = 64;
+
 pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
-    prescan(path, bytes)?;
+    let bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
+    let lines = prescan(path, bytes)?;
+    let mut scene = Scene::default();
+    let text = match lines {
+        0 => std::borrow::Cow::Borrowed(bytes),
+        n => {
+            scene.warnings.push(format!(
+                "{}: {n} line statement(s) ('l') skipped: lines are not surfaces",
+                path.display()
+            ));
+            std::borrow::Cow::Owned(without_lines(bytes))
+        }
+    };
     let options = tobj::LoadOptions {
-        triangulate: true,
+        triangulate: false,
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
     };
-    let mut reader = std::io::BufReader::new(bytes);
+    let mut reader = std::io::BufReader::new(&text[..]);
     let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| {
         // Materials do not affect shells; a missing .mtl must not fail the bake.
         Ok((Vec::new(), Default::default()))
     })
-    .map_err(|e| Error::invalid(path, "obj", format!("{e}")))?;
+    .map_err(|e| {
+        Error::invalid(
+            path,
+            "obj",
+            format!("{e} (at a line the parser does not name)"),
+        )
+    })?;
 
-    let mut scene = Scene::default();
+    let mut fanned = 0usize;
     for (k, model) in models.iter().enumerate() {
         let m = &model.mesh;
         let nv = m.positions.len() / 3;
-        let element = || format!("object {k} ('{}')", model.name);
+        let element = || format!("object {k} ('{}')", super::escape(&model.name));
         if let Some(&i) = m.indices.iter().find(|&&i| i as usize >= nv) {
             return Err(Error::invalid(
                 path,
@@ -65,7 +101,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             positions,
             normals,
             uvs,
-            indices: m.indices.clone(),
+            indices: triangulate(&world, &m.indices, &m.face_arities, &mut fanned),
         };
         if mesh
             .uvs
@@ -88,11 +124,138 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
         mesh.recentre();
         scene.meshes.push(mesh);
     }
+    if fanned > 0 {
+        scene.warnings.push(format!(
+            "{}: {fanned} polygon(s) self-intersecting, non-planar or over {MAX_EAR_CLIP} corners \
+             were fanned; check their triangles",
+            path.display()
+        ));
+    }
     Ok(scene)
 }
 
-/// Finds non-finite `v`/`vt`/`vn` values and out-of-range `f` references, with line numbers.
-fn prescan(path: &Path, bytes: &[u8]) -> Result<()> {
+/// `bytes` with every `l` statement replaced by an empty line (line numbers are kept).
+fn without_lines(bytes: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(bytes.len());
+    for line in bytes.split_inclusive(|&b| b == b'\n') {
+        let first = line
+            .split(|b| b.is_ascii_whitespace())
+            .find(|w| !w.is_empty());
+        if first == Some(&b"l"[..]) {
+            out.push(b'\n');
+        } else {
+            out.extend_from_slice(line);
+        }
+    }
+    out
+}
+
+/// Triangulates tobj's polygons (`arities` corners each, all 3 when empty): convex ones as a fan,
+/// concave ones by ear clipping (see the module doc). `fanned` counts the fallbacks.
+fn triangulate(world: &[DVec3], corners: &[u32], arities: &[u32], fanned: &mut usize) -> Vec<u32> {
+    let mut out = Vec::with_capacity(corners.len());
+    let mut start = 0;
+    let arities: Box<dyn Iterator<Item = usize>> = if arities.is_empty() {
+        Box::new(std::iter::repeat_n(3, corners.len() / 3))
+    } else {
+        Box::new(arities.iter().map(|&a| a as usize))
+    };
+    for n in arities {
+        let poly = &corners[start..start + n];
+        start += n;
+        if n < 3 {
+            continue;
+        }
+        let pts: Vec<DVec3> = poly.iter().map(|&i| world[i as usize]).collect();
+        match (n > 3 && n <= MAX_EAR_CLIP)
+            .then(|| ear_clip(&pts, fanned))
+            .flatten()
+        {
+            Some(tris) => out.extend(tris.iter().flatten().map(|&k| poly[k])),
+            None => {
+                if n > MAX_EAR_CLIP {
+                    *fanned += 1;
+                }
+                for k in 1..n - 1 {
+                    out.extend([poly[0], poly[k], poly[k + 1]]);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Ear clipping of one polygon in the plane of its Newell normal. `None` when the polygon is
+/// convex (the caller fans it) or degenerate (no normal); a polygon with no ear left is finished
+/// by clipping its most convex corner (counted in `fanned`), which keeps the output a full
+/// triangulation.
+fn ear_clip(pts: &[DVec3], fanned: &mut usize) -> Option<Vec<[usize; 3]>> {
+    let n = pts.len();
+    let mut normal = DVec3::ZERO;
+    for i in 0..n {
+        let (a, b) = (pts[i], pts[(i + 1) % n]);
+        normal += DVec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    let normal = normal.try_normalize()?;
+    let u = normal.any_orthonormal_vector();
+    let v = normal.cross(u);
+    let p: Vec<(f64, f64)> = pts.iter().map(|q| (q.dot(u), q.dot(v))).collect();
+    let turn = |a: usize, b: usize, c: usize| {
+        let (a, b, c) = (p[a], p[b], p[c]);
+        (b.0 - a.0) * (c.1 - b.1) - (b.1 - a.1) * (c.0 - b.0)
+    };
+    if (0..n).all(|i| turn((i + n - 1) % n, i, (i + 1) % n) >= 0.0) {
+        return None;
+    }
+    let inside = |q: usize, a: usize, b: usize, c: usize| {
+        turn(a, b, q) >= 0.0 && turn(b, c, q) >= 0.0 && turn(c, a, q) >= 0.0
+    };
+    let mut ring: Vec<usize> = (0..n).collect();
+    let mut tris = Vec::with_capacity(n - 2);
+    let mut stuck = false;
+    while ring.len() > 3 {
+        let m = ring.len();
+        let corner = |k: usize| (ring[(k + m - 1) % m], ring[k], ring[(k + 1) % m]);
+        let ear = (0..m).find(|&k| {
+            let (a, b, c) = corner(k);
+            turn(a, b, c) > 0.0
+                && ring.iter().all(|&q| {
+                    q == a
+                        || q == b
+                        || q == c
+                        || p[q] == p[a]
+                        || p[q] == p[b]
+                        || p[q] == p[c]
+                        || !inside(q, a, b, c)
+                })
+        });
+        stuck |= ear.is_none();
+        let k = ear.unwrap_or_else(|| {
+            (0..m)
+                .max_by(|&x, &y| {
+                    let (a, b, c) = corner(x);
+                    let (d, e, f) = corner(y);
+                    turn(a, b, c).total_cmp(&turn(d, e, f))
+                })
+                .unwrap_or(0)
+        });
+        let (a, b, c) = corner(k);
+        tris.push([a, b, c]);
+        ring.remove(k);
+    }
+    tris.push([ring[0], ring[1], ring[2]]);
+    *fanned += stuck as usize;
+    Some(tris)
+}
+
+/// Finds non-finite or missing `v`/`vt`/`vn` values and out-of-range `f` references, with line
+/// numbers. Returns the number of `l` statements.
+fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
+    let mut lines = 0;
     let text = std::str::from_utf8(bytes)
         .map_err(|e| Error::invalid(path, "file", format!("not UTF-8 text: {e}")))?;
     let (mut nv, mut nt, mut nn) = (0i64, 0i64, 0i64);
@@ -109,12 +272,29 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<()> {
                     _ => &mut nn,
                 };
                 *count += 1;
+                // What tobj accepts: `vt u v`, `vn x y z`, `v x y z [w | r g b]` with w != 0.
+                let needed = if tag == "vt" { 2 } else { 3 };
+                let given = words.clone().count();
+                let extra = given.saturating_sub(needed);
+                let w = words.clone().nth(3).map(str::parse::<f64>);
+                let bad = if given < needed {
+                    Some(format!("'{tag}' needs {needed} numbers, has {given}"))
+                } else if tag == "v" && !matches!(extra, 0 | 1 | 3) {
+                    Some(format!("'v' has {given} numbers (3, 4 or 6 expected)"))
+                } else if tag == "v" && extra == 1 && !matches!(w, Some(Ok(w)) if w != 0.0) {
+                    Some("'v' has a zero or unreadable w".to_string())
+                } else {
+                    None
+                };
+                if let Some(message) = bad {
+                    return Err(Error::invalid(path, format!("line {line_no}"), message));
+                }
                 for w in words.take(if tag == "vt" { 2 } else { 3 }) {
                     let value: f64 = w.parse().map_err(|_| {
                         Error::invalid(
                             path,
                             format!("line {line_no}"),
-                            format!("'{w}' is not a number"),
+                            format!("'{}' is not a number", super::escape(w)),
                         )
                     })?;
                     if !value.is_finite() {
@@ -131,6 +311,7 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<()> {
                     }
                 }
             }
+            "l" => lines += 1,
             "f" => {
                 for corner in words {
                     for (slot, part) in corner.split('/').enumerate() {
@@ -142,7 +323,7 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<()> {
                             Error::invalid(
                                 path,
                                 format!("line {line_no}"),
-                                format!("bad face index '{part}'"),
+                                format!("bad face index '{}'", super::escape(part)),
                             )
                         })?;
                         let resolved = if i < 0 { limit + i + 1 } else { i };
@@ -160,7 +341,7 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<()> {
             _ => {}
         }
     }
-    Ok(())
+    Ok(lines)
 }
 
 #[cfg(test)]

@@ -5,9 +5,11 @@
 //! refuses `KHR_mesh_quantization`, which every shellbake output requires. The parser is small
 //! because the subset is small:
 //!
-//! - **Accessors**: every component type, normalized or not, any `byteStride`, decoded to `f32`
-//!   with the glTF 2.0 rules (`i8`: `max(c/127, −1)`, `u8`: `c/255`, `i16`: `max(c/32767, −1)`,
-//!   `u16`: `c/65535`; non-normalized integers convert exactly). Sparse accessors are refused with
+//! - **Accessors**: decoded by the loader's decoder (`load/accessor.rs`, one reader of accessors
+//!   for both), which checks each layout against the spec first: every component type,
+//!   normalized or not, any legal `byteStride`, decoded to `f32` with the glTF 2.0 rules (`i8`:
+//!   `max(c/127, −1)`, `u8`: `c/255`, `i16`: `max(c/32767, −1)`, `u16`: `c/65535`;
+//!   non-normalized integers convert exactly). Sparse accessors are refused with
 //!   an error naming the accessor; an accessor without a buffer view reads as zeros (the spec).
 //! - **Nodes**: TRS or `matrix`, composed in `f64` so a model placed 1e6 units from the origin keeps
 //!   its precision until the renderer subtracts the camera anchor. Node `weights` override mesh
@@ -34,6 +36,9 @@ use std::path::Path;
 use base64::Engine as _;
 use glam::{DMat4, DQuat, DVec3};
 use serde_json::Value;
+
+/// Most elements an accessor without a buffer view (all zeros) may declare.
+const MAX_ZERO_ELEMENTS: usize = 1 << 24;
 
 /// Morph targets per primitive the vertex shader supports.
 pub const MAX_MORPH_TARGETS: usize = 4;
@@ -365,8 +370,13 @@ impl Asset {
                 .unwrap_or_default(),
             // No scene: draw every node that is nobody's child.
             None => {
-                let children: Vec<usize> = nodes.iter().flat_map(|n| n.children.clone()).collect();
-                (0..nodes.len()).filter(|i| !children.contains(i)).collect()
+                let mut is_child = vec![false; nodes.len()];
+                for &c in nodes.iter().flat_map(|n| &n.children) {
+                    if let Some(slot) = is_child.get_mut(c) {
+                        *slot = true;
+                    }
+                }
+                (0..nodes.len()).filter(|&i| !is_child[i]).collect()
             }
         };
 
@@ -432,6 +442,31 @@ impl Asset {
                 )));
             }
         }
+        // The nodes must form a forest (as the loader requires): a node under two parents, or a
+        // root listed twice or also a child, would multiply the instances exponentially.
+        let mut parent: Vec<Option<usize>> = vec![None; self.nodes.len()];
+        for (i, n) in self.nodes.iter().enumerate() {
+            for &c in &n.children {
+                if let Some(p) = parent[c].replace(i) {
+                    return Err(err(format!(
+                        "node {c} is a child of node {p} and node {i} (a node may have one parent)"
+                    )));
+                }
+            }
+        }
+        let mut listed = vec![false; self.nodes.len()];
+        for &r in &self.roots {
+            if r >= self.nodes.len() || std::mem::replace(&mut listed[r], true) {
+                return Err(err(format!(
+                    "the scene lists node {r} twice or it does not exist"
+                )));
+            }
+            if let Some(p) = parent[r] {
+                return Err(err(format!(
+                    "the scene lists node {r}, which is a child of node {p}"
+                )));
+            }
+        }
         for (i, m) in self.materials.iter().enumerate() {
             if m.texture.is_some_and(|t| t >= self.textures.len()) {
                 return Err(err(format!("material {i}: texture does not exist")));
@@ -451,11 +486,14 @@ impl Asset {
         let offset = index(&view["byteOffset"]).unwrap_or(0);
         let len = index(&view["byteLength"])
             .ok_or_else(|| err(format!("buffer view {v} has no byteLength")))?;
-        self.bin.get(offset..offset + len).ok_or_else(|| {
-            err(format!(
-                "buffer view {v} runs past the end of the binary chunk"
-            ))
-        })
+        offset
+            .checked_add(len)
+            .and_then(|end| self.bin.get(offset..end))
+            .ok_or_else(|| {
+                err(format!(
+                    "buffer view {v} runs past the end of the binary chunk"
+                ))
+            })
     }
 
     fn parse_textures(&self) -> Result<Vec<Texture>> {
@@ -538,94 +576,60 @@ impl Asset {
         };
         let count =
             index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
-        let component = acc["componentType"].as_u64().unwrap_or(0);
-        let normalized = acc["normalized"].as_bool().unwrap_or(false);
-        let size = match component {
-            5120 | 5121 => 1,
-            5122 | 5123 => 2,
-            5125 | 5126 => 4,
-            c => return Err(err(format!("accessor {a}: component type {c} unknown"))),
-        };
         let Some(view) = index(&acc["bufferView"]) else {
+            // Zeros, as the spec says; bounded so a one-line accessor cannot ask for terabytes.
+            if count > MAX_ZERO_ELEMENTS {
+                return Err(err(format!(
+                    "accessor {a}: {count} elements without a buffer view"
+                )));
+            }
             return Ok(Floats {
                 components,
                 data: vec![0.0; count * components],
             });
         };
-        let bytes = self.buffer_view(view)?;
-        let offset = index(&acc["byteOffset"]).unwrap_or(0);
-        let stride =
-            index(&self.json["bufferViews"][view]["byteStride"]).unwrap_or(size * components);
-        if count > 0 && offset + (count - 1) * stride + size * components > bytes.len() {
-            return Err(err(format!(
-                "accessor {a} reads past the end of buffer view {view}"
-            )));
-        }
-        let mut data = Vec::with_capacity(count * components);
-        for i in 0..count {
-            for c in 0..components {
-                let o = offset + i * stride + c * size;
-                let b = &bytes[o..o + size];
-                let v = match component {
-                    5120 => {
-                        let x = b[0] as i8 as f32;
-                        if normalized {
-                            (x / 127.0).max(-1.0)
-                        } else {
-                            x
-                        }
-                    }
-                    5121 => b[0] as f32 / if normalized { 255.0 } else { 1.0 },
-                    5122 => {
-                        let x = i16::from_le_bytes([b[0], b[1]]) as f32;
-                        if normalized {
-                            (x / 32767.0).max(-1.0)
-                        } else {
-                            x
-                        }
-                    }
-                    5123 => {
-                        u16::from_le_bytes([b[0], b[1]]) as f32
-                            / if normalized { 65535.0 } else { 1.0 }
-                    }
-                    5125 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
-                    _ => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-                };
-                data.push(v);
-            }
-        }
+        let data = self
+            .decode(a, view, components)?
+            .into_iter()
+            .map(|v| v as f32)
+            .collect();
         Ok(Floats { components, data })
     }
 
     /// Decodes an index accessor to `u32`.
     pub fn indices(&self, a: usize) -> Result<Vec<u32>> {
         let acc = &self.json["accessors"][a];
-        let count =
-            index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
+        index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
         let view = index(&acc["bufferView"])
             .ok_or_else(|| err(format!("index accessor {a} has no buffer view")))?;
-        let bytes = self.buffer_view(view)?;
-        let offset = index(&acc["byteOffset"]).unwrap_or(0);
-        let size = match acc["componentType"].as_u64() {
-            Some(5121) => 1,
-            Some(5123) => 2,
-            Some(5125) => 4,
-            c => {
-                return Err(err(format!(
-                    "index accessor {a}: component type {c:?} is not an index type"
-                )))
-            }
-        };
-        let b = bytes
-            .get(offset..offset + count * size)
-            .ok_or_else(|| err(format!("index accessor {a} reads past its buffer view")))?;
-        Ok(b.chunks_exact(size)
-            .map(|c| match size {
-                1 => c[0] as u32,
-                2 => u16::from_le_bytes([c[0], c[1]]) as u32,
-                _ => u32::from_le_bytes([c[0], c[1], c[2], c[3]]),
-            })
+        if !matches!(acc["componentType"].as_u64(), Some(5121 | 5123 | 5125)) {
+            return Err(err(format!(
+                "index accessor {a}: component type {:?} is not an index type",
+                acc["componentType"].as_u64()
+            )));
+        }
+        Ok(self
+            .decode(a, view, 1)?
+            .into_iter()
+            .map(|v| v as u32)
             .collect())
+    }
+
+    /// Decodes accessor `a` (in buffer view `view`) with the loader's decoder, which checks
+    /// its layout against the spec.
+    fn decode(&self, a: usize, view: usize, components: usize) -> Result<Vec<f64>> {
+        let acc = &self.json["accessors"][a];
+        let layout = crate::load::accessor::Layout {
+            component_type: acc["componentType"].as_u64().unwrap_or(0),
+            normalized: acc["normalized"].as_bool().unwrap_or(false),
+            components,
+            count: index(&acc["count"]).unwrap_or(0),
+            offset: index(&acc["byteOffset"]).unwrap_or(0),
+            stride: index(&self.json["bufferViews"][view]["byteStride"]),
+        };
+        let bytes = self.buffer_view(view)?;
+        crate::load::accessor::decode(bytes, &layout)
+            .map_err(|e| err(format!("accessor {a} (buffer view {view}): {e}")))
     }
 
     /// Highest `MSFT_lod` level any node offers (0 when the file has no LODs).
@@ -814,6 +818,17 @@ mod tests {
             inst[0].world.transform_point3(DVec3::ONE),
             DVec3::new(1e6 + 2.0, 2.0, 2.0)
         );
+    }
+
+    #[test]
+    fn shared_children_are_refused() {
+        let mut nodes: Vec<Value> = (0..40)
+            .map(|i| json!({"children": [i + 1, i + 1]}))
+            .collect();
+        nodes.push(json!({}));
+        let j = json!({"asset": {"version": "2.0"}, "nodes": nodes, "scenes": [{"nodes": [0]}]});
+        let e = Asset::from_parts(j, Vec::new()).unwrap_err();
+        assert!(e.what.contains("one parent"), "{}", e.what);
     }
 
     #[test]

@@ -1,0 +1,192 @@
+//! Structured glTF for the fuzz target: bytes are read as choices (how many buffer views,
+//! accessors, meshes, nodes; each one's fields, from lists that mix legal values with the edge
+//! cases the spec allows or forbids) and turned into a `.gltf` JSON document with a `data:`
+//! buffer. Mutated bytes alone rarely get past the JSON parser; this reaches the accessor
+//! checks, the node-graph checks and the readers with legal-looking files. Shared by
+//! `fuzz_targets/load_bake.rs` and `tests/fuzz_regressions.rs` (through `#[path]`).
+
+use base64::Engine as _;
+use serde_json::{json, Value};
+
+/// Reads choices from the input; an exhausted input reads as zeros. A `tame` document (half of
+/// them) mostly takes the first, legal entry of each list, so that some documents load and the
+/// bake behind the loader is reached too.
+struct Choices<'a> {
+    data: &'a [u8],
+    tame: bool,
+}
+
+impl Choices<'_> {
+    fn byte(&mut self) -> u8 {
+        let Some((&b, rest)) = self.data.split_first() else {
+            return 0;
+        };
+        self.data = rest;
+        b
+    }
+    fn below(&mut self, n: usize) -> usize {
+        self.byte() as usize % n.max(1)
+    }
+    fn pick<T: Copy>(&mut self, from: &[T]) -> T {
+        if self.tame && self.below(8) != 0 {
+            return from[0];
+        }
+        from[self.below(from.len())]
+    }
+    /// An index into `n` objects; one time in 64 the one past the end.
+    fn index(&mut self, n: usize) -> usize {
+        if !self.tame && self.below(64) == 0 {
+            n
+        } else {
+            self.below(n)
+        }
+    }
+    fn flag(&mut self) -> bool {
+        let b = self.byte();
+        b & 1 == 1 && (!self.tame || b & 14 == 0)
+    }
+}
+
+/// The glTF JSON text for `data` (see the module doc).
+pub fn gltf(data: &[u8]) -> Vec<u8> {
+    let mut c = Choices { data, tame: false };
+    c.tame = c.flag();
+    // The buffer: 48 small floats (so positions are often sane), then 64 raw bytes.
+    let mut bin = Vec::new();
+    for _ in 0..48 {
+        bin.extend(((c.byte() as f32 - 128.0) / 32.0).to_le_bytes());
+    }
+    for _ in 0..64 {
+        bin.push(c.byte());
+    }
+    let declared = c.pick(&[bin.len(), bin.len(), 4, bin.len() + 1, 1 << 30]);
+    let views: Vec<Value> = (0..1 + c.below(4))
+        .map(|_| {
+            let mut v = json!({
+                "buffer": c.index(1),
+                "byteOffset": c.pick(&[0u64, 0, 4, 12, 192, 255, 1 << 31]),
+                "byteLength": c.pick(&[256, 192, 36, 12, 1, 0, 64, 4096]),
+            });
+            if c.flag() {
+                v["byteStride"] = json!(c.pick(&[4, 8, 12, 16, 4, 8, 12, 16, 252, 2, 256]));
+            }
+            v
+        })
+        .collect();
+    let accessors: Vec<Value> = (0..1 + c.below(6))
+        .map(|k| {
+            let mut a = json!({
+                "componentType": c.pick(&[5126, 5126, 5126, 5120, 5121, 5122, 5123, 5125, 5126, 5126, 5120, 5121, 5122, 5123, 5125, 1]),
+                "count": c.pick(&[3, 3, 6, 1, 0, 12, 48, 4_000_000_000u64]),
+                "type": c.pick(&["VEC3", "VEC3", "VEC3", "VEC2", "SCALAR", "VEC4", "VEC3", "MAT4"]),
+            });
+            if k == 0 && c.below(4) != 0 {
+                a["type"] = json!("VEC3");
+            }
+            if c.below(16) != 0 {
+                a["bufferView"] = json!(c.index(views.len()));
+            }
+            if c.below(32) != 0 {
+                let n = match a["type"].as_str() {
+                    Some("SCALAR") => 1,
+                    Some("VEC2") => 2,
+                    Some("VEC3") => 3,
+                    Some("VEC4") => 4,
+                    _ => 16,
+                };
+                a["min"] = json!(vec![-4; n]);
+                a["max"] = json!(vec![4; n]);
+            }
+            if c.flag() {
+                a["byteOffset"] = json!(c.pick(&[0, 4, 8, 12, 3, 1024]));
+            }
+            if c.flag() {
+                a["normalized"] = json!(true);
+            }
+            if !c.tame && c.below(16) == 0 {
+                a["sparse"] = json!({"count": c.below(3),
+                    "indices": {"bufferView": 0, "componentType": 5123},
+                    "values": {"bufferView": 0}});
+            }
+            a
+        })
+        .collect();
+    let na = accessors.len();
+    let meshes: Vec<Value> = (0..1 + c.below(3))
+        .map(|_| {
+            let prims: Vec<Value> = (0..1 + c.below(2))
+                .map(|_| {
+                    let mut attributes =
+                        json!({"POSITION": if c.flag() { c.index(na) } else { 0 }});
+                    for name in ["NORMAL", "TEXCOORD_0"] {
+                        if c.flag() {
+                            attributes[name] = json!(c.index(na));
+                        }
+                    }
+                    let mut p = json!({"attributes": attributes});
+                    if c.flag() {
+                        p["indices"] = json!(c.index(na));
+                    }
+                    if c.below(8) == 0 {
+                        p["mode"] = json!(c.below(7));
+                    }
+                    p
+                })
+                .collect();
+            json!({"primitives": prims})
+        })
+        .collect();
+    let nn = 1 + c.below(8);
+    let scales = [1.0, 1.0, 2.0, -1.0, 0.0, 1e-20, 1e-5, 1e4, 1e30];
+    let nodes: Vec<Value> = (0..nn)
+        .map(|_| {
+            let mut n = json!({});
+            if c.below(4) != 0 {
+                n["mesh"] = json!(c.index(meshes.len()));
+            }
+            if !c.tame && c.below(3) == 0 {
+                let k = c.below(4);
+                n["children"] = json!((0..k).map(|_| c.index(nn)).collect::<Vec<_>>());
+            }
+            match c.below(4) {
+                0 => n["scale"] = json!([c.pick(&scales), c.pick(&scales), c.pick(&scales)]),
+                1 => n["translation"] = json!([c.pick(&scales), 0.0, 1.0]),
+                2 if c.flag() => {
+                    n["rotation"] = json!([
+                        0.0,
+                        std::f64::consts::FRAC_1_SQRT_2,
+                        0.0,
+                        std::f64::consts::FRAC_1_SQRT_2
+                    ])
+                }
+                _ => {}
+            }
+            n
+        })
+        .collect();
+    let roots: Vec<usize> = match c.tame {
+        true => (0..nn).collect(),
+        false => (0..1 + c.below(3)).map(|_| c.below(nn)).collect(),
+    };
+    let mut doc = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": declared, "uri": format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&bin)
+        )}],
+        "bufferViews": views,
+        "accessors": accessors,
+        "meshes": meshes,
+        "nodes": nodes,
+    });
+    if c.below(4) != 0 {
+        doc["scenes"] = json!([{"nodes": roots}]);
+        doc["scene"] = json!(0);
+    }
+    if c.below(4) == 0 {
+        let ext = c.pick(&["KHR_mesh_quantization", "KHR_meshopt_compression", "EXT_x"]);
+        doc["extensionsUsed"] = json!([ext]);
+        doc["extensionsRequired"] = json!([ext]);
+    }
+    serde_json::to_vec(&doc).unwrap()
+}

@@ -1,0 +1,455 @@
+//! Hostile and unusual input at the loader: legal accessors the gltf crate's readers would
+//! assert on, node graphs that share children, symlinks and special files behind URIs and as the
+//! input, concave polygons, polylines and vanishing scales, quantized attributes (a baked file
+//! read back), and OBJ messages. Each must load correctly or be refused with an error naming the
+//! file and the element — never a panic, a hang or a read outside the asset's folder.
+
+mod common;
+
+use std::path::Path;
+
+use base64::Engine as _;
+use common::{fixture, scratch};
+use serde_json::{json, Value};
+use shellbake::load::{load, load_bytes};
+
+fn data_uri(bytes: &[u8]) -> String {
+    format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
+}
+
+fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// One triangle (float VEC3 positions in buffer 0) and the given nodes and scenes.
+fn triangle_gltf(nodes: Value, scenes: Value) -> Value {
+    let pos = f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": data_uri(&pos), "byteLength": 36}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "nodes": nodes,
+        "scenes": scenes,
+        "scene": 0
+    })
+}
+
+fn load_json(name: &str, v: &Value) -> Result<shellbake::mesh::Scene, String> {
+    load_bytes(Path::new(name), v.to_string().as_bytes()).map_err(|e| e.to_string())
+}
+
+fn assert_refused(r: Result<shellbake::mesh::Scene, String>, words: &[&str]) {
+    let e = r.expect_err("should be refused");
+    for w in words {
+        assert!(e.contains(w), "'{w}' missing from: {e}");
+    }
+}
+
+// 1. Legal-looking accessors that reached assertions in the gltf crate.
+
+#[test]
+fn a_byte_stride_smaller_than_the_element_is_refused() {
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["bufferViews"][0]["byteStride"] = json!(4);
+    g["bufferViews"][0]["target"] = json!(34962);
+    assert_refused(
+        load_json("stride.gltf", &g),
+        &["stride.gltf", "accessor 0", "byteStride 4"],
+    );
+}
+
+#[test]
+fn an_accessor_without_a_buffer_view_or_past_its_view_is_refused() {
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["accessors"][0]
+        .as_object_mut()
+        .unwrap()
+        .remove("bufferView");
+    assert_refused(
+        load_json("noview.gltf", &g),
+        &["noview.gltf", "accessors[0]"],
+    );
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["accessors"][0]["byteOffset"] = json!(8);
+    assert_refused(
+        load_json("past.gltf", &g),
+        &["accessor 0", "reads 44 bytes"],
+    );
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["accessors"][0]["count"] = json!(100);
+    assert_refused(load_json("huge.gltf", &g), &["accessor 0"]);
+}
+
+#[test]
+fn an_interleaved_stride_larger_than_the_element_is_read() {
+    // positions interleaved with a padding float: stride 16
+    let data = f32_bytes(&[0., 0., 0., 9., 1., 0., 0., 9., 0., 1., 0., 9.]);
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["buffers"][0] = json!({"uri": data_uri(&data), "byteLength": 48});
+    g["bufferViews"][0] = json!({"buffer": 0, "byteLength": 48, "byteStride": 16});
+    let s = load_json("inter.gltf", &g).unwrap();
+    assert_eq!(s.meshes[0].triangle_count(), 1);
+    assert!((s.meshes[0].diagonal() - 2f32.sqrt()).abs() < 1e-6);
+}
+
+// 2. Node graphs that share children.
+
+#[test]
+fn a_node_with_two_parents_is_refused_naming_them() {
+    let g = triangle_gltf(
+        json!([{"children": [2]}, {"children": [2]}, {"mesh": 0}]),
+        json!([{"nodes": [0, 1]}]),
+    );
+    assert_refused(
+        load_json("parents.gltf", &g),
+        &["parents.gltf", "node 2", "node 0", "node 1", "one parent"],
+    );
+}
+
+#[test]
+fn a_scene_listing_a_node_twice_or_a_child_is_refused() {
+    let g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0, 0]}]));
+    assert_refused(load_json("twice.gltf", &g), &["scene 0", "node 0 twice"]);
+    let g = triangle_gltf(
+        json!([{"children": [1]}, {"mesh": 0}]),
+        json!([{"nodes": [0, 1]}]),
+    );
+    assert_refused(load_json("child.gltf", &g), &["scene 0", "child of node 0"]);
+}
+
+#[test]
+fn a_doubling_node_chain_is_refused_at_once() {
+    // 40 levels, each node listing the next twice: 2^40 instances if expanded.
+    let mut nodes: Vec<Value> = (0..40)
+        .map(|i| json!({"children": [i + 1, i + 1]}))
+        .collect();
+    nodes.push(json!({"mesh": 0}));
+    let g = triangle_gltf(json!(nodes), json!([{"nodes": [0]}]));
+    let t = std::time::Instant::now();
+    assert_refused(load_json("bomb.gltf", &g), &["node 0", "twice"]);
+    assert!(t.elapsed().as_secs() < 2);
+}
+
+#[test]
+fn a_cycle_is_refused() {
+    let g = triangle_gltf(
+        json!([{"children": [1], "mesh": 0}, {"children": [0]}]),
+        json!([{"nodes": [0]}]),
+    );
+    assert!(load_json("cycle.gltf", &g).is_err());
+}
+
+#[test]
+fn instancing_past_the_bound_is_refused_before_reading() {
+    // 3 vertices, 2^20 indices, instanced under 130 different transforms: 1.4e8 elements.
+    let count = 1usize << 20;
+    let mut g = triangle_gltf(json!([]), json!([{"nodes": []}]));
+    let indices = vec![0u8; count];
+    let push = |g: &mut Value, key: &str, v: Value| g[key].as_array_mut().unwrap().push(v);
+    push(
+        &mut g,
+        "buffers",
+        json!({"uri": data_uri(&indices), "byteLength": count}),
+    );
+    push(
+        &mut g,
+        "bufferViews",
+        json!({"buffer": 1, "byteLength": count}),
+    );
+    push(
+        &mut g,
+        "accessors",
+        json!({"bufferView": 1, "componentType": 5121, "count": count, "type": "SCALAR"}),
+    );
+    g["meshes"][0]["primitives"][0]["indices"] = json!(1);
+    let nodes: Vec<Value> = (0..130)
+        .map(|i| json!({"mesh": 0, "translation": [i as f64, 0, 0]}))
+        .collect();
+    g["scenes"][0]["nodes"] = json!((0..130).collect::<Vec<_>>());
+    g["nodes"] = json!(nodes);
+    assert_refused(load_json("many.gltf", &g), &["instances more than"]);
+}
+
+#[test]
+fn instances_in_the_same_place_are_read_once_and_elsewhere_each() {
+    let g = triangle_gltf(
+        json!([{"mesh": 0}, {"mesh": 0}, {"mesh": 0, "translation": [5, 0, 0]}]),
+        json!([{"nodes": [0, 1, 2]}]),
+    );
+    let s = load_json("inst.gltf", &g).unwrap();
+    assert_eq!(s.meshes.len(), 2);
+    assert!(s.warnings.iter().any(|w| w.contains("first instance")));
+}
+
+// 6. Symlinks and special files.
+
+#[cfg(unix)]
+#[test]
+fn a_symlink_out_of_the_folder_is_refused_and_sizes_do_not_leak() {
+    let dir = scratch("hostile_symlink");
+    let outside = dir.join("outside.bin");
+    std::fs::write(&outside, [7u8; 1000]).unwrap();
+    let asset = dir.join("asset");
+    std::fs::create_dir_all(&asset).unwrap();
+    let link = asset.join("buf.bin");
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink(&outside, &link).unwrap();
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["buffers"][0] = json!({"uri": "buf.bin", "byteLength": 5000});
+    let input = asset.join("x.gltf");
+    std::fs::write(&input, g.to_string()).unwrap();
+    let e = load(&input).unwrap_err().to_string();
+    assert!(
+        e.contains("buffer 0") && e.contains("leaves the asset's folder"),
+        "{e}"
+    );
+    // Inside the folder the short file is named short, without its size.
+    std::fs::remove_file(&link).unwrap();
+    std::fs::write(&link, [7u8; 1000]).unwrap();
+    let e = load(&input).unwrap_err().to_string();
+    assert!(e.contains("shorter") && !e.contains("1000"), "{e}");
+}
+
+#[cfg(unix)]
+#[test]
+fn fifos_and_devices_are_refused_without_blocking() {
+    let dir = scratch("hostile_fifo");
+    let fifo = dir.join("buf.bin");
+    let _ = std::fs::remove_file(&fifo);
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["buffers"][0] = json!({"uri": "buf.bin", "byteLength": 36});
+    let input = dir.join("x.gltf");
+    std::fs::write(&input, g.to_string()).unwrap();
+    let e = load(&input).unwrap_err().to_string();
+    assert!(
+        e.contains("buffer 0") && e.contains("not a regular file"),
+        "{e}"
+    );
+    // The input itself: a FIFO, and a link to /dev/zero.
+    let e = load(&fifo).unwrap_err().to_string();
+    assert!(e.contains("not a regular file"), "{e}");
+    let zero = dir.join("zero.obj");
+    let _ = std::fs::remove_file(&zero);
+    std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+    let e = load(&zero).unwrap_err().to_string();
+    assert!(
+        e.contains("zero.obj") && e.contains("not a regular file"),
+        "{e}"
+    );
+}
+
+// 8. Silently wrong geometry.
+
+#[test]
+fn a_concave_polygon_is_ear_clipped_facing_its_way() {
+    // An L: 2×2 square without its top-right 1×1 quarter, counter-clockwise seen from +Z,
+    // starting at the reflex corner so a fan from corner 0 would flip triangles.
+    let s = load_bytes(
+        Path::new("l.obj"),
+        b"v 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\nv 2 0 0\nv 2 1 0\nf 1 2 3 4 5 6\n",
+    )
+    .unwrap();
+    let m = &s.meshes[0];
+    assert_eq!(m.triangle_count(), 4);
+    let mut area = 0.0;
+    for t in m.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| m.positions[t[k] as usize]);
+        let z = (b - a).cross(c - a).z;
+        assert!(z > 0.0, "a flipped triangle: {t:?}");
+        area += z / 2.0;
+    }
+    assert!((area - 3.0).abs() < 1e-5, "{area}");
+}
+
+#[test]
+fn polylines_do_not_become_triangles() {
+    let s = load_bytes(
+        Path::new("l.obj"),
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nl 1 2 3 4\nf 1 2 3\n",
+    )
+    .unwrap();
+    assert_eq!(s.meshes[0].triangle_count(), 1);
+    assert!(s.warnings.iter().any(|w| w.contains("line statement")));
+    let e = load_bytes(
+        Path::new("only.obj"),
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2 3\n",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("no triangles"), "{e}");
+}
+
+#[test]
+fn a_vanishing_scale_is_refused_naming_the_primitive() {
+    let g = triangle_gltf(
+        json!([{"mesh": 0, "scale": [1e-20, 1e-20, 1e-20]}]),
+        json!([{"nodes": [0]}]),
+    );
+    assert_refused(
+        load_json("tiny.gltf", &g),
+        &["tiny.gltf", "mesh 0 primitive 0", "spans only"],
+    );
+    let e = load_bytes(
+        Path::new("tiny.obj"),
+        b"v 0 0 0\nv 1e-20 0 0\nv 0 1e-20 0\nf 1 2 3\n",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("spans only"), "{e}");
+}
+
+// 9. Quantized attributes, and shellbake reading its own output.
+
+#[test]
+fn quantized_and_normalized_attributes_are_read_through_the_node_transform() {
+    // POSITION u16 (not normalized), NORMAL i8 normalized, TEXCOORD_0 u16 normalized.
+    let mut bin = Vec::new();
+    for p in [[0u16, 0, 0], [1000, 0, 0], [0, 1000, 0]] {
+        for c in p {
+            bin.extend(c.to_le_bytes());
+        }
+        bin.extend([0, 0]); // 4-byte alignment
+    }
+    for _ in 0..3 {
+        bin.extend([0u8, 0, 127, 0]);
+    }
+    for t in [[0u16, 0], [65535, 0], [0, 32768]] {
+        for c in t {
+            bin.extend(c.to_le_bytes());
+        }
+    }
+    let g = json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_mesh_quantization"],
+        "extensionsRequired": ["KHR_mesh_quantization"],
+        "buffers": [{"uri": data_uri(&bin), "byteLength": bin.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteLength": 24, "byteStride": 8},
+            {"buffer": 0, "byteOffset": 24, "byteLength": 12, "byteStride": 4},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 12}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5123, "count": 3, "type": "VEC3",
+             "min": [0, 0, 0], "max": [1000, 1000, 0]},
+            {"bufferView": 1, "componentType": 5120, "normalized": true, "count": 3, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5123, "normalized": true, "count": 3, "type": "VEC2"}
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}}]}],
+        "nodes": [{"mesh": 0, "scale": [0.002, 0.002, 0.002]}],
+        "scenes": [{"nodes": [0]}]
+    });
+    let s = load_json("q.gltf", &g).unwrap();
+    let m = &s.meshes[0];
+    let world: Vec<_> = m
+        .positions
+        .iter()
+        .map(|p| p.as_dvec3() + m.origin)
+        .collect();
+    assert!(
+        (world[1].x - 2.0).abs() < 1e-6 && (world[2].y - 2.0).abs() < 1e-6,
+        "{world:?}"
+    );
+    let n = m.normals.as_ref().unwrap();
+    assert!((n[0].z - 1.0).abs() < 1e-6, "{n:?}");
+    let uv = m.uvs.as_ref().unwrap();
+    assert!(
+        (uv[1].x - 1.0).abs() < 1e-6 && (uv[2].y - 0.5).abs() < 1e-4,
+        "{uv:?}"
+    );
+}
+
+#[test]
+fn a_baked_file_is_read_back_as_its_base_layer_and_baked_again() {
+    use shellbake::params::{BakeParams, Layout};
+    let scene = load(&fixture("cube.obj")).unwrap();
+    let mut p = BakeParams::default();
+    p.shells.layers = 6;
+    p.strands.mask_size = 32;
+    for layout in [Layout::Compact, Layout::SingleDraw] {
+        p.pack.layout = layout;
+        let baked = shellbake::bake(&scene, &p);
+        let back = load_bytes(Path::new("baked.glb"), &baked.glb).unwrap();
+        assert!(!back.meshes.is_empty());
+        if layout == Layout::Compact {
+            // One mesh per layer, all on one geometry: only the base is taken.
+            assert_eq!(back.meshes.len(), 1);
+            assert!(back.warnings.iter().any(|w| w.contains("first instance")));
+            let (a, b) = (scene.meshes[0].diagonal(), back.meshes[0].diagonal());
+            assert!((a - b).abs() < 1e-3 * a, "{a} vs {b}");
+        }
+        let again = shellbake::bake(&back, &p);
+        assert!(again.glb.len() > 12);
+    }
+}
+
+// 10. OBJ messages.
+
+#[test]
+fn a_byte_order_mark_is_skipped() {
+    let s = load_bytes(
+        Path::new("bom.obj"),
+        b"\xef\xbb\xbfv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    assert_eq!(s.meshes[0].triangle_count(), 1);
+}
+
+#[test]
+fn names_and_tokens_from_the_file_are_escaped() {
+    let e = load_bytes(Path::new("evil.obj"), b"v 0 0 0\nv \x1b[2J 0 0\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        !e.contains('\x1b') && e.contains("\\u{1b}") && e.contains("line 2"),
+        "{e}"
+    );
+    let e = load_bytes(
+        Path::new("evil.obj"),
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3/\x07\n",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(!e.contains('\x07') && e.contains("line 4"), "{e}");
+    let e = load_bytes(
+        Path::new("evil.obj"),
+        b"o evil\x1b]0;owned\x07\nv 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        !e.contains('\x1b') && e.contains("evil\\u{1b}]0;owned"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_short_vertex_line_is_named() {
+    let e = load_bytes(
+        Path::new("short.obj"),
+        b"v 0 0 0\nv 1 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("short.obj") && e.contains("line 2"), "{e}");
+    for (text, line) in [
+        (&b"v 0 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"[..], "line 1"),
+        (b"v 0 0 0\nv 1 0 0 1 1\nv 0 1 0\nf 1 2 3\n", "line 2"),
+        (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.5\nf 1 2 3\n", "line 4"),
+    ] {
+        let e = load_bytes(Path::new("w.obj"), text)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(line), "{e}");
+    }
+}
