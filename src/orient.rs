@@ -8,7 +8,7 @@
 //! **Connectivity** is by position (exact, as `weld` does), so split normals and UV seams do not
 //! cut a surface apart. Two triangles are neighbours across an edge when the edge is shared by
 //! exactly those two and they are not folded onto each other (the second triangle is not within
-//! [`FOLD_ANGLE`] of lying on top of the first; a two-sided sheet's top and bottom meet at the
+//! [`FOLD_ANGLE`](crate::weld::FOLD_ANGLE) of lying on top of the first; a two-sided sheet's top and bottom meet at the
 //! rim that way and are kept apart). Edges shared by three or more triangles are ambiguous and do
 //! not propagate orientation.
 //!
@@ -30,15 +30,11 @@
 
 use std::collections::VecDeque;
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::mesh::{face_normal, Mesh};
 use crate::weld::{folded, Topology};
-
-/// Two triangles across an edge closer than this (radians, measured around the edge) lie on
-/// top of each other: a fold, not a continuation of the surface.
-pub const FOLD_ANGLE: f64 = 10.0 * std::f64::consts::PI / 180.0;
 
 /// What the orient stage does.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -118,15 +114,6 @@ impl Orientation {
             self.flipped
         ))
     }
-}
-
-/// Angle of the third corner `r` around the edge `a → b`, in a frame fixed by the edge alone.
-pub(crate) fn angle_around(a: DVec3, b: DVec3, r: DVec3) -> f64 {
-    let e = (b - a).normalize_or_zero();
-    let w = (r - a) - e * (r - a).dot(e);
-    let u = e.any_orthonormal_vector();
-    let v = e.cross(u);
-    libm::atan2(w.dot(v), w.dot(u))
 }
 
 /// Orients `mesh` in place.

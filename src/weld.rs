@@ -35,8 +35,6 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::{DVec3, Vec3};
 
-use crate::orient::{angle_around, FOLD_ANGLE};
-
 /// The welded topology of a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Welded {
@@ -217,6 +215,19 @@ impl Topology {
             })
             .collect()
     }
+}
+
+/// Two triangles across an edge closer than this (radians, measured around the edge) lie on
+/// top of each other: a fold, not a continuation of the surface.
+pub const FOLD_ANGLE: f64 = 10.0 * std::f64::consts::PI / 180.0;
+
+/// Angle of the third corner `r` around the edge `a → b`, in a frame fixed by the edge alone.
+pub fn angle_around(a: DVec3, b: DVec3, r: DVec3) -> f64 {
+    let e = (b - a).normalize_or_zero();
+    let w = (r - a) - e * (r - a).dot(e);
+    let u = e.any_orthonormal_vector();
+    let v = e.cross(u);
+    libm::atan2(w.dot(v), w.dot(u))
 }
 
 /// Whether two triangles on edge `(pa, pb)` with third corners `r0`, `r1` lie on top of each
