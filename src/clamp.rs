@@ -16,17 +16,17 @@
 //! order), up to [`SMOOTH_ITERATIONS`], re-examining only triangles around changed vertices.
 //! Only the clamp then limits what is left.
 //!
-//! **Inversion (curvature) bound.** Extruding a triangle's corners by heights `h_a, h_b, h_c`
-//! along their directions changes its normal; the layer triangle faces against its base triangle
-//! when `n₀ · ((B−A)×(C−A)) ≤ 0`. That expression is affine in each of `h_a, h_b, h_c`
-//! separately (multilinear), so over the box `[0, h]³` its minimum sits at one of the 8 corners.
-//! Along each corner ray `(m_a h, m_b h, m_c h)`, `m ∈ {0,1}³`, it is a quadratic in `h` whose
-//! smallest positive root is where that corner first inverts. The triangle's safe height is the
-//! smallest such root over the 7 non-zero corners, times `inversion_keep` (< 1, so the dot stays
-//! strictly positive); a vertex takes the minimum over its triangles. Because every layer of
-//! every vertex then stays inside the box, **no layer triangle inverts at any layer and any mix
-//! of clamped heights** — an exact guarantee, not a heuristic curvature radius. The pack stage
-//! re-checks the stored (quantized) geometry, so the guarantee holds for the written file.
+//! **Inversion (curvature) bound.** Every layer moves a triangle's corners along their
+//! directions times their heights by one common weight `λ = t_j`; the layer triangle faces
+//! against its base when `n₀ · ((B−A)×(C−A)) ≤ 0`, a quadratic in `λ` ([`ray_inversion`]). A
+//! triangle whose smallest positive root is at or below 1 has its three corners' heights scaled
+//! by `root · inversion_keep` (< 1, so the dot stays strictly positive); that keeps its own path's
+//! shape, but shortening a corner changes the paths of its other triangles, so rounds repeat over
+//! the triangles around shortened vertices until none inverts (scales only shrink, so this
+//! converges; after 64 rounds offenders are flattened). So **no layer triangle inverts at any
+//! layer, nor at any weight in between** (animated weights included) — an exact guarantee on the
+//! heights as baked, not a heuristic curvature radius. The pack stage re-checks the stored
+//! (quantized) geometry, so the guarantee holds for the written file.
 //!
 //! **Collision bound** (opt-in). A ray from each vertex along its direction against the whole
 //! mesh (an obvhs BVH; triangles that contain the vertex are skipped), keeping `ray_keep` of the
@@ -44,13 +44,16 @@
 //!
 //! Rejected: a curvature radius from the dihedral angle at each edge (what most shell tools do) —
 //! it needs a safety factor to cover mixed-height triangles and still inverts at cone tips of high
-//! valence; the corner-root bound above is exact and costs 7 quadratics per triangle. Clamping
+//! valence. A bound over every mix of corner heights (the box `[0, h]³`, minimum at one of its 8
+//! corners, 7 quadratics per triangle) is exact too and needs no rounds, but it is far too
+//! cautious on detailed meshes: a corner raised alone tilts a small triangle over long before the
+//! layers, which raise all three together, would invert it. Clamping
 //! without smoothing first: on the 100 k-vertex Stanford dragon it limits far more vertices (see
 //! the README's figures), leaving bald patches along every scan-noise crease.
 
 use std::time::Duration;
 
-use glam::{DVec3, Vec3, Vec3A};
+use glam::{Vec3, Vec3A};
 use obvhs::{
     bvh2::builder::build_bvh2_from_tris, bvh2::Bvh2, ray::Ray, ray::RayHit, triangle::Triangle,
     BvhBuildParams,
@@ -157,38 +160,6 @@ fn first_root(c0: f64, c1: f64, c2: f64) -> f64 {
     best
 }
 
-/// Height at which triangle `(a, b, c)` extruded along `(da, db, dc)` first inverts, over every
-/// mix of per-corner heights in `[0, h]` (see the module doc). Infinity when it never does;
-/// `None` for a degenerate triangle.
-pub fn inversion_height(p: [Vec3; 3], d: [Vec3; 3]) -> Option<f64> {
-    let [a, b, c] = p.map(|v| v.as_dvec3());
-    let [da, db, dc] = d.map(|v| v.as_dvec3());
-    let e1 = b - a;
-    let e2 = c - a;
-    let n = e1.cross(e2);
-    let c0 = n.length();
-    if !(c0.is_finite() && c0 > 0.0) {
-        return None;
-    }
-    let n0 = n / c0;
-    let mut best = f64::INFINITY;
-    for mask in 1u32..8 {
-        let m = |bit: u32, v: DVec3| {
-            if mask & (1 << bit) != 0 {
-                v
-            } else {
-                DVec3::ZERO
-            }
-        };
-        let g1 = m(1, db) - m(0, da);
-        let g2 = m(2, dc) - m(0, da);
-        let c1 = n0.dot(e1.cross(g2) + g1.cross(e2));
-        let c2 = n0.dot(g1.cross(g2));
-        best = best.min(first_root(c0, c1, c2));
-    }
-    Some(best)
-}
-
 /// Where the triangle `(a, b, c)` first inverts when its corners move along `g` (their
 /// directions times their heights) by a common factor `λ`: the smallest positive root of the
 /// quadratic `n₀·((B−A)×(C−A))(λ)`. Infinity when it never does; `None` for a degenerate
@@ -224,9 +195,9 @@ fn inversion_scales(
     height: f32,
     keep: f32,
     mut scale: Vec<f32>,
+    faces: &Adjacency,
 ) -> Vec<f32> {
     use rayon::prelude::*;
-    let faces = incident_faces(welded);
     if height <= 0.0 {
         return scale;
     }
@@ -300,7 +271,12 @@ const OUTER_MARGIN: f32 = 0.05;
 
 /// Smooths `dirs` (per welded vertex) where triangles would invert below `height` (see the
 /// module doc). Returns the smoothed directions and how many vertices changed.
-pub fn smooth_directions(welded: &Welded, dirs: &[Vec3], height: f32) -> (Vec<Vec3>, usize) {
+fn smooth_directions(
+    welded: &Welded,
+    faces: &Adjacency,
+    dirs: &[Vec3],
+    height: f32,
+) -> (Vec<Vec3>, usize) {
     use rayon::prelude::*;
     let n = welded.positions.len();
     let tris: Vec<[u32; 3]> = welded
@@ -315,7 +291,6 @@ pub fn smooth_directions(welded: &Welded, dirs: &[Vec3], height: f32) -> (Vec<Ve
             crate::mesh::face_normal(a, b, c).0
         })
         .collect();
-    let faces = incident_faces(welded);
     let edges = tris.iter().flat_map(|t| {
         [
             (t[0], t[1]),
@@ -434,12 +409,13 @@ fn incident(welded: &Welded, tri: usize, v: u32) -> bool {
 /// The directions the bounds work with: smoothed, or as framed.
 fn directions(
     welded: &Welded,
+    faces: &Adjacency,
     frames: &Frames,
     height: f32,
     params: &ClampParams,
 ) -> (Vec<Vec3>, usize) {
     if params.smooth && height > 0.0 {
-        smooth_directions(welded, &frames.welded, height)
+        smooth_directions(welded, faces, &frames.welded, height)
     } else {
         (frames.welded.clone(), 0)
     }
@@ -447,7 +423,8 @@ fn directions(
 
 /// Runs the clamp stage. `height` is the global shell height in world units.
 pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams) -> Clamp {
-    let (dirs, smoothed) = directions(welded, frames, height, params);
+    let faces = incident_faces(welded);
+    let (dirs, smoothed) = directions(welded, &faces, frames, height, params);
     let tris = triangles(welded);
     let collision = if !params.collision || tris.is_empty() || height <= 0.0 {
         vec![f64::INFINITY; welded.positions.len()]
@@ -483,7 +460,7 @@ pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &Cla
             })
             .collect()
     };
-    finish(welded, dirs, smoothed, height, params, collision)
+    finish(welded, &faces, dirs, smoothed, height, params, collision)
 }
 
 /// The same clamp (collision included) with a linear scan over all triangles per ray: the
@@ -494,7 +471,8 @@ pub fn clamp_heights_brute_force(
     height: f32,
     params: &ClampParams,
 ) -> Clamp {
-    let (dirs, smoothed) = directions(welded, frames, height, params);
+    let faces = incident_faces(welded);
+    let (dirs, smoothed) = directions(welded, &faces, frames, height, params);
     let tris = triangles(welded);
     let reach = height / params.ray_keep;
     let collision = (0..welded.positions.len() as u32)
@@ -511,11 +489,12 @@ pub fn clamp_heights_brute_force(
             }
         })
         .collect();
-    finish(welded, dirs, smoothed, height, params, collision)
+    finish(welded, &faces, dirs, smoothed, height, params, collision)
 }
 
 fn finish(
     welded: &Welded,
+    faces: &Adjacency,
     dirs: Vec<Vec3>,
     smoothed: usize,
     height: f32,
@@ -539,6 +518,7 @@ fn finish(
         height,
         params.inversion_keep,
         by_collision.clone(),
+        faces,
     );
     let mut out = Clamp {
         smoothed,
@@ -596,15 +576,15 @@ mod tests {
 
     #[test]
     fn converging_directions_invert_at_the_exact_height() {
-        // A unit right triangle whose corners all move towards its centroid-ish: corner b moves
-        // by -x. The triangle (0,0,0),(1,0,0),(0,1,0) with only b moving -x flips at h = 1.
+        // The triangle (0,0,0),(1,0,0),(0,1,0) with a and c moving +z and b moving -x: its
+        // normal's z component is 1 − λ, so it flips at λ = 1.
         let h =
-            inversion_height([Vec3::ZERO, Vec3::X, Vec3::Y], [Vec3::Z, -Vec3::X, Vec3::Z]).unwrap();
+            ray_inversion([Vec3::ZERO, Vec3::X, Vec3::Y], [Vec3::Z, -Vec3::X, Vec3::Z]).unwrap();
         assert!((h - 1.0).abs() < 1e-12, "{h}");
         // Parallel directions never invert.
-        let h = inversion_height([Vec3::ZERO, Vec3::X, Vec3::Y], [Vec3::Z; 3]).unwrap();
+        let h = ray_inversion([Vec3::ZERO, Vec3::X, Vec3::Y], [Vec3::Z; 3]).unwrap();
         assert!(h.is_infinite());
-        assert!(inversion_height([Vec3::ZERO, Vec3::X, Vec3::X * 2.0], [Vec3::Z; 3]).is_none());
+        assert!(ray_inversion([Vec3::ZERO, Vec3::X, Vec3::X * 2.0], [Vec3::Z; 3]).is_none());
     }
 
     #[test]
