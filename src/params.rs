@@ -80,6 +80,16 @@ pub enum Layout {
     SingleDraw,
 }
 
+impl Layout {
+    /// The kebab-case name used on the command line, in scene files, reports and `extras`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Compact => "compact",
+            Layout::SingleDraw => "single-draw",
+        }
+    }
+}
+
 /// Strand stage parameters (`strands.rs`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
