@@ -28,6 +28,10 @@
 //! heights as baked, not a heuristic curvature radius. The pack stage re-checks the stored
 //! (quantized) geometry, so the guarantee holds for the written file.
 //!
+//! The stage is three verbs, so that the plan can gate the expensive one: [`smooth`], then
+//! [`collision_bound`] (the `collision` effect, run only for surfaces that ask; the only place a
+//! BVH is built, counted by [`bvh_builds`]), then [`clamp_heights`].
+//!
 //! **Collision bound** (opt-in). A ray from each vertex along its direction against the whole
 //! mesh (an obvhs BVH; triangles that contain the vertex are skipped), keeping `ray_keep` of the
 //! free distance. With `ray_keep < 0.5`, two shells that grow towards each other across a thin
@@ -39,7 +43,7 @@
 //!
 //! Rays are cast in parallel (rayon); each vertex's result depends on nothing else, and results
 //! are collected in vertex order, so the output is the same for any thread count. A brute-force
-//! loop over all triangles ([`clamp_heights_brute_force`]) is the differential test of the BVH
+//! loop over all triangles ([`collision_bound_brute_force`]) is the differential test of the BVH
 //! path.
 //!
 //! Rejected: a curvature radius from the dihedral angle at each edge (what most shell tools do) —
@@ -51,6 +55,7 @@
 //! without smoothing first: on the 100 k-vertex Stanford dragon it limits far more vertices (see
 //! the README's figures), leaving bald patches along every scan-noise crease.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 use glam::{Vec3, Vec3A};
@@ -61,6 +66,7 @@ use obvhs::{
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::error::ParamError;
 use crate::frames::Frames;
 use crate::mesh::Adjacency;
 use crate::weld::Welded;
@@ -72,9 +78,6 @@ pub const SMOOTH_ITERATIONS: usize = 4;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ClampParams {
-    /// Run the collision bound (the scene effect `collision`, `--clamp`). Off by default: it
-    /// costs a BVH build and one ray per vertex. Smoothing and the inversion bound always run.
-    pub collision: bool,
     /// Smooth directions where neighbours disagree before bounding. On by default; off only to
     /// measure what smoothing buys.
     pub smooth: bool,
@@ -88,11 +91,22 @@ pub struct ClampParams {
 impl Default for ClampParams {
     fn default() -> Self {
         ClampParams {
-            collision: false,
             smooth: true,
             ray_keep: 0.45,
             inversion_keep: 0.9,
         }
+    }
+}
+
+impl ClampParams {
+    /// Checks ranges; the error names the parameter.
+    pub fn check(&self) -> Result<(), ParamError> {
+        for (key, v) in [("ray_keep", self.ray_keep), ("inversion_keep", self.inversion_keep)] {
+            if !(v > 0.0 && v < 1.0) {
+                return Err(ParamError::new(key, format!("{key} must be in (0, 1), got {v}")));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -406,78 +420,100 @@ fn incident(welded: &Welded, tri: usize, v: u32) -> bool {
     welded.indices[3 * tri..3 * tri + 3].contains(&v)
 }
 
-/// The directions the bounds work with: smoothed, or as framed.
-fn directions(
-    welded: &Welded,
-    faces: &Adjacency,
-    frames: &Frames,
-    height: f32,
-    params: &ClampParams,
-) -> (Vec<Vec3>, usize) {
-    if params.smooth && height > 0.0 {
-        smooth_directions(welded, faces, &frames.welded, height)
+/// Number of BVHs the collision bound has built in this process: the plan's promise that a
+/// scene asking for no collision builds none is tested against it.
+static BVH_BUILDS: AtomicUsize = AtomicUsize::new(0);
+
+/// BVHs built so far in this process (see [`collision_bound`]).
+pub fn bvh_builds() -> usize {
+    BVH_BUILDS.load(Ordering::Relaxed)
+}
+
+/// The directions the bounds work with, and the faces around each welded vertex.
+pub struct Smoothed {
+    faces: Adjacency,
+    /// Direction per welded vertex: smoothed, or as framed.
+    pub directions: Vec<Vec3>,
+    /// Welded vertices whose direction smoothing changed.
+    pub smoothed: usize,
+}
+
+/// First step of the clamp stage: smooths the directions where neighbours disagree (when
+/// `params.smooth`). `height` is the global shell height in world units.
+pub fn smooth(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams) -> Smoothed {
+    let faces = incident_faces(welded);
+    let (directions, smoothed) = if params.smooth && height > 0.0 {
+        smooth_directions(welded, &faces, &frames.welded, height)
     } else {
         (frames.welded.clone(), 0)
+    };
+    Smoothed {
+        faces,
+        directions,
+        smoothed,
     }
 }
 
-/// Runs the clamp stage. `height` is the global shell height in world units.
-pub fn clamp_heights(welded: &Welded, frames: &Frames, height: f32, params: &ClampParams) -> Clamp {
-    let faces = incident_faces(welded);
-    let (dirs, smoothed) = directions(welded, &faces, frames, height, params);
-    let tris = triangles(welded);
-    let collision = if !params.collision || tris.is_empty() || height <= 0.0 {
-        vec![f64::INFINITY; welded.positions.len()]
-    } else {
-        let mut bvh = build_bvh2_from_tris(
-            &tris,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
-        );
-        // Traversal sizes its stack from `max_depth`; set it from the tree as built, so that a
-        // pathological tree (thousands of coincident triangles) is traversed correctly instead of
-        // overflowing a fixed stack.
-        bvh.max_depth = bvh.max_depth.max(tree_depth(&bvh) + 1);
-        let reach = height / params.ray_keep;
-        (0..welded.positions.len() as u32)
-            .into_par_iter()
-            .map(|v| {
-                let ray = vertex_ray(welded, &dirs, v, reach);
-                let mut hit = RayHit::none();
-                bvh.ray_traverse(ray, &mut hit, |r, id| {
-                    let t = bvh.primitive_indices[id] as usize;
-                    if incident(welded, t, v) {
-                        f32::INFINITY
-                    } else {
-                        tris[t].intersect(r)
-                    }
-                });
-                if hit.t.is_finite() && hit.t <= reach {
-                    hit.t as f64 * params.ray_keep as f64
-                } else {
-                    f64::INFINITY
-                }
-            })
-            .collect()
-    };
-    finish(welded, &faces, dirs, smoothed, height, params, collision)
-}
-
-/// The same clamp (collision included) with a linear scan over all triangles per ray: the
-/// differential reference.
-pub fn clamp_heights_brute_force(
+/// The `collision` effect: per welded vertex, `ray_keep` times the free distance along its
+/// direction before the ray meets another part of the mesh (infinite when it meets none within
+/// reach). Builds a BVH; the plan runs it only for surfaces that ask.
+pub fn collision_bound(
     welded: &Welded,
-    frames: &Frames,
+    smoothed: &Smoothed,
     height: f32,
     params: &ClampParams,
-) -> Clamp {
-    let faces = incident_faces(welded);
-    let (dirs, smoothed) = directions(welded, &faces, frames, height, params);
+) -> Vec<f64> {
+    let tris = triangles(welded);
+    if tris.is_empty() || height <= 0.0 {
+        return vec![f64::INFINITY; welded.positions.len()];
+    }
+    let dirs = &smoothed.directions;
+    let mut bvh = build_bvh2_from_tris(
+        &tris,
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
+    BVH_BUILDS.fetch_add(1, Ordering::Relaxed);
+    // Traversal sizes its stack from `max_depth`; set it from the tree as built, so that a
+    // pathological tree (thousands of coincident triangles) is traversed correctly instead of
+    // overflowing a fixed stack.
+    bvh.max_depth = bvh.max_depth.max(tree_depth(&bvh) + 1);
+    let reach = height / params.ray_keep;
+    (0..welded.positions.len() as u32)
+        .into_par_iter()
+        .map(|v| {
+            let ray = vertex_ray(welded, dirs, v, reach);
+            let mut hit = RayHit::none();
+            bvh.ray_traverse(ray, &mut hit, |r, id| {
+                let t = bvh.primitive_indices[id] as usize;
+                if incident(welded, t, v) {
+                    f32::INFINITY
+                } else {
+                    tris[t].intersect(r)
+                }
+            });
+            if hit.t.is_finite() && hit.t <= reach {
+                hit.t as f64 * params.ray_keep as f64
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}
+
+/// [`collision_bound`] with a linear scan over all triangles per ray: the differential
+/// reference.
+pub fn collision_bound_brute_force(
+    welded: &Welded,
+    smoothed: &Smoothed,
+    height: f32,
+    params: &ClampParams,
+) -> Vec<f64> {
     let tris = triangles(welded);
     let reach = height / params.ray_keep;
-    let collision = (0..welded.positions.len() as u32)
+    (0..welded.positions.len() as u32)
         .map(|v| {
-            let ray = vertex_ray(welded, &dirs, v, reach);
+            let ray = vertex_ray(welded, &smoothed.directions, v, reach);
             let t = (0..tris.len())
                 .filter(|&t| !incident(welded, t, v))
                 .map(|t| tris[t].intersect(&ray))
@@ -488,8 +524,29 @@ pub fn clamp_heights_brute_force(
                 f64::INFINITY
             }
         })
-        .collect();
-    finish(welded, &faces, dirs, smoothed, height, params, collision)
+        .collect()
+}
+
+/// The clamp stage's bound: per-vertex height scales from the inversion bound and, when the
+/// `collision` effect ran, the collision bound.
+pub fn clamp_heights(
+    welded: &Welded,
+    smoothed: Smoothed,
+    height: f32,
+    params: &ClampParams,
+    collision: Option<&[f64]>,
+) -> Clamp {
+    let free = vec![f64::INFINITY; welded.positions.len()];
+    let collision = collision.unwrap_or(&free);
+    finish(
+        welded,
+        &smoothed.faces,
+        smoothed.directions,
+        smoothed.smoothed,
+        height,
+        params,
+        collision,
+    )
 }
 
 fn finish(
@@ -499,7 +556,7 @@ fn finish(
     smoothed: usize,
     height: f32,
     params: &ClampParams,
-    collision: Vec<f64>,
+    collision: &[f64],
 ) -> Clamp {
     let h = height as f64;
     let by_collision: Vec<f32> = collision
@@ -547,18 +604,22 @@ mod tests {
     use crate::frames::extrusion_frames;
     use crate::weld::weld;
 
+    type Bound = fn(&Welded, &Smoothed, f32, &ClampParams) -> Vec<f64>;
+
+    fn with_collision(w: &Welded, f: &Frames, h: f32, p: &ClampParams, bound: Bound) -> Clamp {
+        let s = smooth(w, f, h, p);
+        let c = bound(w, &s, h, p);
+        clamp_heights(w, s, h, p, Some(&c))
+    }
+
+    fn without_collision(w: &Welded, f: &Frames, h: f32, p: &ClampParams) -> Clamp {
+        clamp_heights(w, smooth(w, f, h, p), h, p, None)
+    }
+
     fn run(p: &[Vec3], ix: &[u32], height: f32) -> (Welded, Frames, Clamp) {
         let w = weld(p, ix);
         let f = extrusion_frames(&w, None);
-        let c = clamp_heights(
-            &w,
-            &f,
-            height,
-            &ClampParams {
-                collision: true,
-                ..Default::default()
-            },
-        );
+        let c = with_collision(&w, &f, height, &ClampParams::default(), collision_bound);
         (w, f, c)
     }
 
@@ -626,12 +687,9 @@ mod tests {
         }
         let w = weld(&m.positions, &m.indices);
         let f = extrusion_frames(&w, None);
-        let params = ClampParams {
-            collision: true,
-            ..Default::default()
-        };
-        let a = clamp_heights(&w, &f, 0.5, &params);
-        let b = clamp_heights_brute_force(&w, &f, 0.5, &params);
+        let params = ClampParams::default();
+        let a = with_collision(&w, &f, 0.5, &params, collision_bound);
+        let b = with_collision(&w, &f, 0.5, &params, collision_bound_brute_force);
         // Same intersection function, so the same hits give the same floats; only hits at the
         // ray origin itself (t ≈ 1e-15, where the BVH's node test may cull a touching triangle)
         // can differ, by that much.
@@ -667,8 +725,8 @@ mod tests {
             smooth: false,
             ..Default::default()
         };
-        let a = clamp_heights(&w, &f, 0.3, &rough);
-        let b = clamp_heights(&w, &f, 0.3, &ClampParams::default());
+        let a = without_collision(&w, &f, 0.3, &rough);
+        let b = without_collision(&w, &f, 0.3, &ClampParams::default());
         assert!(a.smoothed == 0 && b.smoothed > 0);
         assert!(
             b.limited_by_inversion * 2 < a.limited_by_inversion,

@@ -33,6 +33,42 @@ pub enum Error {
     /// Parameters out of range.
     #[error("invalid parameters: {0}")]
     Params(String),
+    /// A scene file that does not parse, or whose values are out of range: the file, the line
+    /// (1-based, when the key is in the file) and the key (`surface[1].shells.layers`).
+    #[error("{}: {}{key}: {message}", path.display(), line.map(|l| format!("line {l}: ")).unwrap_or_default())]
+    Scene {
+        path: PathBuf,
+        line: Option<usize>,
+        key: String,
+        message: String,
+    },
+}
+
+/// A parameter out of range: its key inside the parameters (`layers`; a stage's `check` names
+/// its own fields, [`crate::params::BakeParams::check`] prefixes the section, `shells.layers`)
+/// and what is wrong, naming the parameter.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{message}")]
+pub struct ParamError {
+    pub key: String,
+    pub message: String,
+}
+
+impl ParamError {
+    pub fn new(key: &str, message: impl Into<String>) -> ParamError {
+        ParamError {
+            key: key.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The same error with its key inside `section`.
+    pub fn within(self, section: &str) -> ParamError {
+        ParamError {
+            key: format!("{section}.{}", self.key),
+            ..self
+        }
+    }
 }
 
 impl Error {

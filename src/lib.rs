@@ -1,30 +1,35 @@
 //! shellbake: bakes shell-textured fur, grass, carpet and moss into standard glTF.
 //!
-//! The pipeline, top to bottom — [`bake`] reads the same way:
+//! A bake runs a **plan** ([`scene::plan`]): from a scene file (or the one-surface shortcut, a
+//! mesh path) it decides which stages run for which surface; [`bake_scene`] then reads as the
+//! plan, one line per stage, each gated by it:
 //!
 //! | stage | module | verb |
 //! |---|---|---|
-//! | load | [`load`] | [`load::load`] |
-//! | orient | [`orient`] | [`orient::orient`] |
-//! | weld | [`weld`] | [`weld::weld`] |
+//! | load | [`load`] | [`load::load`] ([`load_surfaces`]) |
+//! | merge, orient | [`orient`] | [`orient::orient_on`] |
+//! | weld | [`weld`] | [`weld::weld_on`] |
 //! | frames | [`frames`] | [`frames::extrusion_frames`] |
-//! | clamp (smoothing and inversion always; collision when asked) | [`clamp`] | [`clamp::clamp_heights`] |
+//! | smooth | [`clamp`] | [`clamp::smooth`] |
+//! | collision (effect `collision`) | [`clamp`] | [`clamp::collision_bound`] |
+//! | clamp (the inversion bound; always) | [`clamp`] | [`clamp::clamp_heights`] |
 //! | strands | [`strands`] | [`strands::bake_mask`] |
 //! | tiling | [`tiling`] | [`tiling::mask_tiling`] |
 //! | shells | [`shells`] | [`shells::build_shells`] |
 //! | cull, lod | (not yet; skipped) | — |
 //! | pack | [`pack`] | [`pack::pack`] |
-//! | write | [`write`] | [`write::write_glb`] |
+//! | write | [`write`] | [`write::gltf_json`], [`write::glb_of_packed`] |
 //!
-//! After the pipeline, [`view`] draws what was baked (wgpu), draws the runtime shell technique
-//! from the same input as a reference, and compares the two (`shellbake verify`).
-//!
-//! Each stage runs only when the parameters call for it and the [`report::Report`] lists every
-//! stage as run or skipped.
+//! Modules form a tree of imports, ground floor first: `error`, `grid`, `mesh` → the stages
+//! (each owning its parameters) → `params` (gathers them, presets as data) → `scene` (scene
+//! files, the plan) → `report` → this file. After the pipeline, [`view`] draws what was baked
+//! (wgpu), draws the runtime shell technique from the same input as a reference, and compares
+//! the two (`shellbake verify`).
 
 pub mod clamp;
 pub mod error;
 pub mod frames;
+pub mod grid;
 pub mod load;
 pub mod mesh;
 pub mod orient;
@@ -32,6 +37,7 @@ pub mod pack;
 pub mod params;
 pub mod procedural;
 pub mod report;
+pub mod scene;
 pub mod shells;
 pub mod strands;
 pub mod tiling;
@@ -40,36 +46,91 @@ pub mod view;
 pub mod weld;
 pub mod write;
 
+use std::path::Path;
 use std::time::Instant;
 
 use glam::Vec2;
 
 pub use error::{Error, Result};
 use mesh::{Mesh, Scene};
-use pack::Packed;
-use params::BakeParams;
-use report::Report;
+use pack::{Packed, PackedSurface};
+use params::{BakeParams, Preset};
+use report::{Report, SceneReport};
+use scene::{Effect, Plan, SceneFile, Stage, Surface};
 use shells::ShellStack;
 use strands::Mask;
 
-/// Everything a bake produced, for the writer, the report and the tests.
-pub struct Baked {
-    /// The GLB file.
-    pub glb: Vec<u8>,
-    /// The glTF JSON inside it.
-    pub json: serde_json::Value,
+/// One surface of a bake, as `bake_scene` returns it.
+pub struct BakedSurface {
     pub report: Report,
     /// The render mesh that was packed (welded-degenerate triangles removed, normals filled).
     pub mesh: Mesh,
     pub shells: ShellStack,
     pub mask: Mask,
-    pub packed: Packed,
+    pub packed: PackedSurface,
     /// Mask tiles per UV unit.
     pub tiles_per_uv: Vec2,
 }
 
-/// Bakes a loaded scene. Never fails: the scene was checked by `load`, the parameters by
-/// [`BakeParams::check`] (asserted here).
+/// Everything a scene bake produced.
+pub struct BakedScene {
+    /// The GLB file.
+    pub glb: Vec<u8>,
+    /// The glTF JSON inside it.
+    pub json: serde_json::Value,
+    pub plan: Plan,
+    pub report: SceneReport,
+    pub packed: Packed,
+    pub surfaces: Vec<BakedSurface>,
+}
+
+/// Everything a one-surface bake produced, for the writer, the report and the tests.
+pub struct Baked {
+    /// The GLB file.
+    pub glb: Vec<u8>,
+    /// The glTF JSON inside it.
+    pub json: serde_json::Value,
+    /// The surface's report.
+    pub report: Report,
+    /// The file's report (plan, totals, the surface's section).
+    pub scene_report: SceneReport,
+    /// The render mesh that was packed (welded-degenerate triangles removed, normals filled).
+    pub mesh: Mesh,
+    pub shells: ShellStack,
+    pub mask: Mask,
+    pub packed: PackedSurface,
+    /// Mask tiles per UV unit.
+    pub tiles_per_uv: Vec2,
+}
+
+/// A surface's meshes as loaded (and placed), with the time loading took.
+pub struct Loaded {
+    pub scene: Scene,
+    pub ms: f64,
+}
+
+/// Loads every surface's mesh and places it (scale, then translation). Fails on the first
+/// file that cannot be read, naming it.
+pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
+    scene
+        .surfaces
+        .iter()
+        .map(|s| {
+            let start = Instant::now();
+            let mut loaded = load::load(&s.mesh)?;
+            for m in &mut loaded.meshes {
+                m.place(glam::DVec3::from(s.translation), s.scale);
+            }
+            Ok(Loaded {
+                scene: loaded,
+                ms: start.elapsed().as_secs_f64() * 1e3,
+            })
+        })
+        .collect()
+}
+
+/// Bakes a loaded mesh with `params` and no effects: the one-surface shortcut. Never fails:
+/// the scene was checked by `load`, the parameters by [`BakeParams::check`] (asserted here).
 ///
 /// ```
 /// use shellbake::params::{BakeParams, Preset};
@@ -80,14 +141,112 @@ pub struct Baked {
 /// shellbake::write::write_glb(&std::env::temp_dir().join("cube-carpet.glb"), &baked.glb).unwrap();
 /// ```
 pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
+    bake_with(scene, params, &[])
+}
+
+/// [`bake`] with the effects the surface asks for.
+pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Baked {
+    let file = SceneFile::single(Path::new(""), Preset::Fur, params.clone(), effects);
+    let mut baked = run_plan(&file, &[(scene, 0.0)]);
+    let surface = baked.surfaces.pop().expect("one surface");
+    Baked {
+        glb: baked.glb,
+        json: baked.json,
+        report: surface.report,
+        scene_report: baked.report,
+        mesh: surface.mesh,
+        shells: surface.shells,
+        mask: surface.mask,
+        packed: surface.packed,
+        tiles_per_uv: surface.tiles_per_uv,
+    }
+}
+
+/// Bakes every surface of `scene` (meshes from [`load_surfaces`], in the same order) into one
+/// GLB, running the scene's plan. Never fails; every surface's parameters must pass
+/// [`BakeParams::check`] (asserted).
+pub fn bake_scene(scene: &SceneFile, loaded: &[Loaded]) -> BakedScene {
+    let meshes: Vec<(&Scene, f64)> = loaded.iter().map(|l| (&l.scene, l.ms)).collect();
+    run_plan(scene, &meshes)
+}
+
+/// [`bake_scene`] on borrowed meshes, each with its load time.
+fn run_plan(scene: &SceneFile, loaded: &[(&Scene, f64)]) -> BakedScene {
+    assert_eq!(scene.surfaces.len(), loaded.len(), "one load per surface");
+    let start = Instant::now();
+    let plan = scene::plan(scene);
+    let mut packed = Packed::default();
+    let several = scene.surfaces.len() > 1;
+    let mut surfaces: Vec<BakedSurface> = scene
+        .surfaces
+        .iter()
+        .zip(loaded)
+        .enumerate()
+        .map(|(i, (surface, &(meshes, ms)))| {
+            bake_surface(&plan, i, surface, meshes, ms, several, &mut packed)
+        })
+        .collect();
+    let write_start = Instant::now();
+    let (json, bin_len) = write::gltf_json(&packed);
+    let glb = write::glb_of_packed(&json, bin_len, &packed);
+    let write_ms = write_start.elapsed().as_secs_f64() * 1e3;
+    for (s, b) in surfaces.iter_mut().enumerate() {
+        b.report.run(Stage::Write.name(), || ());
+        b.report.stages.last_mut().expect("write was recorded").ms = write_ms;
+        fill_sizes(&mut b.report, &packed, s, &json, &glb, several);
+    }
+    let reports: Vec<Report> = surfaces.iter().map(|s| s.report.clone()).collect();
+    let mut report = SceneReport {
+        input: scene
+            .path
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_default(),
+        plan: SceneReport::plan_entries(&plan, &reports, write_ms),
+        total_bytes: glb.len(),
+        draw_calls: packed.draw_calls(),
+        triangles_drawn: packed.triangles_drawn(),
+        streams: stream_bytes(&packed, None),
+        surfaces: reports,
+        ..Default::default()
+    };
+    report
+        .streams
+        .insert("json".into(), serde_json::to_vec(&json).map_or(0, |b| b.len()));
+    report.total_ms = start.elapsed().as_secs_f64() * 1e3;
+    BakedScene {
+        glb,
+        json,
+        plan,
+        report,
+        packed,
+        surfaces,
+    }
+}
+
+/// One surface through the plan, packed into `packed`.
+fn bake_surface(
+    plan: &Plan,
+    i: usize,
+    surface: &Surface,
+    scene: &Scene,
+    load_ms: f64,
+    several: bool,
+    packed: &mut Packed,
+) -> BakedSurface {
+    let params = &surface.params;
     if let Err(e) = params.check() {
         panic!("bake called with unchecked parameters: {e}");
     }
     let start = Instant::now();
     let mut report = Report {
+        name: surface.name.clone(),
+        input: surface.mesh.display().to_string(),
         warnings: scene.warnings.clone(),
         ..Default::default()
     };
+    report.run(Stage::Load.name(), || ());
+    report.stages.last_mut().expect("load was recorded").ms = load_ms;
 
     let mut mesh = report.run("merge", || scene.merged());
     report.count("meshes", scene.meshes.len() as f64);
@@ -140,9 +299,18 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     let height = params.resolved_height(diagonal);
     let density = params.resolved_density(diagonal);
 
-    let clamp = report.run("clamp", || {
-        clamp::clamp_heights(&welded, &frames, height, &params.clamp)
+    let smoothed = report.run("smooth", || {
+        clamp::smooth(&welded, &frames, height, &params.clamp)
     });
+    report.count("smoothed_directions", smoothed.smoothed as f64);
+    let collision = report.gate(plan, Stage::Collision, i, || {
+        clamp::collision_bound(&welded, &smoothed, height, &params.clamp)
+    });
+    report.count("bvh_builds", collision.is_some() as u8 as f64);
+    let clamp = report.run("clamp", || {
+        clamp::clamp_heights(&welded, smoothed, height, &params.clamp, collision.as_deref())
+    });
+    drop(collision);
     frames.direction = clamp.directions(&welded);
     let (min_scale, mean_scale) = clamp.limited_scale();
     report.count("smoothed_directions", clamp.smoothed as f64);
@@ -150,7 +318,7 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     report.count("limited_by_collision", clamp.limited_by_collision as f64);
     report.count("min_scale", min_scale as f64);
     report.count("mean_limited_scale", mean_scale as f64);
-    if !params.clamp.collision {
+    if !plan.runs(Stage::Collision, i) {
         report.note(
             "clamp",
             "collision bound not requested (--clamp / scene effect `collision`); smoothing and the inversion bound ran",
@@ -188,30 +356,31 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     });
     report.count("layers", shells.t.len() as f64);
 
-    report.skip("cull", "not requested");
-    report.skip("lod", "not requested");
+    report.gate(plan, Stage::Cull, i, || ());
+    report.gate(plan, Stage::Lod, i, || ());
 
+    let prefix = if several {
+        format!("{}/", surface.name)
+    } else {
+        String::new()
+    };
     let input = pack::PackInput {
         mesh: &mesh,
         shells: &shells,
         mask: &mask,
         tiles_per_uv,
         roughness: params.shade.roughness,
+        surface: i,
+        name: &surface.name,
+        prefix: &prefix,
     };
-    let packed = report.run("pack", || pack::pack(&input, &params.pack));
-    report.count("float_uvs", if packed.float_uvs { 1.0 } else { 0.0 });
-    report.count("guarded_vertices", packed.guarded as f64);
-    let (json, glb) = report.run("write", || {
-        let (doc, bin_len) = write::gltf_json(&packed, &shells);
-        let glb = write::glb_of_packed(&doc, bin_len, &packed);
-        (doc, glb)
-    });
+    let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
+    report.count("float_uvs", if surface_packed.float_uvs { 1.0 } else { 0.0 });
+    report.count("guarded_vertices", surface_packed.guarded as f64);
 
     fill_report(
         &mut report,
-        &packed,
-        &json,
-        &glb,
+        &surface_packed,
         &shells,
         &mesh,
         height,
@@ -220,14 +389,12 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
         params,
     );
     report.total_ms = start.elapsed().as_secs_f64() * 1e3;
-    Baked {
-        glb,
-        json,
+    BakedSurface {
         report,
         mesh,
         shells,
         mask,
-        packed,
+        packed: surface_packed,
         tiles_per_uv,
     }
 }
@@ -261,9 +428,7 @@ pub fn check_bakeable(scene: &Scene, path: &std::path::Path) -> Result<()> {
 #[allow(clippy::too_many_arguments)]
 fn fill_report(
     report: &mut Report,
-    packed: &Packed,
-    json: &serde_json::Value,
-    glb: &[u8],
+    packed: &PackedSurface,
     shells: &ShellStack,
     mesh: &Mesh,
     height: f32,
@@ -272,10 +437,7 @@ fn fill_report(
     params: &BakeParams,
 ) {
     let tiles = tiling.tiles_per_uv;
-    report.layout = match packed.layout {
-        params::Layout::Compact => "compact".into(),
-        params::Layout::SingleDraw => "single-draw".into(),
-    };
+    report.layout = packed.layout.name().into();
     report.resolved.insert("height".into(), height as f64);
     match params.strands.uv_density {
         Some(d) => report.resolved.insert("uv_density".into(), d as f64),
@@ -293,34 +455,71 @@ fn fill_report(
     ] {
         report.resolved.insert(key.into(), value);
     }
-
     report.resolved.insert("position_step".into(), packed.scale);
     report.base_vertices = packed.base_vertices;
     report.base_triangles = mesh.triangle_count();
     report.layers = shells.t.len();
-    report.draw_calls = packed.primitives.len();
-    report.triangles_drawn = packed
-        .primitives
-        .iter()
-        .map(|p| packed.accessors[p.indices].count / 3)
-        .sum();
-    report.total_bytes = glb.len();
-    report.bytes_per_base_vertex = glb.len() as f64 / packed.base_vertices.max(1) as f64;
-    for v in &packed.views {
-        *report.streams.entry(v.name.to_string()).or_default() += v.bytes.len();
+}
+
+/// Bytes per stream name, of one surface (`Some`) or of the whole file.
+fn stream_bytes(packed: &Packed, surface: Option<usize>) -> std::collections::BTreeMap<String, usize> {
+    let mut out = std::collections::BTreeMap::new();
+    for v in &packed.streams {
+        if surface.is_none_or(|s| v.tag.surface == s) {
+            *out.entry(v.name.to_string()).or_default() += v.bytes.len();
+        }
     }
-    let json_len = serde_json::to_vec(json).map_or(0, |b| b.len());
+    out
+}
+
+/// The sizes in surface `s`'s report, once the file is written.
+fn fill_sizes(
+    report: &mut Report,
+    packed: &Packed,
+    s: usize,
+    json: &serde_json::Value,
+    glb: &[u8],
+    several: bool,
+) {
+    let surface = &packed.surfaces[s];
+    let layer_json = write::json_bytes_per_layer(json, packed, surface);
+    report.streams = stream_bytes(packed, Some(s));
+    report.draw_calls = surface
+        .layer_meshes
+        .iter()
+        .map(|&m| packed.meshes[m].primitives.len())
+        .sum();
+    report.triangles_drawn = surface
+        .layer_meshes
+        .iter()
+        .flat_map(|&m| &packed.meshes[m].primitives)
+        .filter_map(|p| p.indices)
+        .map(|a| packed.accessors[a].count / 3)
+        .sum();
+    let stream_total: usize = report.streams.values().sum();
+    let own_json: usize = layer_json.iter().sum();
+    report.total_bytes = if several {
+        stream_total + own_json
+    } else {
+        glb.len()
+    };
+    let json_len = if several {
+        own_json
+    } else {
+        serde_json::to_vec(json).map_or(0, |b| b.len())
+    };
     report.streams.insert("json".into(), json_len);
-    report.bytes_per_layer = match packed.layout {
-        params::Layout::Compact => write::json_bytes_per_layer(json),
+    report.bytes_per_base_vertex = report.total_bytes as f64 / surface.base_vertices.max(1) as f64;
+    report.bytes_per_layer = match surface.layout {
+        params::Layout::Compact => layer_json,
         params::Layout::SingleDraw => {
             let vertex_bytes: usize = packed
-                .views
+                .streams
                 .iter()
-                .filter(|v| v.vertex.is_some())
+                .filter(|v| v.tag.surface == s && v.kind == pack::StreamKind::Vertex)
                 .map(|v| v.bytes.len())
                 .sum();
-            vec![vertex_bytes / shells.t.len().max(1); shells.t.len()]
+            vec![vertex_bytes / report.layers.max(1); report.layers]
         }
     };
 }

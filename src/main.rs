@@ -1,6 +1,8 @@
 //! The `shellbake` command line. Arguments are parsed in two tiers: clap structs close to the
-//! flags, then [`BakeArgs::params`] turns them into the library's `BakeParams` (preset first,
-//! flags override). Library errors are mapped to messages and exit codes here and only here:
+//! flags, then [`BakeArgs::apply`] — the one place flags meet the library's structs — maps the
+//! flags that were given onto a surface's `BakeParams` and effects (for a mesh: the preset
+//! first; for a scene file: on top of every surface). The library has no CLI types; names of
+//! presets, layouts and modes come from the library's own `name()` lists. Library errors are mapped to messages and exit codes here and only here:
 //! 0 success, 1 bad input or I/O, 2 bad usage or parameters (including outputs that would
 //! overwrite the input or each other). What is printed passes through [`printable`]: paths and
 //! names from the input reach the terminal with their control characters escaped.
@@ -9,8 +11,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use shellbake::orient::OrientMode;
 use shellbake::params::{BakeParams, Layout, Preset};
+use shellbake::scene::{Effect, SceneFile};
 
 #[derive(Parser)]
 #[command(
@@ -25,8 +30,11 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Bake a mesh (OBJ, glTF, GLB) into a shelled GLB.
+    /// Bake a mesh (OBJ, glTF, GLB) or a scene file (TOML) into a shelled GLB.
     Bake(BakeArgs),
+    /// Print the plan (the stages each surface runs, and why) and the estimated output size,
+    /// without baking.
+    Plan(BakeArgs),
     /// Draw a baked GLB to a PNG (headless).
     #[cfg(feature = "view")]
     Render(shellbake::view::cli::RenderArgs),
@@ -59,17 +67,31 @@ enum Command {
     },
 }
 
+/// A clap value parser for a library enum, from its names.
+fn named<T: Clone + Send + Sync + 'static>(
+    all: &'static [T],
+    name: fn(&T) -> &'static str,
+) -> impl TypedValueParser<Value = T> {
+    let names: Vec<&'static str> = all.iter().map(name).collect();
+    PossibleValuesParser::new(names).map(move |s| {
+        all.iter()
+            .find(|t| name(t) == s)
+            .expect("clap checked the name")
+            .clone()
+    })
+}
+
 /// Flags shared by every command that bakes.
 #[derive(Args, Clone, Debug)]
 struct BakeArgs {
-    /// Input mesh: .obj, .gltf or .glb.
+    /// Input: a mesh (.obj, .gltf, .glb) or a scene file (.toml).
     input: PathBuf,
     /// Output GLB [default: out/<input stem>.glb].
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Parameter preset.
-    #[arg(long, value_enum, default_value = "fur")]
-    preset: Preset,
+    /// Parameter preset [default: fur; a scene's surfaces name their own].
+    #[arg(long, value_parser = named(&Preset::ALL, |p| p.name()))]
+    preset: Option<Preset>,
     /// Layers including the base (1–239) [default: the preset's].
     #[arg(long)]
     layers: Option<u32>,
@@ -86,17 +108,18 @@ struct BakeArgs {
     /// Noise seed.
     #[arg(long)]
     seed: Option<u32>,
-    /// Output layout.
-    #[arg(long, value_enum, default_value = "compact")]
-    layout: Layout,
+    /// Output layout [default: compact].
+    #[arg(long, value_parser = named(&Layout::ALL, |l| l.name()))]
+    layout: Option<Layout>,
     /// Also shorten shells where they would pass through another part of the mesh (a BVH ray per
-    /// vertex). Shells are always kept from inverting.
+    /// vertex): the effect `collision` on every surface. Shells are always kept from inverting.
     #[arg(long)]
     clamp: bool,
     /// Winding: `auto` makes faces agree and turns closed parts outward (with a warning saying
-    /// what was flipped), `keep` leaves it as loaded, `flip` reverses every triangle.
-    #[arg(long, value_enum, default_value = "auto")]
-    orient: shellbake::orient::OrientMode,
+    /// what was flipped), `keep` leaves it as loaded, `flip` reverses every triangle
+    /// [default: auto].
+    #[arg(long, value_parser = named(&OrientMode::ALL, |m| m.name()))]
+    orient: Option<OrientMode>,
     /// Refuse bakes whose output would exceed this size (bytes; K, M, G suffixes).
     #[arg(long, default_value = "2G", value_parser = parse_size)]
     max_output: u64,
@@ -109,9 +132,9 @@ struct BakeArgs {
 }
 
 impl BakeArgs {
-    /// Second tier: the preset, then each flag that was given.
-    fn params(&self) -> anyhow::Result<BakeParams> {
-        let mut p = BakeParams::preset(self.preset);
+    /// Second tier, the one place flags meet the library: each flag that was given, applied to
+    /// one surface's parameters and effects.
+    fn apply(&self, p: &mut BakeParams, effects: &mut Vec<Effect>) {
         if let Some(n) = self.layers {
             p.shells.layers = n;
         }
@@ -120,6 +143,7 @@ impl BakeArgs {
         }
         if let Some(d) = self.density {
             p.strands.density = Some(d);
+            p.strands.uv_density = None;
         }
         if let Some(d) = self.uv_density {
             p.strands.uv_density = Some(d);
@@ -127,12 +151,61 @@ impl BakeArgs {
         if let Some(s) = self.seed {
             p.strands.seed = s;
         }
-        p.pack.layout = self.layout;
-        p.clamp.collision = self.clamp;
-        p.orient.mode = self.orient;
-        p.check()
-            .map_err(|e| anyhow::anyhow!(shellbake::Error::Params(e)))?;
-        Ok(p)
+        if let Some(l) = self.layout {
+            p.pack.layout = l;
+        }
+        if let Some(m) = self.orient {
+            p.orient.mode = m;
+        }
+        if self.clamp && !effects.contains(&Effect::Collision) {
+            effects.push(Effect::Collision);
+            effects.sort();
+        }
+    }
+
+    /// Whether the input is a scene file.
+    fn is_scene(&self) -> bool {
+        self.input
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("toml"))
+    }
+
+    /// The scene to bake: the scene file with the flags on top of every surface, or the mesh
+    /// as a one-surface scene.
+    fn scene(&self) -> anyhow::Result<SceneFile> {
+        let mut scene = if self.is_scene() {
+            SceneFile::read(&self.input)?
+        } else {
+            let preset = self.preset.unwrap_or(Preset::Fur);
+            SceneFile::single(&self.input, preset, BakeParams::preset(preset), &[])
+        };
+        for s in &mut scene.surfaces {
+            if let Some(preset) = self.preset.filter(|&p| p != s.preset) {
+                s.params = s.with_preset(preset);
+            }
+            self.apply(&mut s.params, &mut s.effects);
+            s.params.check().map_err(|e| {
+                let what = if self.is_scene() {
+                    format!("surface '{}': {e}", s.name)
+                } else {
+                    e.to_string()
+                };
+                shellbake::Error::Params(what)
+            })?;
+        }
+        Ok(scene)
+    }
+
+    /// Parameters for the commands that take one mesh (`verify`, `bench`).
+    fn params(&self) -> anyhow::Result<BakeParams> {
+        if self.is_scene() {
+            anyhow::bail!(
+                "{}: this command takes a mesh, not a scene file",
+                self.input.display()
+            );
+        }
+        let scene = self.scene()?;
+        Ok(scene.surfaces[0].params.clone())
     }
 
     fn output(&self) -> PathBuf {
@@ -166,26 +239,18 @@ fn default_output(input: &Path) -> PathBuf {
     Path::new("out").join(format!("{stem}.glb"))
 }
 
-fn bake(args: &BakeArgs) -> anyhow::Result<()> {
-    let params = args.params()?;
-    let out = args.output();
-    let mut outputs = vec![("output", out.as_path())];
-    if let Some(report) = &args.report {
-        outputs.push(("report", report.as_path()));
+/// Loads every surface, refuses what cannot be baked and what would exceed `--max-output`;
+/// returns the meshes and the size estimate.
+fn load_checked(
+    args: &BakeArgs,
+    scene: &SceneFile,
+) -> anyhow::Result<(Vec<shellbake::Loaded>, u64)> {
+    let loaded = shellbake::load_surfaces(scene)?;
+    let mut estimate = 0u64;
+    for (surface, l) in scene.surfaces.iter().zip(&loaded) {
+        shellbake::check_bakeable(&l.scene, &surface.mesh)?;
+        estimate += shellbake::pack::estimate_scene_bytes(&l.scene, &surface.params);
     }
-    shellbake::write::check_outputs(&args.input, &outputs)?;
-    let spinner = (!args.quiet).then(|| {
-        let pb = indicatif::ProgressBar::new_spinner();
-        pb.set_message(printable(
-            &format!("baking {}", args.input.display()),
-            false,
-        ));
-        pb.enable_steady_tick(Duration::from_millis(120));
-        pb
-    });
-    let scene = shellbake::load::load(&args.input)?;
-    shellbake::check_bakeable(&scene, &args.input)?;
-    let estimate = shellbake::pack::estimate_scene_bytes(&scene, &params);
     if estimate > args.max_output {
         anyhow::bail!(
             "{}: the output would be about {:.1} MiB (at most {} bytes), above --max-output {} bytes; nothing was written",
@@ -195,8 +260,34 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
             args.max_output
         );
     }
-    let mut baked = shellbake::bake(&scene, &params);
-    drop(scene);
+    Ok((loaded, estimate))
+}
+
+fn bake(args: &BakeArgs) -> anyhow::Result<()> {
+    let scene = args.scene()?;
+    let out = args.output();
+    let mut outputs = vec![("output", out.as_path())];
+    if let Some(report) = &args.report {
+        outputs.push(("report", report.as_path()));
+    }
+    for s in &scene.surfaces {
+        shellbake::write::check_outputs(&s.mesh, &outputs)?;
+    }
+    if scene.path.is_some() {
+        shellbake::write::check_outputs(&args.input, &outputs)?;
+    }
+    let spinner = (!args.quiet).then(|| {
+        let pb = indicatif::ProgressBar::new_spinner();
+        pb.set_message(printable(
+            &format!("baking {}", args.input.display()),
+            false,
+        ));
+        pb.enable_steady_tick(Duration::from_millis(120));
+        pb
+    });
+    let (loaded, _) = load_checked(args, &scene)?;
+    let mut baked = shellbake::bake_scene(&scene, &loaded);
+    drop(loaded);
     if let Some(pb) = spinner {
         pb.finish_and_clear();
     }
@@ -212,6 +303,35 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     if !args.quiet {
         print!("{}", printable(&baked.report.summary(), true));
     }
+    Ok(())
+}
+
+/// `shellbake plan`: the stages per surface and the estimated size; loads, does not bake.
+fn plan(args: &BakeArgs) -> anyhow::Result<()> {
+    let scene = args.scene()?;
+    let plan = shellbake::scene::plan(&scene);
+    let (loaded, estimate) = load_checked(args, &scene)?;
+    let mut text = format!("{}: {} surface(s)\n", args.input.display(), scene.surfaces.len());
+    for (s, l) in scene.surfaces.iter().zip(&loaded) {
+        let triangles: usize = l.scene.meshes.iter().map(|m| m.triangle_count()).sum();
+        let effects: Vec<&str> = s.effects.iter().map(|e| e.name()).collect();
+        text += &format!(
+            "  surface {}: {} ({triangles} triangles), preset {}, {} layers, {} layout, effects: {}\n",
+            s.name,
+            s.mesh.display(),
+            s.preset.name(),
+            s.params.shells.layers,
+            s.params.pack.layout.name(),
+            if effects.is_empty() { "none".into() } else { effects.join(", ") },
+        );
+    }
+    text += "stages:\n";
+    text += &plan.describe();
+    text += &format!(
+        "estimated output: at most {estimate} bytes ({:.1} MiB)\n",
+        estimate as f64 / (1 << 20) as f64
+    );
+    print!("{}", printable(&text, true));
     Ok(())
 }
 
@@ -266,6 +386,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Bake(args) => bake(args),
+        Command::Plan(args) => plan(args),
         Command::Fixtures { dir, dense } => fixtures(dir, *dense),
         #[cfg(feature = "view")]
         Command::Bench { bake, bench } => bake
@@ -296,7 +417,11 @@ fn main() -> ExitCode {
             eprintln!("error: {}", message(&e));
             let usage = matches!(
                 e.downcast_ref::<shellbake::Error>(),
-                Some(shellbake::Error::Params(_) | shellbake::Error::Output { .. })
+                Some(
+                    shellbake::Error::Params(_)
+                        | shellbake::Error::Output { .. }
+                        | shellbake::Error::Scene { .. }
+                )
             );
             ExitCode::from(if usage { 2 } else { 1 })
         }
@@ -362,11 +487,8 @@ mod tests {
         assert_eq!(parse_size("64k"), Ok(64 << 10));
         assert_eq!(parse_size("2G"), Ok(2 << 30));
         assert!(parse_size("lots").is_err());
-        assert!(
-            parse_bool_flags(&["bake", "a.obj", "--clamp"])
-                .clamp
-                .collision
-        );
+        assert_eq!(effects(&["bake", "a.obj", "--clamp"]), vec![Effect::Collision]);
+        assert!(effects(&["bake", "a.obj"]).is_empty());
         let p = parse_bool_flags(&["bake", "a.obj", "--orient", "keep"]);
         assert_eq!(p.orient.mode, shellbake::orient::OrientMode::Keep);
         assert!(
@@ -376,6 +498,10 @@ mod tests {
 
     fn parse_bool_flags(args: &[&str]) -> BakeParams {
         parse(args).params().unwrap()
+    }
+
+    fn effects(args: &[&str]) -> Vec<Effect> {
+        parse(args).scene().unwrap().surfaces[0].effects.clone()
     }
 
     #[test]

@@ -35,6 +35,17 @@ impl Mesh {
         self.indices.len() / 3
     }
 
+    /// Scales the mesh by `scale` about the world origin, then moves it by `translation` (a
+    /// scene surface's placement). Normals are unchanged by a uniform scale.
+    pub fn place(&mut self, translation: glam::DVec3, scale: f64) {
+        if scale != 1.0 {
+            for p in &mut self.positions {
+                *p = (p.as_dvec3() * scale).as_vec3();
+            }
+        }
+        self.origin = self.origin * scale + translation;
+    }
+
     /// Axis-aligned bounds of the relative positions, `(min, max)`; zero box when empty.
     pub fn bounds(&self) -> (Vec3, Vec3) {
         if self.positions.is_empty() {

@@ -37,7 +37,7 @@ use crate::mesh::{face_normal, Mesh};
 use crate::weld::{folded, Topology};
 
 /// What the orient stage does.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum OrientMode {
     /// Make faces agree across shared edges; turn closed parts outward. The default.
@@ -50,6 +50,15 @@ pub enum OrientMode {
 }
 
 impl OrientMode {
+    /// Every mode, in the order the CLI lists them.
+    pub const ALL: [OrientMode; 3] = [OrientMode::Auto, OrientMode::Keep, OrientMode::Flip];
+
+    /// The mode called `name`.
+    pub fn from_name(name: &str) -> Option<OrientMode> {
+        OrientMode::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// The lowercase name used on the command line, in scene files and reports.
     pub fn name(self) -> &'static str {
         match self {
             OrientMode::Auto => "auto",

@@ -1,23 +1,31 @@
-//! Parameters: one struct per stage, their defaults, and the four presets.
+//! Parameters: the bake's parameters gathered from the stages, and the four presets.
 //!
-//! Every field states its unit, range and advice. Scene files (TOML) and CLI flags both
-//! deserialize into these structs, so a knob has exactly one definition.
+//! Each stage owns its parameters — the struct, its `Default` and its `check()` live in the
+//! stage's file (`orient.rs`, `clamp.rs`, `strands.rs`, `shells.rs`, `pack/`) — and
+//! [`BakeParams`] gathers them, one section per stage. Scene files (TOML), presets and CLI flags
+//! all end in these structs: a preset is a TOML file of overrides (`src/presets/*.toml`) read
+//! through [`BakeParams::with_overrides`], the same serde path that reads a scene surface's
+//! overrides, so a knob has exactly one definition. The stage defaults are the fur preset.
 //!
 //! Scale-free defaults: meshes arrive at any scale (a bunny of 0.2 m, a field of 500 m), so the
 //! presets state shell height and strand density *relative to the bounding-box diagonal*
 //! (`height_fraction`, `strands_per_diagonal`). An explicit `height` (world units) or `density`
-//! (strands per world unit) overrides them; [`BakeParams::resolve`] turns the relative values into
-//! world units once the mesh is known, and the report shows the resolved figures.
+//! (strands per world unit) overrides them; [`BakeParams::resolved_height`] and
+//! [`BakeParams::resolved_density`] turn the relative values into world units once the mesh is
+//! known, and the report shows the resolved figures.
 
 use serde::{Deserialize, Serialize};
 
-/// Highest number of layers a bake can have (base included). Layer heights live on a grid of
-/// [`crate::strands::HEIGHT_STEPS`] steps so that the 8-bit mask is exact for every layer; two
-/// layers must not share a step.
-pub const MAX_LAYERS: u32 = crate::strands::HEIGHT_STEPS;
+pub use crate::clamp::ClampParams;
+use crate::error::ParamError;
+pub use crate::grid::MAX_LAYERS;
+pub use crate::orient::OrientParams;
+pub use crate::pack::{Layout, PackParams};
+pub use crate::shells::{ShadeParams, ShellParams};
+pub use crate::strands::{StrandModel, StrandParams};
 
 /// Named parameter sets for common surfaces.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// Animal fur: long tapered strands, dense, warm brown gradient.
@@ -34,7 +42,7 @@ impl Preset {
     /// All presets, in the order tests and the study iterate them.
     pub const ALL: [Preset; 4] = [Preset::Fur, Preset::Carpet, Preset::Grass, Preset::Moss];
 
-    /// The lowercase name used on the command line and in file names.
+    /// The lowercase name used on the command line, in scene files and in file names.
     pub fn name(self) -> &'static str {
         match self {
             Preset::Fur => "fur",
@@ -43,372 +51,90 @@ impl Preset {
             Preset::Moss => "moss",
         }
     }
-}
 
-/// How the survival height `s(uv)` of a texel is computed (DESIGN §3).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "lowercase")]
-pub enum StrandModel {
-    /// The seed technique's white-noise taper: texel survives while `n·(1−t) >= threshold`, so
-    /// `s = 1 − threshold/n`. One strand per texel.
-    Noise {
-        /// Noise threshold `c`, in (0, 1). Higher = sparser strands. 0.2–0.5 is typical.
-        threshold: f32,
-    },
-    /// Strand cells: one strand per cell at the cell centre, random length, radius shrinking
-    /// with height: `s = lerp(min_length, 1, rand(cell)) − dist(uv, centre)/thickness`.
-    Cells {
-        /// Strand thickness at the root, in cell widths, (0, 2]. 0.5–1.0 gives round strands
-        /// that touch at the root.
-        thickness: f32,
-        /// Shortest strand as a fraction of the full height, [0, 1].
-        min_length: f32,
-        /// Mask texels across one cell side, 2–64. 8 gives round strands at close range.
-        texels_per_cell: u32,
-    },
-}
+    /// The preset called `name`.
+    pub fn from_name(name: &str) -> Option<Preset> {
+        Preset::ALL.into_iter().find(|p| p.name() == name)
+    }
 
-/// Which glTF layout `pack` writes (DESIGN §4).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum Layout {
-    /// One quantized geometry shared by every layer; extrusion as a morph target; one small mesh
-    /// and material per layer. Smallest file, one draw call per layer.
-    Compact,
-    /// All layers in one primitive and one material; per-layer threshold and shade in COLOR_0.
-    /// Larger file, one draw call.
-    SingleDraw,
-}
-
-impl Layout {
-    /// The kebab-case name used on the command line, in scene files, reports and `extras`.
-    pub fn name(self) -> &'static str {
+    /// The preset's overrides of the stage defaults, as TOML.
+    pub fn overrides(self) -> &'static str {
         match self {
-            Layout::Compact => "compact",
-            Layout::SingleDraw => "single-draw",
+            Preset::Fur => include_str!("presets/fur.toml"),
+            Preset::Carpet => include_str!("presets/carpet.toml"),
+            Preset::Grass => include_str!("presets/grass.toml"),
+            Preset::Moss => include_str!("presets/moss.toml"),
         }
     }
 }
 
-/// Strand stage parameters (`strands.rs`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct StrandParams {
-    /// The strand law.
-    pub model: StrandModel,
-    /// Strands per world unit (along a line). `None`: `strands_per_diagonal` / diagonal.
-    pub density: Option<f32>,
-    /// Strands along the bounding-box diagonal when `density` is not given. 50–2000.
-    pub strands_per_diagonal: f32,
-    /// Side of the tileable mask texture in texels, power of two, 16–4096. 256 is plenty: the
-    /// mask repeats, and one tile holds `mask_size / texels_per_cell` strands per side.
-    pub mask_size: u32,
-    /// Noise seed. The same seed gives the same strands on every machine.
-    pub seed: u32,
-    /// Strands per UV unit. When set, it replaces `density`: the mask tiles at this rate in UV
-    /// space whatever the mesh's UV-to-world scale — for UV layouts authored at a set texel
-    /// density, or strands that must follow a hand-painted UV stretch. Leave unset otherwise.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub uv_density: Option<f32>,
-}
-
-/// Shell stage parameters (`shells.rs`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ShellParams {
-    /// Number of layers including the base (t = 0), 1–[`MAX_LAYERS`]. More layers = denser,
-    /// smoother strands and more overdraw. 16–64 is typical.
-    pub layers: u32,
-    /// Shell height in world units at t = 1. `None`: `height_fraction` × diagonal.
-    pub height: Option<f32>,
-    /// Shell height as a fraction of the bounding-box diagonal when `height` is not given.
-    pub height_fraction: f32,
-}
-
-/// Shading parameters (per-layer colours, DESIGN §3).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ShadeParams {
-    /// Linear RGB colour at the strand root (t = 0).
-    pub root_color: [f32; 3],
-    /// Linear RGB colour at the strand tip (t = 1).
-    pub tip_color: [f32; 3],
-    /// Ambient occlusion at the root, [0, 1]: `albedo *= lerp(1 − occlusion, 1, t)`.
-    pub occlusion: f32,
-    /// glTF roughness of every layer, [0, 1].
-    pub roughness: f32,
-}
-
-/// Pack stage parameters (`pack/`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct PackParams {
-    /// Output layout.
-    pub layout: Layout,
-    /// Position quantization bits, 8–16. 14 keeps the error under 1/16384 of the largest extent.
-    pub position_bits: u32,
-}
-
-/// Everything a bake needs. `Default` is the `fur` preset.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// Everything a bake needs, one section per stage. `Default` is the `fur` preset.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct BakeParams {
-    pub orient: crate::orient::OrientParams,
-    pub clamp: crate::clamp::ClampParams,
+    pub orient: OrientParams,
+    pub clamp: ClampParams,
     pub strands: StrandParams,
     pub shells: ShellParams,
     pub shade: ShadeParams,
     pub pack: PackParams,
 }
 
-impl Default for StrandParams {
-    fn default() -> Self {
-        BakeParams::preset(Preset::Fur).strands
-    }
-}
-impl Default for ShellParams {
-    fn default() -> Self {
-        BakeParams::preset(Preset::Fur).shells
-    }
-}
-impl Default for ShadeParams {
-    fn default() -> Self {
-        BakeParams::preset(Preset::Fur).shade
-    }
-}
-impl Default for PackParams {
-    fn default() -> Self {
-        PackParams {
-            layout: Layout::Compact,
-            position_bits: 14,
+/// Keys whose value replaces the base value whole instead of merging into it: a strand model
+/// names its law, and the fields of one law mean nothing to another.
+const REPLACED_WHOLE: &[&str] = &["model"];
+
+/// Merges `over` into `base`: tables merge key by key (except [`REPLACED_WHOLE`]), anything else
+/// replaces.
+fn merge(base: &mut toml::Table, over: toml::Table) {
+    for (key, value) in over {
+        match (base.get_mut(&key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o))
+                if !REPLACED_WHOLE.contains(&key.as_str()) =>
+            {
+                merge(b, o)
+            }
+            (_, value) => {
+                base.insert(key, value);
+            }
         }
-    }
-}
-impl Default for BakeParams {
-    fn default() -> Self {
-        BakeParams::preset(Preset::Fur)
     }
 }
 
 impl BakeParams {
-    /// The named preset.
+    /// The named preset: the stage defaults with the preset's overrides.
     pub fn preset(preset: Preset) -> BakeParams {
-        let pack = PackParams {
-            layout: Layout::Compact,
-            position_bits: 14,
-        };
-        let clamp = crate::clamp::ClampParams::default();
-        let orient = crate::orient::OrientParams::default();
-        match preset {
-            Preset::Fur => BakeParams {
-                orient: orient.clone(),
-                clamp,
-                strands: StrandParams {
-                    model: StrandModel::Cells {
-                        thickness: 0.9,
-                        min_length: 0.55,
-                        texels_per_cell: 8,
-                    },
-                    density: None,
-                    strands_per_diagonal: 240.0,
-                    mask_size: 256,
-                    seed: 1,
-                    uv_density: None,
-                },
-                shells: ShellParams {
-                    layers: 32,
-                    height: None,
-                    height_fraction: 0.035,
-                },
-                shade: ShadeParams {
-                    root_color: [0.16, 0.09, 0.045],
-                    tip_color: [0.80, 0.62, 0.42],
-                    occlusion: 0.7,
-                    roughness: 0.75,
-                },
-                pack,
-            },
-            Preset::Carpet => BakeParams {
-                orient: orient.clone(),
-                clamp: clamp.clone(),
-                strands: StrandParams {
-                    model: StrandModel::Noise { threshold: 0.3 },
-                    density: None,
-                    strands_per_diagonal: 900.0,
-                    mask_size: 256,
-                    seed: 1,
-                    uv_density: None,
-                },
-                shells: ShellParams {
-                    layers: 16,
-                    height: None,
-                    height_fraction: 0.012,
-                },
-                shade: ShadeParams {
-                    root_color: [0.22, 0.02, 0.03],
-                    tip_color: [0.62, 0.10, 0.11],
-                    occlusion: 0.6,
-                    roughness: 0.9,
-                },
-                pack,
-            },
-            Preset::Grass => BakeParams {
-                orient: orient.clone(),
-                clamp: clamp.clone(),
-                strands: StrandParams {
-                    model: StrandModel::Cells {
-                        thickness: 0.7,
-                        min_length: 0.3,
-                        texels_per_cell: 8,
-                    },
-                    density: None,
-                    strands_per_diagonal: 120.0,
-                    mask_size: 256,
-                    seed: 1,
-                    uv_density: None,
-                },
-                shells: ShellParams {
-                    layers: 48,
-                    height: None,
-                    height_fraction: 0.08,
-                },
-                shade: ShadeParams {
-                    root_color: [0.02, 0.09, 0.01],
-                    tip_color: [0.35, 0.62, 0.12],
-                    occlusion: 0.8,
-                    roughness: 0.6,
-                },
-                pack,
-            },
-            Preset::Moss => BakeParams {
-                orient: orient.clone(),
-                clamp: clamp.clone(),
-                strands: StrandParams {
-                    model: StrandModel::Noise { threshold: 0.2 },
-                    density: None,
-                    strands_per_diagonal: 1200.0,
-                    mask_size: 256,
-                    seed: 1,
-                    uv_density: None,
-                },
-                shells: ShellParams {
-                    layers: 12,
-                    height: None,
-                    height_fraction: 0.008,
-                },
-                shade: ShadeParams {
-                    root_color: [0.04, 0.08, 0.015],
-                    tip_color: [0.25, 0.42, 0.07],
-                    occlusion: 0.5,
-                    roughness: 0.85,
-                },
-                pack,
-            },
-        }
+        let over: toml::Table = toml::from_str(preset.overrides())
+            .unwrap_or_else(|e| panic!("preset {} does not parse: {e}", preset.name()));
+        BakeParams::default()
+            .with_overrides(over)
+            .unwrap_or_else(|e| panic!("preset {} does not apply: {e}", preset.name()))
     }
 
-    /// Checks ranges; the message names the parameter. Called at the CLI/scene boundary.
-    pub fn check(&self) -> Result<(), String> {
-        let c = &self.clamp;
-        let open_unit = |x: f32| x > 0.0 && x < 1.0;
-        if !open_unit(c.ray_keep) || !open_unit(c.inversion_keep) {
-            return Err("clamp ray_keep and inversion_keep must be in (0, 1)".into());
-        }
-        let s = &self.shells;
-        if s.layers == 0 || s.layers > MAX_LAYERS {
-            return Err(format!(
-                "layers must be in 1..={MAX_LAYERS}, got {}",
-                s.layers
-            ));
-        }
-        if let Some(h) = s.height {
-            if !(h.is_finite() && h >= 0.0) {
-                return Err(format!(
-                    "height must be a finite non-negative length, got {h}"
-                ));
-            }
-        }
-        if !(s.height_fraction.is_finite() && s.height_fraction >= 0.0) {
-            return Err(format!(
-                "height_fraction must be >= 0, got {}",
-                s.height_fraction
-            ));
-        }
-        let st = &self.strands;
-        if let Some(d) = st.density {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(format!(
-                    "density must be a positive number of strands per unit, got {d}"
-                ));
-            }
-        }
-        if let Some(d) = st.uv_density {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(format!(
-                    "uv_density must be a positive number of strands per UV unit, got {d}"
-                ));
-            }
-        }
-        if !(st.strands_per_diagonal.is_finite() && st.strands_per_diagonal > 0.0) {
-            return Err("strands_per_diagonal must be > 0".into());
-        }
-        if !st.mask_size.is_power_of_two() || !(16..=4096).contains(&st.mask_size) {
-            return Err(format!(
-                "mask_size must be a power of two in 16..=4096, got {}",
-                st.mask_size
-            ));
-        }
-        match st.model {
-            StrandModel::Noise { threshold } => {
-                if !(threshold > 0.0 && threshold < 1.0) {
-                    return Err(format!(
-                        "noise threshold must be in (0, 1), got {threshold}"
-                    ));
-                }
-            }
-            StrandModel::Cells {
-                thickness,
-                min_length,
-                texels_per_cell,
-            } => {
-                if !(thickness > 0.0 && thickness <= 2.0) {
-                    return Err(format!("cell thickness must be in (0, 2], got {thickness}"));
-                }
-                if !(0.0..=1.0).contains(&min_length) {
-                    return Err(format!("min_length must be in [0, 1], got {min_length}"));
-                }
-                if !(2..=64).contains(&texels_per_cell)
-                    || !st.mask_size.is_multiple_of(texels_per_cell)
-                {
-                    return Err(format!(
-                        "texels_per_cell must be in 2..=64 and divide mask_size {}, got {texels_per_cell}",
-                        st.mask_size
-                    ));
-                }
-            }
-        }
-        let sh = &self.shade;
-        let unit = |v: f32| (0.0..=1.0).contains(&v);
-        if !sh.root_color.iter().chain(&sh.tip_color).all(|&c| unit(c)) {
-            return Err("colours must be linear RGB in [0, 1]".into());
-        }
-        if !unit(sh.occlusion) || !unit(sh.roughness) {
-            return Err("occlusion and roughness must be in [0, 1]".into());
-        }
-        if !(8..=16).contains(&self.pack.position_bits) {
-            return Err(format!(
-                "position_bits must be in 8..=16, got {}",
-                self.pack.position_bits
-            ));
-        }
+    /// These parameters with `over` (sections and keys as in a scene file) applied on top.
+    /// Unknown keys and wrong types are errors naming the key; ranges are [`check`]ed separately.
+    ///
+    /// [`check`]: BakeParams::check
+    pub fn with_overrides(&self, over: toml::Table) -> Result<BakeParams, toml::de::Error> {
+        let mut base = toml::Table::try_from(self).expect("parameters serialize to TOML");
+        merge(&mut base, over);
+        base.try_into()
+    }
+
+    /// Checks ranges; the error names the parameter with its section (`shells.layers`). Called
+    /// at the CLI/scene boundary.
+    pub fn check(&self) -> Result<(), ParamError> {
+        self.clamp.check().map_err(|e| e.within("clamp"))?;
+        self.strands.check().map_err(|e| e.within("strands"))?;
+        self.shells.check().map_err(|e| e.within("shells"))?;
+        self.shade.check().map_err(|e| e.within("shade"))?;
+        self.pack.check().map_err(|e| e.within("pack"))?;
         Ok(())
     }
 
     /// World-unit shell height for a mesh with the given bounding-box diagonal.
     pub fn resolved_height(&self, diagonal: f32) -> f32 {
-        self.shells
-            .height
-            .unwrap_or(self.shells.height_fraction * diagonal)
+        self.shells.resolved_height(diagonal)
     }
 
     /// Strands per world unit for a mesh with the given bounding-box diagonal.
@@ -444,10 +170,23 @@ mod tests {
     fn check_names_the_bad_parameter() {
         let mut p = BakeParams::default();
         p.shells.layers = 0;
-        assert!(p.check().unwrap_err().contains("layers"));
+        let e = p.check().unwrap_err();
+        assert!(e.message.contains("layers") && e.key == "shells.layers");
         let mut p = BakeParams::default();
         p.strands.mask_size = 100;
-        assert!(p.check().unwrap_err().contains("mask_size"));
+        assert_eq!(p.check().unwrap_err().key, "strands.mask_size");
+    }
+
+    #[test]
+    fn a_model_override_replaces_the_whole_model() {
+        let over: toml::Table =
+            toml::from_str("[strands]\nmodel = { kind = \"noise\", threshold = 0.4 }\n").unwrap();
+        let p = BakeParams::default().with_overrides(over).unwrap();
+        assert_eq!(p.strands.model, StrandModel::Noise { threshold: 0.4 });
+        assert_eq!(p.strands.mask_size, 256);
+        let bad: toml::Table = toml::from_str("[shells]\nlayrs = 3\n").unwrap();
+        let e = BakeParams::default().with_overrides(bad).unwrap_err();
+        assert!(e.to_string().contains("layrs"), "{e}");
     }
 
     #[test]

@@ -1,13 +1,17 @@
 //! What a bake did: per-stage time and counts, bytes per stream and per layer (JSON), and a
 //! one-screen human summary.
 //!
-//! Every stage appears, run or skipped; a skipped stage says why. Timings are wall-clock and
-//! vary between runs; everything else in the report is deterministic.
+//! A [`SceneReport`] covers the file: the plan (every stage, run or skipped, why, and its time
+//! over all surfaces), the totals, and one [`Report`] section per surface with that surface's
+//! stages and counts. Every stage appears, run or skipped; a skipped stage says why. Timings are
+//! wall-clock and vary between runs; everything else in the report is deterministic.
 
 use std::collections::BTreeMap;
 use std::time::Instant;
 
 use serde::Serialize;
+
+use crate::scene::{Plan, Stage as PlanStage};
 
 /// One stage's entry.
 #[derive(Clone, Debug, Serialize)]
@@ -25,9 +29,11 @@ pub struct Stage {
     pub counts: BTreeMap<String, f64>,
 }
 
-/// The bake report.
+/// One surface's section of the report.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Report {
+    /// The surface's name (its root node).
+    pub name: String,
     pub input: String,
     pub output: String,
     pub layout: String,
@@ -39,6 +45,8 @@ pub struct Report {
     pub layers: usize,
     pub draw_calls: usize,
     pub triangles_drawn: usize,
+    /// The file's bytes when it holds this surface alone; otherwise the surface's streams and
+    /// the JSON of its meshes, materials and nodes.
     pub total_bytes: usize,
     pub bytes_per_base_vertex: f64,
     pub streams: BTreeMap<String, usize>,
@@ -62,6 +70,24 @@ impl Report {
             counts: BTreeMap::new(),
         });
         out
+    }
+
+    /// Runs `stage` if the plan runs it for surface `surface`, or records it as skipped with
+    /// the plan's reason: the one gated line a stage takes in `bake`.
+    pub fn gate<T>(
+        &mut self,
+        plan: &Plan,
+        stage: PlanStage,
+        surface: usize,
+        f: impl FnOnce() -> T,
+    ) -> Option<T> {
+        match plan.skipped(stage, surface) {
+            None => Some(self.run(stage.name(), f)),
+            Some(why) => {
+                self.skip(stage.name(), &why);
+                None
+            }
+        }
     }
 
     /// Records a stage that the parameters did not call for.
@@ -99,8 +125,12 @@ impl Report {
 
     /// The one-screen summary printed after a bake.
     pub fn summary(&self) -> String {
+        format!("{} -> {}\n", self.input, self.output) + &self.section() + &self.stage_line()
+    }
+
+    /// The summary's lines about this surface, without the file line and the stage line.
+    fn section(&self) -> String {
         let mut s = String::new();
-        s += &format!("{} -> {}\n", self.input, self.output);
         s += &format!(
             "  {} layers ({} layout), {} base vertices, {} base triangles, {} drawn in {} draw call(s)\n",
             self.layers, self.layout, self.base_vertices, self.base_triangles, self.triangles_drawn, self.draw_calls
@@ -141,7 +171,15 @@ impl Report {
             .map(|(k, v)| format!("{k} {v}"))
             .collect::<Vec<_>>()
             .join(", ");
-        s += ")\n  stages:";
+        s += ")\n";
+        for w in &self.warnings {
+            s += &format!("  warning: {w}\n");
+        }
+        s
+    }
+
+    fn stage_line(&self) -> String {
+        let mut s = "  stages:".to_string();
         for st in &self.stages {
             if st.ran {
                 s += &format!(" {} {:.1} ms ·", st.name, st.ms);
@@ -151,11 +189,99 @@ impl Report {
         }
         s.pop();
         s.pop();
-        s += &format!("\n  total {:.1} ms\n", self.total_ms);
-        for w in &self.warnings {
-            s += &format!("  warning: {w}\n");
+        s + &format!("\n  total {:.1} ms\n", self.total_ms)
+    }
+}
+
+/// A stage of the plan as the file's report shows it.
+#[derive(Clone, Debug, Serialize)]
+pub struct PlanEntry {
+    pub name: &'static str,
+    /// Whether it ran for any surface.
+    pub ran: bool,
+    /// Which surfaces asked, or why nothing ran.
+    pub why: String,
+    /// Milliseconds over all surfaces.
+    pub ms: f64,
+}
+
+/// The report of a whole file: the plan, the totals and a section per surface.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct SceneReport {
+    pub input: String,
+    pub output: String,
+    pub plan: Vec<PlanEntry>,
+    pub total_bytes: usize,
+    pub draw_calls: usize,
+    pub triangles_drawn: usize,
+    /// Bytes per stream name over all surfaces, plus `json`.
+    pub streams: BTreeMap<String, usize>,
+    pub surfaces: Vec<Report>,
+    pub total_ms: f64,
+}
+
+impl SceneReport {
+    /// The plan's entries with each stage's time summed over the surfaces' sections.
+    pub fn plan_entries(plan: &Plan, surfaces: &[Report], write_ms: f64) -> Vec<PlanEntry> {
+        plan.stages
+            .iter()
+            .map(|p| {
+                let name = p.stage.name();
+                let ms: f64 = surfaces
+                    .iter()
+                    .filter_map(|r| r.stage(name))
+                    .map(|st| st.ms)
+                    .sum();
+                PlanEntry {
+                    name,
+                    ran: p.runs(),
+                    why: p.why.clone(),
+                    ms: if p.stage == PlanStage::Write { write_ms } else { ms },
+                }
+            })
+            .collect()
+    }
+
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("report serializes")
+    }
+
+    /// The one-screen summary printed after a bake: one surface reads as it always has; several
+    /// get a block each and the file's totals.
+    pub fn summary(&self) -> String {
+        if let [one] = self.surfaces.as_slice() {
+            return format!("{} -> {}\n", self.input, self.output)
+                + &one.section()
+                + &self.plan_line();
         }
-        s
+        let mut s = format!(
+            "{} -> {}: {} surfaces, {} bytes, {} triangles drawn in {} draw call(s)\n",
+            self.input,
+            self.output,
+            self.surfaces.len(),
+            self.total_bytes,
+            self.triangles_drawn,
+            self.draw_calls
+        );
+        for r in &self.surfaces {
+            s += &format!(" surface {} ({})\n", r.name, r.input);
+            s += &r.section();
+        }
+        s + &self.plan_line()
+    }
+
+    fn plan_line(&self) -> String {
+        let mut s = "  stages:".to_string();
+        for p in &self.plan {
+            if p.ran {
+                s += &format!(" {} {:.1} ms ·", p.name, p.ms);
+            } else {
+                s += &format!(" {} skipped ·", p.name);
+            }
+        }
+        s.pop();
+        s.pop();
+        s + &format!("\n  total {:.1} ms\n", self.total_ms)
     }
 }
 

@@ -15,8 +15,113 @@
 
 use glam::Vec3;
 
-use crate::params::{ShadeParams, ShellParams};
-use crate::strands::{layer_step, step_height};
+use serde::{Deserialize, Serialize};
+
+use crate::error::ParamError;
+use crate::grid::{layer_step, step_height, MAX_LAYERS};
+
+/// Shell stage parameters (`shells.rs`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShellParams {
+    /// Number of layers including the base (t = 0), 1–[`MAX_LAYERS`]. More layers = denser,
+    /// smoother strands and more overdraw. 16–64 is typical.
+    pub layers: u32,
+    /// Shell height in world units at t = 1. `None`: `height_fraction` × diagonal.
+    pub height: Option<f32>,
+    /// Shell height as a fraction of the bounding-box diagonal when `height` is not given.
+    pub height_fraction: f32,
+}
+
+/// Shading parameters (per-layer colours, DESIGN §3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ShadeParams {
+    /// Linear RGB colour at the strand root (t = 0).
+    pub root_color: [f32; 3],
+    /// Linear RGB colour at the strand tip (t = 1).
+    pub tip_color: [f32; 3],
+    /// Ambient occlusion at the root, [0, 1]: `albedo *= lerp(1 − occlusion, 1, t)`.
+    pub occlusion: f32,
+    /// glTF roughness of every layer, [0, 1].
+    pub roughness: f32,
+}
+
+impl Default for ShellParams {
+    /// The fur preset's layers.
+    fn default() -> Self {
+        ShellParams {
+            layers: 32,
+            height: None,
+            height_fraction: 0.035,
+        }
+    }
+}
+
+impl Default for ShadeParams {
+    /// The fur preset's shade.
+    fn default() -> Self {
+        ShadeParams {
+            root_color: [0.16, 0.09, 0.045],
+            tip_color: [0.80, 0.62, 0.42],
+            occlusion: 0.7,
+            roughness: 0.75,
+        }
+    }
+}
+
+impl ShellParams {
+    /// Checks ranges; the error names the parameter.
+    pub fn check(&self) -> Result<(), ParamError> {
+        if self.layers == 0 || self.layers > MAX_LAYERS {
+            return Err(ParamError::new(
+                "layers",
+                format!("layers must be in 1..={MAX_LAYERS}, got {}", self.layers),
+            ));
+        }
+        if let Some(h) = self.height {
+            if !(h.is_finite() && h >= 0.0) {
+                return Err(ParamError::new(
+                    "height",
+                    format!("height must be a finite non-negative length, got {h}"),
+                ));
+            }
+        }
+        if !(self.height_fraction.is_finite() && self.height_fraction >= 0.0) {
+            return Err(ParamError::new(
+                "height_fraction",
+                format!("height_fraction must be >= 0, got {}", self.height_fraction),
+            ));
+        }
+        Ok(())
+    }
+
+    /// World-unit shell height for a mesh with the given bounding-box diagonal.
+    pub fn resolved_height(&self, diagonal: f32) -> f32 {
+        self.height.unwrap_or(self.height_fraction * diagonal)
+    }
+}
+
+impl ShadeParams {
+    /// Checks ranges; the error names the parameter.
+    pub fn check(&self) -> Result<(), ParamError> {
+        let unit = |v: f32| (0.0..=1.0).contains(&v);
+        for (key, c) in [("root_color", self.root_color), ("tip_color", self.tip_color)] {
+            if !c.iter().all(|&c| unit(c)) {
+                return Err(ParamError::new(
+                    key,
+                    format!("{key} must be linear RGB in [0, 1], got {c:?}"),
+                ));
+            }
+        }
+        for (key, v) in [("occlusion", self.occlusion), ("roughness", self.roughness)] {
+            if !unit(v) {
+                return Err(ParamError::new(key, format!("{key} must be in [0, 1], got {v}")));
+            }
+        }
+        Ok(())
+    }
+}
 
 /// The layers of a bake and the per-vertex extrusion.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -87,12 +87,11 @@
 //! `NEAREST` and raising the mask resolution (the squares only get smaller, the shimmer stays,
 //! and the PNG grows fourfold per doubling).
 
-use crate::params::{StrandModel, StrandParams};
+use serde::{Deserialize, Serialize};
 
-/// Lowest alpha code of any texel; cells-law texels that survive only at the base hold it.
-pub const BASE_CODE: u32 = 16;
-/// Height steps of the layer grid: `t = k / HEIGHT_STEPS`, `k` in `0..=HEIGHT_STEPS`.
-pub const HEIGHT_STEPS: u32 = 255 - BASE_CODE;
+use crate::error::ParamError;
+pub use crate::grid::{layer_step, step_cutoff, step_height, BASE_CODE, HEIGHT_STEPS};
+
 /// Largest offset of a strand centre from its cell centre, per axis, in cell widths.
 pub const JITTER: f32 = 0.35;
 /// Smallest distance between two strand centres, in cell widths: `1 − 2·JITTER`.
@@ -104,6 +103,146 @@ pub const SHADE_SPAN: u32 = 92;
 pub const SKIN_SHADE: u8 = (255 - SHADE_SPAN / 3) as u8;
 /// Grey of every noise-law texel (no per-strand shade).
 pub const NO_SHADE: u8 = 255;
+
+/// How the survival height `s(uv)` of a texel is computed (DESIGN §3).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum StrandModel {
+    /// The seed technique's white-noise taper: texel survives while `n·(1−t) >= threshold`, so
+    /// `s = 1 − threshold/n`. One strand per texel.
+    Noise {
+        /// Noise threshold `c`, in (0, 1). Higher = sparser strands. 0.2–0.5 is typical.
+        threshold: f32,
+    },
+    /// Strand cells: one strand per cell at the cell centre, random length, radius shrinking
+    /// with height: `s = lerp(min_length, 1, rand(cell)) − dist(uv, centre)/thickness`.
+    Cells {
+        /// Strand thickness at the root, in cell widths, (0, 2]. 0.5–1.0 gives round strands
+        /// that touch at the root.
+        thickness: f32,
+        /// Shortest strand as a fraction of the full height, [0, 1].
+        min_length: f32,
+        /// Mask texels across one cell side, 2–64. 8 gives round strands at close range.
+        texels_per_cell: u32,
+    },
+}
+
+/// Strand stage parameters (`strands.rs`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StrandParams {
+    /// The strand law.
+    pub model: StrandModel,
+    /// Strands per world unit (along a line). `None`: `strands_per_diagonal` / diagonal.
+    pub density: Option<f32>,
+    /// Strands along the bounding-box diagonal when `density` is not given. 50–2000.
+    pub strands_per_diagonal: f32,
+    /// Side of the tileable mask texture in texels, power of two, 16–4096. 256 is plenty: the
+    /// mask repeats, and one tile holds `mask_size / texels_per_cell` strands per side.
+    pub mask_size: u32,
+    /// Noise seed. The same seed gives the same strands on every machine.
+    pub seed: u32,
+    /// Strands per UV unit. When set, it replaces `density`: the mask tiles at this rate in UV
+    /// space whatever the mesh's UV-to-world scale — for UV layouts authored at a set texel
+    /// density, or strands that must follow a hand-painted UV stretch. Leave unset otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uv_density: Option<f32>,
+}
+
+impl Default for StrandParams {
+    /// The fur preset's strands.
+    fn default() -> Self {
+        StrandParams {
+            model: StrandModel::Cells {
+                thickness: 0.9,
+                min_length: 0.55,
+                texels_per_cell: 8,
+            },
+            density: None,
+            strands_per_diagonal: 240.0,
+            mask_size: 256,
+            seed: 1,
+            uv_density: None,
+        }
+    }
+}
+
+impl StrandParams {
+    /// Checks ranges; the error names the parameter.
+    pub fn check(&self) -> Result<(), ParamError> {
+        if let Some(d) = self.density {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(ParamError::new(
+                    "density",
+                    format!("density must be a positive number of strands per unit, got {d}"),
+                ));
+            }
+        }
+        if let Some(d) = self.uv_density {
+            if !(d.is_finite() && d > 0.0) {
+                return Err(ParamError::new(
+                    "uv_density",
+                    format!("uv_density must be a positive number of strands per UV unit, got {d}"),
+                ));
+            }
+        }
+        if !(self.strands_per_diagonal.is_finite() && self.strands_per_diagonal > 0.0) {
+            return Err(ParamError::new(
+                "strands_per_diagonal",
+                "strands_per_diagonal must be > 0",
+            ));
+        }
+        if !self.mask_size.is_power_of_two() || !(16..=4096).contains(&self.mask_size) {
+            return Err(ParamError::new(
+                "mask_size",
+                format!(
+                    "mask_size must be a power of two in 16..=4096, got {}",
+                    self.mask_size
+                ),
+            ));
+        }
+        match self.model {
+            StrandModel::Noise { threshold } => {
+                if !(threshold > 0.0 && threshold < 1.0) {
+                    return Err(ParamError::new(
+                        "model.threshold",
+                        format!("noise threshold must be in (0, 1), got {threshold}"),
+                    ));
+                }
+            }
+            StrandModel::Cells {
+                thickness,
+                min_length,
+                texels_per_cell,
+            } => {
+                if !(thickness > 0.0 && thickness <= 2.0) {
+                    return Err(ParamError::new(
+                        "model.thickness",
+                        format!("cell thickness must be in (0, 2], got {thickness}"),
+                    ));
+                }
+                if !(0.0..=1.0).contains(&min_length) {
+                    return Err(ParamError::new(
+                        "model.min_length",
+                        format!("min_length must be in [0, 1], got {min_length}"),
+                    ));
+                }
+                if !(2..=64).contains(&texels_per_cell)
+                    || !self.mask_size.is_multiple_of(texels_per_cell)
+                {
+                    return Err(ParamError::new(
+                        "model.texels_per_cell",
+                        format!(
+                            "texels_per_cell must be in 2..=64 and divide mask_size {}, got {texels_per_cell}",
+                            self.mask_size
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
 
 /// The baked mask: one tile, `size × size` texels, row 0 at v = 0; the PNG's grey and alpha.
 #[derive(Clone, Debug, PartialEq)]
@@ -149,22 +288,6 @@ impl Mask {
             .count();
         n as f64 / self.alpha.len() as f64
     }
-}
-
-/// Height step of layer `j` of `layers`: `round(j · HEIGHT_STEPS / layers)`.
-pub fn layer_step(j: u32, layers: u32) -> u32 {
-    assert!((1..=HEIGHT_STEPS).contains(&layers) && j < layers);
-    ((j as u64 * HEIGHT_STEPS as u64 * 2 + layers as u64) / (2 * layers as u64)) as u32
-}
-
-/// Normalised height of step `k`, exactly as the reference shader receives it.
-pub fn step_height(k: u32) -> f32 {
-    k as f32 / HEIGHT_STEPS as f32
-}
-
-/// Cells law: the `alphaCutoff` that shows exactly the texels whose code reaches step `k`.
-pub fn step_cutoff(k: u32) -> f32 {
-    (BASE_CODE as f32 + k as f32 - 0.5) / 255.0
 }
 
 /// Noise law: the `alphaCutoff` `c/(1 − t)` under which `n >= cutoff ⇔ n·(1 − t) >= c`.

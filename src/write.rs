@@ -20,8 +20,10 @@ use std::path::Path;
 use serde_json::{json, Map, Value};
 
 use crate::error::{Error, Result};
-use crate::pack::{Alpha, Packed};
-use crate::shells::ShellStack;
+use crate::pack::{
+    Accessor, Alpha, Material, Node, Packed, PackedMesh, PackedSurface, Semantic, Stream,
+    StreamKind,
+};
 
 /// Extensions every output uses.
 pub const EXTENSIONS: [&str; 2] = ["KHR_mesh_quantization", "KHR_texture_transform"];
@@ -32,139 +34,41 @@ fn num(x: f32) -> Value {
     json!(v)
 }
 
-/// The glTF document for `packed` (buffer 0 = the GLB binary chunk: the views in order, each
-/// starting on a 4-byte boundary) and the length of that chunk.
-pub fn gltf_json(packed: &Packed, shells: &ShellStack) -> (Value, usize) {
+/// The glTF document for `packed` (buffer 0 = the GLB binary chunk: the streams in order, each
+/// starting on a 4-byte boundary) and the length of that chunk. Stream *i* is buffer view *i*,
+/// node *i* is node *i*: the writer maps the model one to one and decides nothing.
+pub fn gltf_json(packed: &Packed) -> (Value, usize) {
     let mut len = 0usize;
     let mut views = Vec::new();
-    for v in &packed.views {
+    for v in &packed.streams {
         len = len.next_multiple_of(4);
-        let mut o = Map::new();
-        o.insert("buffer".into(), json!(0));
-        if len != 0 {
-            o.insert("byteOffset".into(), json!(len));
-        }
-        o.insert("byteLength".into(), json!(v.bytes.len()));
-        if let Some(s) = v.stride {
-            o.insert("byteStride".into(), json!(s));
-        }
-        match v.vertex {
-            Some(true) => o.insert("target".into(), json!(34962)),
-            Some(false) => o.insert("target".into(), json!(34963)),
-            None => None,
-        };
-        o.insert("name".into(), json!(v.name));
-        views.push(Value::Object(o));
+        views.push(view_json(v, len));
         len += v.bytes.len();
     }
     let len = len.next_multiple_of(4);
-    let accessors: Vec<Value> = packed
-        .accessors
-        .iter()
-        .map(|a| {
-            let mut o = Map::new();
-            o.insert("bufferView".into(), json!(a.view));
-            if a.offset != 0 {
-                o.insert("byteOffset".into(), json!(a.offset));
-            }
-            o.insert("componentType".into(), json!(a.component));
-            if a.normalized {
-                o.insert("normalized".into(), json!(true));
-            }
-            o.insert("count".into(), json!(a.count));
-            o.insert("type".into(), json!(a.kind));
-            if let (Some(lo), Some(hi)) = (&a.min, &a.max) {
-                o.insert("min".into(), json!(lo));
-                o.insert("max".into(), json!(hi));
-            }
-            Value::Object(o)
-        })
+    let accessors: Vec<Value> = packed.accessors.iter().map(accessor_json).collect();
+    let meshes: Vec<Value> = packed.meshes.iter().map(mesh_json).collect();
+    let materials: Vec<Value> = packed.materials.iter().map(material_json).collect();
+    let nodes: Vec<Value> = packed.nodes.iter().map(node_json).collect();
+    let textures: Vec<Value> = (0..packed.textures.len())
+        .map(|i| json!({ "sampler": 0, "source": i }))
         .collect();
-
-    let transform = json!({
-        "offset": [num(packed.uv_offset.x), num(packed.uv_offset.y)],
-        "scale": [num(packed.uv_scale.x), num(packed.uv_scale.y)],
-    });
-    let mut meshes = Vec::new();
-    let mut materials = Vec::new();
-    let mut children = Vec::new();
-    let mut nodes = vec![Value::Null];
-    for (j, p) in packed.primitives.iter().enumerate() {
-        let mut attributes = Map::new();
-        attributes.insert("POSITION".into(), json!(p.position));
-        attributes.insert("NORMAL".into(), json!(p.normal));
-        // an untextured material (the opaque base layer) reads no texture coordinates
-        if p.material.textured {
-            attributes.insert("TEXCOORD_0".into(), json!(p.texcoord));
-        }
-        if let Some(c) = p.color {
-            attributes.insert("COLOR_0".into(), json!(c));
-        }
-        let mut prim = Map::new();
-        prim.insert("attributes".into(), Value::Object(attributes));
-        prim.insert("indices".into(), json!(p.indices));
-        prim.insert("material".into(), json!(j));
-        let mut mesh = Map::new();
-        mesh.insert("name".into(), json!(p.name));
-        if let Some((target, weight)) = p.morph {
-            prim.insert("targets".into(), json!([{ "POSITION": target }]));
-            mesh.insert("primitives".into(), json!([prim]));
-            mesh.insert("weights".into(), json!([num(weight)]));
-        } else {
-            mesh.insert("primitives".into(), json!([prim]));
-        }
-        meshes.push(Value::Object(mesh));
-
-        let m = &p.material;
-        let mut pbr = Map::new();
-        if m.base_color != [1.0; 4] {
-            pbr.insert("baseColorFactor".into(), json!(m.base_color.map(num)));
-        }
-        if m.textured {
-            pbr.insert(
-                "baseColorTexture".into(),
-                json!({ "index": 0, "extensions": { "KHR_texture_transform": transform } }),
-            );
-        }
-        pbr.insert("metallicFactor".into(), json!(0));
-        pbr.insert("roughnessFactor".into(), num(m.roughness));
-        let mut mat = Map::new();
-        mat.insert("name".into(), json!(m.name));
-        mat.insert("pbrMetallicRoughness".into(), Value::Object(pbr));
-        if let Alpha::Mask(cutoff) = m.alpha {
-            mat.insert("alphaMode".into(), json!("MASK"));
-            if cutoff != 0.5 {
-                mat.insert("alphaCutoff".into(), num(cutoff));
-            }
-        }
-        materials.push(Value::Object(mat));
-        children.push(nodes.len());
-        nodes.push(json!({ "name": p.name, "mesh": j }));
-    }
-    let s = packed.scale;
-    nodes[0] = json!({
-        "name": "shellbake",
-        "children": children,
-        "translation": [packed.translation.x, packed.translation.y, packed.translation.z],
-        "scale": [s, s, s],
-        "extras": { "shellbake": {
-            "layout": match packed.layout { crate::params::Layout::Compact => "compact", crate::params::Layout::SingleDraw => "single-draw" },
-            "layers": shells.t.len(),
-            "height": num(shells.height),
-            "t": shells.t.iter().map(|&t| num(t)).collect::<Vec<_>>(),
-        }},
-    });
+    let images: Vec<Value> = packed
+        .textures
+        .iter()
+        .map(|t| json!({ "bufferView": t.image, "mimeType": "image/png" }))
+        .collect();
     let doc = json!({
         "asset": { "version": "2.0", "generator": concat!("shellbake ", env!("CARGO_PKG_VERSION")) },
         "extensionsUsed": EXTENSIONS,
         "extensionsRequired": EXTENSIONS,
         "scene": 0,
-        "scenes": [{ "nodes": [0] }],
+        "scenes": [{ "nodes": packed.roots }],
         "nodes": nodes,
         "meshes": meshes,
         "materials": materials,
-        "textures": [{ "sampler": 0, "source": 0 }],
-        "images": [{ "bufferView": packed.image_view, "mimeType": "image/png" }],
+        "textures": textures,
+        "images": images,
         // LINEAR / LINEAR_MIPMAP_LINEAR, REPEAT (the default): round strands up close, no
         // shimmer far away; clients build the mips (`strands.rs`, "Sampling and mipmaps").
         "samplers": [{ "magFilter": 9729, "minFilter": 9987 }],
@@ -175,26 +79,169 @@ pub fn gltf_json(packed: &Packed, shells: &ShellStack) -> (Value, usize) {
     (doc, len)
 }
 
+/// One buffer view: the stream's bytes at `offset` in the binary chunk. A compression extension
+/// (`KHR_meshopt_compression`) describes a view from the stream's kind, stride and count, all of
+/// which the stream carries.
+fn view_json(v: &Stream, offset: usize) -> Value {
+    let mut o = Map::new();
+    o.insert("buffer".into(), json!(0));
+    if offset != 0 {
+        o.insert("byteOffset".into(), json!(offset));
+    }
+    o.insert("byteLength".into(), json!(v.bytes.len()));
+    if let Some(s) = v.stride {
+        o.insert("byteStride".into(), json!(s));
+    }
+    match v.kind {
+        StreamKind::Vertex => o.insert("target".into(), json!(34962)),
+        StreamKind::Index => o.insert("target".into(), json!(34963)),
+        StreamKind::Image => None,
+    };
+    o.insert("name".into(), json!(v.name));
+    Value::Object(o)
+}
+
+fn accessor_json(a: &Accessor) -> Value {
+    let mut o = Map::new();
+    o.insert("bufferView".into(), json!(a.stream));
+    if a.offset != 0 {
+        o.insert("byteOffset".into(), json!(a.offset));
+    }
+    o.insert("componentType".into(), json!(a.component));
+    if a.normalized {
+        o.insert("normalized".into(), json!(true));
+    }
+    o.insert("count".into(), json!(a.count));
+    o.insert("type".into(), json!(a.kind));
+    if let (Some(lo), Some(hi)) = (&a.min, &a.max) {
+        o.insert("min".into(), json!(lo));
+        o.insert("max".into(), json!(hi));
+    }
+    Value::Object(o)
+}
+
+fn attributes_json(list: &[(Semantic, usize)]) -> Value {
+    let mut o = Map::new();
+    for (semantic, accessor) in list {
+        let name = semantic.attribute().expect("attributes are vertex semantics");
+        o.insert(name, json!(accessor));
+    }
+    Value::Object(o)
+}
+
+fn mesh_json(m: &PackedMesh) -> Value {
+    let primitives: Vec<Value> = m
+        .primitives
+        .iter()
+        .map(|p| {
+            let mut prim = Map::new();
+            prim.insert("attributes".into(), attributes_json(&p.attributes));
+            if let Some(ix) = p.indices {
+                prim.insert("indices".into(), json!(ix));
+            }
+            prim.insert("material".into(), json!(p.material));
+            if !p.targets.is_empty() {
+                let targets: Vec<Value> = p.targets.iter().map(|t| attributes_json(t)).collect();
+                prim.insert("targets".into(), json!(targets));
+            }
+            Value::Object(prim)
+        })
+        .collect();
+    let mut mesh = Map::new();
+    mesh.insert("name".into(), json!(m.name));
+    mesh.insert("primitives".into(), json!(primitives));
+    if !m.weights.is_empty() {
+        let weights: Vec<Value> = m.weights.iter().map(|&w| num(w)).collect();
+        mesh.insert("weights".into(), json!(weights));
+    }
+    Value::Object(mesh)
+}
+
+fn material_json(m: &Material) -> Value {
+    let mut pbr = Map::new();
+    if m.base_color != [1.0; 4] {
+        pbr.insert("baseColorFactor".into(), json!(m.base_color.map(num)));
+    }
+    if let Some(t) = m.texture {
+        let transform = json!({
+            "offset": [num(t.offset.x), num(t.offset.y)],
+            "scale": [num(t.scale.x), num(t.scale.y)],
+        });
+        pbr.insert(
+            "baseColorTexture".into(),
+            json!({ "index": t.texture, "extensions": { "KHR_texture_transform": transform } }),
+        );
+    }
+    pbr.insert("metallicFactor".into(), json!(0));
+    pbr.insert("roughnessFactor".into(), num(m.roughness));
+    let mut mat = Map::new();
+    mat.insert("name".into(), json!(m.name));
+    mat.insert("pbrMetallicRoughness".into(), Value::Object(pbr));
+    if let Alpha::Mask(cutoff) = m.alpha {
+        mat.insert("alphaMode".into(), json!("MASK"));
+        if cutoff != 0.5 {
+            mat.insert("alphaCutoff".into(), num(cutoff));
+        }
+    }
+    Value::Object(mat)
+}
+
+fn node_json(n: &Node) -> Value {
+    let mut o = Map::new();
+    o.insert("name".into(), json!(n.name));
+    if let Some(m) = n.mesh {
+        o.insert("mesh".into(), json!(m));
+    }
+    if !n.children.is_empty() {
+        o.insert("children".into(), json!(n.children));
+    }
+    if let Some(t) = n.translation {
+        o.insert("translation".into(), json!([t.x, t.y, t.z]));
+    }
+    if let Some(s) = n.scale {
+        o.insert("scale".into(), json!([s, s, s]));
+    }
+    if let Some(e) = &n.extras {
+        o.insert(
+            "extras".into(),
+            json!({ "shellbake": {
+                "layout": e.layout.name(),
+                "layers": e.t.len(),
+                "height": num(e.height),
+                "t": e.t.iter().map(|&t| num(t)).collect::<Vec<_>>(),
+            }}),
+        );
+    }
+    Value::Object(o)
+}
+
 /// The GLB of `doc` (from [`gltf_json`]) around `packed`'s views, copied once straight into the
 /// container: no separate binary chunk is held, so a bake's peak memory is the views plus the
 /// file, not three copies of it.
 pub fn glb_of_packed(doc: &Value, bin_len: usize, packed: &Packed) -> Vec<u8> {
     glb_with(doc, bin_len, |out| {
-        for v in &packed.views {
+        for v in &packed.streams {
             out.resize(out.len().next_multiple_of(4), 0);
             out.extend_from_slice(&v.bytes);
         }
     })
 }
 
-/// JSON bytes the document spends on each layer (its mesh, material and node).
-pub fn json_bytes_per_layer(doc: &Value) -> Vec<usize> {
+/// JSON bytes the document spends on each layer of `surface`: its mesh, material and node.
+pub fn json_bytes_per_layer(doc: &Value, packed: &Packed, surface: &PackedSurface) -> Vec<usize> {
     let len = |v: &Value| serde_json::to_vec(v).map_or(0, |b| b.len());
-    let meshes = doc["meshes"].as_array().cloned().unwrap_or_default();
-    let materials = doc["materials"].as_array().cloned().unwrap_or_default();
-    let nodes = doc["nodes"].as_array().cloned().unwrap_or_default();
-    (0..meshes.len())
-        .map(|j| len(&meshes[j]) + len(&materials[j]) + len(&nodes[j + 1]))
+    surface
+        .layer_meshes
+        .iter()
+        .zip(&surface.layer_nodes)
+        .map(|(&m, &n)| {
+            let materials: usize = packed.meshes[m]
+                .primitives
+                .iter()
+                .map(|p| len(&doc["materials"][p.material]))
+                .sum();
+            len(&doc["meshes"][m]) + materials + len(&doc["nodes"][n])
+        })
         .collect()
 }
 

@@ -32,18 +32,87 @@
 //! triangle of the written file inverts.
 
 mod guard;
+mod model;
 mod quantize;
+
+pub use model::{
+    Accessor, Alpha, Material, Mesh as PackedMesh, Node, Packed, PackedSurface, Primitive,
+    Semantic, ShellExtras, Stream, StreamKind, Tag, Texture, TextureRef,
+};
 
 pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid};
 
-use glam::{DVec3, Vec2, Vec3};
+use glam::{Vec2, Vec3};
 use image::ImageEncoder;
+use serde::{Deserialize, Serialize};
 
 use crate::mesh::Mesh;
-use crate::params::{Layout, PackParams};
+use crate::error::ParamError;
 use crate::shells::ShellStack;
 use crate::strands::{Mask, BASE_CODE};
 use quantize::Bytes;
+
+/// Which glTF layout `pack` writes (DESIGN §4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Layout {
+    /// One quantized geometry shared by every layer; extrusion as a morph target; one small mesh
+    /// and material per layer. Smallest file, one draw call per layer.
+    Compact,
+    /// All layers in one primitive and one material; per-layer threshold and shade in COLOR_0.
+    /// Larger file, one draw call.
+    SingleDraw,
+}
+
+impl Layout {
+    /// Every layout, in the order the CLI lists them.
+    pub const ALL: [Layout; 2] = [Layout::Compact, Layout::SingleDraw];
+
+    /// The kebab-case name used on the command line, in scene files, reports and `extras`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Compact => "compact",
+            Layout::SingleDraw => "single-draw",
+        }
+    }
+
+    /// The layout called `name`.
+    pub fn from_name(name: &str) -> Option<Layout> {
+        Layout::ALL.into_iter().find(|l| l.name() == name)
+    }
+}
+
+/// Pack stage parameters (`pack/`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PackParams {
+    /// Output layout.
+    pub layout: Layout,
+    /// Position quantization bits, 8–16. 14 keeps the error under 1/16384 of the largest extent.
+    pub position_bits: u32,
+}
+
+impl Default for PackParams {
+    fn default() -> Self {
+        PackParams {
+            layout: Layout::Compact,
+            position_bits: 14,
+        }
+    }
+}
+
+impl PackParams {
+    /// Checks ranges; the error names the parameter.
+    pub fn check(&self) -> Result<(), ParamError> {
+        if !(8..=16).contains(&self.position_bits) {
+            return Err(ParamError::new(
+                "position_bits",
+                format!("position_bits must be in 8..=16, got {}", self.position_bits),
+            ));
+        }
+        Ok(())
+    }
+}
 
 /// glTF component types.
 pub mod component {
@@ -55,90 +124,6 @@ pub mod component {
     pub const FLOAT: u32 = 5126;
 }
 
-/// A byte stream (glTF buffer view).
-#[derive(Clone, Debug)]
-pub struct View {
-    pub name: &'static str,
-    pub bytes: Vec<u8>,
-    /// Byte stride for vertex streams.
-    pub stride: Option<usize>,
-    /// `Some(true)` for vertex data, `Some(false)` for indices, `None` for images.
-    pub vertex: Option<bool>,
-}
-
-/// A typed window on a view (glTF accessor).
-#[derive(Clone, Debug)]
-pub struct Accessor {
-    pub view: usize,
-    pub offset: usize,
-    pub component: u32,
-    pub normalized: bool,
-    pub count: usize,
-    /// "SCALAR", "VEC2", "VEC3", "VEC4".
-    pub kind: &'static str,
-    pub min: Option<Vec<f64>>,
-    pub max: Option<Vec<f64>>,
-}
-
-/// How a layer's material tests alpha.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Alpha {
-    Opaque,
-    Mask(f32),
-}
-
-/// A material (glTF metallic-roughness, metallic 0).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Material {
-    pub name: String,
-    pub base_color: [f32; 4],
-    pub alpha: Alpha,
-    /// Whether the mask texture is bound as the base colour texture.
-    pub textured: bool,
-    pub roughness: f32,
-}
-
-/// One drawn primitive (one mesh in the output).
-#[derive(Clone, Debug)]
-pub struct Primitive {
-    pub name: String,
-    pub position: usize,
-    pub normal: usize,
-    pub texcoord: usize,
-    pub color: Option<usize>,
-    pub indices: usize,
-    /// Morph target 0 (POSITION delta) and the mesh's default weight for it.
-    pub morph: Option<(usize, f32)>,
-    pub material: Material,
-}
-
-/// The packed asset.
-#[derive(Clone, Debug)]
-pub struct Packed {
-    pub layout: Layout,
-    pub views: Vec<View>,
-    pub accessors: Vec<Accessor>,
-    pub primitives: Vec<Primitive>,
-    /// View holding the mask PNG.
-    pub image_view: usize,
-    /// `KHR_texture_transform` offset and scale from the stored TEXCOORD_0 to mask tiles.
-    pub uv_offset: Vec2,
-    pub uv_scale: Vec2,
-    /// World translation and uniform scale of the node that dequantizes positions.
-    pub translation: DVec3,
-    pub scale: f64,
-    /// The position grid (relative coordinates), for tests and the report.
-    pub grid: PositionGrid,
-    /// Whether TEXCOORD_0 had to stay float (see `quantize.rs`).
-    pub float_uvs: bool,
-    /// Base vertices (render vertices of the input after degenerate removal).
-    pub base_vertices: usize,
-    /// Vertex order chosen by the optimizer: `order[new] = old`.
-    pub vertex_order: Vec<u32>,
-    /// Vertices whose extrusion the inversion guard shortened.
-    pub guarded: usize,
-}
-
 /// What `pack` needs besides the mesh and the stack.
 pub struct PackInput<'a> {
     pub mesh: &'a Mesh,
@@ -147,10 +132,17 @@ pub struct PackInput<'a> {
     /// Mask tiles per UV unit (u and v).
     pub tiles_per_uv: Vec2,
     pub roughness: f32,
+    /// The surface's index in the file and the name of its root node.
+    pub surface: usize,
+    pub name: &'a str,
+    /// Prefix of the surface's mesh and material names (empty for a file of one surface).
+    pub prefix: &'a str,
 }
 
-/// Packs the bake into byte streams for `params.layout`.
-pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
+/// Packs one surface into byte streams for `params.layout`, appended to `out`: its streams,
+/// accessors, texture, materials, meshes and a root node with one child per layer. Returns what
+/// the packing decided (also pushed to `out.surfaces`).
+pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedSurface {
     let mesh = input.mesh;
     if cfg!(debug_assertions) {
         mesh.validate();
@@ -232,9 +224,14 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
     let texel_error = (uv_grid.extent * tiles * input.mask.size as f32 / 65535.0).max_element();
     let float_uvs = texel_error > 0.125;
 
-    let mut b = Builder::default();
+    let tag = Tag {
+        surface: input.surface,
+        ..Tag::default()
+    };
+    let mut b = Builder { out, tag };
     let png = encode_mask_png(input.mask);
-    let image_view = b.view("mask", png, None, None);
+    let image = b.out.stream("mask", Semantic::Image, None, tag, (png, None, 0));
+    let texture = Packed::push(&mut b.out.textures, Texture { image });
     let (uv_offset, uv_scale) = if float_uvs {
         (Vec2::ZERO, tiles)
     } else {
@@ -251,26 +248,58 @@ pub fn pack(input: &PackInput, params: &PackParams) -> Packed {
         deltas,
         indices,
     };
-    let primitives = match params.layout {
-        Layout::Compact => compact(&mut b, input, &ordered),
-        Layout::SingleDraw => single_draw(&mut b, input, &ordered),
+    let texture = TextureRef {
+        texture,
+        offset: uv_offset,
+        scale: uv_scale,
     };
-    Packed {
+    let layer_meshes = match params.layout {
+        Layout::Compact => compact(&mut b, input, &ordered, texture),
+        Layout::SingleDraw => single_draw(&mut b, input, &ordered, texture),
+    };
+    let translation = grid.min.as_dvec3() + mesh.origin;
+    let out = b.out;
+    let root = out.nodes.len();
+    let layer_nodes: Vec<usize> = (root + 1..root + 1 + layer_meshes.len()).collect();
+    out.nodes.push(Node {
+        name: input.name.to_string(),
+        tag,
+        children: layer_nodes.clone(),
+        translation: Some(translation),
+        scale: Some(grid.step as f64),
+        extras: Some(ShellExtras {
+            layout: params.layout,
+            height: shells.height,
+            t: shells.t.clone(),
+        }),
+        ..Node::default()
+    });
+    for &m in &layer_meshes {
+        out.nodes.push(Node {
+            name: out.meshes[m].name.clone(),
+            tag: out.meshes[m].tag,
+            mesh: Some(m),
+            ..Node::default()
+        });
+    }
+    out.roots.push(root);
+    let surface = PackedSurface {
         layout: params.layout,
-        views: b.views,
-        accessors: b.accessors,
-        primitives,
-        image_view,
+        root,
+        layer_meshes,
+        layer_nodes,
         uv_offset,
         uv_scale,
-        translation: grid.min.as_dvec3() + mesh.origin,
+        translation,
         scale: grid.step as f64,
         grid,
         float_uvs,
         base_vertices: nv,
         vertex_order: order,
         guarded,
-    }
+    };
+    out.surfaces.push(surface.clone());
+    surface
 }
 
 /// The mesh in optimized vertex order with its quantization grids: what both layouts encode.
@@ -286,51 +315,24 @@ struct Ordered {
     indices: Vec<u32>,
 }
 
-#[derive(Default)]
-struct Builder {
-    views: Vec<View>,
-    accessors: Vec<Accessor>,
+/// Appends one surface's streams to the file, tagged with the surface.
+struct Builder<'a> {
+    out: &'a mut Packed,
+    tag: Tag,
 }
 
-impl Builder {
-    fn view(
+impl Builder<'_> {
+    fn stream(
         &mut self,
         name: &'static str,
+        semantic: Semantic,
+        target: Option<usize>,
         bytes: Vec<u8>,
         stride: Option<usize>,
-        vertex: Option<bool>,
-    ) -> usize {
-        self.views.push(View {
-            name,
-            bytes,
-            stride,
-            vertex,
-        });
-        self.views.len() - 1
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn accessor(
-        &mut self,
-        view: usize,
-        component: u32,
-        normalized: bool,
         count: usize,
-        kind: &'static str,
-        bounds: Option<(Vec<f64>, Vec<f64>)>,
     ) -> usize {
-        let (min, max) = bounds.map_or((None, None), |(a, b)| (Some(a), Some(b)));
-        self.accessors.push(Accessor {
-            view,
-            offset: 0,
-            component,
-            normalized,
-            count,
-            kind,
-            min,
-            max,
-        });
-        self.accessors.len() - 1
+        self.out
+            .stream(name, semantic, target, self.tag, (bytes, stride, count))
     }
 
     /// POSITION stream (u16 × 3, stride 8) with exact integer bounds.
@@ -344,16 +346,10 @@ impl Builder {
                 hi[c] = hi[c].max(p[c]);
             }
         }
-        let v = self.view("position", bytes.0, Some(8), Some(true));
+        let v = self.stream("position", Semantic::Position, None, bytes.0, Some(8), q.len());
         let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
-        self.accessor(
-            v,
-            component::UNSIGNED_SHORT,
-            false,
-            q.len(),
-            "VEC3",
-            Some(bounds),
-        )
+        self.out
+            .accessor(v, component::UNSIGNED_SHORT, false, "VEC3", Some(bounds))
     }
 
     fn normals(&mut self, n: &[Vec3]) -> usize {
@@ -361,8 +357,8 @@ impl Builder {
         for &v in n {
             bytes.i8s(&quantize_normal(v), 4);
         }
-        let v = self.view("normal", bytes.0, Some(4), Some(true));
-        self.accessor(v, component::BYTE, true, n.len(), "VEC3", None)
+        let v = self.stream("normal", Semantic::Normal, None, bytes.0, Some(4), n.len());
+        self.out.accessor(v, component::BYTE, true, "VEC3", None)
     }
 
     fn texcoords(&mut self, uvs: &[Vec2], grid: UvGrid, float: bool) -> usize {
@@ -371,14 +367,17 @@ impl Builder {
             for uv in uvs {
                 bytes.f32s(&[uv.x, uv.y]);
             }
-            let v = self.view("texcoord", bytes.0, Some(8), Some(true));
-            return self.accessor(v, component::FLOAT, false, uvs.len(), "VEC2", None);
+            let uv = Semantic::TexCoord(0);
+            let v = self.stream("texcoord", uv, None, bytes.0, Some(8), uvs.len());
+            return self.out.accessor(v, component::FLOAT, false, "VEC2", None);
         }
         for &uv in uvs {
             bytes.u16s(&grid.quantize(uv), 4);
         }
-        let v = self.view("texcoord", bytes.0, Some(4), Some(true));
-        self.accessor(v, component::UNSIGNED_SHORT, true, uvs.len(), "VEC2", None)
+        let uv = Semantic::TexCoord(0);
+        let v = self.stream("texcoord", uv, None, bytes.0, Some(4), uvs.len());
+        self.out
+            .accessor(v, component::UNSIGNED_SHORT, true, "VEC2", None)
     }
 
     fn indices(&mut self, name: &'static str, ix: &[u32], vertex_count: usize) -> usize {
@@ -395,12 +394,14 @@ impl Builder {
         while bytes.0.len() % 4 != 0 {
             bytes.0.push(0);
         }
-        let v = self.view(name, bytes.0, None, Some(false));
-        self.accessor(v, component, false, ix.len(), "SCALAR", None)
+        let v = self.stream(name, Semantic::Indices, None, bytes.0, None, ix.len());
+        self.out.accessor(v, component, false, "SCALAR", None)
     }
 }
 
-fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
+/// The compact layout: one geometry and one extrusion target shared by every layer mesh.
+/// Returns the layer meshes in layer order.
+fn compact(b: &mut Builder, input: &PackInput, s: &Ordered, texture: TextureRef) -> Vec<usize> {
     let (grid, positions, deltas) = (&s.grid, &s.positions, &s.deltas);
     let q: Vec<[u16; 3]> = positions.iter().map(|&p| grid.quantize(p)).collect();
     let position = b.positions(&q);
@@ -416,13 +417,19 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
     if deltas.is_empty() {
         (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
     }
-    let dv = b.view("extrusion", bytes.0, Some(12), Some(true));
+    let dv = b.stream(
+        "extrusion",
+        Semantic::Position,
+        Some(0),
+        bytes.0,
+        Some(12),
+        deltas.len(),
+    );
     let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
-    let delta = b.accessor(
+    let delta = b.out.accessor(
         dv,
         component::FLOAT,
         false,
-        deltas.len(),
         "VEC3",
         Some((bounds(lo), bounds(hi))),
     );
@@ -432,26 +439,48 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
         .map(|j| {
             let c = shells.color[j];
             let base = j == 0;
-            Primitive {
-                name: format!("layer_{j:03}"),
-                position,
-                normal,
-                texcoord,
-                color: None,
-                indices: ix,
-                morph: (!base).then_some((delta, shells.t[j])),
-                material: Material {
-                    name: format!("layer_{j:03}"),
+            let name = format!("{}layer_{j:03}", input.prefix);
+            let material = Packed::push(
+                &mut b.out.materials,
+                Material {
+                    name: name.clone(),
                     base_color: [c[0], c[1], c[2], 1.0],
                     alpha: if base {
                         Alpha::Opaque
                     } else {
                         Alpha::Mask(input.mask.cutoff(shells.steps[j]))
                     },
-                    textured: true,
+                    texture: Some(texture),
                     roughness: input.roughness,
                 },
-            }
+            );
+            let primitive = Primitive {
+                attributes: vec![
+                    (Semantic::Position, position),
+                    (Semantic::Normal, normal),
+                    (Semantic::TexCoord(0), texcoord),
+                ],
+                targets: if base {
+                    vec![]
+                } else {
+                    vec![vec![(Semantic::Position, delta)]]
+                },
+                indices: Some(ix),
+                material,
+            };
+            let tag = Tag {
+                layer: Some(j),
+                ..b.tag
+            };
+            Packed::push(
+                &mut b.out.meshes,
+                PackedMesh {
+                    name,
+                    tag,
+                    primitives: vec![primitive],
+                    weights: if base { vec![] } else { vec![shells.t[j]] },
+                },
+            )
         })
         .collect()
 }
@@ -530,7 +559,9 @@ pub fn single_draw_cutoff(mask: &Mask) -> f32 {
     ((BASE_CODE as f32 - 0.5) / 255.0).min(mask.cutoff(0))
 }
 
-fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive> {
+/// The single-draw layout: every layer's vertices in one primitive of one mesh. Returns that
+/// mesh (once: it holds every layer).
+fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered, texture: TextureRef) -> Vec<usize> {
     let (grid, positions, deltas) = (&s.grid, &s.positions, &s.deltas);
     let shells = input.shells;
     let layers = shells.t.len();
@@ -562,35 +593,50 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered) -> Vec<Primitive
     let normal = b.normals(&all_normals);
     let all_uvs: Vec<Vec2> = (0..layers).flat_map(|_| s.uvs.iter().copied()).collect();
     let texcoord = b.texcoords(&all_uvs, s.uv_grid, s.float_uvs);
-    let cv = b.view("color", colors.0, Some(8), Some(true));
-    let color = b.accessor(
-        cv,
-        component::UNSIGNED_SHORT,
-        true,
-        nv * layers,
-        "VEC4",
+    let cv = b.stream(
+        "color",
+        Semantic::Color(0),
         None,
+        colors.0,
+        Some(8),
+        nv * layers,
     );
+    let color = b
+        .out
+        .accessor(cv, component::UNSIGNED_SHORT, true, "VEC4", None);
     let all_ix: Vec<u32> = (0..layers as u32)
         .flat_map(|j| s.indices.iter().map(move |&i| i + j * nv as u32))
         .collect();
     let ix = b.indices("indices", &all_ix, nv * layers);
-    vec![Primitive {
-        name: "shells".into(),
-        position,
-        normal,
-        texcoord,
-        color: Some(color),
-        indices: ix,
-        morph: None,
-        material: Material {
-            name: "shells".into(),
+    let name = format!("{}shells", input.prefix);
+    let material = Packed::push(
+        &mut b.out.materials,
+        Material {
+            name: name.clone(),
             base_color: [1.0; 4],
             alpha: Alpha::Mask(single_draw_cutoff(input.mask)),
-            textured: true,
+            texture: Some(texture),
             roughness: input.roughness,
         },
-    }]
+    );
+    let primitive = Primitive {
+        attributes: vec![
+            (Semantic::Position, position),
+            (Semantic::Normal, normal),
+            (Semantic::TexCoord(0), texcoord),
+            (Semantic::Color(0), color),
+        ],
+        targets: vec![],
+        indices: Some(ix),
+        material,
+    };
+    let mesh = PackedMesh {
+        name,
+        tag: b.tag,
+        primitives: vec![primitive],
+        weights: vec![],
+    };
+    vec![Packed::push(&mut b.out.meshes, mesh)]
 }
 
 /// The mask as a grey+alpha PNG (grey = the strands' shade, alpha = the noise byte or the

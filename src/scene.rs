@@ -1,0 +1,747 @@
+//! Scene files and the plan (DESIGN §6): simulate only the effects a scene calls for.
+//!
+//! A scene file (TOML) lists surfaces; each names a mesh (relative to the scene file's folder;
+//! absolute paths, `..` and symlinks that lead out of the folder are refused, as glTF URIs are),
+//! a preset, per-stage overrides (the sections of [`BakeParams`], read through
+//! [`BakeParams::with_overrides`], the same path the presets take) and the effects it asks for:
+//!
+//! ```toml
+//! [[surface]]
+//! name = "meadow"          # root node name; default: the mesh file's stem
+//! mesh = "plane.obj"
+//! preset = "grass"         # default: fur
+//! translation = [0, 0, 0]  # placement in the file, world units (default: none)
+//! scale = 1.0              # uniform (default: 1)
+//!
+//! [surface.shells]          # any section of the parameters, any subset of its keys
+//! layers = 24
+//!
+//! [[surface]]
+//! mesh = "bunny.obj"
+//! effects = ["collision"]
+//! ```
+//!
+//! Every surface bakes into the same GLB under a root node of its own name, with its own
+//! materials, mask and report section. A plain mesh path is the one-surface shortcut
+//! ([`SceneFile::single`]); the CLI's flags apply on top of every surface either way. Unknown
+//! keys, wrong types and out-of-range values are errors naming the file, the line and the key
+//! (`surface[1].shells.layers`); a value a preset set and no line holds is named by key alone.
+//!
+//! **The plan.** [`plan`] derives from the scene which stages run for which surface: the core
+//! stages for every surface, an effect's stage only for the surfaces that ask for it. A stage
+//! no surface asks for runs nothing and builds nothing (no BVH without `collision`). The report
+//! lists every stage as run or skipped with the reason. Adding an effect is one [`Effect`]
+//! variant with its stage; `lod` and `cull` are listed as stages already (skipped: nothing can
+//! ask for them yet).
+
+use std::path::{Component, Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::params::{BakeParams, Preset};
+
+/// An effect a surface can ask for; each one is a stage that runs only when asked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Effect {
+    /// Shorten shells where they would pass through another part of the mesh (a BVH ray per
+    /// vertex; `--clamp`).
+    Collision,
+}
+
+impl Effect {
+    pub const ALL: [Effect; 1] = [Effect::Collision];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::Collision => "collision",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Effect> {
+        Effect::ALL.into_iter().find(|e| e.name() == name)
+    }
+
+    /// The stage that computes the effect.
+    pub fn stage(self) -> Stage {
+        match self {
+            Effect::Collision => Stage::Collision,
+        }
+    }
+}
+
+/// The stages of a bake, in the order they run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Stage {
+    Load,
+    Merge,
+    Orient,
+    Weld,
+    Frames,
+    Smooth,
+    Collision,
+    Clamp,
+    Strands,
+    Tiling,
+    Shells,
+    Cull,
+    Lod,
+    Pack,
+    Write,
+}
+
+impl Stage {
+    pub const ALL: [Stage; 15] = [
+        Stage::Load,
+        Stage::Merge,
+        Stage::Orient,
+        Stage::Weld,
+        Stage::Frames,
+        Stage::Smooth,
+        Stage::Collision,
+        Stage::Clamp,
+        Stage::Strands,
+        Stage::Tiling,
+        Stage::Shells,
+        Stage::Cull,
+        Stage::Lod,
+        Stage::Pack,
+        Stage::Write,
+    ];
+
+    /// The name in reports and in `shellbake plan`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Load => "load",
+            Stage::Merge => "merge",
+            Stage::Orient => "orient",
+            Stage::Weld => "weld",
+            Stage::Frames => "frames",
+            Stage::Smooth => "smooth",
+            Stage::Collision => "collision",
+            Stage::Clamp => "clamp",
+            Stage::Strands => "strands",
+            Stage::Tiling => "tiling",
+            Stage::Shells => "shells",
+            Stage::Cull => "cull",
+            Stage::Lod => "lod",
+            Stage::Pack => "pack",
+            Stage::Write => "write",
+        }
+    }
+
+    /// The effect that asks for this stage; `None` for a stage every bake runs.
+    pub fn effect(self) -> Option<Effect> {
+        Effect::ALL.into_iter().find(|e| e.stage() == self)
+    }
+
+    /// Stages that exist in the pipeline's order but that nothing can ask for yet.
+    fn unavailable(self) -> bool {
+        matches!(self, Stage::Cull | Stage::Lod)
+    }
+}
+
+/// One surface of a scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Surface {
+    /// Name of the surface's root node (and prefix of its meshes and materials when the file
+    /// holds several surfaces).
+    pub name: String,
+    /// The mesh file, resolved against the scene file's folder.
+    pub mesh: PathBuf,
+    pub preset: Preset,
+    /// The surface's own sections as written in the scene file (empty for the shortcut).
+    pub overrides: toml::Table,
+    /// The preset with the overrides on top.
+    pub params: BakeParams,
+    /// The effects asked for, sorted, each once.
+    pub effects: Vec<Effect>,
+    /// Placement in the file: positions are scaled, then translated.
+    pub translation: [f64; 3],
+    pub scale: f64,
+}
+
+impl Surface {
+    pub fn asks(&self, effect: Effect) -> bool {
+        self.effects.contains(&effect)
+    }
+
+    /// The surface's parameters had it named `preset` instead: that preset with the surface's
+    /// overrides on top (they were checked against the preset the file names).
+    pub fn with_preset(&self, preset: Preset) -> BakeParams {
+        BakeParams::preset(preset)
+            .with_overrides(self.overrides.clone())
+            .unwrap_or_else(|_| BakeParams::preset(preset))
+    }
+}
+
+/// A scene: the surfaces to bake into one file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneFile {
+    /// The scene file (`None` for the one-surface shortcut).
+    pub path: Option<PathBuf>,
+    pub surfaces: Vec<Surface>,
+}
+
+/// Name of the root node of a one-surface bake.
+pub const SINGLE_SURFACE_NAME: &str = "shellbake";
+
+/// Keys of a surface table besides the parameter sections.
+const SURFACE_KEYS: [&str; 6] = ["name", "mesh", "preset", "effects", "translation", "scale"];
+
+/// Sections of [`BakeParams`] a surface may override.
+const SECTIONS: [&str; 6] = ["orient", "clamp", "strands", "shells", "shade", "pack"];
+
+/// One step of a key path inside the scene file.
+#[derive(Clone, Debug)]
+enum Seg {
+    Key(String),
+    Index(usize),
+}
+
+fn key_text(path: &[Seg]) -> String {
+    let mut s = String::new();
+    for seg in path {
+        match seg {
+            Seg::Key(k) if s.is_empty() => s += k,
+            Seg::Key(k) => s += &format!(".{k}"),
+            Seg::Index(i) => s += &format!("[{i}]"),
+        }
+    }
+    s
+}
+
+/// Reads a scene file and reports errors against its text.
+struct Reader<'a> {
+    path: &'a Path,
+    text: &'a str,
+    spans: toml::Spanned<toml::de::DeTable<'a>>,
+}
+
+impl Reader<'_> {
+    /// 1-based line of the key at `path` (of the value, for array elements).
+    fn line(&self, path: &[Seg]) -> Option<usize> {
+        use toml::de::DeValue;
+        let mut span = self.spans.span();
+        let mut table = Some(self.spans.get_ref());
+        let mut array: Option<&toml::de::DeArray> = None;
+        for seg in path {
+            let value = match seg {
+                Seg::Key(k) => {
+                    let (key, value) = table?.iter().find(|(key, _)| key.get_ref() == k)?;
+                    span = key.span();
+                    value
+                }
+                Seg::Index(i) => {
+                    let value = array?.as_ref().get(*i)?;
+                    span = value.span();
+                    value
+                }
+            };
+            (table, array) = match value.get_ref() {
+                DeValue::Table(t) => (Some(t), None),
+                DeValue::Array(a) => (None, Some(a)),
+                _ => (None, None),
+            };
+        }
+        Some(self.text[..span.start.min(self.text.len())].lines().count().max(1))
+    }
+
+    fn error(&self, path: &[Seg], message: impl Into<String>) -> Error {
+        Error::Scene {
+            path: self.path.to_path_buf(),
+            line: self.line(path),
+            key: key_text(path),
+            message: message.into(),
+        }
+    }
+}
+
+fn at(path: &[Seg], key: &str) -> Vec<Seg> {
+    let mut p = path.to_vec();
+    p.push(Seg::Key(key.into()));
+    p
+}
+
+impl SceneFile {
+    /// The one-surface shortcut: `mesh` with `params` and `effects`, under the root name
+    /// [`SINGLE_SURFACE_NAME`].
+    pub fn single(mesh: &Path, preset: Preset, params: BakeParams, effects: &[Effect]) -> SceneFile {
+        let mut effects = effects.to_vec();
+        effects.sort();
+        effects.dedup();
+        SceneFile {
+            path: None,
+            surfaces: vec![Surface {
+                name: SINGLE_SURFACE_NAME.into(),
+                mesh: mesh.to_path_buf(),
+                preset,
+                overrides: toml::Table::new(),
+                params,
+                effects,
+                translation: [0.0; 3],
+                scale: 1.0,
+            }],
+        }
+    }
+
+    /// Reads and checks the scene file at `path` (at most 1 MiB). Mesh files are not opened.
+    pub fn read(path: &Path) -> Result<SceneFile> {
+        let bytes =
+            crate::load::read_regular_file(path, 1 << 20).map_err(|e| Error::io(path, e))?;
+        let text = std::str::from_utf8(&bytes).map_err(|e| Error::Scene {
+            path: path.to_path_buf(),
+            line: None,
+            key: String::new(),
+            message: format!("not UTF-8 text: {e}"),
+        })?;
+        SceneFile::parse(path, text)
+    }
+
+    /// Parses and checks a scene file's text; `path` names it in errors and anchors the mesh
+    /// paths.
+    pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
+        let spans = toml::de::DeTable::parse(text).map_err(|e| Error::Scene {
+            path: path.to_path_buf(),
+            line: e
+                .span()
+                .map(|s| text[..s.start.min(text.len())].lines().count().max(1)),
+            key: String::new(),
+            message: e.message().trim().to_string(),
+        })?;
+        let r = Reader { path, text, spans };
+        let doc: toml::Table = toml::from_str(text).map_err(|e| r.error(&[], e.message()))?;
+        for key in doc.keys() {
+            if key != "surface" {
+                return Err(r.error(
+                    &[Seg::Key(key.clone())],
+                    "unknown key (a scene holds `[[surface]]` tables)",
+                ));
+            }
+        }
+        let Some(list) = doc.get("surface") else {
+            return Err(r.error(&[], "no `[[surface]]` table: nothing to bake"));
+        };
+        let Some(list) = list.as_array() else {
+            return Err(r.error(
+                &[Seg::Key("surface".into())],
+                "must be an array of tables (`[[surface]]`)",
+            ));
+        };
+        let mut surfaces = Vec::new();
+        for (i, value) in list.iter().enumerate() {
+            let here = [Seg::Key("surface".into()), Seg::Index(i)];
+            let Some(table) = value.as_table() else {
+                return Err(r.error(&here, "must be a table"));
+            };
+            surfaces.push(r.surface(&here, table)?);
+        }
+        let mut names: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
+        names.sort();
+        if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
+            let i = surfaces.iter().rposition(|s| s.name == w[0]).unwrap_or(0);
+            return Err(r.error(
+                &[Seg::Key("surface".into()), Seg::Index(i), Seg::Key("name".into())],
+                format!("two surfaces are named '{}'; names must differ", w[0]),
+            ));
+        }
+        Ok(SceneFile {
+            path: Some(path.to_path_buf()),
+            surfaces,
+        })
+    }
+}
+
+impl Reader<'_> {
+    fn surface(&self, here: &[Seg], table: &toml::Table) -> Result<Surface> {
+        let string = |key: &str| -> Result<Option<&str>> {
+            match table.get(key) {
+                None => Ok(None),
+                Some(toml::Value::String(s)) => Ok(Some(s)),
+                Some(v) => Err(self.error(
+                    &at(here, key),
+                    format!("must be a string, not {}", v.type_str()),
+                )),
+            }
+        };
+        for key in table.keys() {
+            if !SURFACE_KEYS.contains(&key.as_str()) && !SECTIONS.contains(&key.as_str()) {
+                return Err(self.error(
+                    &at(here, key),
+                    format!(
+                        "unknown key (expected one of {}, {})",
+                        SURFACE_KEYS.join(", "),
+                        SECTIONS.join(", ")
+                    ),
+                ));
+            }
+        }
+        let Some(mesh) = string("mesh")? else {
+            return Err(self.error(here, "no `mesh` key: every surface names its mesh file"));
+        };
+        let mesh = self.mesh_path(&at(here, "mesh"), mesh)?;
+        let preset = match string("preset")? {
+            None => Preset::Fur,
+            Some(name) => Preset::from_name(name).ok_or_else(|| {
+                let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
+                self.error(
+                    &at(here, "preset"),
+                    format!("unknown preset '{name}' (expected one of {})", names.join(", ")),
+                )
+            })?,
+        };
+        let name = match string("name")? {
+            Some(n) if !n.is_empty() => n.to_string(),
+            Some(_) => return Err(self.error(&at(here, "name"), "must not be empty")),
+            None => mesh
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "surface".into()),
+        };
+        let mut effects = Vec::new();
+        if let Some(v) = table.get("effects") {
+            let key = at(here, "effects");
+            let Some(list) = v.as_array() else {
+                return Err(self.error(&key, "must be an array of effect names"));
+            };
+            for (k, e) in list.iter().enumerate() {
+                let mut p = key.clone();
+                p.push(Seg::Index(k));
+                let known: Vec<&str> = Effect::ALL.iter().map(|e| e.name()).collect();
+                let effect = e.as_str().and_then(Effect::from_name).ok_or_else(|| {
+                    self.error(
+                        &p,
+                        format!("unknown effect {e} (expected one of {})", known.join(", ")),
+                    )
+                })?;
+                effects.push(effect);
+            }
+        }
+        effects.sort();
+        effects.dedup();
+        let number = |v: &toml::Value| v.as_float().or(v.as_integer().map(|i| i as f64));
+        let translation = match table.get("translation") {
+            None => [0.0; 3],
+            Some(v) => {
+                let xyz: Option<Vec<f64>> = v
+                    .as_array()
+                    .and_then(|a| a.iter().map(number).collect::<Option<Vec<f64>>>());
+                match xyz.as_deref() {
+                    Some(&[x, y, z]) if [x, y, z].iter().all(|c| c.is_finite()) => [x, y, z],
+                    _ => {
+                        return Err(self.error(
+                            &at(here, "translation"),
+                            "must be three finite numbers [x, y, z]",
+                        ))
+                    }
+                }
+            }
+        };
+        let scale = match table.get("scale") {
+            None => 1.0,
+            Some(v) => match number(v) {
+                Some(s) if s.is_finite() && s > 0.0 => s,
+                _ => {
+                    return Err(self.error(&at(here, "scale"), "must be a positive finite number"))
+                }
+            },
+        };
+        let (params, overrides) = self.params(here, table, preset)?;
+        Ok(Surface {
+            name,
+            mesh,
+            preset,
+            overrides,
+            params,
+            effects,
+            translation,
+            scale,
+        })
+    }
+
+    /// The preset with the surface's sections on top, checked.
+    fn params(
+        &self,
+        here: &[Seg],
+        table: &toml::Table,
+        preset: Preset,
+    ) -> Result<(BakeParams, toml::Table)> {
+        let base = BakeParams::preset(preset);
+        let mut over = toml::Table::new();
+        for section in SECTIONS {
+            let Some(value) = table.get(section) else {
+                continue;
+            };
+            let key = at(here, section);
+            let Some(fields) = value.as_table() else {
+                return Err(self.error(&key, format!("must be a table (`[surface.{section}]`)")));
+            };
+            // key by key, so that an error names the key that caused it
+            for (field, v) in fields {
+                let mut one = toml::Table::new();
+                one.insert(field.clone(), v.clone());
+                let mut single = toml::Table::new();
+                single.insert(section.into(), toml::Value::Table(one));
+                if let Err(e) = base.with_overrides(single) {
+                    return Err(self.error(&at(&key, field), e.message().trim().to_string()));
+                }
+            }
+            over.insert(section.into(), value.clone());
+        }
+        let params = base
+            .with_overrides(over.clone())
+            .map_err(|e| self.error(here, e.message().trim().to_string()))?;
+        params.check().map_err(|e| {
+            let mut path = here.to_vec();
+            path.extend(e.key.split('.').map(|k| Seg::Key(k.into())));
+            self.error(&path, e.message)
+        })?;
+        Ok((params, over))
+    }
+
+    /// `relative` resolved against the scene file's folder, refused when it leaves it.
+    fn mesh_path(&self, key: &[Seg], relative: &str) -> Result<PathBuf> {
+        let rel = Path::new(relative);
+        let leaves = || {
+            self.error(
+                key,
+                format!("mesh path '{relative}' leaves the scene file's folder (refused)"),
+            )
+        };
+        if relative.is_empty()
+            || !rel
+                .components()
+                .all(|c| matches!(c, Component::Normal(_) | Component::CurDir))
+        {
+            return Err(leaves());
+        }
+        let folder = self
+            .path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        let target = folder.join(rel);
+        // a symlink inside the folder may point out of it
+        if let (Ok(real), Ok(root)) = (
+            std::fs::canonicalize(&target),
+            std::fs::canonicalize(folder),
+        ) {
+            if !real.starts_with(&root) {
+                return Err(leaves());
+            }
+        }
+        Ok(target)
+    }
+}
+
+/// What the plan decided for one stage.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PlannedStage {
+    #[serde(rename = "name", serialize_with = "stage_name")]
+    pub stage: Stage,
+    /// Whether the stage runs, per surface.
+    pub surfaces: Vec<bool>,
+    /// Why it runs or is skipped ("every bake", "asked by bunny", "nothing asked").
+    pub why: String,
+}
+
+fn stage_name<S: serde::Serializer>(stage: &Stage, s: S) -> std::result::Result<S::Ok, S::Error> {
+    s.serialize_str(stage.name())
+}
+
+impl PlannedStage {
+    /// Whether the stage runs for any surface.
+    pub fn runs(&self) -> bool {
+        self.surfaces.iter().any(|&r| r)
+    }
+}
+
+/// The stages a scene calls for, per surface.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Plan {
+    pub surfaces: Vec<String>,
+    pub stages: Vec<PlannedStage>,
+}
+
+impl Plan {
+    /// Whether `stage` runs for surface `surface`.
+    pub fn runs(&self, stage: Stage, surface: usize) -> bool {
+        self.stage(stage).surfaces[surface]
+    }
+
+    pub fn stage(&self, stage: Stage) -> &PlannedStage {
+        self.stages
+            .iter()
+            .find(|p| p.stage == stage)
+            .expect("the plan lists every stage")
+    }
+
+    /// Why `stage` is skipped for surface `surface`, or `None` when it runs.
+    pub fn skipped(&self, stage: Stage, surface: usize) -> Option<String> {
+        let p = self.stage(stage);
+        if p.surfaces[surface] {
+            return None;
+        }
+        Some(match stage.effect() {
+            Some(e) if p.runs() => format!("not asked by this surface (effect `{}`)", e.name()),
+            Some(e) => format!("nothing asked (effect `{}`)", e.name()),
+            None => p.why.clone(),
+        })
+    }
+
+    /// The plan as text, one stage per line.
+    pub fn describe(&self) -> String {
+        let width = Stage::ALL.iter().map(|s| s.name().len()).max().unwrap_or(0);
+        let mut s = String::new();
+        for p in &self.stages {
+            let state = if p.runs() { "run " } else { "skip" };
+            s += &format!("  {:width$}  {state}  {}\n", p.stage.name(), p.why);
+        }
+        s
+    }
+}
+
+/// The stages `scene` calls for: the core stages for every surface; an effect's stage for the
+/// surfaces that ask for it; stages nothing can ask for yet, for none.
+pub fn plan(scene: &SceneFile) -> Plan {
+    let names: Vec<String> = scene.surfaces.iter().map(|s| s.name.clone()).collect();
+    let stages = Stage::ALL
+        .iter()
+        .map(|&stage| {
+            let (surfaces, why) = match stage.effect() {
+                _ if stage.unavailable() => (
+                    vec![false; names.len()],
+                    "nothing asked (not available yet)".to_string(),
+                ),
+                None => (vec![true; names.len()], "every bake".to_string()),
+                Some(effect) => {
+                    let asked: Vec<bool> = scene.surfaces.iter().map(|s| s.asks(effect)).collect();
+                    let who: Vec<&str> = names
+                        .iter()
+                        .zip(&asked)
+                        .filter(|(_, &a)| a)
+                        .map(|(n, _)| n.as_str())
+                        .collect();
+                    let why = if who.is_empty() {
+                        format!("nothing asked (effect `{}`)", effect.name())
+                    } else {
+                        format!("asked by {} (effect `{}`)", who.join(", "), effect.name())
+                    };
+                    (asked, why)
+                }
+            };
+            PlannedStage {
+                stage,
+                surfaces,
+                why,
+            }
+        })
+        .collect();
+    Plan {
+        surfaces: names,
+        stages,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<SceneFile> {
+        SceneFile::parse(Path::new("scenes/meadow.toml"), text)
+    }
+
+    fn scene_error(text: &str) -> (Option<usize>, String, String) {
+        match parse(text).unwrap_err() {
+            Error::Scene {
+                line, key, message, ..
+            } => (line, key, message),
+            e => panic!("not a scene error: {e}"),
+        }
+    }
+
+    #[test]
+    fn surfaces_read_presets_overrides_and_effects() {
+        let s = parse(
+            "[[surface]]\nname = \"ground\"\nmesh = \"plane.obj\"\npreset = \"grass\"\n\
+             [surface.shells]\nlayers = 24\n\n[[surface]]\nmesh = \"sub/bunny.obj\"\n\
+             effects = [\"collision\", \"collision\"]\ntranslation = [0, 1.5, 0]\n",
+        )
+        .unwrap();
+        assert_eq!(s.surfaces.len(), 2);
+        let (g, b) = (&s.surfaces[0], &s.surfaces[1]);
+        assert_eq!(g.name, "ground");
+        assert_eq!(g.mesh, Path::new("scenes/plane.obj"));
+        assert_eq!(g.params.shells.layers, 24);
+        assert_eq!(g.params.strands, BakeParams::preset(Preset::Grass).strands);
+        assert_eq!(b.name, "bunny");
+        assert_eq!(b.preset, Preset::Fur);
+        assert_eq!(b.effects, vec![Effect::Collision]);
+        assert_eq!(b.translation, [0.0, 1.5, 0.0]);
+        let p = plan(&s);
+        assert!(!p.runs(Stage::Collision, 0) && p.runs(Stage::Collision, 1));
+        assert!(p.stage(Stage::Collision).why.contains("asked by bunny"));
+        assert!(p.runs(Stage::Clamp, 0) && !p.stage(Stage::Lod).runs());
+    }
+
+    #[test]
+    fn errors_name_the_line_and_the_key() {
+        let (line, key, msg) =
+            scene_error("[[surface]]\nmesh = \"a.obj\"\n[surface.shells]\nlayrs = 3\n");
+        assert_eq!((line, key.as_str()), (Some(4), "surface[0].shells.layrs"));
+        assert!(msg.contains("layrs"), "{msg}");
+        let (line, key, msg) =
+            scene_error("[[surface]]\nmesh = \"a.obj\"\n\n[surface.shells]\nlayers = \"many\"\n");
+        assert_eq!((line, key.as_str()), (Some(5), "surface[0].shells.layers"));
+        assert!(msg.contains("string") || msg.contains("invalid type"), "{msg}");
+        let (line, key, msg) =
+            scene_error("[[surface]]\nmesh = \"a.obj\"\n[surface.shells]\nlayers = 500\n");
+        assert_eq!((line, key.as_str()), (Some(4), "surface[0].shells.layers"));
+        assert!(msg.contains("1..=239"), "{msg}");
+        let (line, key, _) = scene_error("[[surface]]\nmesh = \"a.obj\"\ncolour = 1\n");
+        assert_eq!((line, key.as_str()), (Some(3), "surface[0].colour"));
+        let (line, key, msg) =
+            scene_error("[[surface]]\nmesh = \"a.obj\"\neffects = [\"wind\"]\n");
+        assert_eq!((line, key.as_str()), (Some(3), "surface[0].effects[0]"));
+        assert!(msg.contains("collision"), "{msg}");
+        let (line, key, _) = scene_error("[[surface]]\nmesh = \"../a.obj\"\n");
+        assert_eq!((line, key.as_str()), (Some(2), "surface[0].mesh"));
+        let (line, _, _) = scene_error("[[surface]]\nmesh = \"a.obj\n");
+        assert_eq!(line, Some(2));
+        let (_, key, _) = scene_error("title = \"x\"\n");
+        assert_eq!(key, "title");
+        let (_, _, msg) = scene_error("");
+        assert!(msg.contains("nothing to bake"));
+        let (line, key, msg) = scene_error(
+            "[[surface]]\nmesh = \"a.obj\"\n[surface.strands]\nmodel = { kind = \"noise\", threshold = 2.0 }\n",
+        );
+        assert_eq!((line, key.as_str()), (Some(4), "surface[0].strands.model.threshold"));
+        assert!(msg.contains("(0, 1)"), "{msg}");
+        let (line, _, msg) =
+            scene_error("[[surface]]\nmesh = \"a.obj\"\n[[surface]]\nmesh = \"b/a.obj\"\n");
+        assert!(msg.contains("named 'a'") && line.is_none(), "{line:?} {msg}");
+    }
+
+    #[test]
+    fn the_shortcut_plans_collision_only_when_asked() {
+        let p = plan(&SceneFile::single(
+            Path::new("a.obj"),
+            Preset::Fur,
+            BakeParams::default(),
+            &[],
+        ));
+        assert!(!p.stage(Stage::Collision).runs());
+        assert_eq!(
+            p.skipped(Stage::Collision, 0).unwrap(),
+            "nothing asked (effect `collision`)"
+        );
+        let p = plan(&SceneFile::single(
+            Path::new("a.obj"),
+            Preset::Fur,
+            BakeParams::default(),
+            &[Effect::Collision],
+        ));
+        assert!(p.runs(Stage::Collision, 0));
+    }
+}
