@@ -245,7 +245,7 @@ impl Reader<'_> {
                 _ => (None, None),
             };
         }
-        Some(self.text[..span.start.min(self.text.len())].lines().count().max(1))
+        Some(line_at(self.text, span.start))
     }
 
     fn error(&self, path: &[Seg], message: impl Into<String>) -> Error {
@@ -256,6 +256,15 @@ impl Reader<'_> {
             message: message.into(),
         }
     }
+}
+
+/// 1-based line of byte `offset` in `text`.
+fn line_at(text: &str, offset: usize) -> usize {
+    text.as_bytes()[..offset.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+        + 1
 }
 
 fn at(path: &[Seg], key: &str) -> Vec<Seg> {
@@ -306,7 +315,7 @@ impl SceneFile {
             path: path.to_path_buf(),
             line: e
                 .span()
-                .map(|s| text[..s.start.min(text.len())].lines().count().max(1)),
+                .map(|s| line_at(text, s.start)),
             key: String::new(),
             message: e.message().trim().to_string(),
         })?;

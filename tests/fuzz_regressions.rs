@@ -8,6 +8,7 @@ mod common;
 mod structured;
 
 use shellbake::params::{BakeParams, Layout};
+use shellbake::scene::Effect;
 
 fn replay(data: &[u8]) -> Result<usize, String> {
     let Some((&selector, body)) = data.split_first() else {
@@ -27,7 +28,6 @@ fn replay(data: &[u8]) -> Result<usize, String> {
     let mut p = BakeParams::default();
     p.shells.layers = 4;
     p.strands.mask_size = 16;
-    p.clamp.collision = true;
     p.pack.layout = if selector & 2 == 0 {
         Layout::Compact
     } else {
@@ -36,7 +36,7 @@ fn replay(data: &[u8]) -> Result<usize, String> {
     if shellbake::pack::estimate_scene_bytes(&scene, &p) > 64 << 20 {
         return Ok(0);
     }
-    Ok(shellbake::bake(&scene, &p).glb.len())
+    Ok(shellbake::bake_with(&scene, &p, &[Effect::Collision]).glb.len())
 }
 
 #[test]

@@ -14,6 +14,7 @@ use glam::{DVec3, Vec2, Vec3};
 use shellbake::mesh::Mesh;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::procedural;
+use shellbake::scene::Effect;
 
 /// Bakes `obj` text with every preset and both layouts, clamp on; checks the invariants and
 /// validates every output.
@@ -31,12 +32,11 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
         for layout in [Layout::Compact, Layout::SingleDraw] {
             let mut p = BakeParams::preset(preset);
             p.pack.layout = layout;
-            p.clamp.collision = true;
             p.shells.layers = p.shells.layers.min(16);
             if let Some(f) = height_fraction {
                 p.shells.height_fraction = f;
             }
-            let baked = shellbake::bake(&scene, &p);
+            let baked = shellbake::bake_with(&scene, &p, &[Effect::Collision]);
             let what = format!("{case} {} {layout:?}", preset.name());
             all_finite(&baked.glb, &what);
             no_layer_inverts(&baked, &what);

@@ -161,7 +161,18 @@ fn cli_bakes_with_report_and_summary() {
     ]);
     assert!(ok, "{err}");
     assert!(stdout.contains("bytes per base vertex"), "{stdout}");
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let file: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(
+        file["total_bytes"].as_u64().unwrap() as usize,
+        std::fs::read(&out).unwrap().len()
+    );
+    // the plan: every stage, collision skipped because nothing asked
+    let plan = file["plan"].as_array().unwrap();
+    let collision = plan.iter().find(|s| s["name"] == "collision").unwrap();
+    assert_eq!(collision["ran"], false);
+    assert!(collision["why"].as_str().unwrap().contains("nothing asked"));
+    let r = &file["surfaces"][0];
     assert_eq!(r["layers"], 10);
     assert_eq!(r["resolved"]["height"].as_f64().unwrap() as f32, 0.05);
     let stages: Vec<(&str, bool)> = r["stages"]

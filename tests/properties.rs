@@ -9,6 +9,7 @@ use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 use shellbake::mesh::{Mesh, Scene};
 use shellbake::params::{BakeParams, Layout, StrandModel, StrandParams};
+use shellbake::scene::Effect;
 
 /// A random mesh: vertices on a coarse 4×4×4 lattice (so positions repeat, triangles degenerate
 /// and edges are shared by many faces), random triangles, then scaled and offset.
@@ -90,8 +91,10 @@ proptest! {
         let w = shellbake::weld::weld(&m.positions, &m.indices);
         let f = shellbake::frames::extrusion_frames(&w, None);
         let h = m.diagonal() * frac;
-        let params = shellbake::clamp::ClampParams { collision: true, ..Default::default() };
-        let c = shellbake::clamp::clamp_heights(&w, &f, h, &params);
+        let params = shellbake::clamp::ClampParams::default();
+        let s = shellbake::clamp::smooth(&w, &f, h, &params);
+        let bound = shellbake::clamp::collision_bound(&w, &s, h, &params);
+        let c = shellbake::clamp::clamp_heights(&w, s, h, &params, Some(&bound));
         prop_assert!(c.welded_scale.iter().all(|s| s.is_finite() && (0.0..=1.0).contains(s)));
         let dirs = &c.welded_direction;
         for tri in w.indices.chunks_exact(3) {
@@ -141,9 +144,9 @@ proptest! {
         let mut p = BakeParams::default();
         p.shells.layers = 5;
         p.strands.mask_size = 16;
-        p.clamp.collision = clamp;
         p.pack.layout = if single { Layout::SingleDraw } else { Layout::Compact };
-        let baked = shellbake::bake(&scene, &p);
+        let effects: &[Effect] = if clamp { &[Effect::Collision] } else { &[] };
+        let baked = shellbake::bake_with(&scene, &p, effects);
         let g = Glb::parse(&baked.glb);
         for i in 0..g.json["accessors"].as_array().unwrap().len() {
             prop_assert!(g.accessor(i).iter().flatten().all(|v| v.is_finite()));

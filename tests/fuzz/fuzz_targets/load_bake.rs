@@ -25,11 +25,10 @@ fuzz_target!(|data: &[u8]| {
     let mut p = BakeParams::default();
     p.shells.layers = 4;
     p.strands.mask_size = 16;
-    p.clamp.collision = true;
     p.pack.layout = if selector & 2 == 0 { Layout::Compact } else { Layout::SingleDraw };
     if shellbake::pack::estimate_scene_bytes(&scene, &p) > 64 << 20 {
         return;
     }
-    let baked = shellbake::bake(&scene, &p);
+    let baked = shellbake::bake_with(&scene, &p, &[shellbake::scene::Effect::Collision]);
     assert!(baked.glb.len() > 12);
 });
