@@ -360,7 +360,7 @@ fn bake_surface(
     report.gate(plan, Stage::Lod, i, || ());
 
     let prefix = if several {
-        format!("{}/", surface.name)
+        format!("{}_", surface.name)
     } else {
         String::new()
     };
