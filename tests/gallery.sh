@@ -6,6 +6,7 @@
 #    inside-out torus (the torus fixture with every face's winding reversed) and a two-sided
 #    sheet (the plane fixture with every face listed twice, once per side), each with the
 #    default preset, overall and close up (the sheet from above and from below, lit from below);
+#  - the scene example (fixtures/meadow.toml), in three.js and in the wgpu viewer;
 #  - the verify triptych (wgpu viewer): runtime reference, baked file, FLIP difference.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -47,17 +48,23 @@ for input in fixtures/bunny.obj fixtures/teapot.obj "$inputs/dragon.obj" \
     job "out/gallery/contact-$name.glb" "out/gallery/contact-$name-close.png" 30 30 1.6 20
   fi
 done
+# The scene example: two surfaces in one file, drawn by three.js and by the wgpu viewer.
+"$bin" bake fixtures/meadow.toml -o out/gallery/meadow.glb -q
+jobs+=",{\"glb\":\"out/gallery/meadow.glb\",\"png\":\"out/gallery/meadow-three.png\",\"width\":640,\"height\":480,"
+jobs+="\"camera\":{\"auto\":true,\"yaw\":25,\"pitch\":18,\"distance\":1.3,\"fovy_deg\":40},"
+jobs+="\"light\":{\"direction\":[1,2,3],\"intensity\":3.0},\"ambient\":0.5,\"background\":[0.05,0.05,0.06]}"
 jobs+="]"
 echo "$jobs" > out/gallery/jobs.json
 node tests/js/three_render.mjs out/gallery/jobs.json
 rm -f out/gallery/*.glb out/gallery/jobs.json
-rm -rf "$inputs"
 
 # Baked against the runtime reference (wgpu, llvmpipe): the close view of the fur bunny.
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-$(mktemp -d)}"
+"$bin" bake fixtures/meadow.toml -o "$inputs/meadow.glb" -q
+"$bin" render "$inputs/meadow.glb" -o out/gallery/meadow-wgpu.png
 "$bin" verify fixtures/bunny.obj --preset fur --out-dir out/gallery/verify -q
 cp out/gallery/verify/bunny-close-reference.png out/gallery/bunny-close-reference.png
 cp out/gallery/verify/bunny-close-baked.png out/gallery/bunny-close-baked.png
 # (not "-difference.png": that suffix is kept for failing tests' pictures and is git-ignored)
 cp out/gallery/verify/bunny-close-difference.png out/gallery/bunny-close-flip.png
-rm -rf out/gallery/verify
+rm -rf out/gallery/verify "$inputs"
