@@ -101,9 +101,15 @@ impl Default for ClampParams {
 impl ClampParams {
     /// Checks ranges; the error names the parameter.
     pub fn check(&self) -> Result<(), ParamError> {
-        for (key, v) in [("ray_keep", self.ray_keep), ("inversion_keep", self.inversion_keep)] {
+        for (key, v) in [
+            ("ray_keep", self.ray_keep),
+            ("inversion_keep", self.inversion_keep),
+        ] {
             if !(v > 0.0 && v < 1.0) {
-                return Err(ParamError::new(key, format!("{key} must be in (0, 1), got {v}")));
+                return Err(ParamError::new(
+                    key,
+                    format!("{key} must be in (0, 1), got {v}"),
+                ));
             }
         }
         Ok(())

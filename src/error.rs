@@ -45,7 +45,7 @@ pub enum Error {
 }
 
 /// A parameter out of range: its key inside the parameters (`layers`; a stage's `check` names
-/// its own fields, [`crate::params::BakeParams::check`] prefixes the section, `shells.layers`)
+/// its own fields, `BakeParams::check` prefixes the section, `shells.layers`)
 /// and what is wrong, naming the parameter.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("{message}")]

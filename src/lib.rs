@@ -210,9 +210,10 @@ fn run_plan(scene: &SceneFile, loaded: &[(&Scene, f64)]) -> BakedScene {
         surfaces: reports,
         ..Default::default()
     };
-    report
-        .streams
-        .insert("json".into(), serde_json::to_vec(&json).map_or(0, |b| b.len()));
+    report.streams.insert(
+        "json".into(),
+        serde_json::to_vec(&json).map_or(0, |b| b.len()),
+    );
     report.total_ms = start.elapsed().as_secs_f64() * 1e3;
     BakedScene {
         glb,
@@ -308,7 +309,13 @@ fn bake_surface(
     });
     report.count("bvh_builds", collision.is_some() as u8 as f64);
     let clamp = report.run("clamp", || {
-        clamp::clamp_heights(&welded, smoothed, height, &params.clamp, collision.as_deref())
+        clamp::clamp_heights(
+            &welded,
+            smoothed,
+            height,
+            &params.clamp,
+            collision.as_deref(),
+        )
     });
     drop(collision);
     frames.direction = clamp.directions(&welded);
@@ -375,7 +382,10 @@ fn bake_surface(
         prefix: &prefix,
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
-    report.count("float_uvs", if surface_packed.float_uvs { 1.0 } else { 0.0 });
+    report.count(
+        "float_uvs",
+        if surface_packed.float_uvs { 1.0 } else { 0.0 },
+    );
     report.count("guarded_vertices", surface_packed.guarded as f64);
 
     fill_report(
@@ -462,7 +472,10 @@ fn fill_report(
 }
 
 /// Bytes per stream name, of one surface (`Some`) or of the whole file.
-fn stream_bytes(packed: &Packed, surface: Option<usize>) -> std::collections::BTreeMap<String, usize> {
+fn stream_bytes(
+    packed: &Packed,
+    surface: Option<usize>,
+) -> std::collections::BTreeMap<String, usize> {
     let mut out = std::collections::BTreeMap::new();
     for v in &packed.streams {
         if surface.is_none_or(|s| v.tag.surface == s) {

@@ -249,7 +249,7 @@ fn load_checked(
     let mut estimate = 0u64;
     for (surface, l) in scene.surfaces.iter().zip(&loaded) {
         shellbake::check_bakeable(&l.scene, &surface.mesh)?;
-        estimate += shellbake::pack::estimate_scene_bytes(&l.scene, &surface.params);
+        estimate += surface.params.estimate_bytes(&l.scene);
     }
     if estimate > args.max_output {
         anyhow::bail!(
@@ -311,7 +311,11 @@ fn plan(args: &BakeArgs) -> anyhow::Result<()> {
     let scene = args.scene()?;
     let plan = shellbake::scene::plan(&scene);
     let (loaded, estimate) = load_checked(args, &scene)?;
-    let mut text = format!("{}: {} surface(s)\n", args.input.display(), scene.surfaces.len());
+    let mut text = format!(
+        "{}: {} surface(s)\n",
+        args.input.display(),
+        scene.surfaces.len()
+    );
     for (s, l) in scene.surfaces.iter().zip(&loaded) {
         let triangles: usize = l.scene.meshes.iter().map(|m| m.triangle_count()).sum();
         let effects: Vec<&str> = s.effects.iter().map(|e| e.name()).collect();
@@ -487,7 +491,10 @@ mod tests {
         assert_eq!(parse_size("64k"), Ok(64 << 10));
         assert_eq!(parse_size("2G"), Ok(2 << 30));
         assert!(parse_size("lots").is_err());
-        assert_eq!(effects(&["bake", "a.obj", "--clamp"]), vec![Effect::Collision]);
+        assert_eq!(
+            effects(&["bake", "a.obj", "--clamp"]),
+            vec![Effect::Collision]
+        );
         assert!(effects(&["bake", "a.obj"]).is_empty());
         let p = parse_bool_flags(&["bake", "a.obj", "--orient", "keep"]);
         assert_eq!(p.orient.mode, shellbake::orient::OrientMode::Keep);

@@ -132,6 +132,31 @@ impl BakeParams {
         Ok(())
     }
 
+    /// [`crate::pack::estimate_bytes`] for a loaded scene baked with these parameters: an upper
+    /// bound of the written file (`tests/properties.rs` checks it against real bakes of random
+    /// meshes).
+    ///
+    /// Vertices are counted as three per triangle, the most a bake can pack. A bake splits vertices
+    /// after loading — a generated box projection (UVs missing or without area) copies a vertex once
+    /// per projection plane; welding copies a vertex shared by the two sides of a sheet (or by several
+    /// sheets) once per side — but it packs only vertices some triangle uses. Counting the loaded
+    /// vertices undercounts exactly those inputs; on a closed, UV-mapped mesh (about one vertex per
+    /// two triangles) the bound is 3–5× the file.
+    pub fn estimate_bytes(&self, scene: &crate::mesh::Scene) -> u64 {
+        let triangles = scene
+            .meshes
+            .iter()
+            .map(|m| m.triangle_count() as u64)
+            .sum::<u64>();
+        crate::pack::estimate_bytes(
+            3 * triangles,
+            triangles,
+            self.shells.layers as u64,
+            self.strands.mask_size as u64,
+            self.pack.layout,
+        )
+    }
+
     /// World-unit shell height for a mesh with the given bounding-box diagonal.
     pub fn resolved_height(&self, diagonal: f32) -> f32 {
         self.shells.resolved_height(diagonal)

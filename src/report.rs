@@ -236,7 +236,11 @@ impl SceneReport {
                     name,
                     ran: p.runs(),
                     why: p.why.clone(),
-                    ms: if p.stage == PlanStage::Write { write_ms } else { ms },
+                    ms: if p.stage == PlanStage::Write {
+                        write_ms
+                    } else {
+                        ms
+                    },
                 }
             })
             .collect()

@@ -276,7 +276,12 @@ fn at(path: &[Seg], key: &str) -> Vec<Seg> {
 impl SceneFile {
     /// The one-surface shortcut: `mesh` with `params` and `effects`, under the root name
     /// [`SINGLE_SURFACE_NAME`].
-    pub fn single(mesh: &Path, preset: Preset, params: BakeParams, effects: &[Effect]) -> SceneFile {
+    pub fn single(
+        mesh: &Path,
+        preset: Preset,
+        params: BakeParams,
+        effects: &[Effect],
+    ) -> SceneFile {
         let mut effects = effects.to_vec();
         effects.sort();
         effects.dedup();
@@ -313,9 +318,7 @@ impl SceneFile {
     pub fn parse(path: &Path, text: &str) -> Result<SceneFile> {
         let spans = toml::de::DeTable::parse(text).map_err(|e| Error::Scene {
             path: path.to_path_buf(),
-            line: e
-                .span()
-                .map(|s| line_at(text, s.start)),
+            line: e.span().map(|s| line_at(text, s.start)),
             key: String::new(),
             message: e.message().trim().to_string(),
         })?;
@@ -351,7 +354,11 @@ impl SceneFile {
         if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
             let i = surfaces.iter().rposition(|s| s.name == w[0]).unwrap_or(0);
             return Err(r.error(
-                &[Seg::Key("surface".into()), Seg::Index(i), Seg::Key("name".into())],
+                &[
+                    Seg::Key("surface".into()),
+                    Seg::Index(i),
+                    Seg::Key("name".into()),
+                ],
                 format!("two surfaces are named '{}'; names must differ", w[0]),
             ));
         }
@@ -396,7 +403,10 @@ impl Reader<'_> {
                 let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
                 self.error(
                     &at(here, "preset"),
-                    format!("unknown preset '{name}' (expected one of {})", names.join(", ")),
+                    format!(
+                        "unknown preset '{name}' (expected one of {})",
+                        names.join(", ")
+                    ),
                 )
             })?,
         };
@@ -451,9 +461,7 @@ impl Reader<'_> {
             None => 1.0,
             Some(v) => match number(v) {
                 Some(s) if s.is_finite() && s > 0.0 => s,
-                _ => {
-                    return Err(self.error(&at(here, "scale"), "must be a positive finite number"))
-                }
+                _ => return Err(self.error(&at(here, "scale"), "must be a positive finite number")),
             },
         };
         let (params, overrides) = self.params(here, table, preset)?;
@@ -703,15 +711,17 @@ mod tests {
         let (line, key, msg) =
             scene_error("[[surface]]\nmesh = \"a.obj\"\n\n[surface.shells]\nlayers = \"many\"\n");
         assert_eq!((line, key.as_str()), (Some(5), "surface[0].shells.layers"));
-        assert!(msg.contains("string") || msg.contains("invalid type"), "{msg}");
+        assert!(
+            msg.contains("string") || msg.contains("invalid type"),
+            "{msg}"
+        );
         let (line, key, msg) =
             scene_error("[[surface]]\nmesh = \"a.obj\"\n[surface.shells]\nlayers = 500\n");
         assert_eq!((line, key.as_str()), (Some(4), "surface[0].shells.layers"));
         assert!(msg.contains("1..=239"), "{msg}");
         let (line, key, _) = scene_error("[[surface]]\nmesh = \"a.obj\"\ncolour = 1\n");
         assert_eq!((line, key.as_str()), (Some(3), "surface[0].colour"));
-        let (line, key, msg) =
-            scene_error("[[surface]]\nmesh = \"a.obj\"\neffects = [\"wind\"]\n");
+        let (line, key, msg) = scene_error("[[surface]]\nmesh = \"a.obj\"\neffects = [\"wind\"]\n");
         assert_eq!((line, key.as_str()), (Some(3), "surface[0].effects[0]"));
         assert!(msg.contains("collision"), "{msg}");
         let (line, key, _) = scene_error("[[surface]]\nmesh = \"../a.obj\"\n");
@@ -725,11 +735,17 @@ mod tests {
         let (line, key, msg) = scene_error(
             "[[surface]]\nmesh = \"a.obj\"\n[surface.strands]\nmodel = { kind = \"noise\", threshold = 2.0 }\n",
         );
-        assert_eq!((line, key.as_str()), (Some(4), "surface[0].strands.model.threshold"));
+        assert_eq!(
+            (line, key.as_str()),
+            (Some(4), "surface[0].strands.model.threshold")
+        );
         assert!(msg.contains("(0, 1)"), "{msg}");
         let (line, _, msg) =
             scene_error("[[surface]]\nmesh = \"a.obj\"\n[[surface]]\nmesh = \"b/a.obj\"\n");
-        assert!(msg.contains("named 'a'") && line.is_none(), "{line:?} {msg}");
+        assert!(
+            msg.contains("named 'a'") && line.is_none(),
+            "{line:?} {msg}"
+        );
     }
 
     #[test]

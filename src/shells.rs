@@ -5,7 +5,7 @@
 //! half a step, and on the grid that makes the 8-bit mask exact (`strands.rs`). The top layer is
 //! at `t = (N−1)/N`, not 1: at `t = 1` every strand law has already vanished. A layer's alpha
 //! cutoff depends on how the mask encodes its law, so it comes from the mask
-//! ([`crate::strands::Mask::cutoff`] of the layer's step), not from here.
+//! (`Mask::cutoff` of the layer's step, in `strands.rs`), not from here.
 //!
 //! The extrusion delta of a vertex is `direction × height × scale`, where `scale` is 1 or the
 //! clamp stage's per-vertex factor. Layer `j`'s position is `base + t_j × delta`; that is exactly
@@ -106,7 +106,10 @@ impl ShadeParams {
     /// Checks ranges; the error names the parameter.
     pub fn check(&self) -> Result<(), ParamError> {
         let unit = |v: f32| (0.0..=1.0).contains(&v);
-        for (key, c) in [("root_color", self.root_color), ("tip_color", self.tip_color)] {
+        for (key, c) in [
+            ("root_color", self.root_color),
+            ("tip_color", self.tip_color),
+        ] {
             if !c.iter().all(|&c| unit(c)) {
                 return Err(ParamError::new(
                     key,
@@ -116,7 +119,10 @@ impl ShadeParams {
         }
         for (key, v) in [("occlusion", self.occlusion), ("roughness", self.roughness)] {
             if !unit(v) {
-                return Err(ParamError::new(key, format!("{key} must be in [0, 1], got {v}")));
+                return Err(ParamError::new(
+                    key,
+                    format!("{key} must be in [0, 1], got {v}"),
+                ));
             }
         }
         Ok(())

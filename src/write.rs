@@ -123,7 +123,9 @@ fn accessor_json(a: &Accessor) -> Value {
 fn attributes_json(list: &[(Semantic, usize)]) -> Value {
     let mut o = Map::new();
     for (semantic, accessor) in list {
-        let name = semantic.attribute().expect("attributes are vertex semantics");
+        let name = semantic
+            .attribute()
+            .expect("attributes are vertex semantics");
         o.insert(name, json!(accessor));
     }
     Value::Object(o)

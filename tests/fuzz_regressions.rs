@@ -33,10 +33,12 @@ fn replay(data: &[u8]) -> Result<usize, String> {
     } else {
         Layout::SingleDraw
     };
-    if shellbake::pack::estimate_scene_bytes(&scene, &p) > 64 << 20 {
+    if p.estimate_bytes(&scene) > 64 << 20 {
         return Ok(0);
     }
-    Ok(shellbake::bake_with(&scene, &p, &[Effect::Collision]).glb.len())
+    Ok(shellbake::bake_with(&scene, &p, &[Effect::Collision])
+        .glb
+        .len())
 }
 
 #[test]

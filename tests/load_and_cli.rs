@@ -161,8 +161,7 @@ fn cli_bakes_with_report_and_summary() {
     ]);
     assert!(ok, "{err}");
     assert!(stdout.contains("bytes per base vertex"), "{stdout}");
-    let file: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let file: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     assert_eq!(
         file["total_bytes"].as_u64().unwrap() as usize,
         std::fs::read(&out).unwrap().len()

@@ -217,7 +217,7 @@ proptest! {
         p.strands.mask_size = mask_size;
         p.strands.seed = seed;
         p.pack.layout = if single { Layout::SingleDraw } else { Layout::Compact };
-        let estimate = shellbake::pack::estimate_scene_bytes(&scene, &p);
+        let estimate = p.estimate_bytes(&scene);
         let baked = shellbake::bake(&scene, &p);
         prop_assert!(
             estimate >= baked.glb.len() as u64,

@@ -46,14 +46,8 @@ fn two_surfaces_bake_into_one_valid_file_that_three_js_draws() {
     let out = dir.join("meadow.glb");
     let report = dir.join("meadow.json");
     let meadow = repo().join("fixtures/meadow.toml");
-    let (code, stdout, err) = shellbake(&[
-        "bake",
-        s(&meadow),
-        "-o",
-        s(&out),
-        "--report",
-        s(&report),
-    ]);
+    let (code, stdout, err) =
+        shellbake(&["bake", s(&meadow), "-o", s(&out), "--report", s(&report)]);
     assert_eq!(code, Some(0), "{err}");
     assert!(
         stdout.contains("2 surfaces") && stdout.contains("surface bunny"),
@@ -72,7 +66,10 @@ fn two_surfaces_bake_into_one_valid_file_that_three_js_draws() {
         .collect();
     assert_eq!(roots.len(), 2);
     let root = |i: usize| &doc["nodes"][roots[i] as usize];
-    assert_eq!((root(0)["name"].as_str(), root(1)["name"].as_str()), (Some("meadow"), Some("bunny")));
+    assert_eq!(
+        (root(0)["name"].as_str(), root(1)["name"].as_str()),
+        (Some("meadow"), Some("bunny"))
+    );
     assert_eq!(root(0)["children"].as_array().unwrap().len(), 48);
     assert_eq!(root(1)["children"].as_array().unwrap().len(), 32);
     assert_eq!(root(1)["extras"]["shellbake"]["layers"], 32);
@@ -81,7 +78,9 @@ fn two_surfaces_bake_into_one_valid_file_that_three_js_draws() {
     let first_bunny_layer = root(1)["children"][0].as_u64().unwrap() as usize;
     let mesh = doc["nodes"][first_bunny_layer]["mesh"].as_u64().unwrap() as usize;
     assert_eq!(doc["meshes"][mesh]["name"], "bunny_layer_000");
-    let material = doc["meshes"][mesh]["primitives"][0]["material"].as_u64().unwrap() as usize;
+    let material = doc["meshes"][mesh]["primitives"][0]["material"]
+        .as_u64()
+        .unwrap() as usize;
     assert_eq!(doc["materials"][material]["name"], "bunny_layer_000");
     // the meadow is scaled to 24 × 24 and its grass is 1.2 tall
     assert_eq!(root(0)["extras"]["shellbake"]["height"], 1.2);
@@ -97,7 +96,10 @@ fn two_surfaces_bake_into_one_valid_file_that_three_js_draws() {
         .iter()
         .find(|p| p["name"] == "collision")
         .unwrap();
-    assert!(collision["why"].as_str().unwrap().contains("asked by bunny"));
+    assert!(collision["why"]
+        .as_str()
+        .unwrap()
+        .contains("asked by bunny"));
     let stage = |surface: usize, name: &str| {
         r["surfaces"][surface]["stages"]
             .as_array()
@@ -114,10 +116,21 @@ fn two_surfaces_bake_into_one_valid_file_that_three_js_draws() {
     let loaded = common::node("three_load.mjs", std::slice::from_ref(&out));
     let meshes = loaded[0]["meshes"].as_array().unwrap();
     assert_eq!(meshes.len(), 80, "{}", loaded[0]);
-    let named = |prefix: &str| meshes.iter().filter(|m| m["name"].as_str().unwrap().starts_with(prefix)).count();
+    let named = |prefix: &str| {
+        meshes
+            .iter()
+            .filter(|m| m["name"].as_str().unwrap().starts_with(prefix))
+            .count()
+    };
     assert_eq!((named("meadow_"), named("bunny_")), (48, 32));
-    let meadow_box = &meshes.iter().find(|m| m["name"] == "meadow_layer_000").unwrap()["box"];
-    assert!((meadow_box[1][0].as_f64().unwrap() - 12.0).abs() < 0.01, "{meadow_box}");
+    let meadow_box = &meshes
+        .iter()
+        .find(|m| m["name"] == "meadow_layer_000")
+        .unwrap()["box"];
+    assert!(
+        (meadow_box[1][0].as_f64().unwrap() - 12.0).abs() < 0.01,
+        "{meadow_box}"
+    );
 
     // and three.js in Chromium draws both: grass-green and fur-brown pixels
     let png = dir.join("meadow-three.png");
@@ -132,16 +145,21 @@ fn two_surfaces_bake_into_one_valid_file_that_three_js_draws() {
     assert_eq!(common::node("three_render.mjs", &[jobs]).len(), 1);
     let img = image::open(&png).unwrap().to_rgb8();
     let total = (img.width() * img.height()) as f64;
-    let share = |f: &dyn Fn([u8; 3]) -> bool| img.pixels().filter(|p| f(p.0)).count() as f64 / total;
+    let share =
+        |f: &dyn Fn([u8; 3]) -> bool| img.pixels().filter(|p| f(p.0)).count() as f64 / total;
     let green = share(&|[r, g, b]| g as u32 > r as u32 + 8 && g as u32 > b as u32 + 15);
     let brown = share(&|[r, g, b]| r as u32 > g as u32 + 5 && g > b && r > 60);
-    assert!(green > 0.10 && brown > 0.10, "grass {green:.3}, fur {brown:.3}");
+    assert!(
+        green > 0.10 && brown > 0.10,
+        "grass {green:.3}, fur {brown:.3}"
+    );
 }
 
 #[test]
 fn collision_builds_a_bvh_only_when_asked() {
     let dir = scratch("scene_bvh");
-    let text = "[[surface]]\nmesh = \"plane.obj\"\npreset = \"grass\"\n[surface.shells]\nlayers = 4\n\
+    let text =
+        "[[surface]]\nmesh = \"plane.obj\"\npreset = \"grass\"\n[surface.shells]\nlayers = 4\n\
                 [[surface]]\nmesh = \"sphere.obj\"\n[surface.shells]\nlayers = 4\n";
     let path = scene_in(&dir, text, &["plane.obj", "sphere.obj"]);
     let scene = SceneFile::read(&path).unwrap();
@@ -150,9 +168,21 @@ fn collision_builds_a_bvh_only_when_asked() {
     let loaded = shellbake::load_surfaces(&scene).unwrap();
     let before = shellbake::clamp::bvh_builds();
     let baked = shellbake::bake_scene(&scene, &loaded);
-    assert_eq!(shellbake::clamp::bvh_builds(), before, "a BVH was built with no collision asked");
-    let collision = baked.report.plan.iter().find(|e| e.name == "collision").unwrap();
-    assert!(!collision.ran && collision.why.contains("nothing asked"), "{collision:?}");
+    assert_eq!(
+        shellbake::clamp::bvh_builds(),
+        before,
+        "a BVH was built with no collision asked"
+    );
+    let collision = baked
+        .report
+        .plan
+        .iter()
+        .find(|e| e.name == "collision")
+        .unwrap();
+    assert!(
+        !collision.ran && collision.why.contains("nothing asked"),
+        "{collision:?}"
+    );
     for r in &baked.report.surfaces {
         let st = r.stage("collision").unwrap();
         assert!(!st.ran && st.skipped.as_deref().unwrap().contains("nothing asked"));
@@ -170,7 +200,13 @@ fn collision_builds_a_bvh_only_when_asked() {
     assert_eq!(shellbake::clamp::bvh_builds(), before + 1);
     let [plane, sphere] = [&baked.report.surfaces[0], &baked.report.surfaces[1]];
     assert!(!plane.stage("collision").unwrap().ran);
-    assert!(plane.stage("collision").unwrap().skipped.as_deref().unwrap().contains("not asked by this surface"));
+    assert!(plane
+        .stage("collision")
+        .unwrap()
+        .skipped
+        .as_deref()
+        .unwrap()
+        .contains("not asked by this surface"));
     assert!(sphere.stage("collision").unwrap().ran);
 }
 
@@ -185,8 +221,18 @@ fn flags_apply_on_top_of_every_surface_and_plan_prints_without_baking() {
     let out = dir.join("scene.glb");
     let report = dir.join("scene.json");
     let (code, _, err) = shellbake(&[
-        "bake", s(&path), "-o", s(&out), "--report", s(&report), "--layers", "6", "--clamp",
-        "--layout", "single-draw", "-q",
+        "bake",
+        s(&path),
+        "-o",
+        s(&out),
+        "--report",
+        s(&report),
+        "--layers",
+        "6",
+        "--clamp",
+        "--layout",
+        "single-draw",
+        "-q",
     ]);
     assert_eq!(code, Some(0), "{err}");
     let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
@@ -196,20 +242,38 @@ fn flags_apply_on_top_of_every_surface_and_plan_prints_without_baking() {
     }
     assert_eq!(r["draw_calls"], 2);
     let plan_entry = |name: &str| {
-        r["plan"].as_array().unwrap().iter().find(|p| p["name"] == name).unwrap().clone()
+        r["plan"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap()
+            .clone()
     };
-    assert!(plan_entry("collision")["why"].as_str().unwrap().contains("asked by plane, cube"));
+    assert!(plan_entry("collision")["why"]
+        .as_str()
+        .unwrap()
+        .contains("asked by plane, cube"));
     common::assert_valid(&[out.clone()]);
 
     let before = std::fs::metadata(&out).unwrap().modified().unwrap();
     let (code, stdout, err) = shellbake(&["plan", s(&path), "--layers", "9"]);
     assert_eq!(code, Some(0), "{err}");
-    assert!(stdout.contains("surface plane") && stdout.contains("9 layers"), "{stdout}");
-    assert!(stdout.contains("collision  skip  nothing asked"), "{stdout}");
+    assert!(
+        stdout.contains("surface plane") && stdout.contains("9 layers"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("collision  skip  nothing asked"),
+        "{stdout}"
+    );
     assert!(stdout.contains("estimated output: at most"), "{stdout}");
     assert_eq!(std::fs::metadata(&out).unwrap().modified().unwrap(), before);
     let (_, stdout, _) = shellbake(&["plan", s(&fixture("bunny.obj")), "--clamp"]);
-    assert!(stdout.contains("collision  run   asked by shellbake"), "{stdout}");
+    assert!(
+        stdout.contains("collision  run   asked by shellbake"),
+        "{stdout}"
+    );
 }
 
 #[test]
@@ -221,13 +285,41 @@ fn bad_scene_files_name_the_file_the_line_and_the_key() {
     let _ = std::fs::remove_file(dir.join("link.obj"));
     std::os::unix::fs::symlink(outside.join("secret.obj"), dir.join("link.obj")).unwrap();
     let cases: [(&str, &str, &[&str]); 7] = [
-        ("[[surface]]\nmesh = \"cube.obj\"\n[surface.shells]\nlayers = 500\n", "layers", &["line 4", "surface[0].shells.layers", "1..=239"]),
-        ("[[surface]]\nmesh = \"cube.obj\"\n\n[surface.shade]\nroughnes = 0.5\n", "unknown", &["line 5", "surface[0].shade.roughnes"]),
-        ("[[surface]]\nmesh = \"cube.obj\"\npreset = 3\n", "type", &["line 3", "surface[0].preset", "string"]),
-        ("[[surface]]\nmesh = \"cube.obj\"\npreset = \"hair\"\n", "preset", &["line 3", "unknown preset 'hair'", "fur, carpet"]),
-        ("[[surface]]\nmesh = \"../cube.obj\"\n", "parent", &["line 2", "surface[0].mesh", "leaves"]),
-        ("[[surface]]\nmesh = \"link.obj\"\n", "symlink", &["line 2", "surface[0].mesh", "leaves"]),
-        ("[[surface]]\nmesh = \"cube.obj\"\neffects = [\"gravity\"]\n", "effect", &["line 3", "surface[0].effects[0]", "collision"]),
+        (
+            "[[surface]]\nmesh = \"cube.obj\"\n[surface.shells]\nlayers = 500\n",
+            "layers",
+            &["line 4", "surface[0].shells.layers", "1..=239"],
+        ),
+        (
+            "[[surface]]\nmesh = \"cube.obj\"\n\n[surface.shade]\nroughnes = 0.5\n",
+            "unknown",
+            &["line 5", "surface[0].shade.roughnes"],
+        ),
+        (
+            "[[surface]]\nmesh = \"cube.obj\"\npreset = 3\n",
+            "type",
+            &["line 3", "surface[0].preset", "string"],
+        ),
+        (
+            "[[surface]]\nmesh = \"cube.obj\"\npreset = \"hair\"\n",
+            "preset",
+            &["line 3", "unknown preset 'hair'", "fur, carpet"],
+        ),
+        (
+            "[[surface]]\nmesh = \"../cube.obj\"\n",
+            "parent",
+            &["line 2", "surface[0].mesh", "leaves"],
+        ),
+        (
+            "[[surface]]\nmesh = \"link.obj\"\n",
+            "symlink",
+            &["line 2", "surface[0].mesh", "leaves"],
+        ),
+        (
+            "[[surface]]\nmesh = \"cube.obj\"\neffects = [\"gravity\"]\n",
+            "effect",
+            &["line 3", "surface[0].effects[0]", "collision"],
+        ),
     ];
     for (text, what, wanted) in cases {
         let path = dir.join(format!("{what}.toml"));

@@ -46,8 +46,8 @@ use glam::{Vec2, Vec3};
 use image::ImageEncoder;
 use serde::{Deserialize, Serialize};
 
-use crate::mesh::Mesh;
 use crate::error::ParamError;
+use crate::mesh::Mesh;
 use crate::shells::ShellStack;
 use crate::strands::{Mask, BASE_CODE};
 use quantize::Bytes;
@@ -107,7 +107,10 @@ impl PackParams {
         if !(8..=16).contains(&self.position_bits) {
             return Err(ParamError::new(
                 "position_bits",
-                format!("position_bits must be in 8..=16, got {}", self.position_bits),
+                format!(
+                    "position_bits must be in 8..=16, got {}",
+                    self.position_bits
+                ),
             ));
         }
         Ok(())
@@ -230,7 +233,9 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     };
     let mut b = Builder { out, tag };
     let png = encode_mask_png(input.mask);
-    let image = b.out.stream("mask", Semantic::Image, None, tag, (png, None, 0));
+    let image = b
+        .out
+        .stream("mask", Semantic::Image, None, tag, (png, None, 0));
     let texture = Packed::push(&mut b.out.textures, Texture { image });
     let (uv_offset, uv_scale) = if float_uvs {
         (Vec2::ZERO, tiles)
@@ -346,7 +351,14 @@ impl Builder<'_> {
                 hi[c] = hi[c].max(p[c]);
             }
         }
-        let v = self.stream("position", Semantic::Position, None, bytes.0, Some(8), q.len());
+        let v = self.stream(
+            "position",
+            Semantic::Position,
+            None,
+            bytes.0,
+            Some(8),
+            q.len(),
+        );
         let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
         self.out
             .accessor(v, component::UNSIGNED_SHORT, false, "VEC3", Some(bounds))
@@ -519,30 +531,6 @@ pub fn estimate_bytes(
     28 + body + png + json + padding
 }
 
-/// [`estimate_bytes`] for a loaded scene baked with `params`: an upper bound of the written file
-/// (`tests/properties.rs` checks it against real bakes of random meshes).
-///
-/// Vertices are counted as three per triangle, the most a bake can pack. A bake splits vertices
-/// after loading — a generated box projection (UVs missing or without area) copies a vertex once
-/// per projection plane; welding copies a vertex shared by the two sides of a sheet (or by several
-/// sheets) once per side — but it packs only vertices some triangle uses. Counting the loaded
-/// vertices undercounts exactly those inputs; on a closed, UV-mapped mesh (about one vertex per
-/// two triangles) the bound is 3–5× the file.
-pub fn estimate_scene_bytes(scene: &crate::mesh::Scene, params: &crate::params::BakeParams) -> u64 {
-    let triangles = scene
-        .meshes
-        .iter()
-        .map(|m| m.triangle_count() as u64)
-        .sum::<u64>();
-    estimate_bytes(
-        3 * triangles,
-        triangles,
-        params.shells.layers as u64,
-        params.strands.mask_size as u64,
-        params.pack.layout,
-    )
-}
-
 /// `COLOR_0` alpha of a single-draw layer at height step `k`, as normalized u16: 1 for the base
 /// layer, [`single_draw_cutoff`]` / cutoff(k)` above it (see the module notes).
 pub fn single_draw_alpha(mask: &Mask, k: u32) -> u16 {
@@ -707,7 +695,7 @@ mod tests {
             let mut p = crate::params::BakeParams::default();
             p.pack.layout = layout;
             let baked = crate::bake(&scene, &p);
-            let est = estimate_scene_bytes(&scene, &p);
+            let est = p.estimate_bytes(&scene);
             let len = baked.glb.len() as u64;
             assert!(est >= len, "{est} < {len}");
             // three vertices per triangle against about a half on a closed mesh

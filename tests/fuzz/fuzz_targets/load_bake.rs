@@ -26,7 +26,7 @@ fuzz_target!(|data: &[u8]| {
     p.shells.layers = 4;
     p.strands.mask_size = 16;
     p.pack.layout = if selector & 2 == 0 { Layout::Compact } else { Layout::SingleDraw };
-    if shellbake::pack::estimate_scene_bytes(&scene, &p) > 64 << 20 {
+    if p.estimate_bytes(&scene) > 64 << 20 {
         return;
     }
     let baked = shellbake::bake_with(&scene, &p, &[shellbake::scene::Effect::Collision]);
