@@ -179,17 +179,8 @@ impl Report {
     }
 
     fn stage_line(&self) -> String {
-        let mut s = "  stages:".to_string();
-        for st in &self.stages {
-            if st.ran {
-                s += &format!(" {} {:.1} ms ·", st.name, st.ms);
-            } else {
-                s += &format!(" {} skipped ·", st.name);
-            }
-        }
-        s.pop();
-        s.pop();
-        s + &format!("\n  total {:.1} ms\n", self.total_ms)
+        let stages = self.stages.iter().map(|st| (st.name, st.ran, st.ms));
+        stage_line(stages, self.total_ms)
     }
 }
 
@@ -275,18 +266,20 @@ impl SceneReport {
     }
 
     fn plan_line(&self) -> String {
-        let mut s = "  stages:".to_string();
-        for p in &self.plan {
-            if p.ran {
-                s += &format!(" {} {:.1} ms ·", p.name, p.ms);
-            } else {
-                s += &format!(" {} skipped ·", p.name);
-            }
-        }
-        s.pop();
-        s.pop();
-        s + &format!("\n  total {:.1} ms\n", self.total_ms)
+        let stages = self.plan.iter().map(|p| (p.name, p.ran, p.ms));
+        stage_line(stages, self.total_ms)
     }
+}
+
+/// The summary's last lines: each stage with its time or "skipped", then the total.
+fn stage_line(stages: impl Iterator<Item = (&'static str, bool, f64)>, total_ms: f64) -> String {
+    let list: Vec<String> = stages
+        .map(|(name, ran, ms)| match ran {
+            true => format!("{name} {ms:.1} ms"),
+            false => format!("{name} skipped"),
+        })
+        .collect();
+    format!("  stages: {}\n  total {total_ms:.1} ms\n", list.join(" · "))
 }
 
 /// `x` with four significant digits and no exponent for ordinary magnitudes (`0.0001234`,

@@ -11,15 +11,8 @@ use common::{fixture, scratch, Glb};
 use serde_json::json;
 
 fn shellbake(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_shellbake"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into(),
-        String::from_utf8_lossy(&out.stderr).into(),
-    )
+    let (code, out, err) = common::shellbake(args);
+    (code == Some(0), out, err)
 }
 
 fn bad_input(dir: &Path, name: &str, content: &[u8]) -> (PathBuf, PathBuf) {

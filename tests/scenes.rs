@@ -8,23 +8,10 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use common::{fixture, repo, scratch};
+use common::{fixture, repo, scratch, shellbake};
 use serde_json::{json, Value};
 use shellbake::scene::{plan, SceneFile, Stage};
-
-fn shellbake(args: &[&str]) -> (Option<i32>, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_shellbake"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code(),
-        String::from_utf8_lossy(&out.stdout).into(),
-        String::from_utf8_lossy(&out.stderr).into(),
-    )
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
@@ -254,7 +241,7 @@ fn flags_apply_on_top_of_every_surface_and_plan_prints_without_baking() {
         .as_str()
         .unwrap()
         .contains("asked by plane, cube"));
-    common::assert_valid(&[out.clone()]);
+    common::assert_valid(std::slice::from_ref(&out));
 
     let before = std::fs::metadata(&out).unwrap().modified().unwrap();
     let (code, stdout, err) = shellbake(&["plan", s(&path), "--layers", "9"]);

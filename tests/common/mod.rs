@@ -96,6 +96,19 @@ impl Glb {
     }
 }
 
+/// Runs the `shellbake` binary: exit code, stdout, stderr.
+pub fn shellbake(args: &[&str]) -> (Option<i32>, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_shellbake"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
 /// Runs a Node script from tests/js on `files`, one JSON line per file.
 pub fn node(script: &str, files: &[PathBuf]) -> Vec<Value> {
     let js = repo().join("tests/js");
