@@ -1,5 +1,6 @@
 //! Determinism: the same input and parameters give byte-identical files for any thread count and
-//! across runs (rayon is used by the strand mask and the clamp's ray casts).
+//! across runs (rayon is used by the strand mask and the clamp's ray casts), for a mesh and for a
+//! two-surface scene.
 
 mod common;
 
@@ -10,14 +11,17 @@ use common::{fixture, scratch};
 #[test]
 fn same_bytes_for_1_2_and_8_threads_and_repeated_runs() {
     let dir = scratch("determinism");
-    for layout in ["compact", "single-draw"] {
+    let bunny = fixture("bunny.obj");
+    let meadow = common::repo().join("fixtures/meadow.toml");
+    for (input, layout) in [(&bunny, "compact"), (&bunny, "single-draw"), (&meadow, "compact")] {
         let mut outputs = Vec::new();
         for (run, threads) in ["1", "2", "8", "8"].iter().enumerate() {
-            let out = dir.join(format!("bunny-{layout}-{threads}-{run}.glb"));
+            let stem = input.file_stem().unwrap().to_str().unwrap();
+            let out = dir.join(format!("{stem}-{layout}-{threads}-{run}.glb"));
             let status = Command::new(env!("CARGO_BIN_EXE_shellbake"))
                 .args([
                     "bake",
-                    fixture("bunny.obj").to_str().unwrap(),
+                    input.to_str().unwrap(),
                     "--clamp",
                     "--layout",
                     layout,
