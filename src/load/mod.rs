@@ -1,4 +1,6 @@
-//! Input: OBJ (tobj) and glTF/GLB (gltf) into [`Scene`]. No tobj or gltf type leaves this module.
+//! Input: OBJ (tobj) and glTF/GLB (our own reader, `document.rs`) into [`Scene`]. No tobj type
+//! leaves this module; the glTF [`document`] is public because the viewer reads files through it
+//! too, so that loader and viewer accept and refuse the same files.
 //!
 //! Everything is checked here, at the boundary, so the stages can assert instead of fail: a
 //! non-finite coordinate, an index past the vertex count, an unreadable or empty file is an
@@ -20,6 +22,7 @@
 //! Missing normals are left `None`; the bake then shades with the extrusion directions.
 
 pub mod accessor;
+pub mod document;
 mod gltf;
 mod obj;
 
