@@ -2,7 +2,8 @@
 //! (node hierarchy, node weights overriding mesh weights, COLOR_0, MASK with
 //! `KHR_texture_transform`, integer attributes, back-face culling), a gltfpack-style quantized
 //! file drawn and loaded like its float original (viewer and loader share one reader), golden
-//! pictures compared with FLIP, and the `render` / `verify` commands end to end.
+//! pictures compared with FLIP, and the `render` / `verify` commands end to end, with what they
+//! print escaped.
 //!
 //! Golden pictures live in `tests/view_images/`; they were rendered on **llvmpipe** (Mesa
 //! lavapipe), which draws them bit-identically run to run, so the threshold [`GOLDEN_FLIP`] only
@@ -617,4 +618,60 @@ fn verify_command_passes_and_writes_pictures() {
             assert!(dir.join(format!("cube-{v}-{kind}.png")).exists());
         }
     }
+}
+
+#[test]
+fn what_render_and_verify_print_about_a_file_is_escaped() {
+    let dir = tmp("escape");
+    std::fs::create_dir_all(&dir).unwrap();
+    // verify prints the input's path and the picture folder
+    let input = dir.join("cu\u{1b}[2Jbe\r.obj");
+    std::fs::copy("fixtures/cube.obj", &input).unwrap();
+    let pictures = dir.join("pics\u{7}");
+    let out = std::process::Command::new(bin())
+        .arg("verify")
+        .arg(&input)
+        .args(["--preset", "moss", "--size", "64", "--out-dir"])
+        .arg(&pictures)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stdout}{stderr}");
+    for text in [&stdout, &stderr] {
+        assert!(
+            !text.contains(['\u{1b}', '\r', '\u{7}']),
+            "raw control character in {text:?}"
+        );
+    }
+    assert!(
+        stdout.contains("cu\\u{1b}[2Jbe\\r.obj") && stdout.contains("pics\\u{7}"),
+        "{stdout}"
+    );
+    // render refuses a file whose required extension carries an escape sequence, naming both
+    // the file and the extension escaped
+    let glb = dir.join("evil\u{1b}]0;x\u{7}.glb");
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "extensionsRequired": ["EXT_\u{1b}[31mred"],
+    });
+    std::fs::write(&glb, shellbake::write::glb_bytes(&doc, &[])).unwrap();
+    let out = std::process::Command::new(bin())
+        .arg("render")
+        .arg(&glb)
+        .arg("-o")
+        .arg(dir.join("evil.png"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.contains(['\u{1b}', '\u{7}']), "{stderr:?}");
+    assert!(
+        stderr.contains("evil\\u{1b}]0;x\\u{7}.glb")
+            && stderr.contains("EXT_\\u{1b}[31mred")
+            && stderr.contains("not supported"),
+        "{stderr}"
+    );
 }
