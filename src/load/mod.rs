@@ -7,7 +7,7 @@
 //! [`Error`] naming the file and the element. OBJ polygons are triangulated (ear clipping where
 //! concave, `obj.rs`), points and lines are ignored, node transforms are applied (glTF) in `f64`.
 //! Files are read only if they are regular files under [`MAX_INPUT_BYTES`] (never a FIFO or a
-//! device; see [`read_regular_file`] for how a file swapped between check and open is caught),
+//! device; see `read_regular_file` for how a file swapped between check and open is caught),
 //! meshes must span at least [`MIN_EXTENT`], and text from a file is escaped
 //! ([`escape`]) before it reaches a message.
 //!
