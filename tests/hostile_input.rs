@@ -1,8 +1,10 @@
-//! Hostile and unusual input at the loader: legal accessors the gltf crate's readers would
-//! assert on, node graphs that share children, symlinks and special files behind URIs and as the
-//! input, concave polygons, polylines and vanishing scales, quantized attributes (a baked file
-//! read back), and OBJ messages. Each must load correctly or be refused with an error naming the
-//! file and the element — never a panic, a hang or a read outside the asset's folder.
+//! Hostile and unusual input at the loader: legal-looking accessors (strides, views, counts),
+//! node graphs that share children, indices out of range and required extensions the glTF reader
+//! does not implement, symlinks and special files behind URIs and as the input, concave
+//! polygons, polylines and vanishing scales, quantized attributes (a baked file read back, also
+//! far from the origin), and OBJ messages. Each must load correctly or be refused with an error
+//! naming the file and the element — never a panic, a hang or a read outside the asset's folder.
+//! The viewer reads files through the same reader and must refuse them with the same words.
 
 mod common;
 
@@ -51,7 +53,7 @@ fn assert_refused(r: Result<shellbake::mesh::Scene, String>, words: &[&str]) {
     }
 }
 
-// 1. Legal-looking accessors that reached assertions in the gltf crate.
+// 1. Legal-looking accessors (once assertions in the gltf crate, now checked by our decoder).
 
 #[test]
 fn a_byte_stride_smaller_than_the_element_is_refused() {
@@ -73,7 +75,7 @@ fn an_accessor_without_a_buffer_view_or_past_its_view_is_refused() {
         .remove("bufferView");
     assert_refused(
         load_json("noview.gltf", &g),
-        &["noview.gltf", "accessors[0]"],
+        &["noview.gltf", "accessor 0", "no buffer view"],
     );
     let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
     g["accessors"][0]["byteOffset"] = json!(8);
@@ -185,6 +187,160 @@ fn instances_in_the_same_place_are_read_once_and_elsewhere_each() {
     let s = load_json("inst.gltf", &g).unwrap();
     assert_eq!(s.meshes.len(), 2);
     assert!(s.warnings.iter().any(|w| w.contains("first instance")));
+}
+
+// 3. What the glTF reader checks before reading a buffer: indices and required extensions.
+
+/// `g` with the value at JSON pointer `at` set (created if missing).
+fn set(g: &mut Value, at: &str, value: Value) {
+    if let Some(slot) = g.pointer_mut(at) {
+        *slot = value;
+        return;
+    }
+    let (parent, key) = at.rsplit_once('/').unwrap();
+    g.pointer_mut(parent).unwrap()[key] = value;
+}
+
+/// (JSON pointer, value, the words the error must hold after the file name).
+fn out_of_range_cases() -> Vec<(String, Value, &'static str)> {
+    let prim = "/meshes/0/primitives/0";
+    let cases = [
+        (
+            "/nodes/0/mesh".to_string(),
+            json!(4),
+            "node 0: mesh 4 out of range (the file has 1)",
+        ),
+        (
+            "/nodes/0/children".into(),
+            json!([9]),
+            "node 0: node 9 out of range (the file has 1)",
+        ),
+        (
+            format!("{prim}/attributes/NORMAL"),
+            json!(17),
+            "mesh 0 primitive 0: accessor 17 out of range (the file has 1)",
+        ),
+        (
+            format!("{prim}/indices"),
+            json!(3),
+            "mesh 0 primitive 0: accessor 3 out of range",
+        ),
+        (
+            format!("{prim}/material"),
+            json!(0),
+            "mesh 0 primitive 0: material 0 out of range (the file has 0)",
+        ),
+        (
+            format!("{prim}/targets"),
+            json!([{"POSITION": 5}]),
+            "mesh 0 primitive 0: target 0: accessor 5 out of range",
+        ),
+        (
+            "/accessors/0/bufferView".into(),
+            json!(2),
+            "accessor 0: buffer view 2 out of range (the file has 1)",
+        ),
+        (
+            "/bufferViews/0/buffer".into(),
+            json!(1),
+            "buffer view 0: buffer 1 out of range (the file has 1)",
+        ),
+        (
+            "/scenes/0/nodes".into(),
+            json!([0, 5]),
+            "scene 0: node 5 out of range",
+        ),
+        (
+            "/scene".into(),
+            json!(3),
+            "scene 3 out of range (the file has 1)",
+        ),
+    ];
+    cases.into()
+}
+
+#[test]
+fn indices_out_of_range_are_refused_naming_the_element() {
+    for (at, value, words) in out_of_range_cases() {
+        let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+        set(&mut g, &at, value);
+        assert_refused(load_json("index.gltf", &g), &["index.gltf: ", words]);
+    }
+}
+
+#[test]
+fn required_extensions_the_reader_lacks_are_refused_by_name() {
+    for ext in [
+        "KHR_meshopt_compression",
+        "EXT_meshopt_compression",
+        "KHR_draco_mesh_compression",
+        "EXT_unheard_of",
+    ] {
+        let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+        g["extensionsUsed"] = json!([ext]);
+        g["extensionsRequired"] = json!(["KHR_mesh_quantization", ext]);
+        if ext.contains("meshopt") {
+            // as gltfpack -c writes it: the view's bytes are compressed, the extension says how
+            g["bufferViews"][0]["extensions"] = json!({ext: {
+                "buffer": 0, "byteLength": 36, "byteStride": 12, "count": 3, "mode": "ATTRIBUTES"
+            }});
+        }
+        assert_refused(
+            load_json("packed.gltf", &g),
+            &["packed.gltf: extensionsRequired", ext, "not supported"],
+        );
+    }
+    // Used without being required: the file reads as plain glTF.
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["extensionsUsed"] = json!(["EXT_unheard_of"]);
+    assert!(load_json("used.gltf", &g).is_ok());
+}
+
+/// The loader and the viewer read files through one reader, so a file broken in any of the ways
+/// the reader checks is refused by both with the same message.
+#[cfg(feature = "view")]
+#[test]
+fn loader_and_viewer_refuse_a_broken_file_with_the_same_message() {
+    let dir = scratch("hostile_same_reader");
+    let pos = f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let glb_of = |g: &Value| {
+        let mut g = g.clone();
+        g["buffers"] = json!([{"byteLength": 36}]);
+        shellbake::write::glb_bytes(&g, &pos)
+    };
+    let mut broken: Vec<(String, Vec<u8>)> = Vec::new();
+    for (i, (at, value, _)) in out_of_range_cases().into_iter().enumerate() {
+        let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+        set(&mut g, &at, value);
+        broken.push((format!("index{i}.glb"), glb_of(&g)));
+    }
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    broken.push(("draco.glb".into(), glb_of(&g)));
+    let g = triangle_gltf(
+        json!([{"children": [2]}, {"children": [2]}, {"mesh": 0}]),
+        json!([{"nodes": [0, 1]}]),
+    );
+    broken.push(("parents.glb".into(), glb_of(&g)));
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    g["buffers"] = json!([{"byteLength": 36}]);
+    broken.push(("nobin.glb".into(), shellbake::write::glb_bytes(&g, &[])));
+    let mut short = glb_of(&triangle_gltf(
+        json!([{"mesh": 0}]),
+        json!([{"nodes": [0]}]),
+    ));
+    short[8] = 19;
+    broken.push(("header.glb".into(), short));
+    for (name, bytes) in broken {
+        let path = dir.join(&name);
+        std::fs::write(&path, bytes).unwrap();
+        let loader = load(&path).unwrap_err().to_string();
+        let viewer = shellbake::view::glb::Asset::open(&path)
+            .unwrap_err()
+            .to_string();
+        assert!(loader.contains(&name), "{loader}");
+        assert_eq!(loader, viewer, "{name}");
+    }
 }
 
 // 6. Symlinks and special files.
@@ -390,6 +546,35 @@ fn a_baked_file_is_read_back_as_its_base_layer_and_baked_again() {
         }
         let again = shellbake::bake(&back, &p);
         assert!(again.glb.len() > 12);
+    }
+}
+
+#[test]
+fn a_baked_file_far_from_the_origin_reads_back_where_it_was() {
+    // The dequantization translation is written in f64; read as f32, 1e6 + 0.3 would move the
+    // mesh by 0.0125 units, about a hundred quantization steps of this cube.
+    use glam::DVec3;
+    use shellbake::params::BakeParams;
+    let mut scene = load(&fixture("cube.obj")).unwrap();
+    scene.meshes[0].origin += DVec3::new(1e6 + 0.3, -2e6 + 0.7, 0.1);
+    let mut p = BakeParams::default();
+    p.shells.layers = 4;
+    p.strands.mask_size = 32;
+    let baked = shellbake::bake(&scene, &p);
+    let back = load_bytes(Path::new("far.glb"), &baked.glb).unwrap();
+    let bounds = |m: &shellbake::mesh::Mesh| {
+        let w = m.positions.iter().map(|p| p.as_dvec3() + m.origin);
+        let lo = w.clone().fold(DVec3::INFINITY, DVec3::min);
+        let hi = w.fold(DVec3::NEG_INFINITY, DVec3::max);
+        (lo, hi)
+    };
+    let (a, b) = (bounds(&scene.meshes[0]), bounds(&back.meshes[0]));
+    let step = baked.packed.scale;
+    for (x, y) in [(a.0, b.0), (a.1, b.1)] {
+        assert!(
+            (x - y).abs().max_element() <= step,
+            "{x} vs {y} (quantization step {step})"
+        );
     }
 }
 

@@ -1,7 +1,9 @@
 //! Image tests of the glTF renderer: a hand-built asset whose pixels have exact expectations
 //! (node hierarchy, node weights overriding mesh weights, COLOR_0, MASK with
-//! `KHR_texture_transform`, integer attributes, back-face culling), golden pictures compared
-//! with FLIP, and the `render` / `verify` commands end to end.
+//! `KHR_texture_transform`, integer attributes, back-face culling), a gltfpack-style quantized
+//! file drawn and loaded like its float original (viewer and loader share one reader), golden
+//! pictures compared with FLIP, and the `render` / `verify` commands end to end, with what they
+//! print escaped.
 //!
 //! Golden pictures live in `tests/view_images/`; they were rendered on **llvmpipe** (Mesa
 //! lavapipe), which draws them bit-identically run to run, so the threshold [`GOLDEN_FLIP`] only
@@ -232,6 +234,174 @@ fn feature_asset() -> Vec<u8> {
     shellbake::write::glb_bytes(&doc, &bin)
 }
 
+/// The sphere fixture as a float glTF and as gltfpack writes it quantized: `KHR_mesh_quantization`
+/// required, positions as `u16` (stride 8) dequantized by the node's translation and scale,
+/// normals as normalized `i8` (stride 4), UVs as normalized `u16` dequantized by the material's
+/// `KHR_texture_transform`; a 4×4 checker texture on both. Returns (float, quantized, step).
+fn sphere_float_and_quantized() -> (Vec<u8>, Vec<u8>, f64) {
+    let scene = shellbake::load::load(Path::new("fixtures/sphere.obj")).unwrap();
+    let m = &scene.meshes[0];
+    let (normals, uvs) = (m.normals.as_ref().unwrap(), m.uvs.as_ref().unwrap());
+    let n = m.positions.len();
+    let ix: Vec<u8> = m.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+    let mut png = Vec::new();
+    RgbaImage::from_fn(4, 4, |x, y| {
+        let c = if (x + y) % 2 == 0 { 230 } else { 40 };
+        image::Rgba([c, c / 2, 255 - c, 255])
+    })
+    .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+    .unwrap();
+    let doc = |views: Vec<serde_json::Value>,
+               accessors: Vec<serde_json::Value>,
+               node: serde_json::Value,
+               transform: serde_json::Value,
+               len: usize| {
+        json!({
+            "asset": { "version": "2.0" },
+            "extensionsUsed": ["KHR_mesh_quantization", "KHR_texture_transform"],
+            "extensionsRequired": ["KHR_mesh_quantization"],
+            "scenes": [{ "nodes": [0] }],
+            "nodes": [node],
+            "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2 }, "indices": 3, "material": 0 }] }],
+            "materials": [{ "pbrMetallicRoughness": { "metallicFactor": 0.0,
+                "baseColorTexture": { "index": 0, "extensions": { "KHR_texture_transform": transform } } } }],
+            "textures": [{ "sampler": 0, "source": 0 }],
+            "images": [{ "bufferView": 4, "mimeType": "image/png" }],
+            "samplers": [{ "magFilter": 9728, "minFilter": 9728 }],
+            "accessors": accessors,
+            "bufferViews": views,
+            "buffers": [{ "byteLength": len }]
+        })
+    };
+    let index_accessor =
+        json!({ "bufferView": 3, "componentType": 5125, "count": ix.len() / 4, "type": "SCALAR" });
+
+    // float
+    let mut bin = Vec::new();
+    let p: Vec<f32> = m.positions.iter().flat_map(|p| p.to_array()).collect();
+    let (lo, hi) = m.positions.iter().fold(
+        (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let views = vec![
+        push(&mut bin, &f32s(&p), None),
+        push(
+            &mut bin,
+            &f32s(
+                &normals
+                    .iter()
+                    .flat_map(|v| v.to_array())
+                    .collect::<Vec<_>>(),
+            ),
+            None,
+        ),
+        push(
+            &mut bin,
+            &f32s(&uvs.iter().flat_map(|v| v.to_array()).collect::<Vec<_>>()),
+            None,
+        ),
+        push(&mut bin, &ix, None),
+        push(&mut bin, &png, None),
+    ];
+    let accessors = vec![
+        json!({ "bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3", "min": lo.to_array(), "max": hi.to_array() }),
+        json!({ "bufferView": 1, "componentType": 5126, "count": n, "type": "VEC3" }),
+        json!({ "bufferView": 2, "componentType": 5126, "count": n, "type": "VEC2" }),
+        index_accessor.clone(),
+    ];
+    let node = json!({ "mesh": 0, "translation": m.origin.to_array() });
+    let float =
+        shellbake::write::glb_bytes(&doc(views, accessors, node, json!({}), bin.len()), &bin);
+
+    // quantized
+    let step = ((hi - lo).max_element() / 65535.0) as f64;
+    let (uv_lo, uv_hi) = uvs.iter().fold(
+        (glam::Vec2::INFINITY, glam::Vec2::NEG_INFINITY),
+        |(lo, hi), &t| (lo.min(t), hi.max(t)),
+    );
+    let uv_range = (uv_hi - uv_lo).max(glam::Vec2::splat(1e-6));
+    let mut bin = Vec::new();
+    let qp: Vec<u8> = m
+        .positions
+        .iter()
+        .flat_map(|&p| {
+            let q = ((p - lo).as_dvec3() / step).round().as_uvec3();
+            [q.x as u16, q.y as u16, q.z as u16, 0]
+        })
+        .flat_map(u16::to_le_bytes)
+        .collect();
+    let qn: Vec<u8> = normals
+        .iter()
+        .flat_map(|v| {
+            let q = (*v * 127.0).round();
+            [q.x as i8 as u8, q.y as i8 as u8, q.z as i8 as u8, 0]
+        })
+        .collect();
+    let qt: Vec<u8> = uvs
+        .iter()
+        .flat_map(|&t| {
+            let q = ((t - uv_lo) / uv_range * 65535.0).round();
+            [q.x as u16, q.y as u16]
+        })
+        .flat_map(u16::to_le_bytes)
+        .collect();
+    let views = vec![
+        push(&mut bin, &qp, Some(8)),
+        push(&mut bin, &qn, Some(4)),
+        push(&mut bin, &qt, None),
+        push(&mut bin, &ix, None),
+        push(&mut bin, &png, None),
+    ];
+    let accessors = vec![
+        json!({ "bufferView": 0, "componentType": 5123, "count": n, "type": "VEC3", "min": [0, 0, 0], "max": [65535, 65535, 65535] }),
+        json!({ "bufferView": 1, "componentType": 5120, "normalized": true, "count": n, "type": "VEC3" }),
+        json!({ "bufferView": 2, "componentType": 5123, "normalized": true, "count": n, "type": "VEC2" }),
+        index_accessor,
+    ];
+    let origin = m.origin + lo.as_dvec3();
+    let node = json!({ "mesh": 0, "translation": origin.to_array(), "scale": [step, step, step] });
+    let transform = json!({ "offset": uv_lo.to_array(), "scale": uv_range.to_array() });
+    let quantized =
+        shellbake::write::glb_bytes(&doc(views, accessors, node, transform, bin.len()), &bin);
+    (float, quantized, step)
+}
+
+#[test]
+fn a_gltfpack_style_quantized_file_draws_and_loads_like_its_float_original() {
+    let (float, quantized, step) = sphere_float_and_quantized();
+    let size = (128, 128);
+    let camera = view::camera_for_glb(&float, NamedView::Front.orbit(), size).unwrap();
+    let (a, _) = view::render_baked(gpu(), &float, &camera, size, 1).unwrap();
+    let (b, _) = view::render_baked(gpu(), &quantized, &camera, size, 1).unwrap();
+    let c = view::compare::compare(&a, &b);
+    // 16-bit positions and UVs, 8-bit normals: shading moves by a level here and there.
+    assert!(
+        c.flip_mean < 0.01 && c.differing_fraction() < 0.01,
+        "FLIP mean {} differing {}",
+        c.flip_mean,
+        c.differing_fraction()
+    );
+    // The loader reads the same file through the same reader: the same vertices, within half a
+    // quantization step, and normals within the 8-bit rounding.
+    let load = |glb: &[u8]| {
+        shellbake::load::load_bytes(Path::new("sphere.glb"), glb)
+            .unwrap()
+            .meshes
+            .remove(0)
+    };
+    let (f, q) = (load(&float), load(&quantized));
+    assert_eq!(f.indices, q.indices);
+    for (i, (pf, pq)) in f.positions.iter().zip(&q.positions).enumerate() {
+        let (wf, wq) = (pf.as_dvec3() + f.origin, pq.as_dvec3() + q.origin);
+        assert!(
+            (wf - wq).abs().max_element() <= 0.51 * step + 1e-7,
+            "vertex {i}: {wf} vs {wq}"
+        );
+    }
+    let (nf, nq) = (f.normals.unwrap(), q.normals.unwrap());
+    assert!(nf.iter().zip(&nq).all(|(a, b)| a.dot(*b) > 0.9999));
+}
+
 fn render_features() -> (RgbaImage, Camera) {
     let mut r = GltfRenderer::from_glb(gpu(), &feature_asset()).unwrap();
     let camera = Camera::frame(
@@ -448,4 +618,60 @@ fn verify_command_passes_and_writes_pictures() {
             assert!(dir.join(format!("cube-{v}-{kind}.png")).exists());
         }
     }
+}
+
+#[test]
+fn what_render_and_verify_print_about_a_file_is_escaped() {
+    let dir = tmp("escape");
+    std::fs::create_dir_all(&dir).unwrap();
+    // verify prints the input's path and the picture folder
+    let input = dir.join("cu\u{1b}[2Jbe\r.obj");
+    std::fs::copy("fixtures/cube.obj", &input).unwrap();
+    let pictures = dir.join("pics\u{7}");
+    let out = std::process::Command::new(bin())
+        .arg("verify")
+        .arg(&input)
+        .args(["--preset", "moss", "--size", "64", "--out-dir"])
+        .arg(&pictures)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stdout}{stderr}");
+    for text in [&stdout, &stderr] {
+        assert!(
+            !text.contains(['\u{1b}', '\r', '\u{7}']),
+            "raw control character in {text:?}"
+        );
+    }
+    assert!(
+        stdout.contains("cu\\u{1b}[2Jbe\\r.obj") && stdout.contains("pics\\u{7}"),
+        "{stdout}"
+    );
+    // render refuses a file whose required extension carries an escape sequence, naming both
+    // the file and the extension escaped
+    let glb = dir.join("evil\u{1b}]0;x\u{7}.glb");
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "extensionsRequired": ["EXT_\u{1b}[31mred"],
+    });
+    std::fs::write(&glb, shellbake::write::glb_bytes(&doc, &[])).unwrap();
+    let out = std::process::Command::new(bin())
+        .arg("render")
+        .arg(&glb)
+        .arg("-o")
+        .arg(dir.join("evil.png"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(!stderr.contains(['\u{1b}', '\u{7}']), "{stderr:?}");
+    assert!(
+        stderr.contains("evil\\u{1b}]0;x\\u{7}.glb")
+            && stderr.contains("EXT_\\u{1b}[31mred")
+            && stderr.contains("not supported"),
+        "{stderr}"
+    );
 }

@@ -1,13 +1,14 @@
-//! One glTF accessor decoder, shared by the loader (`gltf.rs`) and the viewer's reader
-//! (`view/glb.rs`), so that both read a file the same way and check it the same way.
+//! The glTF accessor decoder of the one glTF reader (`document.rs`), through which the loader
+//! (`gltf.rs`) and the viewer (`view/glb.rs`) read every accessor, so that both read a file the
+//! same way and check it the same way.
 //!
 //! [`decode`] takes the bytes of a buffer view and an accessor's [`Layout`], checks the layout
 //! against the spec before reading a byte — at least one element, a known component type, a
 //! `byteStride` no smaller than the element, every element inside the view, all computed without
 //! overflow — and returns every component as `f64`: `normalized` integers mapped by the glTF 2.0
 //! rules (`i8`: `max(c/127, −1)`, `u8`: `c/255`, `i16`: `max(c/32767, −1)`, `u16`: `c/65535`),
-//! other integers and floats converted exactly. The callers name the file and the accessor in
-//! their errors.
+//! other integers and floats converted exactly. The reader names the file and the accessor in
+//! its errors.
 
 /// How an accessor lays out its elements in its buffer view.
 #[derive(Clone, Copy, Debug)]

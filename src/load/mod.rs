@@ -1,11 +1,14 @@
-//! Input: OBJ (tobj) and glTF/GLB (gltf) into [`Scene`]. No tobj or gltf type leaves this module.
+//! Input: OBJ (tobj) and glTF/GLB (our own reader, `document.rs`) into [`Scene`]. No tobj type
+//! leaves this module; the glTF [`document`] is public because the viewer reads files through it
+//! too, so that loader and viewer accept and refuse the same files.
 //!
 //! Everything is checked here, at the boundary, so the stages can assert instead of fail: a
 //! non-finite coordinate, an index past the vertex count, an unreadable or empty file is an
 //! [`Error`] naming the file and the element. OBJ polygons are triangulated (ear clipping where
 //! concave, `obj.rs`), points and lines are ignored, node transforms are applied (glTF) in `f64`.
 //! Files are read only if they are regular files under [`MAX_INPUT_BYTES`] (never a FIFO or a
-//! device), meshes must span at least [`MIN_EXTENT`], and text from a file is escaped
+//! device; see `read_regular_file` for how a file swapped between check and open is caught),
+//! meshes must span at least [`MIN_EXTENT`], and text from a file is escaped
 //! ([`escape`]) before it reaches a message.
 //!
 //! Missing UVs: a **per-face box projection** is generated — each triangle is projected on the
@@ -20,6 +23,7 @@
 //! Missing normals are left `None`; the bake then shades with the extrusion directions.
 
 pub mod accessor;
+pub mod document;
 mod gltf;
 mod obj;
 
@@ -91,7 +95,10 @@ pub(crate) fn escape(s: &str) -> String {
 
 /// Reads a regular file of at most `limit` bytes. The type is checked before opening (opening a
 /// FIFO blocks until a writer comes; a device such as `/dev/zero` never ends), and again on the
-/// open handle; the read itself stops past `limit`.
+/// open handle, which is what counts: a path swapped for a FIFO between the check and the open
+/// is opened with `O_NONBLOCK` (so the open returns at once, writer or not) and refused by that
+/// second check, and `O_NOCTTY` keeps a terminal swapped in from becoming the process's. The read
+/// itself stops past `limit`.
 pub(crate) fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
     use std::io::{Error as IoError, ErrorKind, Read};
     let refuse = |m: String| IoError::new(ErrorKind::InvalidInput, m);
@@ -104,7 +111,7 @@ pub(crate) fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<
     if meta.len() > limit {
         return Err(too_large());
     }
-    let file = std::fs::File::open(path)?;
+    let file = open_without_blocking(path)?;
     if !file.metadata()?.is_file() {
         return Err(not_regular());
     }
@@ -114,6 +121,20 @@ pub(crate) fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<
         return Err(too_large());
     }
     Ok(out)
+}
+
+/// Opens `path` for reading without waiting for anything: on Unix with `O_NONBLOCK` (a FIFO
+/// opens at once instead of waiting for a writer; on a regular file the flag changes nothing)
+/// and `O_NOCTTY`.
+fn open_without_blocking(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK | libc::O_NOCTTY);
+    }
+    options.open(path)
 }
 
 /// Reads an `.obj`, `.gltf` or `.glb` file (a regular file of at most [`MAX_INPUT_BYTES`]). Fails with an error that names the file and the
@@ -244,6 +265,31 @@ mod tests {
             e.to_string().contains("vertex 1") && e.to_string().contains("big.obj"),
             "{e}"
         );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_opens_without_waiting_and_is_refused_on_the_handle() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("swapped.obj");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        // The open itself, as after a swap that the path check did not see: no writer exists,
+        // so a blocking open would never return.
+        let (tx, rx) = std::sync::mpsc::channel();
+        let path = fifo.clone();
+        std::thread::spawn(move || {
+            let _ = tx.send(open_without_blocking(&path).map(|f| f.metadata().unwrap().is_file()));
+        });
+        let opened = rx
+            .recv_timeout(std::time::Duration::from_secs(5))
+            .expect("opening a FIFO blocked");
+        assert!(!opened.unwrap(), "a FIFO reads as a regular file");
+        let e = read_regular_file(&fifo, 100).unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
     }
 
     #[test]

@@ -1,6 +1,8 @@
 //! The `render`, `view`, `verify` and `bench` commands: their flags (first tier, close to clap) and the
 //! functions the binary dispatches to. `verify` takes the bake flags from the binary's
-//! `BakeArgs` (already turned into [`BakeParams`]) plus [`VerifyArgs`].
+//! `BakeArgs` (already turned into [`BakeParams`]) plus [`VerifyArgs`]. What they print goes
+//! through [`escape`] wherever it holds a path or text that did not come from us (a file name
+//! with an escape sequence must not drive the terminal), as the loader's messages do.
 
 use std::path::{Path, PathBuf};
 
@@ -10,7 +12,13 @@ use super::gltf::GltfRenderer;
 use super::gpu::{save_png, Gpu, Light, Result, ViewError};
 use super::reference::ReferenceInput;
 use super::verify;
+use crate::load::escape;
 use crate::params::BakeParams;
+
+/// `path` as printable text (see the module doc).
+fn shown(path: &Path) -> String {
+    escape(&path.display().to_string())
+}
 
 /// `WxH`, e.g. `512x512`.
 pub fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
@@ -136,8 +144,8 @@ pub fn bench(input: &Path, params: &BakeParams, args: &BenchArgs) -> Result<()> 
     let reference_triangles = baked.mesh.triangle_count() * baked.shells.t.len();
     println!(
         "bench {} on {} ({:?}), {}x{}, {} frames, {} layers, {} layout",
-        input.display(),
-        info.name,
+        shown(input),
+        escape(&info.name),
         info.backend,
         args.size.0,
         args.size.1,
@@ -211,7 +219,7 @@ pub fn view(args: &ViewArgs) -> Result<()> {
     let title = args
         .input
         .file_name()
-        .map_or("shellbake".into(), |n| n.to_string_lossy().into_owned());
+        .map_or("shellbake".into(), |n| escape(&n.to_string_lossy()));
     super::window::run(
         asset,
         super::window::ViewOptions {
@@ -252,15 +260,15 @@ pub fn verify(
     if !quiet {
         println!(
             "verify {} on {} ({}x{})",
-            input.display(),
-            result.adapter,
+            shown(input),
+            escape(&result.adapter),
             args.size,
             args.size
         );
         for v in &result.views {
             println!("  {}", v.line());
         }
-        println!("  pictures in {}", args.out_dir.display());
+        println!("  pictures in {}", shown(&args.out_dir));
     }
     if result.passed() {
         Ok(())

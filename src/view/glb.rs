@@ -1,26 +1,27 @@
-//! Reading the glTF subset the viewer draws: a GLB container, its JSON, its accessors decoded to
-//! `f32`, its node hierarchy flattened to world matrices, its materials and embedded PNG textures.
+//! Reading the glTF subset the viewer draws into an [`Asset`]: accessors decoded to `f32`,
+//! instances with world matrices in `f64`, materials and embedded PNG textures.
 //!
-//! The viewer parses glTF itself with `serde_json` instead of the `gltf` crate, because that crate
-//! refuses `KHR_mesh_quantization`, which every shellbake output requires. The parser is small
-//! because the subset is small:
+//! The file itself is read by the loader's glTF reader (`load/document.rs`): GLB split, JSON,
+//! required extensions, every index between objects, the node forest, buffers (GLB chunk,
+//! `data:` URIs, files confined to the asset's folder) and accessors (`load/accessor.rs`), so the
+//! viewer draws exactly the files the loader reads and refuses the others with the same errors.
+//! What is added here is what only drawing needs:
 //!
-//! - **Accessors**: decoded by the loader's decoder (`load/accessor.rs`, one reader of accessors
-//!   for both), which checks each layout against the spec first: every component type,
-//!   normalized or not, any legal `byteStride`, decoded to `f32` with the glTF 2.0 rules (`i8`:
-//!   `max(c/127, −1)`, `u8`: `c/255`, `i16`: `max(c/32767, −1)`, `u16`: `c/65535`;
-//!   non-normalized integers convert exactly). Sparse accessors are refused with
-//!   an error naming the accessor; an accessor without a buffer view reads as zeros (the spec).
-//! - **Nodes**: TRS or `matrix`, composed in `f64` so a model placed 1e6 units from the origin keeps
-//!   its precision until the renderer subtracts the camera anchor. Node `weights` override mesh
-//!   `weights`. `MSFT_lod` is understood: level `k` of a node draws its `k`-th alternative.
+//! - **Accessors** decoded to `f32` (exact for every integer format, normalized or not, with the
+//!   glTF 2.0 rules); an accessor without a buffer view reads as zeros (the spec); sparse ones are
+//!   refused with an error naming the accessor. Index accessors must be unsigned `SCALAR`s with
+//!   a buffer view.
+//! - **Instances**: the reader's walk of the node forest, world matrices composed in `f64` so a
+//!   model placed 1e6 units from the origin keeps its precision until the renderer subtracts the
+//!   camera anchor. Node `weights` override mesh `weights`. `MSFT_lod` is understood: level `k`
+//!   of a node draws its `k`-th alternative.
 //! - **Materials**: metallic-roughness factors, `baseColorTexture` on `TEXCOORD_0` with
 //!   `KHR_texture_transform`, `alphaMode` (`OPAQUE`, `MASK` + `alphaCutoff`, `BLEND`),
 //!   `doubleSided`, `emissiveFactor`. Other textures (normal, occlusion, metallic-roughness maps)
 //!   are ignored: shellbake writes none.
-//! - **Images**: PNG from a buffer view or a `data:` URI; sampler filters (mipmapped ones get a
-//!   mip chain, see `gltf.rs`; a sampler without `minFilter` is read as `LINEAR_MIPMAP_LINEAR`,
-//!   as three.js does) and wrap modes.
+//! - **Images**: PNG from a buffer view or a URI the reader resolves; sampler filters (mipmapped
+//!   ones get a mip chain, see `gltf.rs`; a sampler without `minFilter` is read as
+//!   `LINEAR_MIPMAP_LINEAR`, as three.js does) and wrap modes.
 //! - **Morph targets**: `POSITION` deltas only (the only kind shellbake writes), at most
 //!   [`MAX_MORPH_TARGETS`] per primitive.
 //!
@@ -33,15 +34,16 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use base64::Engine as _;
-use glam::{DMat4, DQuat, DVec3};
+use glam::{DMat4, DVec3};
 use serde_json::Value;
 
-/// Most elements an accessor without a buffer view (all zeros) may declare.
-const MAX_ZERO_ELEMENTS: usize = 1 << 24;
+use crate::load::document::{self, Document, Kind};
 
 /// Morph targets per primitive the vertex shader supports.
 pub const MAX_MORPH_TARGETS: usize = 4;
+
+/// The name errors give a document parsed from bytes in memory.
+const IN_MEMORY: &str = "GLB in memory";
 
 /// An error reading a GLB: what and where.
 #[derive(Debug, thiserror::Error)]
@@ -50,52 +52,26 @@ pub struct GlbError {
     pub what: String,
 }
 
-fn err(what: impl Into<String>) -> GlbError {
-    GlbError { what: what.into() }
+impl From<crate::Error> for GlbError {
+    fn from(e: crate::Error) -> GlbError {
+        GlbError {
+            what: e.to_string(),
+        }
+    }
 }
 
 pub type Result<T> = std::result::Result<T, GlbError>;
 
-/// Splits a GLB container into its JSON document and its binary chunk.
+/// Splits a GLB container into its JSON document and its binary chunk (empty when absent).
 pub fn split_glb(bytes: &[u8]) -> Result<(Value, Vec<u8>)> {
-    let u32_at = |o: usize| -> Result<u32> {
-        bytes
-            .get(o..o + 4)
-            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .ok_or_else(|| err(format!("GLB truncated at byte {o}")))
+    let glb = |what: String| GlbError {
+        what: format!("GLB: {what}"),
     };
-    if bytes.get(0..4) != Some(b"glTF") {
-        return Err(err("not a GLB file (magic is not 'glTF')"));
-    }
-    if u32_at(4)? != 2 {
-        return Err(err(format!(
-            "GLB version {} (only 2 is supported)",
-            u32_at(4)?
-        )));
-    }
-    let total = (u32_at(8)? as usize).min(bytes.len());
-    let mut offset = 12;
-    let (mut json, mut bin) = (None, Vec::new());
-    while offset + 8 <= total {
-        let len = u32_at(offset)? as usize;
-        let kind = u32_at(offset + 4)?;
-        let body = bytes
-            .get(offset + 8..offset + 8 + len)
-            .ok_or_else(|| err(format!("GLB chunk at byte {offset} runs past the end")))?;
-        match kind {
-            0x4E4F_534A => {
-                json =
-                    Some(serde_json::from_slice(body).map_err(|e| err(format!("GLB JSON: {e}")))?)
-            }
-            0x004E_4942 if bin.is_empty() => bin = body.to_vec(),
-            _ => {}
-        }
-        offset += 8 + len.div_ceil(4) * 4;
-    }
-    Ok((json.ok_or_else(|| err("GLB has no JSON chunk"))?, bin))
+    let (json, bin) = document::split_glb(bytes).map_err(glb)?;
+    let json = serde_json::from_slice(json).map_err(|e| glb(format!("JSON: {e}")))?;
+    Ok((json, bin.map(<[u8]>::to_vec).unwrap_or_default()))
 }
 
-/// A decoded accessor: `count` elements of `components` floats each.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Floats {
     pub components: usize,
@@ -217,16 +193,6 @@ pub struct Mesh {
     pub weights: Vec<f32>,
 }
 
-#[derive(Clone, Debug, PartialEq)]
-pub struct Node {
-    pub local: DMat4,
-    pub mesh: Option<usize>,
-    pub children: Vec<usize>,
-    pub weights: Option<Vec<f32>>,
-    /// `MSFT_lod` alternatives, coarser first-to-last.
-    pub lods: Vec<usize>,
-}
-
 /// One mesh instance to draw: a node's mesh with its world matrix, morph weights and layer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Instance {
@@ -241,11 +207,13 @@ pub struct Instance {
 /// A parsed glTF asset.
 #[derive(Debug)]
 pub struct Asset {
-    pub json: Value,
-    pub bin: Vec<u8>,
+    /// The checked document (the loader's reader).
+    pub doc: Document,
+    /// Its buffers, resolved.
+    buffers: Vec<Vec<u8>>,
     pub meshes: Vec<Mesh>,
-    pub nodes: Vec<Node>,
-    pub roots: Vec<usize>,
+    /// `MSFT_lod` alternatives of each node, coarser first-to-last.
+    pub lods: Vec<Vec<usize>>,
     pub materials: Vec<Material>,
     pub textures: Vec<Texture>,
     /// Layer count from `extras.shellbake.layers` of node 0, when the file is a shellbake bake.
@@ -259,272 +227,150 @@ fn f32s(v: &Value) -> Option<Vec<f32>> {
         .collect()
 }
 
-fn f64s(v: &Value) -> Option<Vec<f64>> {
-    v.as_array()?.iter().map(|x| x.as_f64()).collect()
-}
-
 fn index(v: &Value) -> Option<usize> {
     v.as_u64().map(|u| u as usize)
 }
 
 impl Asset {
-    /// Reads a `.glb` file.
+    /// Reads a `.glb` or `.gltf` file (a regular file of at most
+    /// [`MAX_INPUT_BYTES`](crate::load::MAX_INPUT_BYTES); relative URIs inside its folder).
     pub fn open(path: &Path) -> Result<Asset> {
-        let bytes = std::fs::read(path).map_err(|e| err(format!("{}: {e}", path.display())))?;
-        Asset::from_glb(&bytes).map_err(|e| err(format!("{}: {}", path.display(), e.what)))
+        let bytes = crate::load::read_regular_file(path, crate::load::MAX_INPUT_BYTES)
+            .map_err(|e| crate::Error::io(path, e))?;
+        Asset::from_document(Document::parse(path, &bytes)?)
     }
 
-    /// Parses GLB bytes.
+    /// Parses GLB (or `.gltf` JSON) bytes; a URI naming a file is refused.
     pub fn from_glb(bytes: &[u8]) -> Result<Asset> {
-        let (json, bin) = split_glb(bytes)?;
-        Asset::from_parts(json, bin)
+        Asset::from_document(Document::parse(Path::new(IN_MEMORY), bytes)?.without_files())
     }
 
-    /// Parses a glTF document whose buffer 0 is `bin`.
+    /// Parses a glTF document whose GLB binary chunk is `bin`.
     pub fn from_parts(json: Value, bin: Vec<u8>) -> Result<Asset> {
-        let arr = |k: &str| json[k].as_array().cloned().unwrap_or_default();
+        let doc = Document::from_json(Path::new(IN_MEMORY), json, Some(bin))?;
+        Asset::from_document(doc.without_files())
+    }
+
+    /// The viewer's view of a checked document: its buffers resolved, primitives it can draw,
+    /// `MSFT_lod` alternatives, materials and textures.
+    pub fn from_document(doc: Document) -> Result<Asset> {
+        let buffers = doc.load_buffers()?;
+        let invalid = |element: String, message: String| -> GlbError {
+            crate::Error::invalid(&doc.path, element, message).into()
+        };
         let mut meshes = Vec::new();
-        for (m, mesh) in arr("meshes").iter().enumerate() {
+        for (m, mesh) in doc.meshes.iter().enumerate() {
             let mut primitives = Vec::new();
-            for (p, prim) in mesh["primitives"]
-                .as_array()
-                .cloned()
-                .unwrap_or_default()
-                .iter()
-                .enumerate()
-            {
-                let at = &prim["attributes"];
-                let mode = prim["mode"].as_u64().unwrap_or(4);
-                if mode != 4 {
-                    return Err(err(format!(
-                        "mesh {m} primitive {p}: mode {mode} (only triangles are drawn)"
-                    )));
+            for (p, prim) in mesh.primitives.iter().enumerate() {
+                let element = || format!("mesh {m} primitive {p}");
+                if prim.mode != 4 {
+                    return Err(invalid(
+                        element(),
+                        format!(
+                            "mode {} (only triangles are drawn)",
+                            document::mode_name(prim.mode)
+                        ),
+                    ));
                 }
-                let position = index(&at["POSITION"])
-                    .ok_or_else(|| err(format!("mesh {m} primitive {p} has no POSITION")))?;
-                let targets: Vec<usize> = prim["targets"]
-                    .as_array()
-                    .map(|t| t.iter().filter_map(|t| index(&t["POSITION"])).collect())
-                    .unwrap_or_default();
+                let position = prim
+                    .attribute("POSITION")
+                    .ok_or_else(|| invalid(element(), "has no POSITION".into()))?;
+                let targets: Vec<usize> = prim
+                    .targets
+                    .iter()
+                    .filter_map(|t| t.iter().find(|(n, _)| n == "POSITION").map(|&(_, a)| a))
+                    .collect();
                 if targets.len() > MAX_MORPH_TARGETS {
-                    return Err(err(format!(
-                        "mesh {m} primitive {p}: {} morph targets (at most {MAX_MORPH_TARGETS})",
-                        targets.len()
-                    )));
+                    return Err(invalid(
+                        element(),
+                        format!(
+                            "{} morph targets (at most {MAX_MORPH_TARGETS})",
+                            targets.len()
+                        ),
+                    ));
                 }
                 primitives.push(Primitive {
                     position,
-                    normal: index(&at["NORMAL"]),
-                    texcoord: index(&at["TEXCOORD_0"]),
-                    color: index(&at["COLOR_0"]),
-                    indices: index(&prim["indices"]),
+                    normal: prim.attribute("NORMAL"),
+                    texcoord: prim.attribute("TEXCOORD_0"),
+                    color: prim.attribute("COLOR_0"),
+                    indices: prim.indices,
                     targets,
-                    material: index(&prim["material"]),
+                    material: prim.material,
                 });
             }
             meshes.push(Mesh {
                 primitives,
-                weights: f32s(&mesh["weights"]).unwrap_or_default(),
+                weights: mesh.weights.iter().map(|&w| w as f32).collect(),
             });
         }
-
-        let mut nodes = Vec::new();
-        for n in arr("nodes") {
-            let local = if let Some(m) = f64s(&n["matrix"]).filter(|m| m.len() == 16) {
-                DMat4::from_cols_slice(&m)
-            } else {
-                let t = f64s(&n["translation"])
-                    .filter(|v| v.len() == 3)
-                    .unwrap_or(vec![0.0; 3]);
-                let r = f64s(&n["rotation"])
-                    .filter(|v| v.len() == 4)
-                    .unwrap_or(vec![0.0, 0.0, 0.0, 1.0]);
-                let s = f64s(&n["scale"])
-                    .filter(|v| v.len() == 3)
-                    .unwrap_or(vec![1.0; 3]);
-                DMat4::from_scale_rotation_translation(
-                    DVec3::new(s[0], s[1], s[2]),
-                    DQuat::from_xyzw(r[0], r[1], r[2], r[3]).normalize(),
-                    DVec3::new(t[0], t[1], t[2]),
-                )
-            };
-            nodes.push(Node {
-                local,
-                mesh: index(&n["mesh"]),
-                children: n["children"]
-                    .as_array()
-                    .map(|c| c.iter().filter_map(index).collect())
-                    .unwrap_or_default(),
-                weights: f32s(&n["weights"]),
-                lods: n["extensions"]["MSFT_lod"]["ids"]
-                    .as_array()
-                    .map(|c| c.iter().filter_map(index).collect())
-                    .unwrap_or_default(),
-            });
-        }
-        let scene = index(&json["scene"]).unwrap_or(0);
-        let roots = match json["scenes"].get(scene) {
-            Some(s) => s["nodes"]
+        let mut lods = Vec::with_capacity(doc.nodes.len());
+        for n in 0..doc.nodes.len() {
+            let ids = &doc.json["nodes"][n]["extensions"]["MSFT_lod"]["ids"];
+            let ids: Vec<usize> = ids
                 .as_array()
                 .map(|c| c.iter().filter_map(index).collect())
-                .unwrap_or_default(),
-            // No scene: draw every node that is nobody's child.
-            None => {
-                let mut is_child = vec![false; nodes.len()];
-                for &c in nodes.iter().flat_map(|n| &n.children) {
-                    if let Some(slot) = is_child.get_mut(c) {
-                        *slot = true;
-                    }
-                }
-                (0..nodes.len()).filter(|&i| !is_child[i]).collect()
+                .unwrap_or_default();
+            if let Some(&bad) = ids.iter().find(|&&i| i >= doc.nodes.len()) {
+                return Err(invalid(
+                    format!("node {n}: MSFT_lod"),
+                    format!("node {bad} out of range (the file has {})", doc.nodes.len()),
+                ));
             }
-        };
-
-        let materials = arr("materials").iter().map(parse_material).collect();
+            lods.push(ids);
+        }
+        let materials = doc.json["materials"]
+            .as_array()
+            .map(|m| m.iter().map(parse_material).collect())
+            .unwrap_or_default();
         let mut asset = Asset {
-            shell_layers: json["nodes"][0]["extras"]["shellbake"]["layers"]
+            shell_layers: doc.json["nodes"][0]["extras"]["shellbake"]["layers"]
                 .as_u64()
                 .map(|n| n as usize),
-            json,
-            bin,
+            doc,
+            buffers,
             meshes,
-            nodes,
-            roots,
+            lods,
             materials,
             textures: Vec::new(),
         };
         asset.textures = asset.parse_textures()?;
-        asset.check()?;
         Ok(asset)
     }
 
-    /// Reference checks so that rendering never indexes out of range.
-    fn check(&self) -> Result<()> {
-        let accessors = self.json["accessors"].as_array().map_or(0, |a| a.len());
-        for (m, mesh) in self.meshes.iter().enumerate() {
-            for (p, prim) in mesh.primitives.iter().enumerate() {
-                let all = [
-                    Some(prim.position),
-                    prim.normal,
-                    prim.texcoord,
-                    prim.color,
-                    prim.indices,
-                ];
-                for a in all
-                    .into_iter()
-                    .flatten()
-                    .chain(prim.targets.iter().copied())
-                {
-                    if a >= accessors {
-                        return Err(err(format!(
-                            "mesh {m} primitive {p}: accessor {a} does not exist"
-                        )));
-                    }
-                }
-                if let Some(mat) = prim.material {
-                    if mat >= self.materials.len() {
-                        return Err(err(format!(
-                            "mesh {m} primitive {p}: material {mat} does not exist"
-                        )));
-                    }
-                }
-            }
-        }
-        for (i, n) in self.nodes.iter().enumerate() {
-            if n.mesh.is_some_and(|m| m >= self.meshes.len())
-                || n.children
-                    .iter()
-                    .chain(&n.lods)
-                    .any(|&c| c >= self.nodes.len())
-            {
-                return Err(err(format!(
-                    "node {i} refers to a mesh or node that does not exist"
-                )));
-            }
-        }
-        // The nodes must form a forest (as the loader requires): a node under two parents, or a
-        // root listed twice or also a child, would multiply the instances exponentially.
-        let mut parent: Vec<Option<usize>> = vec![None; self.nodes.len()];
-        for (i, n) in self.nodes.iter().enumerate() {
-            for &c in &n.children {
-                if let Some(p) = parent[c].replace(i) {
-                    return Err(err(format!(
-                        "node {c} is a child of node {p} and node {i} (a node may have one parent)"
-                    )));
-                }
-            }
-        }
-        let mut listed = vec![false; self.nodes.len()];
-        for &r in &self.roots {
-            if r >= self.nodes.len() || std::mem::replace(&mut listed[r], true) {
-                return Err(err(format!(
-                    "the scene lists node {r} twice or it does not exist"
-                )));
-            }
-            if let Some(p) = parent[r] {
-                return Err(err(format!(
-                    "the scene lists node {r}, which is a child of node {p}"
-                )));
-            }
-        }
-        for (i, m) in self.materials.iter().enumerate() {
-            if m.texture.is_some_and(|t| t >= self.textures.len()) {
-                return Err(err(format!("material {i}: texture does not exist")));
-            }
-        }
-        Ok(())
-    }
-
-    fn buffer_view(&self, v: usize) -> Result<&[u8]> {
-        let view = &self.json["bufferViews"][v];
-        let buffer = index(&view["buffer"]).unwrap_or(0);
-        if buffer != 0 {
-            return Err(err(format!(
-                "buffer view {v}: only buffer 0 (the GLB chunk) is supported"
-            )));
-        }
-        let offset = index(&view["byteOffset"]).unwrap_or(0);
-        let len = index(&view["byteLength"])
-            .ok_or_else(|| err(format!("buffer view {v} has no byteLength")))?;
-        offset
-            .checked_add(len)
-            .and_then(|end| self.bin.get(offset..end))
-            .ok_or_else(|| {
-                err(format!(
-                    "buffer view {v} runs past the end of the binary chunk"
-                ))
-            })
+    fn invalid(&self, element: String, message: impl Into<String>) -> GlbError {
+        crate::Error::invalid(&self.doc.path, element, message).into()
     }
 
     fn parse_textures(&self) -> Result<Vec<Texture>> {
+        let json = &self.doc.json;
         let mut out = Vec::new();
-        for (t, tex) in self.json["textures"]
+        for (t, tex) in json["textures"]
             .as_array()
-            .cloned()
+            .map(Vec::as_slice)
             .unwrap_or_default()
             .iter()
             .enumerate()
         {
-            let source =
-                index(&tex["source"]).ok_or_else(|| err(format!("texture {t} has no source")))?;
-            let image = &self.json["images"][source];
+            let source = index(&tex["source"])
+                .ok_or_else(|| self.invalid(format!("texture {t}"), "has no source"))?;
+            let image = &json["images"][source];
+            let element = format!("image {source}");
             let bytes: Vec<u8> = if let Some(v) = index(&image["bufferView"]) {
-                self.buffer_view(v)?.to_vec()
-            } else if let Some(uri) = image["uri"].as_str().and_then(|u| u.strip_prefix("data:")) {
-                let b64 = uri.split_once(";base64,").map(|(_, d)| d).unwrap_or("");
-                base64::engine::general_purpose::STANDARD
-                    .decode(b64)
-                    .map_err(|e| err(format!("image {source}: bad data URI: {e}")))?
+                self.doc
+                    .view_bytes(&self.buffers, v)
+                    .map_err(|m| self.invalid(element.clone(), m))?
+                    .to_vec()
+            } else if let Some(uri) = image["uri"].as_str() {
+                self.doc.read_uri(&element, uri)?
             } else {
-                return Err(err(format!(
-                    "image {source}: only embedded images are supported"
-                )));
+                return Err(self.invalid(element, "has neither a buffer view nor a URI"));
             };
             let img = image::load_from_memory(&bytes)
-                .map_err(|e| err(format!("image {source}: {e}")))?
+                .map_err(|e| self.invalid(element.clone(), e.to_string()))?
                 .to_rgba8();
             let s = index(&tex["sampler"])
-                .map(|s| self.json["samplers"][s].clone())
+                .map(|s| json["samplers"][s].clone())
                 .unwrap_or(Value::Null);
             let wrap = |k: &str| match s[k].as_u64() {
                 Some(33071) => Wrap::Clamp,
@@ -557,129 +403,85 @@ impl Asset {
 
     /// Decodes accessor `a` to floats.
     pub fn floats(&self, a: usize) -> Result<Floats> {
-        let acc = &self.json["accessors"][a];
-        if !acc["sparse"].is_null() {
-            return Err(err(format!(
-                "accessor {a}: sparse accessors are not supported"
-            )));
+        let acc = &self.doc.accessors[a];
+        if matches!(acc.kind, Kind::Mat2 | Kind::Mat3 | Kind::Mat4) {
+            return Err(self.invalid(
+                format!("accessor {a}"),
+                format!("type {} is not a vertex type", acc.kind.name()),
+            ));
         }
-        let components = match acc["type"].as_str() {
-            Some("SCALAR") => 1,
-            Some("VEC2") => 2,
-            Some("VEC3") => 3,
-            Some("VEC4") => 4,
-            other => {
-                return Err(err(format!(
-                    "accessor {a}: type {other:?} is not a vertex type"
-                )))
-            }
-        };
-        let count =
-            index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
-        let Some(view) = index(&acc["bufferView"]) else {
-            // Zeros, as the spec says; bounded so a one-line accessor cannot ask for terabytes.
-            if count > MAX_ZERO_ELEMENTS {
-                return Err(err(format!(
-                    "accessor {a}: {count} elements without a buffer view"
-                )));
-            }
-            return Ok(Floats {
-                components,
-                data: vec![0.0; count * components],
-            });
-        };
         let data = self
-            .decode(a, view, components)?
+            .doc
+            .read_accessor(&self.buffers, a, "")?
             .into_iter()
             .map(|v| v as f32)
             .collect();
-        Ok(Floats { components, data })
+        Ok(Floats {
+            components: acc.kind.components(),
+            data,
+        })
     }
 
     /// Decodes an index accessor to `u32`.
     pub fn indices(&self, a: usize) -> Result<Vec<u32>> {
-        let acc = &self.json["accessors"][a];
-        index(&acc["count"]).ok_or_else(|| err(format!("accessor {a} has no count")))?;
-        let view = index(&acc["bufferView"])
-            .ok_or_else(|| err(format!("index accessor {a} has no buffer view")))?;
-        if !matches!(acc["componentType"].as_u64(), Some(5121 | 5123 | 5125)) {
-            return Err(err(format!(
-                "index accessor {a}: component type {:?} is not an index type",
-                acc["componentType"].as_u64()
-            )));
+        let acc = &self.doc.accessors[a];
+        let here = || format!("index accessor {a}");
+        if acc.buffer_view.is_none() {
+            return Err(self.invalid(here(), "has no buffer view"));
+        }
+        if acc.kind != Kind::Scalar || !matches!(acc.component_type, 5121 | 5123 | 5125) {
+            return Err(self.invalid(
+                here(),
+                format!(
+                    "{} of {} is not an index type",
+                    acc.kind.name(),
+                    document::component_name(acc.component_type)
+                ),
+            ));
         }
         Ok(self
-            .decode(a, view, 1)?
+            .doc
+            .read_accessor(&self.buffers, a, "")?
             .into_iter()
             .map(|v| v as u32)
             .collect())
     }
 
-    /// Decodes accessor `a` (in buffer view `view`) with the loader's decoder, which checks
-    /// its layout against the spec.
-    fn decode(&self, a: usize, view: usize, components: usize) -> Result<Vec<f64>> {
-        let acc = &self.json["accessors"][a];
-        let layout = crate::load::accessor::Layout {
-            component_type: acc["componentType"].as_u64().unwrap_or(0),
-            normalized: acc["normalized"].as_bool().unwrap_or(false),
-            components,
-            count: index(&acc["count"]).unwrap_or(0),
-            offset: index(&acc["byteOffset"]).unwrap_or(0),
-            stride: index(&self.json["bufferViews"][view]["byteStride"]),
-        };
-        let bytes = self.buffer_view(view)?;
-        crate::load::accessor::decode(bytes, &layout)
-            .map_err(|e| err(format!("accessor {a} (buffer view {view}): {e}")))
-    }
-
     /// Highest `MSFT_lod` level any node offers (0 when the file has no LODs).
     pub fn lod_levels(&self) -> usize {
-        self.nodes.iter().map(|n| n.lods.len()).max().unwrap_or(0)
+        self.lods.iter().map(Vec::len).max().unwrap_or(0)
     }
 
     /// Every mesh instance of the scene at LOD `lod` (clamped per node), world matrices in `f64`.
-    pub fn instances(&self, lod: usize) -> Vec<Instance> {
-        let mut out = Vec::new();
-        let mut stack: Vec<(usize, DMat4, usize, u32)> = self
-            .roots
-            .iter()
-            .enumerate()
-            .map(|(i, &r)| (r, DMat4::IDENTITY, i, 0))
-            .collect();
-        stack.reverse();
-        while let Some((n, parent, sibling, depth)) = stack.pop() {
-            if depth > 64 {
-                continue; // a cycle; the file is invalid, draw what is reachable
-            }
-            let n = match lod {
-                0 => n,
-                k => self.nodes[n]
-                    .lods
-                    .get(k - 1)
-                    .or(self.nodes[n].lods.last())
-                    .copied()
-                    .unwrap_or(n),
-            };
-            let node = &self.nodes[n];
-            let world = parent * node.local;
-            if let Some(m) = node.mesh {
-                let weights = node
-                    .weights
-                    .clone()
-                    .unwrap_or_else(|| self.meshes[m].weights.clone());
-                out.push(Instance {
-                    node: n,
+    pub fn instances(&self, lod: usize) -> Result<Vec<Instance>> {
+        let pick = |n: usize| match lod {
+            0 => n,
+            k => self.lods[n]
+                .get(k - 1)
+                .or(self.lods[n].last())
+                .copied()
+                .unwrap_or(n),
+        };
+        Ok(self
+            .doc
+            .walk(pick)?
+            .into_iter()
+            .filter_map(|p| {
+                let node = &self.doc.nodes[p.node];
+                let m = node.mesh?;
+                let weights = match &node.weights {
+                    Some(w) => w.iter().map(|&w| w as f32).collect(),
+                    None => self.meshes[m].weights.clone(),
+                };
+                Some(Instance {
+                    node: p.node,
                     mesh: m,
-                    world,
+                    world: p.world,
                     weights,
-                    sibling,
-                });
-            }
-            for (i, &c) in node.children.iter().enumerate().rev() {
-                stack.push((c, world, i, depth + 1));
-            }
-        }
-        out
+                    sibling: p.sibling,
+                })
+            })
+            .collect())
     }
 
     /// World-space bounds of everything drawn at LOD 0, morph targets applied with their weights
@@ -688,7 +490,7 @@ impl Asset {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
         let mut cache: HashMap<usize, Floats> = HashMap::new();
-        for inst in self.instances(0) {
+        for inst in self.instances(0)? {
             for prim in &self.meshes[inst.mesh].primitives {
                 for a in std::iter::once(prim.position).chain(prim.targets.iter().copied()) {
                     if let std::collections::hash_map::Entry::Vacant(e) = cache.entry(a) {
@@ -785,7 +587,8 @@ mod tests {
                 { "bufferView": 0, "componentType": 5123, "normalized": true, "count": 2, "type": "VEC2" },
                 { "bufferView": 1, "componentType": 5120, "normalized": true, "count": 1, "type": "VEC3" },
                 { "bufferView": 0, "componentType": 5123, "count": 2, "type": "VEC2" }
-            ]
+            ],
+            "buffers": [{ "byteLength": 20 }]
         });
         let a = Asset::from_parts(doc, bin).unwrap();
         assert_eq!(
@@ -809,7 +612,7 @@ mod tests {
             "accessors": [{ "componentType": 5126, "count": 1, "type": "VEC3" }]
         });
         let a = Asset::from_parts(doc, Vec::new()).unwrap();
-        let inst = a.instances(0);
+        let inst = a.instances(0).unwrap();
         assert_eq!(inst.len(), 2);
         assert_eq!(inst[0].weights, vec![0.5]);
         assert_eq!(inst[1].weights, vec![0.25]);
@@ -828,6 +631,9 @@ mod tests {
         nodes.push(json!({}));
         let j = json!({"asset": {"version": "2.0"}, "nodes": nodes, "scenes": [{"nodes": [0]}]});
         let e = Asset::from_parts(j, Vec::new()).unwrap_err();
+        assert!(e.what.contains("lists child node 1 twice"), "{}", e.what);
+        let j = json!({"nodes": [{"children": [2]}, {"children": [2]}, {}]});
+        let e = Asset::from_parts(j, Vec::new()).unwrap_err();
         assert!(e.what.contains("one parent"), "{}", e.what);
     }
 
@@ -842,7 +648,8 @@ mod tests {
         let doc = json!({
             "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 } }] }],
             "accessors": [{ "bufferView": 0, "componentType": 5126, "count": 10, "type": "VEC3" }],
-            "bufferViews": [{ "buffer": 0, "byteLength": 12 }]
+            "bufferViews": [{ "buffer": 0, "byteLength": 12 }],
+            "buffers": [{ "byteLength": 12 }]
         });
         let a = Asset::from_parts(doc, vec![0; 12]).unwrap();
         assert!(a.floats(0).unwrap_err().what.contains("past the end"));
@@ -862,7 +669,13 @@ mod tests {
         });
         let a = Asset::from_parts(doc, Vec::new()).unwrap();
         assert_eq!(a.lod_levels(), 2);
-        let mesh_at = |lod| a.instances(lod).iter().map(|i| i.mesh).collect::<Vec<_>>();
+        let mesh_at = |lod| {
+            a.instances(lod)
+                .unwrap()
+                .iter()
+                .map(|i| i.mesh)
+                .collect::<Vec<_>>()
+        };
         assert_eq!(
             [mesh_at(0), mesh_at(1), mesh_at(2), mesh_at(5)],
             [vec![0], vec![1], vec![2], vec![2]]

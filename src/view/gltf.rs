@@ -329,7 +329,7 @@ impl GltfRenderer {
 
     fn build_draws(&mut self, gpu: &Gpu) -> Result<()> {
         let mut draws = Vec::new();
-        for inst in self.asset.instances(self.lod) {
+        for inst in self.asset.instances(self.lod)? {
             let mesh = &self.asset.meshes[inst.mesh];
             for prim in &mesh.primitives {
                 let material = prim
@@ -378,9 +378,12 @@ impl GltfRenderer {
                         if !self.index_buffers.contains_key(&a) {
                             let ix = self.asset.indices(a)?;
                             if let Some(bad) = ix.iter().find(|&&i| i as usize >= vertices) {
-                                return Err(gpu::ViewError::Glb(super::glb::GlbError {
-                                    what: format!("index accessor {a}: index {bad} is out of range ({vertices} vertices)"),
-                                }));
+                                return Err(crate::Error::invalid(
+                                    &self.asset.doc.path,
+                                    format!("index accessor {a}"),
+                                    format!("index {bad} is out of range ({vertices} vertices)"),
+                                )
+                                .into());
                             }
                             let buf =
                                 gpu.device
