@@ -11,6 +11,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
+#[cfg(feature = "view")]
+mod cli;
+
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use shellbake::orient::OrientMode;
@@ -37,17 +40,17 @@ enum Command {
     Plan(BakeArgs),
     /// Draw a baked GLB to a PNG (headless).
     #[cfg(feature = "view")]
-    Render(shellbake::view::cli::RenderArgs),
+    Render(cli::RenderFlags),
     /// Open a baked GLB in a window: orbit camera, layer and LOD stepping, counters.
     #[cfg(feature = "view")]
-    View(shellbake::view::cli::ViewArgs),
+    View(cli::ViewFlags),
     /// Bake, then render baked and runtime reference from several cameras and compare.
     #[cfg(feature = "view")]
     Verify {
         #[command(flatten)]
         bake: BakeArgs,
         #[command(flatten)]
-        verify: shellbake::view::cli::VerifyArgs,
+        verify: cli::VerifyFlags,
     },
     /// Bake, then time the baked file against the runtime reference on the GPU.
     #[cfg(feature = "view")]
@@ -55,7 +58,7 @@ enum Command {
         #[command(flatten)]
         bake: BakeArgs,
         #[command(flatten)]
-        bench: shellbake::view::cli::BenchArgs,
+        bench: cli::BenchFlags,
     },
     /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
     Fixtures {
@@ -68,7 +71,7 @@ enum Command {
 }
 
 /// A clap value parser for a library enum, from its names.
-fn named<T: Clone + Send + Sync + 'static>(
+pub(crate) fn named<T: Clone + Send + Sync + 'static>(
     all: &'static [T],
     name: fn(&T) -> &'static str,
 ) -> impl TypedValueParser<Value = T> {
@@ -393,13 +396,21 @@ fn main() -> ExitCode {
         Command::Plan(args) => plan(args),
         Command::Fixtures { dir, dense } => fixtures(dir, *dense),
         #[cfg(feature = "view")]
-        Command::Bench { bake, bench } => bake
-            .params()
-            .and_then(|p| Ok(shellbake::view::cli::bench(&bake.input, &p, bench)?)),
+        Command::Bench { bake, bench } => bake.params().and_then(|p| {
+            Ok(shellbake::view::cli::bench(
+                &bake.input,
+                &p,
+                &bench.clone().into_args(),
+            )?)
+        }),
         #[cfg(feature = "view")]
-        Command::Render(args) => shellbake::view::cli::render(args).map_err(Into::into),
+        Command::Render(args) => {
+            shellbake::view::cli::render(&args.clone().into_args()).map_err(Into::into)
+        }
         #[cfg(feature = "view")]
-        Command::View(args) => shellbake::view::cli::view(args).map_err(Into::into),
+        Command::View(args) => {
+            shellbake::view::cli::view(&args.clone().into_args()).map_err(Into::into)
+        }
         #[cfg(feature = "view")]
         Command::Verify { bake, verify } => bake.params().and_then(|p| {
             let out = bake.output.as_deref();
@@ -409,7 +420,7 @@ fn main() -> ExitCode {
             Ok(shellbake::view::cli::verify(
                 &bake.input,
                 &p,
-                verify,
+                &verify.clone().into_args(),
                 out,
                 bake.quiet,
             )?)

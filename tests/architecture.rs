@@ -20,8 +20,16 @@ fn library_files() -> Vec<(String, String)> {
             if path.extension().is_none_or(|x| x != "rs") {
                 continue;
             }
-            let rel = path.strip_prefix(Path::new(env!("CARGO_MANIFEST_DIR")).join("src")).unwrap();
-            let top = rel.iter().next().unwrap().to_string_lossy().trim_end_matches(".rs").to_string();
+            let rel = path
+                .strip_prefix(Path::new(env!("CARGO_MANIFEST_DIR")).join("src"))
+                .unwrap();
+            let top = rel
+                .iter()
+                .next()
+                .unwrap()
+                .to_string_lossy()
+                .trim_end_matches(".rs")
+                .to_string();
             if ["main", "cli", "lib"].contains(&top.as_str()) {
                 continue;
             }
@@ -61,7 +69,10 @@ fn modules_form_a_tree_of_imports() {
         let mut seen = BTreeSet::new();
         let mut stack: Vec<&String> = uses[start].iter().collect();
         while let Some(m) = stack.pop() {
-            assert!(m != start, "module `{start}` reaches itself through its imports: {uses:#?}");
+            assert!(
+                m != start,
+                "module `{start}` reaches itself through its imports: {uses:#?}"
+            );
             if seen.insert(m.clone()) {
                 stack.extend(uses.get(m).into_iter().flatten());
             }
@@ -72,6 +83,9 @@ fn modules_form_a_tree_of_imports() {
 #[test]
 fn the_library_has_no_cli_types() {
     for (top, text) in library_files() {
-        assert!(!code(&text).contains("clap"), "library module `{top}` uses clap");
+        assert!(
+            !code(&text).contains("clap"),
+            "library module `{top}` uses clap"
+        );
     }
 }

@@ -13,7 +13,11 @@ fn same_bytes_for_1_2_and_8_threads_and_repeated_runs() {
     let dir = scratch("determinism");
     let bunny = fixture("bunny.obj");
     let meadow = common::repo().join("fixtures/meadow.toml");
-    for (input, layout) in [(&bunny, "compact"), (&bunny, "single-draw"), (&meadow, "compact")] {
+    for (input, layout) in [
+        (&bunny, "compact"),
+        (&bunny, "single-draw"),
+        (&meadow, "compact"),
+    ] {
         let mut outputs = Vec::new();
         for (run, threads) in ["1", "2", "8", "8"].iter().enumerate() {
             let stem = input.file_stem().unwrap().to_str().unwrap();

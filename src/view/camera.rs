@@ -27,7 +27,7 @@
 use glam::{DMat4, DVec3, DVec4, Mat4, Vec3};
 
 /// A named camera position (see the module table).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum NamedView {
     Front,
     Side,

@@ -1,6 +1,7 @@
-//! The `render`, `view`, `verify` and `bench` commands: their flags (first tier, close to clap) and the
-//! functions the binary dispatches to. `verify` takes the bake flags from the binary's
-//! `BakeArgs` (already turned into [`BakeParams`]) plus [`VerifyArgs`]. What they print goes
+//! The `render`, `view`, `verify` and `bench` commands: their options as plain data and the
+//! functions the binary dispatches to (the binary's `cli.rs` maps its flags onto these structs;
+//! the library has no CLI types). `verify` takes the bake parameters (already [`BakeParams`])
+//! plus [`VerifyArgs`]. What they print goes
 //! through [`escape`] wherever it holds a path or text that did not come from us (a file name
 //! with an escape sequence must not drive the terminal), as the loader's messages do.
 
@@ -42,19 +43,15 @@ pub fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
 }
 
 /// Camera flags shared by `render` and `view`.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct CameraArgs {
     /// Named camera; --yaw/--pitch/--distance override its parts.
-    #[arg(long, value_enum, default_value = "front")]
     pub view: NamedView,
     /// Orbit angle about +Y in degrees (0 looks from +Z).
-    #[arg(long, allow_hyphen_values = true)]
     pub yaw: Option<f64>,
     /// Elevation in degrees, -89..89.
-    #[arg(long, allow_hyphen_values = true)]
     pub pitch: Option<f64>,
     /// Eye distance in multiples of the bounding radius [default: the view's, or fit].
-    #[arg(long)]
     pub distance: Option<f64>,
 }
 
@@ -76,60 +73,48 @@ impl CameraArgs {
 }
 
 /// `shellbake render`.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct RenderArgs {
     /// Baked GLB to draw.
     pub input: PathBuf,
     /// Output PNG.
-    #[arg(short, long)]
     pub output: PathBuf,
     /// Picture size.
-    #[arg(long, default_value = "512x512", value_parser = parse_size)]
     pub size: (u32, u32),
-    #[command(flatten)]
     pub camera: CameraArgs,
 }
 
 /// `shellbake view`.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct ViewArgs {
     /// Baked GLB to open.
     pub input: PathBuf,
     /// Window size.
-    #[arg(long, default_value = "1024x768", value_parser = parse_size)]
     pub size: (u32, u32),
-    #[command(flatten)]
     pub camera: CameraArgs,
     /// Render --frames frames, save the last one from the window surface to this PNG, exit.
-    #[arg(long)]
     pub screenshot: Option<PathBuf>,
     /// Frames to render before the screenshot.
-    #[arg(long, default_value_t = 3)]
     pub frames: u32,
 }
 
 /// `shellbake verify` flags besides the bake flags.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct VerifyArgs {
     /// Folder for the reference, baked and difference pictures.
-    #[arg(long, default_value = "out/verify")]
     pub out_dir: PathBuf,
     /// Side of the square pictures.
-    #[arg(long, default_value_t = verify::DEFAULT_SIZE)]
     pub size: u32,
 }
 
 /// `shellbake bench` flags besides the bake flags.
-#[derive(clap::Args, Clone, Debug)]
+#[derive(Clone, Debug)]
 pub struct BenchArgs {
     /// Frames drawn per measurement (the mean is reported).
-    #[arg(long, default_value_t = 200)]
     pub frames: u32,
     /// Picture size.
-    #[arg(long, default_value = "1920x1080", value_parser = parse_size)]
     pub size: (u32, u32),
     /// Write the figures as JSON here.
-    #[arg(long)]
     pub json: Option<PathBuf>,
 }
 
