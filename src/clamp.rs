@@ -622,6 +622,19 @@ mod tests {
         clamp_heights(w, smooth(w, f, h, p), h, p, None)
     }
 
+    /// A unit sphere whose radius grows by up to `amplitude` in `levels` steps, chosen by a hash
+    /// of the position so that seam and pole copies stay coincident.
+    fn bumpy_sphere(stacks: u32, slices: u32, amplitude: f32, levels: u32) -> crate::mesh::Mesh {
+        let mut m = crate::procedural::sphere(1.0, stacks, slices);
+        for p in m.positions.iter_mut() {
+            let h = crate::strands::mix32(
+                p.x.to_bits() ^ p.y.to_bits().rotate_left(11) ^ p.z.to_bits().rotate_left(22),
+            );
+            *p *= 1.0 + amplitude * ((h % levels) as f32 / levels as f32);
+        }
+        m
+    }
+
     fn run(p: &[Vec3], ix: &[u32], height: f32) -> (Welded, Frames, Clamp) {
         let w = weld(p, ix);
         let f = extrusion_frames(&w, None);
@@ -683,14 +696,7 @@ mod tests {
 
     #[test]
     fn bvh_matches_brute_force_on_a_bumpy_sphere() {
-        // Bumps from a hash of the position, so seam and pole copies stay coincident.
-        let mut m = crate::procedural::sphere(1.0, 12, 24);
-        for p in m.positions.iter_mut() {
-            let h = crate::strands::mix32(
-                p.x.to_bits() ^ p.y.to_bits().rotate_left(11) ^ p.z.to_bits().rotate_left(22),
-            );
-            *p *= 1.0 + 0.15 * ((h % 13) as f32 / 13.0);
-        }
+        let m = bumpy_sphere(12, 24, 0.15, 13);
         let w = weld(&m.positions, &m.indices);
         let f = extrusion_frames(&w, None);
         let params = ClampParams::default();
@@ -717,14 +723,8 @@ mod tests {
 
     #[test]
     fn smoothing_leaves_fewer_vertices_limited_and_stays_outside() {
-        // a sphere with hashed bumps: neighbouring directions disagree, tall shells invert
-        let mut m = crate::procedural::sphere(1.0, 24, 48);
-        for p in m.positions.iter_mut() {
-            let h = crate::strands::mix32(
-                p.x.to_bits() ^ p.y.to_bits().rotate_left(11) ^ p.z.to_bits().rotate_left(22),
-            );
-            *p *= 1.0 + 0.03 * ((h % 7) as f32 / 7.0);
-        }
+        // neighbouring directions disagree, tall shells invert
+        let m = bumpy_sphere(24, 48, 0.03, 7);
         let w = weld(&m.positions, &m.indices);
         let f = extrusion_frames(&w, None);
         let rough = ClampParams {

@@ -190,10 +190,17 @@ fn run_plan(scene: &SceneFile, loaded: &[(&Scene, f64)]) -> BakedScene {
     let (json, bin_len) = write::gltf_json(&packed);
     let glb = write::glb_of_packed(&json, bin_len, &packed);
     let write_ms = write_start.elapsed().as_secs_f64() * 1e3;
+    let json_len = serde_json::to_vec(&json).map_or(0, |b| b.len());
     for (s, b) in surfaces.iter_mut().enumerate() {
-        b.report.run(Stage::Write.name(), || ());
-        b.report.stages.last_mut().expect("write was recorded").ms = write_ms;
-        fill_sizes(&mut b.report, &packed, s, &json, &glb, several);
+        b.report.record(Stage::Write.name(), write_ms);
+        fill_sizes(
+            &mut b.report,
+            &packed,
+            s,
+            &json,
+            (glb.len(), json_len),
+            several,
+        );
     }
     let reports: Vec<Report> = surfaces.iter().map(|s| s.report.clone()).collect();
     let mut report = SceneReport {
@@ -210,10 +217,7 @@ fn run_plan(scene: &SceneFile, loaded: &[(&Scene, f64)]) -> BakedScene {
         surfaces: reports,
         ..Default::default()
     };
-    report.streams.insert(
-        "json".into(),
-        serde_json::to_vec(&json).map_or(0, |b| b.len()),
-    );
+    report.streams.insert("json".into(), json_len);
     report.total_ms = start.elapsed().as_secs_f64() * 1e3;
     BakedScene {
         glb,
@@ -246,8 +250,7 @@ fn bake_surface(
         warnings: scene.warnings.clone(),
         ..Default::default()
     };
-    report.run(Stage::Load.name(), || ());
-    report.stages.last_mut().expect("load was recorded").ms = load_ms;
+    report.record(Stage::Load.name(), load_ms);
 
     let mut mesh = report.run("merge", || scene.merged());
     report.count("meshes", scene.meshes.len() as f64);
@@ -303,7 +306,6 @@ fn bake_surface(
     let smoothed = report.run("smooth", || {
         clamp::smooth(&welded, &frames, height, &params.clamp)
     });
-    report.count("smoothed_directions", smoothed.smoothed as f64);
     let collision = report.gate(plan, Stage::Collision, i, || {
         clamp::collision_bound(&welded, &smoothed, height, &params.clamp)
     });
@@ -491,7 +493,7 @@ fn fill_sizes(
     packed: &Packed,
     s: usize,
     json: &serde_json::Value,
-    glb: &[u8],
+    (file_len, json_len): (usize, usize),
     several: bool,
 ) {
     let surface = &packed.surfaces[s];
@@ -505,23 +507,17 @@ fn fill_sizes(
     report.triangles_drawn = surface
         .layer_meshes
         .iter()
-        .flat_map(|&m| &packed.meshes[m].primitives)
-        .filter_map(|p| p.indices)
-        .map(|a| packed.accessors[a].count / 3)
+        .map(|&m| packed.mesh_triangles(m))
         .sum();
     let stream_total: usize = report.streams.values().sum();
     let own_json: usize = layer_json.iter().sum();
-    report.total_bytes = if several {
-        stream_total + own_json
+    let (total, json) = if several {
+        (stream_total + own_json, own_json)
     } else {
-        glb.len()
+        (file_len, json_len)
     };
-    let json_len = if several {
-        own_json
-    } else {
-        serde_json::to_vec(json).map_or(0, |b| b.len())
-    };
-    report.streams.insert("json".into(), json_len);
+    report.total_bytes = total;
+    report.streams.insert("json".into(), json);
     report.bytes_per_base_vertex = report.total_bytes as f64 / surface.base_vertices.max(1) as f64;
     report.bytes_per_layer = match surface.layout {
         params::Layout::Compact => layer_json,

@@ -72,6 +72,13 @@ impl Report {
         out
     }
 
+    /// Records a stage that ran elsewhere (loading before the bake, writing after every
+    /// surface) and took `ms`.
+    pub fn record(&mut self, name: &'static str, ms: f64) {
+        self.run(name, || ());
+        self.stages.last_mut().expect("just recorded").ms = ms;
+    }
+
     /// Runs `stage` if the plan runs it for surface `surface`, or records it as skipped with
     /// the plan's reason: the one gated line a stage takes in `bake`.
     pub fn gate<T>(

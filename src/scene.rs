@@ -168,11 +168,12 @@ impl Surface {
     }
 
     /// The surface's parameters had it named `preset` instead: that preset with the surface's
-    /// overrides on top (they were checked against the preset the file names).
+    /// overrides on top. Every preset has the same keys and types, so overrides that applied to
+    /// the preset the file names apply to any other.
     pub fn with_preset(&self, preset: Preset) -> BakeParams {
         BakeParams::preset(preset)
             .with_overrides(self.overrides.clone())
-            .unwrap_or_else(|_| BakeParams::preset(preset))
+            .expect("overrides were read against the same parameter types")
     }
 }
 

@@ -7,39 +7,7 @@ mod common;
 #[path = "fuzz/structured.rs"]
 mod structured;
 
-use shellbake::params::{BakeParams, Layout};
-use shellbake::scene::Effect;
-
-fn replay(data: &[u8]) -> Result<usize, String> {
-    let Some((&selector, body)) = data.split_first() else {
-        return Ok(0);
-    };
-    let generated;
-    let (name, body) = if selector & 12 == 12 {
-        generated = structured::gltf(body);
-        ("fuzz.gltf", &generated[..])
-    } else if selector & 1 == 0 {
-        ("fuzz.obj", body)
-    } else {
-        ("fuzz.glb", body)
-    };
-    let scene =
-        shellbake::load::load_bytes(std::path::Path::new(name), body).map_err(|e| e.to_string())?;
-    let mut p = BakeParams::default();
-    p.shells.layers = 4;
-    p.strands.mask_size = 16;
-    p.pack.layout = if selector & 2 == 0 {
-        Layout::Compact
-    } else {
-        Layout::SingleDraw
-    };
-    if p.estimate_bytes(&scene) > 64 << 20 {
-        return Ok(0);
-    }
-    Ok(shellbake::bake_with(&scene, &p, &[Effect::Collision])
-        .glb
-        .len())
-}
+use structured::load_and_bake as replay;
 
 #[test]
 fn fuzzer_findings_stay_fixed() {

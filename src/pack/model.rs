@@ -277,14 +277,22 @@ impl Packed {
         list.len() - 1
     }
 
-    /// Triangles drawn by all primitives of every node's mesh.
+    /// Triangles drawn by the primitives of mesh `m`.
+    pub fn mesh_triangles(&self, m: usize) -> usize {
+        self.meshes[m]
+            .primitives
+            .iter()
+            .filter_map(|p| p.indices)
+            .map(|a| self.accessors[a].count / 3)
+            .sum()
+    }
+
+    /// Triangles drawn by every node's mesh.
     pub fn triangles_drawn(&self) -> usize {
         self.nodes
             .iter()
             .filter_map(|n| n.mesh)
-            .flat_map(|m| &self.meshes[m].primitives)
-            .filter_map(|p| p.indices)
-            .map(|a| self.accessors[a].count / 3)
+            .map(|m| self.mesh_triangles(m))
             .sum()
     }
 

@@ -3,10 +3,48 @@
 //! cases the spec allows or forbids) and turned into a `.gltf` JSON document with a `data:`
 //! buffer. Mutated bytes alone rarely get past the JSON parser; this reaches the accessor
 //! checks, the node-graph checks and the readers with legal-looking files. Shared by
-//! `fuzz_targets/load_bake.rs` and `tests/fuzz_regressions.rs` (through `#[path]`).
+//! `fuzz_targets/load_bake.rs` and `tests/fuzz_regressions.rs` (through `#[path]`), with
+//! [`load_and_bake`], the one run both make of an input.
 
 use base64::Engine as _;
 use serde_json::{json, Value};
+
+/// What the fuzz target runs on `data`: the first byte picks the format (even: OBJ, odd: GLB;
+/// bits 2 and 3 both set: a structured glTF document built from the rest) and the layout; the
+/// input is loaded and, when it loads and its output stays under 64 MiB, baked with the
+/// `collision` effect. Returns the GLB's length (0 when nothing was baked) or the load error.
+pub fn load_and_bake(data: &[u8]) -> Result<usize, String> {
+    let Some((&selector, body)) = data.split_first() else {
+        return Ok(0);
+    };
+    let generated;
+    let (name, body) = if selector & 12 == 12 {
+        generated = gltf(body);
+        ("fuzz.gltf", &generated[..])
+    } else if selector & 1 == 0 {
+        ("fuzz.obj", body)
+    } else {
+        ("fuzz.glb", body)
+    };
+    let scene =
+        shellbake::load::load_bytes(std::path::Path::new(name), body).map_err(|e| e.to_string())?;
+    let mut p = shellbake::params::BakeParams::default();
+    p.shells.layers = 4;
+    p.strands.mask_size = 16;
+    p.pack.layout = if selector & 2 == 0 {
+        shellbake::params::Layout::Compact
+    } else {
+        shellbake::params::Layout::SingleDraw
+    };
+    if p.estimate_bytes(&scene) > 64 << 20 {
+        return Ok(0);
+    }
+    Ok(
+        shellbake::bake_with(&scene, &p, &[shellbake::scene::Effect::Collision])
+            .glb
+            .len(),
+    )
+}
 
 /// Reads choices from the input; an exhausted input reads as zeros. A `tame` document (half of
 /// them) mostly takes the first, legal entry of each list, so that some documents load and the
