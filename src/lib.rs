@@ -27,10 +27,12 @@
 //! the two (`shellbake verify`).
 
 pub mod clamp;
+pub mod cull;
 pub mod error;
 pub mod frames;
 pub mod grid;
 pub mod load;
+pub mod maps;
 pub mod mesh;
 pub mod orient;
 pub mod pack;
@@ -70,6 +72,10 @@ pub struct BakedSurface {
     pub packed: PackedSurface,
     /// Mask tiles per UV unit.
     pub tiles_per_uv: Vec2,
+    /// Density per render vertex (`COLOR_0` alpha bytes), when a density map was given.
+    pub density: Option<Vec<u8>>,
+    /// The layers each triangle of `mesh` shows in.
+    pub culled: cull::Culled,
 }
 
 /// Everything a scene bake produced.
@@ -101,12 +107,24 @@ pub struct Baked {
     pub packed: PackedSurface,
     /// Mask tiles per UV unit.
     pub tiles_per_uv: Vec2,
+    /// Density per render vertex (`COLOR_0` alpha bytes), when a density map was given.
+    pub density: Option<Vec<u8>>,
+    /// The layers each triangle of `mesh` shows in.
+    pub culled: cull::Culled,
 }
 
-/// A surface's meshes as loaded (and placed), with the time loading took.
+/// A surface's meshes as loaded (and placed), its maps, and the time loading took.
 pub struct Loaded {
     pub scene: Scene,
+    pub maps: SurfaceMaps,
     pub ms: f64,
+}
+
+/// The density and length maps of a surface, when its scene names them.
+#[derive(Clone, Debug, Default)]
+pub struct SurfaceMaps {
+    pub density: Option<maps::GreyMap>,
+    pub length: Option<maps::GreyMap>,
 }
 
 /// Loads every surface's mesh and places it (scale, then translation). Fails on the first
@@ -121,8 +139,15 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
             for m in &mut loaded.meshes {
                 m.place(glam::DVec3::from(s.translation), s.scale);
             }
+            let read =
+                |p: &Option<std::path::PathBuf>| p.as_deref().map(maps::GreyMap::read).transpose();
+            let maps = SurfaceMaps {
+                density: read(&s.density_map)?,
+                length: read(&s.length_map)?,
+            };
             Ok(Loaded {
                 scene: loaded,
+                maps,
                 ms: start.elapsed().as_secs_f64() * 1e3,
             })
         })
@@ -141,13 +166,14 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
 /// shellbake::write::write_glb(&std::env::temp_dir().join("cube-carpet.glb"), &baked.glb).unwrap();
 /// ```
 pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
-    bake_with(scene, params, &[])
+    bake_with(scene, params, &Effect::DEFAULT)
 }
 
 /// [`bake`] with the effects the surface asks for.
 pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Baked {
     let file = SceneFile::single(Path::new(""), Preset::Fur, params.clone(), effects);
-    let mut baked = run_plan(&file, &[(scene, 0.0)]);
+    let maps = SurfaceMaps::default();
+    let mut baked = run_plan(&file, &[(scene, &maps, 0.0)]);
     let surface = baked.surfaces.pop().expect("one surface");
     Baked {
         glb: baked.glb,
@@ -159,6 +185,8 @@ pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Bake
         mask: surface.mask,
         packed: surface.packed,
         tiles_per_uv: surface.tiles_per_uv,
+        density: surface.density,
+        culled: surface.culled,
     }
 }
 
@@ -166,12 +194,13 @@ pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Bake
 /// GLB, running the scene's plan. Never fails; every surface's parameters must pass
 /// [`BakeParams::check`] (asserted).
 pub fn bake_scene(scene: &SceneFile, loaded: &[Loaded]) -> BakedScene {
-    let meshes: Vec<(&Scene, f64)> = loaded.iter().map(|l| (&l.scene, l.ms)).collect();
+    let meshes: Vec<(&Scene, &SurfaceMaps, f64)> =
+        loaded.iter().map(|l| (&l.scene, &l.maps, l.ms)).collect();
     run_plan(scene, &meshes)
 }
 
-/// [`bake_scene`] on borrowed meshes, each with its load time.
-fn run_plan(scene: &SceneFile, loaded: &[(&Scene, f64)]) -> BakedScene {
+/// [`bake_scene`] on borrowed meshes, each with its maps and load time.
+fn run_plan(scene: &SceneFile, loaded: &[(&Scene, &SurfaceMaps, f64)]) -> BakedScene {
     assert_eq!(scene.surfaces.len(), loaded.len(), "one load per surface");
     let start = Instant::now();
     let plan = scene::plan(scene);
@@ -182,8 +211,8 @@ fn run_plan(scene: &SceneFile, loaded: &[(&Scene, f64)]) -> BakedScene {
         .iter()
         .zip(loaded)
         .enumerate()
-        .map(|(i, (surface, &(meshes, ms)))| {
-            bake_surface(&plan, i, surface, meshes, ms, several, &mut packed)
+        .map(|(i, (surface, &(meshes, maps, ms)))| {
+            bake_surface(&plan, i, surface, (meshes, maps), ms, several, &mut packed)
         })
         .collect();
     let write_start = Instant::now();
@@ -234,7 +263,7 @@ fn bake_surface(
     plan: &Plan,
     i: usize,
     surface: &Surface,
-    scene: &Scene,
+    (scene, maps): (&Scene, &SurfaceMaps),
     load_ms: f64,
     several: bool,
     packed: &mut Packed,
@@ -320,6 +349,21 @@ fn bake_surface(
         )
     });
     drop(collision);
+    let mut clamp = clamp;
+    let length = maps
+        .length
+        .as_ref()
+        .map(|m| m.per_vertex(mesh.uvs.as_ref().unwrap()));
+    if let Some(length) = &length {
+        for (s, &l) in clamp.scale.iter_mut().zip(length) {
+            *s *= l as f32 / 255.0;
+        }
+        report.note("clamp", "extrusion scaled by the length map");
+    }
+    let density_map = maps
+        .density
+        .as_ref()
+        .map(|m| m.per_vertex(mesh.uvs.as_ref().unwrap()));
     frames.direction = clamp.directions(&welded);
     let (min_scale, mean_scale) = clamp.limited_scale();
     report.count("smoothed_directions", clamp.smoothed as f64);
@@ -365,7 +409,32 @@ fn bake_surface(
     });
     report.count("layers", shells.t.len() as f64);
 
-    report.gate(plan, Stage::Cull, i, || ());
+    let cutoffs: Vec<f32> = shells.steps.iter().map(|&k| mask.cutoff(k)).collect();
+    let culled = report
+        .gate(plan, Stage::Cull, i, || {
+            let uvs: Vec<Vec2> = mesh
+                .uvs
+                .as_ref()
+                .unwrap()
+                .iter()
+                .map(|&uv| uv * tiles_per_uv)
+                .collect();
+            let bounds = cull::triangle_bounds(&mask.alpha, mask.size, &uvs, &mesh.indices);
+            cull::layer_tops(
+                &bounds,
+                &mesh.indices,
+                density_map.as_deref(),
+                &shells.delta,
+                &cutoffs,
+            )
+        })
+        .unwrap_or_else(|| cull::Culled::none(mesh.triangle_count(), shells.t.len()));
+    report.count("culled_triangles", culled.culled() as f64);
+    report.count(
+        "empty_layers",
+        culled.kept.iter().filter(|&&k| k == 0).count() as f64,
+    );
+    report.layer_triangles = culled.kept.clone();
     report.gate(plan, Stage::Lod, i, || ());
 
     let prefix = if several {
@@ -382,6 +451,8 @@ fn bake_surface(
         surface: i,
         name: &surface.name,
         prefix: &prefix,
+        culled: &culled,
+        density: density_map.as_deref(),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(
@@ -408,6 +479,8 @@ fn bake_surface(
         mask,
         packed: surface_packed,
         tiles_per_uv,
+        density: density_map,
+        culled,
     }
 }
 

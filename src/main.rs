@@ -118,6 +118,12 @@ struct BakeArgs {
     /// vertex): the effect `collision` on every surface. Shells are always kept from inverting.
     #[arg(long)]
     clamp: bool,
+    /// Keep every layer triangle, even where no strand survives (turns the effect `cull` off).
+    #[arg(long)]
+    no_cull: bool,
+    /// Write one level of detail, in one piece (turns the effect `lod` off).
+    #[arg(long)]
+    no_lod: bool,
     /// Winding: `auto` makes faces agree and turns closed parts outward (with a warning saying
     /// what was flipped), `keep` leaves it as loaded, `flip` reverses every triangle
     /// [default: auto].
@@ -164,6 +170,11 @@ impl BakeArgs {
             effects.push(Effect::Collision);
             effects.sort();
         }
+        for (off, effect) in [(self.no_cull, Effect::Cull), (self.no_lod, Effect::Lod)] {
+            if off {
+                effects.retain(|&e| e != effect);
+            }
+        }
     }
 
     /// Whether the input is a scene file.
@@ -180,7 +191,12 @@ impl BakeArgs {
             SceneFile::read(&self.input)?
         } else {
             let preset = self.preset.unwrap_or(Preset::Fur);
-            SceneFile::single(&self.input, preset, BakeParams::preset(preset), &[])
+            SceneFile::single(
+                &self.input,
+                preset,
+                BakeParams::preset(preset),
+                &Effect::DEFAULT,
+            )
         };
         for s in &mut scene.surfaces {
             if let Some(preset) = self.preset.filter(|&p| p != s.preset) {
@@ -209,6 +225,12 @@ impl BakeArgs {
         }
         let scene = self.scene()?;
         Ok(scene.surfaces[0].params.clone())
+    }
+
+    /// The effects of a mesh bake (see [`BakeArgs::params`]).
+    #[cfg_attr(not(feature = "view"), allow(dead_code))]
+    fn effects(&self) -> anyhow::Result<Vec<Effect>> {
+        Ok(self.scene()?.surfaces[0].effects.clone())
     }
 
     fn output(&self) -> PathBuf {
@@ -400,6 +422,7 @@ fn main() -> ExitCode {
             Ok(shellbake::view::cli::bench(
                 &bake.input,
                 &p,
+                &bake.effects()?,
                 &bench.clone().into_args(),
             )?)
         }),
@@ -420,6 +443,7 @@ fn main() -> ExitCode {
             Ok(shellbake::view::cli::verify(
                 &bake.input,
                 &p,
+                &bake.effects()?,
                 &verify.clone().into_args(),
                 out,
                 bake.quiet,
@@ -504,9 +528,10 @@ mod tests {
         assert!(parse_size("lots").is_err());
         assert_eq!(
             effects(&["bake", "a.obj", "--clamp"]),
-            vec![Effect::Collision]
+            vec![Effect::Collision, Effect::Cull, Effect::Lod]
         );
-        assert!(effects(&["bake", "a.obj"]).is_empty());
+        assert_eq!(effects(&["bake", "a.obj"]), Effect::DEFAULT);
+        assert_eq!(effects(&["bake", "a.obj", "--no-cull", "--no-lod"]), vec![]);
         let p = parse_bool_flags(&["bake", "a.obj", "--orient", "keep"]);
         assert_eq!(p.orient.mode, shellbake::orient::OrientMode::Keep);
         assert!(

@@ -52,6 +52,8 @@ pub struct Report {
     pub streams: BTreeMap<String, usize>,
     /// Bytes attributable to each layer (JSON for compact; vertices + indices for single-draw).
     pub bytes_per_layer: Vec<usize>,
+    /// Triangles each layer draws after culling (LOD 0).
+    pub layer_triangles: Vec<usize>,
     pub warnings: Vec<String>,
     pub total_ms: f64,
 }

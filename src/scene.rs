@@ -48,14 +48,23 @@ pub enum Effect {
     /// Shorten shells where they would pass through another part of the mesh (a BVH ray per
     /// vertex; `--clamp`).
     Collision,
+    /// Drop the layer triangles on which no strand survives (on by default; `--no-cull`,
+    /// `"no-cull"`).
+    Cull,
+    /// Distance LOD levels and chunks (on by default; `--no-lod`, `"no-lod"`).
+    Lod,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 1] = [Effect::Collision];
+    pub const ALL: [Effect; 3] = [Effect::Collision, Effect::Cull, Effect::Lod];
+    /// The effects every surface has unless its effect list says `no-<name>`.
+    pub const DEFAULT: [Effect; 2] = [Effect::Cull, Effect::Lod];
 
     pub fn name(self) -> &'static str {
         match self {
             Effect::Collision => "collision",
+            Effect::Cull => "cull",
+            Effect::Lod => "lod",
         }
     }
 
@@ -67,6 +76,8 @@ impl Effect {
     pub fn stage(self) -> Stage {
         match self {
             Effect::Collision => Stage::Collision,
+            Effect::Cull => Stage::Cull,
+            Effect::Lod => Stage::Lod,
         }
     }
 }
@@ -135,11 +146,6 @@ impl Stage {
     pub fn effect(self) -> Option<Effect> {
         Effect::ALL.into_iter().find(|e| e.stage() == self)
     }
-
-    /// Stages that exist in the pipeline's order but that nothing can ask for yet.
-    fn unavailable(self) -> bool {
-        matches!(self, Stage::Cull | Stage::Lod)
-    }
 }
 
 /// One surface of a scene.
@@ -160,6 +166,10 @@ pub struct Surface {
     /// Placement in the file: positions are scaled, then translated.
     pub translation: [f64; 3],
     pub scale: f64,
+    /// Grey PNG over the UV square thinning the fur (see [`crate::maps`]).
+    pub density_map: Option<PathBuf>,
+    /// Grey PNG over the UV square scaling the fur's length.
+    pub length_map: Option<PathBuf>,
 }
 
 impl Surface {
@@ -189,7 +199,16 @@ pub struct SceneFile {
 pub const SINGLE_SURFACE_NAME: &str = "shellbake";
 
 /// Keys of a surface table besides the parameter sections.
-const SURFACE_KEYS: [&str; 6] = ["name", "mesh", "preset", "effects", "translation", "scale"];
+const SURFACE_KEYS: [&str; 8] = [
+    "name",
+    "mesh",
+    "preset",
+    "effects",
+    "translation",
+    "scale",
+    "density_map",
+    "length_map",
+];
 
 /// Sections of [`BakeParams`] a surface may override.
 const SECTIONS: [&str; 6] = ["orient", "clamp", "strands", "shells", "shade", "pack"];
@@ -297,6 +316,8 @@ impl SceneFile {
                 effects,
                 translation: [0.0; 3],
                 scale: 1.0,
+                density_map: None,
+                length_map: None,
             }],
         }
     }
@@ -398,6 +419,12 @@ impl Reader<'_> {
             return Err(self.error(here, "no `mesh` key: every surface names its mesh file"));
         };
         let mesh = self.mesh_path(&at(here, "mesh"), mesh)?;
+        let map = |key: &str| -> Result<Option<PathBuf>> {
+            string(key)?
+                .map(|m| self.mesh_path(&at(here, key), m))
+                .transpose()
+        };
+        let (density_map, length_map) = (map("density_map")?, map("length_map")?);
         let preset = match string("preset")? {
             None => Preset::Fur,
             Some(name) => Preset::from_name(name).ok_or_else(|| {
@@ -419,7 +446,7 @@ impl Reader<'_> {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "surface".into()),
         };
-        let mut effects = Vec::new();
+        let mut effects = Effect::DEFAULT.to_vec();
         if let Some(v) = table.get("effects") {
             let key = at(here, "effects");
             let Some(list) = v.as_array() else {
@@ -428,14 +455,25 @@ impl Reader<'_> {
             for (k, e) in list.iter().enumerate() {
                 let mut p = key.clone();
                 p.push(Seg::Index(k));
-                let known: Vec<&str> = Effect::ALL.iter().map(|e| e.name()).collect();
-                let effect = e.as_str().and_then(Effect::from_name).ok_or_else(|| {
-                    self.error(
-                        &p,
-                        format!("unknown effect {e} (expected one of {})", known.join(", ")),
-                    )
-                })?;
-                effects.push(effect);
+                let known: Vec<String> = Effect::ALL
+                    .iter()
+                    .map(|e| e.name().to_string())
+                    .chain(Effect::DEFAULT.iter().map(|e| format!("no-{}", e.name())))
+                    .collect();
+                let name = e.as_str().unwrap_or_default();
+                let off = name.strip_prefix("no-").and_then(Effect::from_name);
+                match (Effect::from_name(name), off) {
+                    (Some(effect), _) => effects.push(effect),
+                    (None, Some(effect)) if Effect::DEFAULT.contains(&effect) => {
+                        effects.retain(|&x| x != effect)
+                    }
+                    _ => {
+                        return Err(self.error(
+                            &p,
+                            format!("unknown effect {e} (expected one of {})", known.join(", ")),
+                        ))
+                    }
+                }
             }
         }
         effects.sort();
@@ -475,6 +513,8 @@ impl Reader<'_> {
             effects,
             translation,
             scale,
+            density_map,
+            length_map,
         })
     }
 
@@ -524,7 +564,7 @@ impl Reader<'_> {
         let leaves = || {
             self.error(
                 key,
-                format!("mesh path '{relative}' leaves the scene file's folder (refused)"),
+                format!("path '{relative}' leaves the scene file's folder (refused)"),
             )
         };
         if relative.is_empty()
@@ -628,10 +668,6 @@ pub fn plan(scene: &SceneFile) -> Plan {
         .iter()
         .map(|&stage| {
             let (surfaces, why) = match stage.effect() {
-                _ if stage.unavailable() => (
-                    vec![false; names.len()],
-                    "nothing asked (not available yet)".to_string(),
-                ),
                 None => (vec![true; names.len()], "every bake".to_string()),
                 Some(effect) => {
                     let asked: Vec<bool> = scene.surfaces.iter().map(|s| s.asks(effect)).collect();
@@ -684,7 +720,8 @@ mod tests {
         let s = parse(
             "[[surface]]\nname = \"ground\"\nmesh = \"plane.obj\"\npreset = \"grass\"\n\
              [surface.shells]\nlayers = 24\n\n[[surface]]\nmesh = \"sub/bunny.obj\"\n\
-             effects = [\"collision\", \"collision\"]\ntranslation = [0, 1.5, 0]\n",
+             effects = [\"collision\", \"collision\", \"no-lod\"]\ntranslation = [0, 1.5, 0]\n\
+             density_map = \"sub/bare.png\"\n",
         )
         .unwrap();
         assert_eq!(s.surfaces.len(), 2);
@@ -695,12 +732,17 @@ mod tests {
         assert_eq!(g.params.strands, BakeParams::preset(Preset::Grass).strands);
         assert_eq!(b.name, "bunny");
         assert_eq!(b.preset, Preset::Fur);
-        assert_eq!(b.effects, vec![Effect::Collision]);
+        assert_eq!(g.effects, Effect::DEFAULT);
+        assert_eq!(b.effects, vec![Effect::Collision, Effect::Cull]);
         assert_eq!(b.translation, [0.0, 1.5, 0.0]);
+        assert_eq!(
+            b.density_map.as_deref(),
+            Some(Path::new("scenes/sub/bare.png"))
+        );
         let p = plan(&s);
         assert!(!p.runs(Stage::Collision, 0) && p.runs(Stage::Collision, 1));
         assert!(p.stage(Stage::Collision).why.contains("asked by bunny"));
-        assert!(p.runs(Stage::Clamp, 0) && !p.stage(Stage::Lod).runs());
+        assert!(p.runs(Stage::Clamp, 0) && p.runs(Stage::Lod, 0) && !p.runs(Stage::Lod, 1));
     }
 
     #[test]

@@ -134,6 +134,10 @@ pub struct PackInput<'a> {
     pub mask: &'a Mask,
     /// Mask tiles per UV unit (u and v).
     pub tiles_per_uv: Vec2,
+    /// The layers each triangle of `mesh` shows in (the cull stage's result).
+    pub culled: &'a crate::cull::Culled,
+    /// Density per vertex of `mesh` (`COLOR_0` alpha), when the surface has a density map.
+    pub density: Option<&'a [u8]>,
     pub roughness: f32,
     /// The surface's index in the file and the name of its root node.
     pub surface: usize,
@@ -156,16 +160,39 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     );
     assert_eq!(input.shells.delta.len(), mesh.vertex_count());
 
-    // meshopt: vertex cache order, then fetch order.
+    // Triangles by the number of layers they show in, most first, so that every layer draws a
+    // prefix of one index buffer (culling); meshopt's vertex cache order within each group,
+    // then fetch order.
     let nv = mesh.vertex_count();
-    let indices = if nv > 0 {
-        meshopt::optimize_vertex_cache(&mesh.indices, nv)
-    } else {
-        Vec::new()
-    };
-    // Fetch order = first use in the cache-ordered index buffer (what meshopt's
+    let layers = input.shells.t.len();
+    let top = &input.culled.top;
+    assert_eq!(
+        top.len(),
+        mesh.triangle_count(),
+        "one cull result per triangle"
+    );
+    let mut triangles: Vec<u32> = (0..top.len() as u32).collect();
+    triangles.sort_by_key(|&t| std::cmp::Reverse(top[t as usize]));
+    let mut indices = Vec::with_capacity(mesh.indices.len());
+    let mut kept = vec![0usize; layers];
+    for group in triangles.chunk_by(|&a, &b| top[a as usize] == top[b as usize]) {
+        let ix: Vec<u32> = group
+            .iter()
+            .flat_map(|&t| {
+                mesh.indices[3 * t as usize..3 * t as usize + 3]
+                    .iter()
+                    .copied()
+            })
+            .collect();
+        indices.extend(meshopt::optimize_vertex_cache(&ix, nv));
+        for k in &mut kept[..top[group[0] as usize] as usize] {
+            *k += group.len();
+        }
+    }
+    // Fetch order = first use in the ordered index buffer (what meshopt's
     // optimizeVertexFetchRemap computes; done here because the binding truncates its remap
-    // table when some vertices are unused). Unused vertices are dropped.
+    // table when some vertices are unused). Unused vertices are dropped. The vertices a prefix
+    // of the triangles uses are then a prefix of the vertices.
     let mut fetch = vec![u32::MAX; nv];
     let mut order = Vec::with_capacity(nv);
     for &i in &indices {
@@ -175,6 +202,11 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         }
     }
     let indices: Vec<u32> = indices.iter().map(|&i| fetch[i as usize]).collect();
+    // vertices used by each layer's triangles
+    let layer_vertices: Vec<usize> = kept
+        .iter()
+        .map(|&n| indices[..3 * n].iter().max().map_or(0, |&m| m as usize + 1))
+        .collect();
     let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
     let positions = pick(&mesh.positions);
     let normals = pick(mesh.normals.as_ref().unwrap());
@@ -183,6 +215,9 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         .iter()
         .map(|&o| mesh.uvs.as_ref().unwrap()[o as usize])
         .collect();
+    let density: Option<Vec<u8>> = input
+        .density
+        .map(|d| order.iter().map(|&o| d[o as usize]).collect());
 
     let grid = PositionGrid::fit(
         // the base and the fully extruded surface
@@ -252,12 +287,16 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         uvs,
         deltas,
         indices,
+        density,
+        kept,
+        layer_vertices,
     };
     let texture = TextureRef {
         texture,
         offset: uv_offset,
         scale: uv_scale,
     };
+    let ordered_kept = ordered.kept.clone();
     let layer_meshes = match params.layout {
         Layout::Compact => compact(&mut b, input, &ordered, texture),
         Layout::SingleDraw => single_draw(&mut b, input, &ordered, texture),
@@ -275,7 +314,11 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         extras: Some(ShellExtras {
             layout: params.layout,
             height: shells.height,
-            t: shells.t.clone(),
+            // the layers the file holds (culling drops layers no triangle shows in)
+            t: (0..shells.t.len())
+                .filter(|&j| j == 0 || ordered_kept[j] > 0)
+                .map(|j| shells.t[j])
+                .collect(),
         }),
         ..Node::default()
     });
@@ -318,6 +361,12 @@ struct Ordered {
     /// Extrusion deltas in grid units (already guarded).
     deltas: Vec<Vec3>,
     indices: Vec<u32>,
+    /// Density per vertex (`COLOR_0` alpha), when the surface has a density map.
+    density: Option<Vec<u8>>,
+    /// Triangles each layer draws: a prefix of `indices`.
+    kept: Vec<usize>,
+    /// Vertices each layer's triangles use: a prefix of the vertices.
+    layer_vertices: Vec<usize>,
 }
 
 /// Appends one surface's streams to the file, tagged with the surface.
@@ -446,9 +495,38 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered, texture: TextureRef)
         Some((bounds(lo), bounds(hi))),
     );
     let ix = b.indices("indices", &s.indices, positions.len());
+    let density = s.density.as_ref().map(|d| {
+        let mut bytes = Bytes::default();
+        for &d in d {
+            bytes.0.extend_from_slice(&[255, 255, 255, d]);
+        }
+        let v = b.stream(
+            "density",
+            Semantic::Color(0),
+            None,
+            bytes.0,
+            Some(4),
+            d.len(),
+        );
+        b.out
+            .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
+    });
+    // one index accessor per distinct triangle count, all over the one index stream
+    let mut prefixes: Vec<(usize, usize)> = vec![(s.indices.len() / 3, ix)];
     let shells = input.shells;
     (0..shells.t.len())
+        .filter(|&j| j == 0 || s.kept[j] > 0)
         .map(|j| {
+            let ix = match prefixes.iter().find(|&&(n, _)| n == s.kept[j]) {
+                Some(&(_, a)) => a,
+                None => {
+                    let mut a = b.out.accessors[ix].clone();
+                    a.count = 3 * s.kept[j];
+                    let a = Packed::push(&mut b.out.accessors, a);
+                    prefixes.push((s.kept[j], a));
+                    a
+                }
+            };
             let c = shells.color[j];
             let base = j == 0;
             let name = format!("{}layer_{j:03}", input.prefix);
@@ -466,12 +544,14 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered, texture: TextureRef)
                     roughness: input.roughness,
                 },
             );
+            let mut attributes = vec![
+                (Semantic::Position, position),
+                (Semantic::Normal, normal),
+                (Semantic::TexCoord(0), texcoord),
+            ];
+            attributes.extend(density.map(|d| (Semantic::Color(0), d)));
             let primitive = Primitive {
-                attributes: vec![
-                    (Semantic::Position, position),
-                    (Semantic::Normal, normal),
-                    (Semantic::TexCoord(0), texcoord),
-                ],
+                attributes,
                 targets: if base {
                     vec![]
                 } else {
@@ -553,49 +633,52 @@ fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered, texture: Texture
     let (grid, positions, deltas) = (&s.grid, &s.positions, &s.deltas);
     let shells = input.shells;
     let layers = shells.t.len();
-    let nv = positions.len();
-    let mut q = Vec::with_capacity(nv * layers);
+    let total: usize = s.layer_vertices.iter().sum();
+    let mut q = Vec::with_capacity(total);
     let mut colors = Bytes::default();
+    let mut all_ix: Vec<u32> = Vec::new();
     for j in 0..layers {
+        // layer j: the vertices and triangles it keeps (prefixes)
+        let (nv, first) = (s.layer_vertices[j], q.len() as u32);
         let t = shells.t[j];
         let top_level = grid.max_level() as f32;
-        q.extend(positions.iter().zip(deltas).map(|(&p, &d)| {
+        q.extend(positions[..nv].iter().zip(deltas).map(|(&p, &d)| {
             let r = guard::layer_point((p - grid.min) / grid.step, d, t, top_level);
             [r.x as u16, r.y as u16, r.z as u16]
         }));
         let c = shells.color[j];
-        let rgba = [
-            (c[0].clamp(0.0, 1.0) * 65535.0).round() as u16,
-            (c[1].clamp(0.0, 1.0) * 65535.0).round() as u16,
-            (c[2].clamp(0.0, 1.0) * 65535.0).round() as u16,
-            single_draw_alpha(input.mask, shells.steps[j]),
-        ];
-        for _ in 0..nv {
+        let alpha = single_draw_alpha(input.mask, shells.steps[j]);
+        for v in 0..nv {
+            // density scales every layer above the base
+            let a = match &s.density {
+                Some(d) if j > 0 => (alpha as u32 * d[v] as u32 + 127) / 255,
+                _ => alpha as u32,
+            };
+            let rgba = [
+                (c[0].clamp(0.0, 1.0) * 65535.0).round() as u16,
+                (c[1].clamp(0.0, 1.0) * 65535.0).round() as u16,
+                (c[2].clamp(0.0, 1.0) * 65535.0).round() as u16,
+                a as u16,
+            ];
             colors.u16s(&rgba, 8);
         }
+        all_ix.extend(s.indices[..3 * s.kept[j]].iter().map(|&i| i + first));
     }
     let position = b.positions(&q);
+    let pick = |j: usize| 0..s.layer_vertices[j];
     let all_normals: Vec<Vec3> = (0..layers)
-        .flat_map(|_| s.normals.iter().copied())
+        .flat_map(|j| pick(j).map(|v| s.normals[v]))
         .collect();
     let normal = b.normals(&all_normals);
-    let all_uvs: Vec<Vec2> = (0..layers).flat_map(|_| s.uvs.iter().copied()).collect();
+    let all_uvs: Vec<Vec2> = (0..layers)
+        .flat_map(|j| pick(j).map(|v| s.uvs[v]))
+        .collect();
     let texcoord = b.texcoords(&all_uvs, s.uv_grid, s.float_uvs);
-    let cv = b.stream(
-        "color",
-        Semantic::Color(0),
-        None,
-        colors.0,
-        Some(8),
-        nv * layers,
-    );
+    let cv = b.stream("color", Semantic::Color(0), None, colors.0, Some(8), total);
     let color = b
         .out
         .accessor(cv, component::UNSIGNED_SHORT, true, "VEC4", None);
-    let all_ix: Vec<u32> = (0..layers as u32)
-        .flat_map(|j| s.indices.iter().map(move |&i| i + j * nv as u32))
-        .collect();
-    let ix = b.indices("indices", &all_ix, nv * layers);
+    let ix = b.indices("indices", &all_ix, total);
     let name = format!("{}shells", input.prefix);
     let material = Packed::push(
         &mut b.out.materials,

@@ -121,9 +121,14 @@ pub struct BenchArgs {
 /// Runs `bench`: bakes `input`, then draws the baked file and the runtime reference
 /// `args.frames` times from the front, side, close and far views and prints the mean GPU time of
 /// a frame (timestamp queries; wall time where the adapter has none) and the triangles drawn.
-pub fn bench(input: &Path, params: &BakeParams, args: &BenchArgs) -> Result<()> {
+pub fn bench(
+    input: &Path,
+    params: &BakeParams,
+    effects: &[crate::scene::Effect],
+    args: &BenchArgs,
+) -> Result<()> {
     let scene = crate::load::load(input)?;
-    let baked = crate::bake(&scene, params);
+    let baked = crate::bake_with(&scene, params, effects);
     let gpu = Gpu::new()?;
     let info = gpu.adapter.get_info();
     let reference_triangles = baked.mesh.triangle_count() * baked.shells.t.len();
@@ -222,12 +227,13 @@ pub fn view(args: &ViewArgs) -> Result<()> {
 pub fn verify(
     input: &Path,
     params: &BakeParams,
+    effects: &[crate::scene::Effect],
     args: &VerifyArgs,
     glb_out: Option<&Path>,
     quiet: bool,
 ) -> Result<()> {
     let scene = crate::load::load(input)?;
-    let baked = crate::bake(&scene, params);
+    let baked = crate::bake_with(&scene, params, effects);
     if let Some(path) = glb_out {
         crate::write::write_glb(path, &baked.glb)?;
     }

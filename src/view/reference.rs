@@ -68,6 +68,9 @@ pub struct ReferenceInput<'a> {
     pub tiles_per_uv: Vec2,
     /// glTF roughness of every layer (metallic is 0).
     pub roughness: f32,
+    /// Density per vertex (bytes; `None`: 1): the sampled law value is scaled by it on every
+    /// layer above the base, as the density map asks.
+    pub density: Option<&'a [u8]>,
 }
 
 impl<'a> ReferenceInput<'a> {
@@ -82,6 +85,7 @@ impl<'a> ReferenceInput<'a> {
             strands: &params.strands,
             tiles_per_uv: baked.tiles_per_uv,
             roughness: params.shade.roughness,
+            density: baked.density.as_deref(),
         }
     }
 }
@@ -220,7 +224,7 @@ pub struct ReferenceRenderer {
     data: Box<ShellData>,
     uniform: wgpu::Buffer,
     group: wgpu::BindGroup,
-    vertices: [wgpu::Buffer; 4],
+    vertices: [wgpu::Buffer; 5],
     indices: wgpu::Buffer,
     index_count: u32,
     layers: u32,
@@ -261,6 +265,13 @@ impl ReferenceRenderer {
             f32s(flat3(normals), "normals"),
             f32s(uvs.iter().flat_map(|p| p.to_array()).collect(), "uvs"),
             f32s(flat3(&shells.delta), "deltas"),
+            f32s(
+                match input.density {
+                    Some(d) => d.iter().map(|&d| d as f32 / 255.0).collect(),
+                    None => vec![1.0; mesh.vertex_count()],
+                },
+                "densities",
+            ),
         ];
         let ix = if mesh.indices.is_empty() {
             vec![0u32; 3]
@@ -447,6 +458,7 @@ impl ReferenceRenderer {
                 attr(1, wgpu::VertexFormat::Float32x3),
                 attr(2, wgpu::VertexFormat::Float32x2),
                 attr(3, wgpu::VertexFormat::Float32x3),
+                attr(4, wgpu::VertexFormat::Float32),
             ];
             let layouts: Vec<Option<wgpu::VertexBufferLayout>> = a
                 .iter()

@@ -28,6 +28,7 @@ struct VsIn {
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
     @location(3) delta: vec3<f32>,
+    @location(4) density: f32,
 }
 
 struct VsOut {
@@ -36,6 +37,7 @@ struct VsOut {
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
     @location(3) @interpolate(flat) layer: u32,
+    @location(4) density: f32,
 }
 
 @vertex
@@ -49,6 +51,7 @@ fn vs_main(in: VsIn, @builtin(instance_index) layer: u32) -> VsOut {
     out.normal = in.normal;
     out.uv = in.uv;
     out.layer = layer;
+    out.density = in.density;
     return out;
 }
 
@@ -68,7 +71,8 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // Implicit derivatives pick the mip level (uniform control flow: before any discard).
     let law = textureSample(law_texture, law_sampler, in.uv * shell.tiles.xy);
     // The base layer (t = 0) is the opaque skin and never discards.
-    if (in.layer > 0u && !survives(law.a, in.layer, layer.w)) {
+    // The density map scales the law's value (the baked file: COLOR_0 alpha times the mask's).
+    if (in.layer > 0u && !survives(law.a * in.density, in.layer, layer.w)) {
         discard;
     }
     let rgb = shade(layer.rgb * law.rgb, shell.material.x, shell.material.y, normalize(in.normal), in.world);
