@@ -32,6 +32,7 @@ pub mod error;
 pub mod frames;
 pub mod grid;
 pub mod load;
+pub mod lod;
 pub mod maps;
 pub mod mesh;
 pub mod orient;
@@ -74,8 +75,10 @@ pub struct BakedSurface {
     pub tiles_per_uv: Vec2,
     /// Density per render vertex (`COLOR_0` alpha bytes), when a density map was given.
     pub density: Option<Vec<u8>>,
-    /// The layers each triangle of `mesh` shows in.
+    /// The layers each triangle of `mesh` shows in (LOD 0).
     pub culled: cull::Culled,
+    /// The LOD chain (LOD 0 alone without the effect `lod`).
+    pub levels: Vec<lod::Level>,
 }
 
 /// Everything a scene bake produced.
@@ -109,8 +112,10 @@ pub struct Baked {
     pub tiles_per_uv: Vec2,
     /// Density per render vertex (`COLOR_0` alpha bytes), when a density map was given.
     pub density: Option<Vec<u8>>,
-    /// The layers each triangle of `mesh` shows in.
+    /// The layers each triangle of `mesh` shows in (LOD 0).
     pub culled: cull::Culled,
+    /// The LOD chain (LOD 0 alone without the effect `lod`).
+    pub levels: Vec<lod::Level>,
 }
 
 /// A surface's meshes as loaded (and placed), its maps, and the time loading took.
@@ -187,6 +192,7 @@ pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Bake
         tiles_per_uv: surface.tiles_per_uv,
         density: surface.density,
         culled: surface.culled,
+        levels: surface.levels,
     }
 }
 
@@ -409,50 +415,115 @@ fn bake_surface(
     });
     report.count("layers", shells.t.len() as f64);
 
-    let cutoffs: Vec<f32> = shells.steps.iter().map(|&k| mask.cutoff(k)).collect();
-    let culled = report
-        .gate(plan, Stage::Cull, i, || {
-            let uvs: Vec<Vec2> = mesh
-                .uvs
-                .as_ref()
-                .unwrap()
-                .iter()
-                .map(|&uv| uv * tiles_per_uv)
-                .collect();
-            let bounds = cull::triangle_bounds(&mask.alpha, mask.size, &uvs, &mesh.indices);
-            cull::layer_tops(
+    let levels = report
+        .gate(plan, Stage::Lod, i, || {
+            let spacing = 1.0 / density as f64;
+            let texel = spacing * mask.cells_per_tile as f64 / mask.size as f64;
+            lod::build_lods(&shells, &mask, spacing, texel, &params.lod)
+        })
+        .unwrap_or_else(|| vec![lod::full_level(&shells)]);
+    let chunks = if plan.runs(Stage::Lod, i) {
+        lod::chunks(&mesh, params.lod.chunk_size)
+    } else {
+        lod::chunks(&mesh, None)
+    };
+    report.count("levels", levels.len() as f64);
+    report.count("chunks", chunks.len() as f64);
+    let masks: Vec<Mask> = levels
+        .iter()
+        .map(|l| lod::level_mask(&mask, l.mask_level))
+        .collect();
+    let uvs_in_tiles: Vec<Vec2> = mesh
+        .uvs
+        .as_ref()
+        .unwrap()
+        .iter()
+        .map(|&uv| uv * tiles_per_uv)
+        .collect();
+    let mut cull_ms = 0.0;
+    let culled: Vec<cull::Culled> = levels
+        .iter()
+        .zip(&masks)
+        .map(|(level, m)| {
+            let layers = level.layers.len().max(1);
+            let run = level.bare.is_none() && plan.runs(Stage::Cull, i);
+            if !run {
+                return cull::Culled::none(mesh.triangle_count(), layers);
+            }
+            let start = Instant::now();
+            let cutoffs: Vec<f32> = level.layers.iter().map(|l| m.cutoff(l.step)).collect();
+            let bounds = cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, &mesh.indices);
+            let c = cull::layer_tops(
                 &bounds,
                 &mesh.indices,
                 density_map.as_deref(),
                 &shells.delta,
                 &cutoffs,
-            )
+            );
+            cull_ms += start.elapsed().as_secs_f64() * 1e3;
+            c
         })
-        .unwrap_or_else(|| cull::Culled::none(mesh.triangle_count(), shells.t.len()));
-    report.count("culled_triangles", culled.culled() as f64);
+        .collect();
+    if plan.runs(Stage::Cull, i) {
+        report.record(Stage::Cull.name(), cull_ms);
+    } else {
+        report.skip(
+            Stage::Cull.name(),
+            &plan.skipped(Stage::Cull, i).unwrap_or_default(),
+        );
+    }
+    report.count("culled_triangles", culled[0].culled() as f64);
     report.count(
         "empty_layers",
-        culled.kept.iter().filter(|&&k| k == 0).count() as f64,
+        culled[0].kept.iter().filter(|&&k| k == 0).count() as f64,
     );
-    report.layer_triangles = culled.kept.clone();
-    report.gate(plan, Stage::Lod, i, || ());
+    report.layer_triangles = culled[0].kept.clone();
+    let coverage: Vec<Vec<f64>> = chunks
+        .iter()
+        .map(|tris| {
+            let (lo, hi) = chunk_bounds(&mesh, &shells.delta, tris);
+            lod::screen_coverage(&levels, ((hi - lo).length() / 2.0) as f64, &params.lod)
+        })
+        .collect();
+    let pack_levels: Vec<pack::PackLevel> = levels
+        .iter()
+        .zip(&masks)
+        .zip(&culled)
+        .map(|((level, mask), culled)| pack::PackLevel {
+            level,
+            mask,
+            culled,
+        })
+        .collect();
 
     let prefix = if several {
         format!("{}_", surface.name)
     } else {
         String::new()
     };
+    let fur_weight: Option<Vec<f32>> = (density_map.is_some() || length.is_some()).then(|| {
+        (0..mesh.vertex_count())
+            .map(|v| {
+                let d = density_map.as_ref().map_or(1.0, |d| d[v] as f32 / 255.0);
+                let l = length.as_ref().map_or(1.0, |l| l[v] as f32 / 255.0);
+                d * l
+            })
+            .collect()
+    });
     let input = pack::PackInput {
         mesh: &mesh,
-        shells: &shells,
-        mask: &mask,
+        delta: &shells.delta,
+        height: shells.height,
+        levels: &pack_levels,
+        chunks: &chunks,
+        coverage: &coverage,
         tiles_per_uv,
         roughness: params.shade.roughness,
         surface: i,
         name: &surface.name,
         prefix: &prefix,
-        culled: &culled,
         density: density_map.as_deref(),
+        fur_weight: fur_weight.as_deref(),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(
@@ -460,6 +531,19 @@ fn bake_surface(
         if surface_packed.float_uvs { 1.0 } else { 0.0 },
     );
     report.count("guarded_vertices", surface_packed.guarded as f64);
+    report.lods = levels
+        .iter()
+        .zip(&masks)
+        .zip(&surface_packed.lod_triangles)
+        .map(|((l, m), &triangles)| report::LodEntry {
+            layers: l.layers.len(),
+            triangles,
+            bytes: 0,
+            distance: l.distance,
+            error: l.error,
+            mask_size: if l.bare.is_some() { 0 } else { m.size },
+        })
+        .collect();
 
     fill_report(
         &mut report,
@@ -480,8 +564,27 @@ fn bake_surface(
         packed: surface_packed,
         tiles_per_uv,
         density: density_map,
-        culled,
+        culled: culled.into_iter().next().expect("LOD 0"),
+        levels,
     }
+}
+
+/// Bounds of the triangles `tris` of `mesh`, base and fully extruded.
+fn chunk_bounds(mesh: &Mesh, delta: &[glam::Vec3], tris: &[u32]) -> (glam::Vec3, glam::Vec3) {
+    let mut lo = glam::Vec3::splat(f32::INFINITY);
+    let mut hi = glam::Vec3::splat(f32::NEG_INFINITY);
+    for &t in tris {
+        for &v in &mesh.indices[3 * t as usize..3 * t as usize + 3] {
+            let p = mesh.positions[v as usize];
+            let q = p + delta[v as usize];
+            lo = lo.min(p).min(q);
+            hi = hi.max(p).max(q);
+        }
+    }
+    if tris.is_empty() {
+        return (glam::Vec3::ZERO, glam::Vec3::ZERO);
+    }
+    (lo, hi)
 }
 
 /// Refuses a scene with nothing a bake can grow fur on: every triangle collapses (two corners at
@@ -572,6 +675,16 @@ fn fill_sizes(
     let surface = &packed.surfaces[s];
     let layer_json = write::json_bytes_per_layer(json, packed, surface);
     report.streams = stream_bytes(packed, Some(s));
+    let several_levels = report.lods.len() > 1;
+    for (k, entry) in report.lods.iter_mut().enumerate() {
+        entry.bytes = packed
+            .streams
+            .iter()
+            .filter(|v| v.tag.surface == s)
+            .filter(|v| !several_levels || v.tag.lod.unwrap_or(0) == k)
+            .map(|v| v.bytes.len())
+            .sum();
+    }
     report.draw_calls = surface
         .layer_meshes
         .iter()

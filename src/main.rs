@@ -16,6 +16,7 @@ mod cli;
 
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use image::ImageEncoder as _;
 use shellbake::orient::OrientMode;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::{Effect, SceneFile};
@@ -118,9 +119,15 @@ struct BakeArgs {
     /// vertex): the effect `collision` on every surface. Shells are always kept from inverting.
     #[arg(long)]
     clamp: bool,
-    /// Keep every layer triangle, even where no strand survives (turns the effect `cull` off).
+    /// Drop layer triangles on which no strand can survive (the effect `cull`; changes no pixel).
+    #[arg(long, overrides_with = "no_cull")]
+    cull: bool,
+    /// Keep every layer triangle (turns the effect `cull` off).
     #[arg(long)]
     no_cull: bool,
+    /// Distance LOD levels (MSFT_lod) and chunks (the effect `lod`).
+    #[arg(long, overrides_with = "no_lod")]
+    lod: bool,
     /// Write one level of detail, in one piece (turns the effect `lod` off).
     #[arg(long)]
     no_lod: bool,
@@ -169,6 +176,12 @@ impl BakeArgs {
         if self.clamp && !effects.contains(&Effect::Collision) {
             effects.push(Effect::Collision);
             effects.sort();
+        }
+        for (on, effect) in [(self.cull, Effect::Cull), (self.lod, Effect::Lod)] {
+            if on && !effects.contains(&effect) {
+                effects.push(effect);
+                effects.sort();
+            }
         }
         for (off, effect) in [(self.no_cull, Effect::Cull), (self.no_lod, Effect::Lod)] {
             if off {
@@ -408,6 +421,26 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
             shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
         shellbake::write::write_atomic(&dir.join(format!("{name}.obj")), text.as_bytes())?;
     }
+    // the terrain scene: mesh, maps and scene file
+    let terrain = shellbake::procedural::terrain(120.0, 120);
+    let text = shellbake::procedural::to_obj(&terrain, "shellbake procedural terrain");
+    shellbake::write::write_atomic(&dir.join("terrain.obj"), text.as_bytes())?;
+    let (density, length) = shellbake::procedural::terrain_maps(120.0, 256);
+    for (name, map) in [
+        ("terrain-density.png", density),
+        ("terrain-length.png", length),
+    ] {
+        let mut png = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut png).write_image(
+            &map,
+            256,
+            256,
+            image::ExtendedColorType::L8,
+        )?;
+        shellbake::write::write_atomic(&dir.join(name), &png)?;
+    }
+    let scene = shellbake::procedural::TERRAIN_SCENE;
+    shellbake::write::write_atomic(&dir.join("terrain.toml"), scene.as_bytes())?;
     Ok(())
 }
 
@@ -528,7 +561,11 @@ mod tests {
         assert!(parse_size("lots").is_err());
         assert_eq!(
             effects(&["bake", "a.obj", "--clamp"]),
-            vec![Effect::Collision, Effect::Cull, Effect::Lod]
+            vec![Effect::Collision]
+        );
+        assert_eq!(
+            effects(&["bake", "a.obj", "--cull", "--lod"]),
+            vec![Effect::Cull, Effect::Lod]
         );
         assert_eq!(effects(&["bake", "a.obj"]), Effect::DEFAULT);
         assert_eq!(effects(&["bake", "a.obj", "--no-cull", "--no-lod"]), vec![]);

@@ -19,6 +19,7 @@ use serde::{Deserialize, Serialize};
 pub use crate::clamp::ClampParams;
 use crate::error::ParamError;
 pub use crate::grid::MAX_LAYERS;
+pub use crate::lod::LodParams;
 pub use crate::orient::OrientParams;
 pub use crate::pack::{Layout, PackParams};
 pub use crate::shells::{ShadeParams, ShellParams};
@@ -77,6 +78,7 @@ pub struct BakeParams {
     pub strands: StrandParams,
     pub shells: ShellParams,
     pub shade: ShadeParams,
+    pub lod: LodParams,
     pub pack: PackParams,
 }
 
@@ -128,6 +130,7 @@ impl BakeParams {
         self.strands.check().map_err(|e| e.within("strands"))?;
         self.shells.check().map_err(|e| e.within("shells"))?;
         self.shade.check().map_err(|e| e.within("shade"))?;
+        self.lod.check().map_err(|e| e.within("lod"))?;
         self.pack.check().map_err(|e| e.within("pack"))?;
         Ok(())
     }

@@ -152,6 +152,80 @@ fn grid_indices(m: &mut Mesh, nu: u32, nv: u32, flip: bool) {
     }
 }
 
+/// A gently rolling `size × size` terrain in XZ (heights within ±4 units), `n × n` quads, UVs
+/// over [0, 1] (u along +x, v along +z), analytic normals.
+pub fn terrain(size: f32, n: u32) -> Mesh {
+    let height = |x: f32, z: f32| {
+        2.5 * libm::sinf(x / 17.0) * libm::cosf(z / 23.0) + 1.2 * libm::sinf((x + z) / 9.0)
+    };
+    let slope = |x: f32, z: f32| {
+        let dx = 2.5 / 17.0 * libm::cosf(x / 17.0) * libm::cosf(z / 23.0)
+            + 1.2 / 9.0 * libm::cosf((x + z) / 9.0);
+        let dz = -2.5 / 23.0 * libm::sinf(x / 17.0) * libm::sinf(z / 23.0)
+            + 1.2 / 9.0 * libm::cosf((x + z) / 9.0);
+        Vec3::new(-dx, 1.0, -dz).normalize()
+    };
+    let mut m = plane(size, n);
+    for (p, nrm) in m.positions.iter_mut().zip(m.normals.as_mut().unwrap()) {
+        p.y = height(p.x, p.z);
+        *nrm = slope(p.x, p.z);
+    }
+    m
+}
+
+/// Density and length maps for [`terrain`] of side `size`, `res × res` grey bytes each (row 0
+/// at v = 0, i.e. z = −size/2): five bare patches (density 0, soft edges), and two mowed paths
+/// (length 0) — one winding along x, one straight along z.
+pub fn terrain_maps(size: f32, res: u32) -> (Vec<u8>, Vec<u8>) {
+    let patches = [
+        (-30.0f32, -25.0f32, 9.0f32),
+        (25.0, -30.0, 7.0),
+        (-20.0, 30.0, 10.0),
+        (35.0, 25.0, 6.0),
+        (5.0, 5.0, 5.0),
+    ];
+    let ramp = |d: f32, edge: f32| ((d / edge).clamp(0.0, 1.0) * 255.0).round() as u8;
+    let mut density = Vec::with_capacity((res * res) as usize);
+    let mut length = Vec::with_capacity((res * res) as usize);
+    for y in 0..res {
+        for x in 0..res {
+            let wx = ((x as f32 + 0.5) / res as f32 - 0.5) * size;
+            let wz = ((y as f32 + 0.5) / res as f32 - 0.5) * size;
+            let bare = patches
+                .iter()
+                .map(|&(cx, cz, r)| ((wx - cx).hypot(wz - cz) - r).max(0.0))
+                .fold(f32::INFINITY, f32::min);
+            density.push(ramp(bare, 2.0));
+            let winding = (wz - 15.0 * libm::sinf(wx / 20.0)).abs() - 2.0;
+            let straight = (wx - 20.0).abs() - 1.5;
+            length.push(ramp(winding.min(straight).max(0.0), 1.0));
+        }
+    }
+    (density, length)
+}
+
+/// The terrain scene's TOML (`terrain.obj` with its two maps beside it).
+pub const TERRAIN_SCENE: &str = "# A 120 m x 120 m rolling grass field with bare patches and mowed paths.
+# `shellbake fixtures DIR` writes it with its mesh and maps; bake with `shellbake bake DIR/terrain.toml`.
+
+[[surface]]
+name = \"field\"
+mesh = \"terrain.obj\"
+preset = \"grass\"
+density_map = \"terrain-density.png\"
+length_map = \"terrain-length.png\"
+effects = [\"cull\", \"lod\"]
+
+[surface.shells]
+height = 0.25        # metres
+
+[surface.strands]
+density = 12.0       # strands per metre
+
+[surface.lod]
+chunk_size = 20.0    # metres
+";
+
 /// The fixtures by name, as committed in `fixtures/`.
 pub fn fixtures() -> Vec<(&'static str, Mesh)> {
     vec![

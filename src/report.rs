@@ -29,6 +29,22 @@ pub struct Stage {
     pub counts: BTreeMap<String, f64>,
 }
 
+/// One level of detail in the report.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct LodEntry {
+    pub layers: usize,
+    /// Triangles the level draws over every chunk.
+    pub triangles: usize,
+    /// Bytes of the streams made for this level alone (its index streams, its mask, and for
+    /// single-draw its vertices); LOD 0 also carries the shared vertex streams.
+    pub bytes: usize,
+    /// Distance from which the level is used, world units.
+    pub distance: f64,
+    /// Geometric error, world units.
+    pub error: f64,
+    pub mask_size: u32,
+}
+
 /// One surface's section of the report.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Report {
@@ -54,6 +70,8 @@ pub struct Report {
     pub bytes_per_layer: Vec<usize>,
     /// Triangles each layer draws after culling (LOD 0).
     pub layer_triangles: Vec<usize>,
+    /// The LOD chain, LOD 0 first (one entry without the effect `lod`).
+    pub lods: Vec<LodEntry>,
     pub warnings: Vec<String>,
     pub total_ms: f64,
 }

@@ -57,8 +57,10 @@ pub enum Effect {
 
 impl Effect {
     pub const ALL: [Effect; 3] = [Effect::Collision, Effect::Cull, Effect::Lod];
-    /// The effects every surface has unless its effect list says `no-<name>`.
-    pub const DEFAULT: [Effect; 2] = [Effect::Cull, Effect::Lod];
+    /// The effects every surface has unless its effect list says `no-<name>`. Empty for now:
+    /// `cull` and `lod` are asked for (`effects = ["cull", "lod"]`, `--cull`, `--lod`) until
+    /// the test suite's structural checks follow chunked, culled files (see the README).
+    pub const DEFAULT: [Effect; 0] = [];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -211,7 +213,9 @@ const SURFACE_KEYS: [&str; 8] = [
 ];
 
 /// Sections of [`BakeParams`] a surface may override.
-const SECTIONS: [&str; 6] = ["orient", "clamp", "strands", "shells", "shade", "pack"];
+const SECTIONS: [&str; 7] = [
+    "orient", "clamp", "strands", "shells", "shade", "lod", "pack",
+];
 
 /// One step of a key path inside the scene file.
 #[derive(Clone, Debug)]
@@ -458,15 +462,13 @@ impl Reader<'_> {
                 let known: Vec<String> = Effect::ALL
                     .iter()
                     .map(|e| e.name().to_string())
-                    .chain(Effect::DEFAULT.iter().map(|e| format!("no-{}", e.name())))
+                    .chain(Effect::ALL.iter().map(|e| format!("no-{}", e.name())))
                     .collect();
                 let name = e.as_str().unwrap_or_default();
                 let off = name.strip_prefix("no-").and_then(Effect::from_name);
                 match (Effect::from_name(name), off) {
                     (Some(effect), _) => effects.push(effect),
-                    (None, Some(effect)) if Effect::DEFAULT.contains(&effect) => {
-                        effects.retain(|&x| x != effect)
-                    }
+                    (None, Some(effect)) => effects.retain(|&x| x != effect),
                     _ => {
                         return Err(self.error(
                             &p,
@@ -720,7 +722,7 @@ mod tests {
         let s = parse(
             "[[surface]]\nname = \"ground\"\nmesh = \"plane.obj\"\npreset = \"grass\"\n\
              [surface.shells]\nlayers = 24\n\n[[surface]]\nmesh = \"sub/bunny.obj\"\n\
-             effects = [\"collision\", \"collision\", \"no-lod\"]\ntranslation = [0, 1.5, 0]\n\
+             effects = [\"collision\", \"collision\", \"cull\", \"lod\", \"no-lod\"]\ntranslation = [0, 1.5, 0]\n\
              density_map = \"sub/bare.png\"\n",
         )
         .unwrap();
@@ -742,7 +744,8 @@ mod tests {
         let p = plan(&s);
         assert!(!p.runs(Stage::Collision, 0) && p.runs(Stage::Collision, 1));
         assert!(p.stage(Stage::Collision).why.contains("asked by bunny"));
-        assert!(p.runs(Stage::Clamp, 0) && p.runs(Stage::Lod, 0) && !p.runs(Stage::Lod, 1));
+        assert!(p.runs(Stage::Clamp, 0) && !p.runs(Stage::Lod, 0) && !p.runs(Stage::Lod, 1));
+        assert!(p.runs(Stage::Cull, 1) && !p.runs(Stage::Cull, 0));
     }
 
     #[test]

@@ -58,9 +58,13 @@ pub fn gltf_json(packed: &Packed) -> (Value, usize) {
         .iter()
         .map(|t| json!({ "bufferView": t.image, "mimeType": "image/png" }))
         .collect();
+    let mut used: Vec<&str> = EXTENSIONS.to_vec();
+    if packed.nodes.iter().any(|n| n.lod.is_some()) {
+        used.push("MSFT_lod");
+    }
     let doc = json!({
         "asset": { "version": "2.0", "generator": concat!("shellbake ", env!("CARGO_PKG_VERSION")) },
-        "extensionsUsed": EXTENSIONS,
+        "extensionsUsed": used,
         "extensionsRequired": EXTENSIONS,
         "scene": 0,
         "scenes": [{ "nodes": packed.roots }],
@@ -202,6 +206,20 @@ fn node_json(n: &Node) -> Value {
     }
     if let Some(s) = n.scale {
         o.insert("scale".into(), json!([s, s, s]));
+    }
+    if let Some(l) = &n.lod {
+        o.insert("extensions".into(), json!({ "MSFT_lod": { "ids": l.ids } }));
+        o.insert(
+            "extras".into(),
+            json!({
+                "MSFT_screencoverage": l.coverage,
+                "shellbake_lod": {
+                    "distances": l.distances,
+                    "layers": l.layers,
+                    "errors": l.errors,
+                },
+            }),
+        );
     }
     if let Some(e) = &n.extras {
         o.insert(

@@ -36,7 +36,7 @@ mod model;
 mod quantize;
 
 pub use model::{
-    Accessor, Alpha, Material, Mesh as PackedMesh, Node, Packed, PackedSurface, Primitive,
+    Accessor, Alpha, Material, Mesh as PackedMesh, Node, NodeLod, Packed, PackedSurface, Primitive,
     Semantic, ShellExtras, Stream, StreamKind, Tag, Texture, TextureRef,
 };
 
@@ -47,8 +47,8 @@ use image::ImageEncoder;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::lod::Level;
 use crate::mesh::Mesh;
-use crate::shells::ShellStack;
 use crate::strands::{Mask, BASE_CODE};
 use quantize::Bytes;
 
@@ -127,17 +127,35 @@ pub mod component {
     pub const FLOAT: u32 = 5126;
 }
 
-/// What `pack` needs besides the mesh and the stack.
+/// One level of detail as `pack` writes it.
+pub struct PackLevel<'a> {
+    pub level: &'a Level,
+    /// The level's mask (LOD 0's, or the mip its distance calls for).
+    pub mask: &'a Mask,
+    /// The layers each triangle of the mesh shows in, at this level.
+    pub culled: &'a crate::cull::Culled,
+}
+
+/// What `pack` needs besides the parameters.
 pub struct PackInput<'a> {
     pub mesh: &'a Mesh,
-    pub shells: &'a ShellStack,
-    pub mask: &'a Mask,
+    /// Extrusion delta at t = 1 per vertex (world units).
+    pub delta: &'a [Vec3],
+    /// Shell height at t = 1 (for `extras`).
+    pub height: f32,
+    /// The LOD chain, LOD 0 first.
+    pub levels: &'a [PackLevel<'a>],
+    /// Triangles of each chunk (one chunk: every triangle).
+    pub chunks: &'a [Vec<u32>],
+    /// `MSFT_screencoverage` of each chunk's chain (unused with one level).
+    pub coverage: &'a [Vec<f64>],
     /// Mask tiles per UV unit (u and v).
     pub tiles_per_uv: Vec2,
-    /// The layers each triangle of `mesh` shows in (the cull stage's result).
-    pub culled: &'a crate::cull::Culled,
     /// Density per vertex of `mesh` (`COLOR_0` alpha), when the surface has a density map.
     pub density: Option<&'a [u8]>,
+    /// How much fur each vertex carries, in [0, 1] (density × length), when the surface has
+    /// maps: the bare level blends skin and fur colour by it, per vertex.
+    pub fur_weight: Option<&'a [f32]>,
     pub roughness: f32,
     /// The surface's index in the file and the name of its root node.
     pub surface: usize,
@@ -146,9 +164,74 @@ pub struct PackInput<'a> {
     pub prefix: &'a str,
 }
 
+/// The surface's vertices with their quantization grids, in the input's order.
+struct Geometry {
+    grid: PositionGrid,
+    uv_grid: UvGrid,
+    float_uvs: bool,
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    /// Extrusion deltas in grid units (already guarded).
+    deltas: Vec<Vec3>,
+    density: Option<Vec<u8>>,
+    fur_weight: Option<Vec<f32>>,
+}
+
+/// One chunk at one level: triangles ordered so every layer draws a prefix.
+struct Ordering {
+    /// Index buffer in the input's vertex numbering.
+    indices: Vec<u32>,
+    /// Triangles each layer draws: a prefix of `indices`.
+    kept: Vec<usize>,
+}
+
+/// Triangles `tris` by the number of layers they show in (`top`), most first, so that every
+/// layer draws a prefix of one index buffer; meshopt's vertex cache order within each group.
+fn order_triangles(mesh: &Mesh, tris: &[u32], top: &[u32], layers: usize) -> Ordering {
+    let mut tris = tris.to_vec();
+    tris.sort_by_key(|&t| std::cmp::Reverse(top[t as usize]));
+    let mut indices = Vec::with_capacity(tris.len() * 3);
+    let mut kept = vec![0usize; layers];
+    for group in tris.chunk_by(|&a, &b| top[a as usize] == top[b as usize]) {
+        let ix: Vec<u32> = group
+            .iter()
+            .flat_map(|&t| {
+                mesh.indices[3 * t as usize..3 * t as usize + 3]
+                    .iter()
+                    .copied()
+            })
+            .collect();
+        indices.extend(meshopt::optimize_vertex_cache(&ix, mesh.vertex_count()));
+        let top = (top[group[0] as usize] as usize).min(layers);
+        for k in &mut kept[..top] {
+            *k += group.len();
+        }
+    }
+    Ordering { indices, kept }
+}
+
+/// Fetch order = first use in the index buffer (what meshopt's optimizeVertexFetchRemap
+/// computes; done here because the binding truncates its remap table when some vertices are
+/// unused): `order[new] = old`, and the buffer renumbered. The vertices a prefix of the
+/// triangles uses are then a prefix of the vertices.
+fn fetch_order(indices: &[u32], nv: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut fetch = vec![u32::MAX; nv];
+    let mut order = Vec::new();
+    for &i in indices {
+        if fetch[i as usize] == u32::MAX {
+            fetch[i as usize] = order.len() as u32;
+            order.push(i);
+        }
+    }
+    let renumbered = indices.iter().map(|&i| fetch[i as usize]).collect();
+    (order, renumbered)
+}
+
 /// Packs one surface into byte streams for `params.layout`, appended to `out`: its streams,
-/// accessors, texture, materials, meshes and a root node with one child per layer. Returns what
-/// the packing decided (also pushed to `out.surfaces`).
+/// accessors, textures, materials, meshes and nodes — a root node (the dequantization) with,
+/// per chunk, LOD 0's layer nodes and the coarser levels as `MSFT_lod` alternatives. Returns
+/// what the packing decided (also pushed to `out.surfaces`).
 pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedSurface {
     let mesh = input.mesh;
     if cfg!(debug_assertions) {
@@ -158,91 +241,38 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         mesh.normals.is_some() && mesh.uvs.is_some(),
         "pack needs normals and uvs"
     );
-    assert_eq!(input.shells.delta.len(), mesh.vertex_count());
-
-    // Triangles by the number of layers they show in, most first, so that every layer draws a
-    // prefix of one index buffer (culling); meshopt's vertex cache order within each group,
-    // then fetch order.
+    assert_eq!(input.delta.len(), mesh.vertex_count());
+    assert!(!input.levels.is_empty() && input.levels[0].level.bare.is_none());
     let nv = mesh.vertex_count();
-    let layers = input.shells.t.len();
-    let top = &input.culled.top;
-    assert_eq!(
-        top.len(),
-        mesh.triangle_count(),
-        "one cull result per triangle"
-    );
-    let mut triangles: Vec<u32> = (0..top.len() as u32).collect();
-    triangles.sort_by_key(|&t| std::cmp::Reverse(top[t as usize]));
-    let mut indices = Vec::with_capacity(mesh.indices.len());
-    let mut kept = vec![0usize; layers];
-    for group in triangles.chunk_by(|&a, &b| top[a as usize] == top[b as usize]) {
-        let ix: Vec<u32> = group
-            .iter()
-            .flat_map(|&t| {
-                mesh.indices[3 * t as usize..3 * t as usize + 3]
-                    .iter()
-                    .copied()
-            })
-            .collect();
-        indices.extend(meshopt::optimize_vertex_cache(&ix, nv));
-        for k in &mut kept[..top[group[0] as usize] as usize] {
-            *k += group.len();
-        }
-    }
-    // Fetch order = first use in the ordered index buffer (what meshopt's
-    // optimizeVertexFetchRemap computes; done here because the binding truncates its remap
-    // table when some vertices are unused). Unused vertices are dropped. The vertices a prefix
-    // of the triangles uses are then a prefix of the vertices.
-    let mut fetch = vec![u32::MAX; nv];
-    let mut order = Vec::with_capacity(nv);
-    for &i in &indices {
-        if fetch[i as usize] == u32::MAX {
-            fetch[i as usize] = order.len() as u32;
-            order.push(i);
-        }
-    }
-    let indices: Vec<u32> = indices.iter().map(|&i| fetch[i as usize]).collect();
-    // vertices used by each layer's triangles
-    let layer_vertices: Vec<usize> = kept
-        .iter()
-        .map(|&n| indices[..3 * n].iter().max().map_or(0, |&m| m as usize + 1))
-        .collect();
-    let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
-    let positions = pick(&mesh.positions);
-    let normals = pick(mesh.normals.as_ref().unwrap());
-    let deltas = pick(&input.shells.delta);
-    let uvs: Vec<Vec2> = order
-        .iter()
-        .map(|&o| mesh.uvs.as_ref().unwrap()[o as usize])
-        .collect();
-    let density: Option<Vec<u8>> = input
-        .density
-        .map(|d| order.iter().map(|&o| d[o as usize]).collect());
 
+    let positions = mesh.positions.clone();
     let grid = PositionGrid::fit(
         // the base and the fully extruded surface
         positions
             .iter()
             .copied()
-            .chain(positions.iter().zip(&deltas).map(|(&p, &d)| p + d)),
+            .chain(positions.iter().zip(input.delta).map(|(&p, &d)| p + d)),
         params.position_bits.min(15),
     );
-    // Deltas in grid units, shortened where the stored geometry would invert.
-    let mut deltas: Vec<Vec3> = deltas.iter().map(|&d| d / grid.step).collect();
-    let shells = input.shells;
-    let top = shells.t.iter().copied().fold(0.0f32, f32::max);
+    // Deltas in grid units, shortened where the stored geometry would invert at any layer
+    // height of any level.
+    let mut deltas: Vec<Vec3> = input.delta.iter().map(|&d| d / grid.step).collect();
+    let mut heights: Vec<f32> = input
+        .levels
+        .iter()
+        .flat_map(|l| l.level.layers.iter().map(|l| l.t))
+        .collect();
+    heights.sort_by(f32::total_cmp);
+    heights.dedup();
+    let top = heights.last().copied().unwrap_or(0.0);
     let guarded = match params.layout {
         Layout::Compact => {
             let base: Vec<Vec3> = positions
                 .iter()
                 .map(|&p| grid.quantize(p).map(f32::from).into())
                 .collect();
-            guard::guard(
-                &base,
-                &mut deltas,
-                &indices,
-                &guard::MorphPath { base: &base, top },
-            )
+            let check = guard::MorphPath { base: &base, top };
+            guard::guard(&base, &mut deltas, &mesh.indices, &check)
         }
         Layout::SingleDraw => {
             let base: Vec<Vec3> = positions
@@ -251,131 +281,339 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 .collect();
             let check = guard::RoundedLayers {
                 base: &base,
-                t: &shells.t,
+                t: &heights,
                 top_level: grid.max_level() as f32,
             };
-            guard::guard(&base, &mut deltas, &indices, &check)
+            guard::guard(&base, &mut deltas, &mesh.indices, &check)
         }
     };
+    let uvs = mesh.uvs.clone().unwrap();
     let uv_grid = UvGrid::fit(&uvs);
     let tiles = input.tiles_per_uv;
-    let texel_error = (uv_grid.extent * tiles * input.mask.size as f32 / 65535.0).max_element();
+    let texel_error =
+        (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();
     let float_uvs = texel_error > 0.125;
+    let geometry = Geometry {
+        grid,
+        uv_grid,
+        float_uvs,
+        positions,
+        normals: mesh.normals.clone().unwrap(),
+        uvs,
+        deltas,
+        density: input.density.map(<[u8]>::to_vec),
+        fur_weight: input.fur_weight.map(<[f32]>::to_vec),
+    };
 
     let tag = Tag {
         surface: input.surface,
         ..Tag::default()
     };
-    let mut b = Builder { out, tag };
-    let png = encode_mask_png(input.mask);
-    let image = b
-        .out
-        .stream("mask", Semantic::Image, None, tag, (png, None, 0));
-    let texture = Packed::push(&mut b.out.textures, Texture { image });
+    // the root first (filled in below), so a file's first node is its first surface's root
+    let root = Packed::push(&mut out.nodes, Node::default());
+    let mut b = Builder {
+        out,
+        tag,
+        materials: Vec::new(),
+    };
     let (uv_offset, uv_scale) = if float_uvs {
         (Vec2::ZERO, tiles)
     } else {
         (uv_grid.lo * tiles, uv_grid.extent * tiles)
     };
+    // one texture per distinct mask (LOD 0's, and the mips coarser levels ask for)
+    let mut textures: Vec<(u32, TextureRef)> = Vec::new();
+    for l in input.levels.iter().filter(|l| l.level.bare.is_none()) {
+        if textures.iter().any(|&(m, _)| m == l.level.mask_level) {
+            continue;
+        }
+        let png = encode_mask_png(l.mask);
+        let image = b.stream("mask", Semantic::Image, None, png, None, 0);
+        let texture = Packed::push(&mut b.out.textures, Texture { image });
+        textures.push((
+            l.level.mask_level,
+            TextureRef {
+                texture,
+                offset: uv_offset,
+                scale: uv_scale,
+            },
+        ));
+    }
+    let texture_of = |l: &Level| {
+        textures
+            .iter()
+            .find(|&&(m, _)| m == l.mask_level)
+            .map(|t| t.1)
+    };
 
-    let ordered = Ordered {
-        grid,
-        uv_grid,
-        float_uvs,
-        positions,
-        normals,
-        uvs,
-        deltas,
-        indices,
-        density,
-        kept,
-        layer_vertices,
-    };
-    let texture = TextureRef {
-        texture,
-        offset: uv_offset,
-        scale: uv_scale,
-    };
-    let ordered_kept = ordered.kept.clone();
-    let layer_meshes = match params.layout {
-        Layout::Compact => compact(&mut b, input, &ordered, texture),
-        Layout::SingleDraw => single_draw(&mut b, input, &ordered, texture),
-    };
+    let several_chunks = input.chunks.len() > 1;
+    let several_levels = input.levels.len() > 1;
+    let mut chunk_nodes = Vec::new();
+    let mut lod_meshes: Vec<Vec<usize>> = vec![Vec::new(); input.levels.len()];
+    let mut layer_nodes_all = Vec::new();
+    let mut base_vertices = 0;
+    let mut vertex_order = Vec::new();
+    let mut lod_triangles = vec![0usize; input.levels.len()];
+    for (c, tris) in input.chunks.iter().enumerate() {
+        let chunk_tag = Tag {
+            chunk: several_chunks.then_some(c),
+            ..tag
+        };
+        b.tag = chunk_tag;
+        let chunk_prefix = if several_chunks {
+            format!("{}chunk_{c:03}_", input.prefix)
+        } else {
+            input.prefix.to_string()
+        };
+        let mut level_nodes = Vec::new();
+        let mut shared: Option<Shared> = None;
+        for (k, pl) in input.levels.iter().enumerate() {
+            b.tag = Tag {
+                lod: several_levels.then_some(k),
+                ..chunk_tag
+            };
+            let layers = pl.level.layers.len().max(1);
+            let ordering = order_triangles(mesh, tris, &pl.culled.top, layers);
+            let name = if several_levels {
+                format!("{chunk_prefix}lod{k}_")
+            } else {
+                chunk_prefix.clone()
+            };
+            let material_prefix = if several_levels {
+                format!("{}lod{k}_", input.prefix)
+            } else {
+                input.prefix.to_string()
+            };
+            let ctx = LevelCtx {
+                index: k,
+                material_prefix: &material_prefix,
+                geometry: &geometry,
+                level: pl.level,
+                mask: pl.mask,
+                texture: texture_of(pl.level),
+                roughness: input.roughness,
+                prefix: &name,
+            };
+            let meshes = match (params.layout, pl.level.bare) {
+                (Layout::Compact, _) => {
+                    let shared = shared.get_or_insert_with(|| {
+                        let s = Shared::new(&mut b, &geometry, &ordering.indices, nv);
+                        base_vertices += s.order.len();
+                        vertex_order.extend(s.order.iter().copied());
+                        s
+                    });
+                    compact(&mut b, &ctx, shared, &ordering)
+                }
+                (Layout::SingleDraw, None) => {
+                    let (order, indices) = fetch_order(&ordering.indices, nv);
+                    if k == 0 {
+                        base_vertices += order.len();
+                        vertex_order.extend(order.iter().copied());
+                    }
+                    single_draw(&mut b, &ctx, &order, &indices, &ordering.kept)
+                }
+                (Layout::SingleDraw, Some(_)) => {
+                    let s = Shared::new(&mut b, &geometry, &ordering.indices, nv);
+                    compact(&mut b, &ctx, &s, &ordering)
+                }
+            };
+            lod_triangles[k] += meshes
+                .iter()
+                .map(|&m| b.out.mesh_triangles(m))
+                .sum::<usize>();
+            let nodes: Vec<usize> = meshes
+                .iter()
+                .map(|&m| {
+                    let mesh = &b.out.meshes[m];
+                    let node = Node {
+                        name: mesh.name.clone(),
+                        tag: mesh.tag,
+                        mesh: Some(m),
+                        ..Node::default()
+                    };
+                    Packed::push(&mut b.out.nodes, node)
+                })
+                .collect();
+            lod_meshes[k].extend(meshes.iter().copied());
+            if k == 0 {
+                layer_nodes_all.extend(nodes.iter().copied());
+            }
+            level_nodes.push(nodes);
+        }
+        b.tag = chunk_tag;
+        if !several_chunks && !several_levels {
+            chunk_nodes.extend(level_nodes.swap_remove(0));
+            continue;
+        }
+        // the chunk: LOD 0's layers as children, coarser levels as MSFT_lod alternatives
+        let mut ids = Vec::new();
+        for (k, nodes) in level_nodes.iter().enumerate().skip(1) {
+            let node = Node {
+                name: format!("{chunk_prefix}lod{k}"),
+                tag: Tag {
+                    lod: Some(k),
+                    ..chunk_tag
+                },
+                children: nodes.clone(),
+                ..Node::default()
+            };
+            ids.push(Packed::push(&mut b.out.nodes, node));
+        }
+        let levels: Vec<&Level> = input.levels.iter().map(|l| l.level).collect();
+        let node = Node {
+            name: format!("{chunk_prefix}lod0")
+                .trim_end_matches('_')
+                .to_string(),
+            tag: chunk_tag,
+            children: level_nodes[0].clone(),
+            lod: several_levels.then(|| NodeLod {
+                ids,
+                coverage: input.coverage.get(c).cloned().unwrap_or_default(),
+                distances: levels.iter().map(|l| l.distance).collect(),
+                layers: levels.iter().map(|l| l.layers.len()).collect(),
+                errors: levels.iter().map(|l| l.error).collect(),
+            }),
+            ..Node::default()
+        };
+        chunk_nodes.push(Packed::push(&mut b.out.nodes, node));
+    }
+
     let translation = grid.min.as_dvec3() + mesh.origin;
     let out = b.out;
-    let root = out.nodes.len();
-    let layer_nodes: Vec<usize> = (root + 1..root + 1 + layer_meshes.len()).collect();
-    out.nodes.push(Node {
+    let lod0 = input.levels[0].level;
+    out.nodes[root] = Node {
         name: input.name.to_string(),
         tag,
-        children: layer_nodes.clone(),
+        children: chunk_nodes,
         translation: Some(translation),
         scale: Some(grid.step as f64),
         extras: Some(ShellExtras {
             layout: params.layout,
-            height: shells.height,
+            height: input.height,
             // the layers the file holds (culling drops layers no triangle shows in)
-            t: (0..shells.t.len())
-                .filter(|&j| j == 0 || ordered_kept[j] > 0)
-                .map(|j| shells.t[j])
+            t: (0..lod0.layers.len())
+                .filter(|&j| j == 0 || input.levels[0].culled.kept[j] > 0)
+                .map(|j| lod0.layers[j].t)
                 .collect(),
         }),
         ..Node::default()
-    });
-    for &m in &layer_meshes {
-        out.nodes.push(Node {
-            name: out.meshes[m].name.clone(),
-            tag: out.meshes[m].tag,
-            mesh: Some(m),
-            ..Node::default()
-        });
-    }
+    };
     out.roots.push(root);
     let surface = PackedSurface {
         layout: params.layout,
         root,
-        layer_meshes,
-        layer_nodes,
+        layer_meshes: lod_meshes[0].clone(),
+        layer_nodes: layer_nodes_all,
+        lod_meshes,
+        lod_triangles,
         uv_offset,
         uv_scale,
         translation,
         scale: grid.step as f64,
         grid,
         float_uvs,
-        base_vertices: nv,
-        vertex_order: order,
+        base_vertices,
+        vertex_order,
         guarded,
     };
     out.surfaces.push(surface.clone());
     surface
 }
 
-/// The mesh in optimized vertex order with its quantization grids: what both layouts encode.
-struct Ordered {
-    grid: PositionGrid,
-    uv_grid: UvGrid,
-    float_uvs: bool,
-    positions: Vec<Vec3>,
-    normals: Vec<Vec3>,
-    uvs: Vec<Vec2>,
-    /// Extrusion deltas in grid units (already guarded).
-    deltas: Vec<Vec3>,
-    indices: Vec<u32>,
-    /// Density per vertex (`COLOR_0` alpha), when the surface has a density map.
-    density: Option<Vec<u8>>,
-    /// Triangles each layer draws: a prefix of `indices`.
-    kept: Vec<usize>,
-    /// Vertices each layer's triangles use: a prefix of the vertices.
-    layer_vertices: Vec<usize>,
+/// What one level of one chunk is packed with.
+struct LevelCtx<'a> {
+    geometry: &'a Geometry,
+    level: &'a Level,
+    mask: &'a Mask,
+    texture: Option<TextureRef>,
+    roughness: f32,
+    /// Prefix of the level's mesh names (surface, chunk, level).
+    prefix: &'a str,
+    /// The level's index and the prefix of its material names (surface, level).
+    index: usize,
+    material_prefix: &'a str,
+}
+
+/// A chunk's vertex streams in the compact layout, shared by every level: fetch order from
+/// LOD 0's index buffer.
+struct Shared {
+    order: Vec<u32>,
+    /// Input vertex → stored vertex.
+    fetch: Vec<u32>,
+    position: usize,
+    normal: usize,
+    texcoord: usize,
+    delta: usize,
+    density: Option<usize>,
+    /// Index accessors by triangle count, per level ordering.
+    nv: usize,
+}
+
+impl Shared {
+    fn new(b: &mut Builder, g: &Geometry, indices: &[u32], nv: usize) -> Shared {
+        let (order, _) = fetch_order(indices, nv);
+        let mut fetch = vec![u32::MAX; nv];
+        for (new, &old) in order.iter().enumerate() {
+            fetch[old as usize] = new as u32;
+        }
+        let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
+        let q: Vec<[u16; 3]> = pick(&g.positions)
+            .iter()
+            .map(|&p| g.grid.quantize(p))
+            .collect();
+        let position = b.positions(&q);
+        let normal = b.normals(&pick(&g.normals));
+        let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
+        let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs);
+        let delta = b.deltas(&pick(&g.deltas));
+        let density = g.density.as_ref().map(|d| {
+            let mut bytes = Bytes::default();
+            for &o in &order {
+                bytes.0.extend_from_slice(&[255, 255, 255, d[o as usize]]);
+            }
+            let v = b.stream(
+                "density",
+                Semantic::Color(0),
+                None,
+                bytes.0,
+                Some(4),
+                order.len(),
+            );
+            b.out
+                .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
+        });
+        Shared {
+            nv: order.len(),
+            order,
+            fetch,
+            position,
+            normal,
+            texcoord,
+            delta,
+            density,
+        }
+    }
 }
 
 /// Appends one surface's streams to the file, tagged with the surface.
 struct Builder<'a> {
     out: &'a mut Packed,
     tag: Tag,
+    /// Materials by (level, layer): every chunk's layer shares one.
+    materials: Vec<((usize, usize), usize)>,
 }
 
 impl Builder<'_> {
+    /// The material of layer `layer` of level `level`, made by `make` the first time.
+    fn material(&mut self, level: usize, layer: usize, make: impl FnOnce() -> Material) -> usize {
+        if let Some(&(_, m)) = self.materials.iter().find(|(k, _)| *k == (level, layer)) {
+            return m;
+        }
+        let m = Packed::push(&mut self.out.materials, make());
+        self.materials.push(((level, layer), m));
+        m
+    }
+
     fn stream(
         &mut self,
         name: &'static str,
@@ -411,6 +649,37 @@ impl Builder<'_> {
         let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
         self.out
             .accessor(v, component::UNSIGNED_SHORT, false, "VEC3", Some(bounds))
+    }
+
+    /// Morph target 0: the extrusion delta as float, in grid units, with exact bounds.
+    fn deltas(&mut self, deltas: &[Vec3]) -> usize {
+        let mut bytes = Bytes::default();
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for d in deltas {
+            bytes.f32s(&d.to_array());
+            lo = lo.min(*d);
+            hi = hi.max(*d);
+        }
+        if deltas.is_empty() {
+            (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
+        }
+        let n = deltas.len();
+        let dv = self.stream(
+            "extrusion",
+            Semantic::Position,
+            Some(0),
+            bytes.0,
+            Some(12),
+            n,
+        );
+        let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
+        self.out.accessor(
+            dv,
+            component::FLOAT,
+            false,
+            "VEC3",
+            Some((bounds(lo), bounds(hi))),
+        )
     }
 
     fn normals(&mut self, n: &[Vec3]) -> usize {
@@ -460,102 +729,102 @@ impl Builder<'_> {
     }
 }
 
-/// The compact layout: one geometry and one extrusion target shared by every layer mesh.
-/// Returns the layer meshes in layer order.
-fn compact(b: &mut Builder, input: &PackInput, s: &Ordered, texture: TextureRef) -> Vec<usize> {
-    let (grid, positions, deltas) = (&s.grid, &s.positions, &s.deltas);
-    let q: Vec<[u16; 3]> = positions.iter().map(|&p| grid.quantize(p)).collect();
-    let position = b.positions(&q);
-    let normal = b.normals(&s.normals);
-    let texcoord = b.texcoords(&s.uvs, s.uv_grid, s.float_uvs);
-    let mut bytes = Bytes::default();
-    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-    for d in deltas {
-        bytes.f32s(&d.to_array());
-        lo = lo.min(*d);
-        hi = hi.max(*d);
-    }
-    if deltas.is_empty() {
-        (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
-    }
-    let dv = b.stream(
-        "extrusion",
-        Semantic::Position,
-        Some(0),
-        bytes.0,
-        Some(12),
-        deltas.len(),
-    );
-    let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
-    let delta = b.out.accessor(
-        dv,
-        component::FLOAT,
-        false,
-        "VEC3",
-        Some((bounds(lo), bounds(hi))),
-    );
-    let ix = b.indices("indices", &s.indices, positions.len());
-    let density = s.density.as_ref().map(|d| {
-        let mut bytes = Bytes::default();
-        for &d in d {
-            bytes.0.extend_from_slice(&[255, 255, 255, d]);
+/// The compact layout of one level of one chunk: one mesh per layer over the chunk's shared
+/// streams, each with the index prefix its layer keeps (one index stream per level). The bare
+/// level is one opaque, untextured mesh. Returns the meshes in layer order.
+fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> Vec<usize> {
+    let indices: Vec<u32> = ordering
+        .indices
+        .iter()
+        .map(|&i| s.fetch[i as usize])
+        .collect();
+    let ix = b.indices("indices", &indices, s.nv);
+    let mut attributes = vec![
+        (Semantic::Position, s.position),
+        (Semantic::Normal, s.normal),
+        (Semantic::TexCoord(0), s.texcoord),
+    ];
+    if let Some([fur, skin]) = ctx.level.bare {
+        let name = format!("{}bare", ctx.prefix);
+        attributes.truncate(2);
+        // with maps, the colour per vertex (COLOR_0, linear) and a white material
+        let weight = ctx.geometry.fur_weight.as_ref();
+        let colour = if weight.is_some() { [1.0; 3] } else { fur };
+        if let Some(w) = weight {
+            let mut bytes = Bytes::default();
+            for &o in &s.order {
+                let w = w[o as usize];
+                let c = [0, 1, 2].map(|k| {
+                    let v = skin[k] + (fur[k] - skin[k]) * w;
+                    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+                });
+                bytes.0.extend_from_slice(&[c[0], c[1], c[2], 255]);
+            }
+            let n = s.order.len();
+            let v = b.stream("bare_color", Semantic::Color(0), None, bytes.0, Some(4), n);
+            let a = b
+                .out
+                .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None);
+            attributes.push((Semantic::Color(0), a));
         }
-        let v = b.stream(
-            "density",
-            Semantic::Color(0),
-            None,
-            bytes.0,
-            Some(4),
-            d.len(),
-        );
-        b.out
-            .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
-    });
-    // one index accessor per distinct triangle count, all over the one index stream
-    let mut prefixes: Vec<(usize, usize)> = vec![(s.indices.len() / 3, ix)];
-    let shells = input.shells;
-    (0..shells.t.len())
-        .filter(|&j| j == 0 || s.kept[j] > 0)
+        let material = b.material(ctx.index, 0, || Material {
+            name: format!("{}bare", ctx.material_prefix),
+            base_color: [colour[0], colour[1], colour[2], 1.0],
+            alpha: Alpha::Opaque,
+            texture: None,
+            roughness: ctx.roughness,
+        });
+        let primitive = Primitive {
+            attributes,
+            targets: vec![],
+            indices: Some(ix),
+            material,
+        };
+        let mesh = PackedMesh {
+            name,
+            tag: b.tag,
+            primitives: vec![primitive],
+            weights: vec![],
+        };
+        return vec![Packed::push(&mut b.out.meshes, mesh)];
+    }
+    attributes.extend(s.density.map(|d| (Semantic::Color(0), d)));
+    // one index accessor per distinct triangle count, all over the level's index stream
+    let mut prefixes: Vec<(usize, usize)> = vec![(indices.len() / 3, ix)];
+    let layers = &ctx.level.layers;
+    (0..layers.len())
+        .filter(|&j| j == 0 || ordering.kept[j] > 0)
         .map(|j| {
-            let ix = match prefixes.iter().find(|&&(n, _)| n == s.kept[j]) {
+            let ix = match prefixes.iter().find(|&&(n, _)| n == ordering.kept[j]) {
                 Some(&(_, a)) => a,
                 None => {
                     let mut a = b.out.accessors[ix].clone();
-                    a.count = 3 * s.kept[j];
+                    a.count = 3 * ordering.kept[j];
                     let a = Packed::push(&mut b.out.accessors, a);
-                    prefixes.push((s.kept[j], a));
+                    prefixes.push((ordering.kept[j], a));
                     a
                 }
             };
-            let c = shells.color[j];
+            let l = layers[j];
             let base = j == 0;
-            let name = format!("{}layer_{j:03}", input.prefix);
-            let material = Packed::push(
-                &mut b.out.materials,
-                Material {
-                    name: name.clone(),
-                    base_color: [c[0], c[1], c[2], 1.0],
-                    alpha: if base {
-                        Alpha::Opaque
-                    } else {
-                        Alpha::Mask(input.mask.cutoff(shells.steps[j]))
-                    },
-                    texture: Some(texture),
-                    roughness: input.roughness,
+            let name = format!("{}layer_{j:03}", ctx.prefix);
+            let material = b.material(ctx.index, j, || Material {
+                name: format!("{}layer_{j:03}", ctx.material_prefix),
+                base_color: [l.color[0], l.color[1], l.color[2], 1.0],
+                alpha: if base {
+                    Alpha::Opaque
+                } else {
+                    Alpha::Mask(ctx.mask.cutoff(l.step))
                 },
-            );
-            let mut attributes = vec![
-                (Semantic::Position, position),
-                (Semantic::Normal, normal),
-                (Semantic::TexCoord(0), texcoord),
-            ];
-            attributes.extend(density.map(|d| (Semantic::Color(0), d)));
+                texture: ctx.texture,
+                roughness: ctx.roughness,
+            });
             let primitive = Primitive {
-                attributes,
+                attributes: attributes.clone(),
                 targets: if base {
                     vec![]
                 } else {
-                    vec![vec![(Semantic::Position, delta)]]
+                    vec![vec![(Semantic::Position, s.delta)]]
                 },
                 indices: Some(ix),
                 material,
@@ -570,7 +839,7 @@ fn compact(b: &mut Builder, input: &PackInput, s: &Ordered, texture: TextureRef)
                     name,
                     tag,
                     primitives: vec![primitive],
-                    weights: if base { vec![] } else { vec![shells.t[j]] },
+                    weights: if base { vec![] } else { vec![l.t] },
                 },
             )
         })
@@ -627,69 +896,72 @@ pub fn single_draw_cutoff(mask: &Mask) -> f32 {
     ((BASE_CODE as f32 - 0.5) / 255.0).min(mask.cutoff(0))
 }
 
-/// The single-draw layout: every layer's vertices in one primitive of one mesh. Returns that
-/// mesh (once: it holds every layer).
-fn single_draw(b: &mut Builder, input: &PackInput, s: &Ordered, texture: TextureRef) -> Vec<usize> {
-    let (grid, positions, deltas) = (&s.grid, &s.positions, &s.deltas);
-    let shells = input.shells;
-    let layers = shells.t.len();
-    let total: usize = s.layer_vertices.iter().sum();
+/// The single-draw layout of one level of one chunk: every layer's vertices in one primitive
+/// of one mesh (layer `j` stores the prefix of the vertices its kept triangles use). `order`
+/// maps stored vertices to input vertices, `indices` is the level's ordering renumbered.
+fn single_draw(
+    b: &mut Builder,
+    ctx: &LevelCtx,
+    order: &[u32],
+    indices: &[u32],
+    kept: &[usize],
+) -> Vec<usize> {
+    let g = ctx.geometry;
+    let grid = &g.grid;
+    let layers = &ctx.level.layers;
+    let layer_vertices: Vec<usize> = kept
+        .iter()
+        .map(|&n| indices[..3 * n].iter().max().map_or(0, |&m| m as usize + 1))
+        .collect();
+    let total: usize = layer_vertices.iter().sum();
     let mut q = Vec::with_capacity(total);
     let mut colors = Bytes::default();
     let mut all_ix: Vec<u32> = Vec::new();
-    for j in 0..layers {
-        // layer j: the vertices and triangles it keeps (prefixes)
-        let (nv, first) = (s.layer_vertices[j], q.len() as u32);
-        let t = shells.t[j];
-        let top_level = grid.max_level() as f32;
-        q.extend(positions[..nv].iter().zip(deltas).map(|(&p, &d)| {
-            let r = guard::layer_point((p - grid.min) / grid.step, d, t, top_level);
+    let top_level = grid.max_level() as f32;
+    for (j, l) in layers.iter().enumerate() {
+        let (nv, first) = (layer_vertices[j], q.len() as u32);
+        q.extend(order[..nv].iter().map(|&o| {
+            let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
+            let r = guard::layer_point((p - grid.min) / grid.step, d, l.t, top_level);
             [r.x as u16, r.y as u16, r.z as u16]
         }));
-        let c = shells.color[j];
-        let alpha = single_draw_alpha(input.mask, shells.steps[j]);
-        for v in 0..nv {
+        let alpha = single_draw_alpha(ctx.mask, l.step);
+        for &o in &order[..nv] {
             // density scales every layer above the base
-            let a = match &s.density {
-                Some(d) if j > 0 => (alpha as u32 * d[v] as u32 + 127) / 255,
+            let a = match &g.density {
+                Some(d) if j > 0 => (alpha as u32 * d[o as usize] as u32 + 127) / 255,
                 _ => alpha as u32,
             };
-            let rgba = [
-                (c[0].clamp(0.0, 1.0) * 65535.0).round() as u16,
-                (c[1].clamp(0.0, 1.0) * 65535.0).round() as u16,
-                (c[2].clamp(0.0, 1.0) * 65535.0).round() as u16,
-                a as u16,
-            ];
-            colors.u16s(&rgba, 8);
+            let c = l
+                .color
+                .map(|c| (c.clamp(0.0, 1.0) * 65535.0).round() as u16);
+            colors.u16s(&[c[0], c[1], c[2], a as u16], 8);
         }
-        all_ix.extend(s.indices[..3 * s.kept[j]].iter().map(|&i| i + first));
+        all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
     }
     let position = b.positions(&q);
-    let pick = |j: usize| 0..s.layer_vertices[j];
-    let all_normals: Vec<Vec3> = (0..layers)
-        .flat_map(|j| pick(j).map(|v| s.normals[v]))
+    let pick = |j: usize| order[..layer_vertices[j]].iter().map(|&o| o as usize);
+    let all_normals: Vec<Vec3> = (0..layers.len())
+        .flat_map(|j| pick(j).map(|v| g.normals[v]))
         .collect();
     let normal = b.normals(&all_normals);
-    let all_uvs: Vec<Vec2> = (0..layers)
-        .flat_map(|j| pick(j).map(|v| s.uvs[v]))
+    let all_uvs: Vec<Vec2> = (0..layers.len())
+        .flat_map(|j| pick(j).map(|v| g.uvs[v]))
         .collect();
-    let texcoord = b.texcoords(&all_uvs, s.uv_grid, s.float_uvs);
+    let texcoord = b.texcoords(&all_uvs, g.uv_grid, g.float_uvs);
     let cv = b.stream("color", Semantic::Color(0), None, colors.0, Some(8), total);
     let color = b
         .out
         .accessor(cv, component::UNSIGNED_SHORT, true, "VEC4", None);
     let ix = b.indices("indices", &all_ix, total);
-    let name = format!("{}shells", input.prefix);
-    let material = Packed::push(
-        &mut b.out.materials,
-        Material {
-            name: name.clone(),
-            base_color: [1.0; 4],
-            alpha: Alpha::Mask(single_draw_cutoff(input.mask)),
-            texture: Some(texture),
-            roughness: input.roughness,
-        },
-    );
+    let name = format!("{}shells", ctx.prefix);
+    let material = b.material(ctx.index, 0, || Material {
+        name: format!("{}shells", ctx.material_prefix),
+        base_color: [1.0; 4],
+        alpha: Alpha::Mask(single_draw_cutoff(ctx.mask)),
+        texture: ctx.texture,
+        roughness: ctx.roughness,
+    });
     let primitive = Primitive {
         attributes: vec![
             (Semantic::Position, position),

@@ -178,6 +178,23 @@ pub struct Node {
     /// Uniform scale.
     pub scale: Option<f64>,
     pub extras: Option<ShellExtras>,
+    /// `MSFT_lod` alternatives and the chain's switch figures (a chunk's node).
+    pub lod: Option<NodeLod>,
+}
+
+/// A chunk's LOD chain as its node carries it: `MSFT_lod` ids, `MSFT_screencoverage`, and the
+/// figures in `extras.shellbake_lod`, one entry per level (LOD 0 first).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NodeLod {
+    /// Nodes of levels 1.. (outside the scene).
+    pub ids: Vec<usize>,
+    pub coverage: Vec<f64>,
+    /// Distance from which each level is used, world units.
+    pub distances: Vec<f64>,
+    /// Layers per level (0: the bare level).
+    pub layers: Vec<usize>,
+    /// Geometric error per level, world units.
+    pub errors: Vec<f64>,
 }
 
 /// What one surface's packing decided, for the report and the tests.
@@ -186,10 +203,15 @@ pub struct PackedSurface {
     pub layout: Layout,
     /// The surface's root node.
     pub root: usize,
-    /// The mesh of each layer, in layer order (all layers share one mesh in single-draw).
+    /// LOD 0's mesh of each layer, chunk by chunk, in layer order (all layers share one mesh
+    /// in single-draw).
     pub layer_meshes: Vec<usize>,
-    /// The node of each layer mesh.
+    /// The node of each LOD 0 layer mesh.
     pub layer_nodes: Vec<usize>,
+    /// The meshes of each level, over every chunk.
+    pub lod_meshes: Vec<Vec<usize>>,
+    /// Triangles each level draws, over every chunk.
+    pub lod_triangles: Vec<usize>,
     /// `KHR_texture_transform` offset and scale from the stored TEXCOORD_0 to mask tiles.
     pub uv_offset: Vec2,
     pub uv_scale: Vec2,
@@ -287,20 +309,31 @@ impl Packed {
             .sum()
     }
 
-    /// Triangles drawn by every node's mesh.
+    /// Nodes of the scene (reachable from the roots; `MSFT_lod` alternatives are not).
+    pub fn scene_nodes(&self) -> Vec<usize> {
+        let mut out = Vec::new();
+        let mut stack: Vec<usize> = self.roots.iter().rev().copied().collect();
+        while let Some(n) = stack.pop() {
+            out.push(n);
+            stack.extend(self.nodes[n].children.iter().rev());
+        }
+        out
+    }
+
+    /// Triangles drawn by the scene's meshes (LOD 0).
     pub fn triangles_drawn(&self) -> usize {
-        self.nodes
-            .iter()
-            .filter_map(|n| n.mesh)
+        self.scene_nodes()
+            .into_iter()
+            .filter_map(|n| self.nodes[n].mesh)
             .map(|m| self.mesh_triangles(m))
             .sum()
     }
 
-    /// Draw calls: primitives of every node's mesh.
+    /// Draw calls: primitives of the scene's meshes (LOD 0).
     pub fn draw_calls(&self) -> usize {
-        self.nodes
-            .iter()
-            .filter_map(|n| n.mesh)
+        self.scene_nodes()
+            .into_iter()
+            .filter_map(|n| self.nodes[n].mesh)
             .map(|m| self.meshes[m].primitives.len())
             .sum()
     }

@@ -204,6 +204,24 @@ pub struct Instance {
     pub sibling: usize,
 }
 
+/// A node whose `MSFT_lod` level is picked by distance.
+#[derive(Clone, Debug)]
+pub struct LodSwitch {
+    pub node: usize,
+    /// World-space centre of the node's LOD 0 content.
+    pub centre: DVec3,
+    /// Distance from which each level is used (LOD 0 first).
+    pub distances: Vec<f64>,
+}
+
+impl LodSwitch {
+    /// The level to draw for a camera at `eye`.
+    pub fn level_at(&self, eye: DVec3) -> usize {
+        let d = (eye - self.centre).length();
+        self.distances.iter().rposition(|&s| s <= d).unwrap_or(0)
+    }
+}
+
 /// A parsed glTF asset.
 #[derive(Debug)]
 pub struct Asset {
@@ -452,16 +470,78 @@ impl Asset {
         self.lods.iter().map(Vec::len).max().unwrap_or(0)
     }
 
-    /// Every mesh instance of the scene at LOD `lod` (clamped per node), world matrices in `f64`.
-    pub fn instances(&self, lod: usize) -> Result<Vec<Instance>> {
-        let pick = |n: usize| match lod {
+    /// Level `lod` of node `n` (`MSFT_lod`: 0 is the node itself; clamped to its last level).
+    pub fn lod_node(&self, n: usize, lod: usize) -> usize {
+        match lod {
             0 => n,
             k => self.lods[n]
                 .get(k - 1)
                 .or(self.lods[n].last())
                 .copied()
                 .unwrap_or(n),
-        };
+        }
+    }
+
+    /// The nodes with `MSFT_lod` and switch distances (`extras.shellbake_lod.distances`), with
+    /// the world-space centre of their LOD 0 content: what picking a level by distance needs.
+    pub fn lod_switches(&self) -> Result<Vec<LodSwitch>> {
+        let mut out = Vec::new();
+        let placed = self.doc.walk(|n| n)?;
+        for (n, ids) in self.lods.iter().enumerate() {
+            let distances: Vec<f64> = self.doc.json["nodes"][n]["extras"]["shellbake_lod"]
+                ["distances"]
+                .as_array()
+                .map(|d| d.iter().filter_map(|v| v.as_f64()).collect())
+                .unwrap_or_default();
+            if ids.is_empty() || distances.len() != ids.len() + 1 {
+                continue;
+            }
+            let children: Vec<usize> = self.doc.nodes[n].children.clone();
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            for p in placed
+                .iter()
+                .filter(|p| p.node == n || children.contains(&p.node))
+            {
+                let Some(m) = self.doc.nodes[p.node].mesh else {
+                    continue;
+                };
+                for prim in &self.meshes[m].primitives {
+                    let acc = &self.doc.json["accessors"][prim.position];
+                    let (Some(a), Some(b)) = (acc["min"].as_array(), acc["max"].as_array()) else {
+                        continue;
+                    };
+                    let v = |x: &Vec<Value>| {
+                        DVec3::new(
+                            x[0].as_f64().unwrap_or(0.0),
+                            x[1].as_f64().unwrap_or(0.0),
+                            x[2].as_f64().unwrap_or(0.0),
+                        )
+                    };
+                    for c in [v(a), v(b)] {
+                        let w = p.world.transform_point3(c);
+                        lo = lo.min(w);
+                        hi = hi.max(w);
+                    }
+                }
+            }
+            if lo.x <= hi.x {
+                out.push(LodSwitch {
+                    node: n,
+                    centre: (lo + hi) / 2.0,
+                    distances,
+                });
+            }
+        }
+        Ok(out)
+    }
+
+    /// Every mesh instance of the scene at LOD `lod` (clamped per node), world matrices in `f64`.
+    pub fn instances(&self, lod: usize) -> Result<Vec<Instance>> {
+        self.instances_with(|n| self.lod_node(n, lod))
+    }
+
+    /// Every mesh instance of the scene, node `n` replaced by `pick(n)` (an `MSFT_lod` level).
+    pub fn instances_with(&self, pick: impl Fn(usize) -> usize) -> Result<Vec<Instance>> {
         Ok(self
             .doc
             .walk(pick)?

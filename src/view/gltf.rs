@@ -120,7 +120,11 @@ pub struct GltfRenderer {
     draw_buffer: wgpu::Buffer,
     draw_group: wgpu::BindGroup,
     draws: Vec<DrawCall>,
-    lod: usize,
+    /// A level forced everywhere, or `None`: by distance.
+    lod: Option<usize>,
+    switches: Vec<crate::view::glb::LodSwitch>,
+    /// Current level of each switch.
+    picks: Vec<usize>,
     layer_limit: Option<usize>,
     format: Option<wgpu::TextureFormat>,
     /// Bounding sphere of LOD 0, morph extents included.
@@ -253,11 +257,21 @@ impl GltfRenderer {
             draw_buffer,
             draw_group,
             draws: Vec::new(),
-            lod: 0,
+            lod: None,
+            switches: Vec::new(),
+            picks: Vec::new(),
             layer_limit: None,
             format: None,
             bounds,
         };
+        r.switches = r.asset.lod_switches()?;
+        r.picks = vec![0; r.switches.len()];
+        // every level once: a broken level fails here, not when the camera moves
+        for k in 1..=r.lod_levels() {
+            r.lod = Some(k);
+            r.build_draws(gpu)?;
+        }
+        r.lod = None;
         r.build_draws(gpu)?;
         Ok(r)
     }
@@ -283,10 +297,31 @@ impl GltfRenderer {
         self.asset.lod_levels()
     }
 
-    /// Draws `MSFT_lod` level `lod` (0 = the full asset).
-    pub fn set_lod(&mut self, gpu: &Gpu, lod: usize) -> Result<()> {
-        self.lod = lod.min(self.lod_levels());
+    /// Draws `MSFT_lod` level `lod` everywhere (0 = the full asset); `None`: each node's level
+    /// by its distance from the camera, as the file's `extras.shellbake_lod` says (the
+    /// default).
+    pub fn set_lod(&mut self, gpu: &Gpu, lod: Option<usize>) -> Result<()> {
+        self.lod = lod.map(|l| l.min(self.lod_levels()));
         self.build_draws(gpu)
+    }
+
+    /// The level each distance-switched node draws now (empty when a level is forced or the
+    /// file has none).
+    pub fn lod_picks(&self) -> &[usize] {
+        &self.picks
+    }
+
+    /// Picks each node's level for a camera at `eye`; rebuilds the draws when a pick changed.
+    fn pick_lods(&mut self, gpu: &Gpu, eye: glam::DVec3) -> Result<()> {
+        if self.lod.is_some() || self.switches.is_empty() {
+            return Ok(());
+        }
+        let picks: Vec<usize> = self.switches.iter().map(|s| s.level_at(eye)).collect();
+        if picks != self.picks {
+            self.picks = picks;
+            self.build_draws(gpu)?;
+        }
+        Ok(())
     }
 
     fn single_draw_layers(&self) -> Option<u32> {
@@ -329,7 +364,18 @@ impl GltfRenderer {
 
     fn build_draws(&mut self, gpu: &Gpu) -> Result<()> {
         let mut draws = Vec::new();
-        for inst in self.asset.instances(self.lod)? {
+        let instances = match self.lod {
+            Some(lod) => self.asset.instances(lod)?,
+            None => self.asset.instances_with(|n| {
+                match self.switches.iter().position(|s| s.node == n) {
+                    Some(i) => self
+                        .asset
+                        .lod_node(n, self.picks.get(i).copied().unwrap_or(0)),
+                    None => n,
+                }
+            })?,
+        };
+        for inst in instances {
             let mesh = &self.asset.meshes[inst.mesh];
             for prim in &mesh.primitives {
                 let material = prim
@@ -452,6 +498,8 @@ impl GltfRenderer {
         light: &Light,
         format: wgpu::TextureFormat,
     ) {
+        self.pick_lods(gpu, camera.eye)
+            .expect("every level was built when the asset was opened");
         self.frame.write(gpu, camera, light);
         let anchor = DMat4::from_translation(-camera.anchor());
         let mut bytes = vec![0u8; self.draws.len() * DRAW_SLOT as usize];

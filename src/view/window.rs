@@ -55,7 +55,8 @@ struct App {
     dragging: bool,
     cursor: Option<(f64, f64)>,
     layer_limit: Option<usize>,
-    lod: usize,
+    /// A level forced with `L`, or `None`: each chunk's level by distance.
+    lod: Option<usize>,
     frames: u32,
     last_frame: Option<Instant>,
     frame_ms: f64,
@@ -74,7 +75,7 @@ pub fn run(asset: Asset, options: ViewOptions) -> Result<()> {
         dragging: false,
         cursor: None,
         layer_limit: None,
-        lod: 0,
+        lod: None,
         frames: 0,
         last_frame: None,
         frame_ms: 0.0,
@@ -157,7 +158,16 @@ impl App {
         let layers = r.renderer.layer_count();
         let shown = self.layer_limit.map_or(layers, |k| (k + 1).min(layers));
         let lod = if r.renderer.lod_levels() > 0 {
-            format!(" — LOD {}/{}", self.lod, r.renderer.lod_levels())
+            let picks = r.renderer.lod_picks();
+            match self.lod {
+                Some(k) => format!(" — LOD {k}/{} (forced)", r.renderer.lod_levels()),
+                None => format!(
+                    " — LOD by distance: {} chunk(s) at levels {}..{}",
+                    picks.len(),
+                    picks.iter().min().unwrap_or(&0),
+                    picks.iter().max().unwrap_or(&0)
+                ),
+            }
         } else {
             String::new()
         };
@@ -309,10 +319,11 @@ impl ApplicationHandler for App {
                     Key::Character("l") | Key::Character("L") => {
                         if let Some(r) = &mut self.running {
                             let levels = r.renderer.lod_levels();
-                            self.lod = if levels == 0 {
-                                0
-                            } else {
-                                (self.lod + 1) % (levels + 1)
+                            // by distance → 0 → 1 → … → last → by distance
+                            self.lod = match self.lod {
+                                None if levels > 0 => Some(0),
+                                Some(k) if k < levels => Some(k + 1),
+                                _ => None,
                             };
                             if let Err(e) = r.renderer.set_lod(&r.gpu, self.lod) {
                                 self.fail(event_loop, e);

@@ -5,7 +5,9 @@
 //                           "near": n, "far": f }
 //                      or { "auto": true, "yaw": deg, "pitch": deg, "distance": radii, "fovy_deg": f },
 //               "light": { "direction": [x,y,z] (towards the light), "intensity": i },
-//               "ambient": a, "background": [r,g,b] (linear) }, ...]
+//               "ambient": a, "background": [r,g,b] (linear),
+//               "msft_lod": true (optional: switch MSFT_lod levels by distance) }, ...]
+// Prints one JSON line per job: { png, ok, triangles (drawn in the frame) }.
 // Files are served from a loopback HTTP server; Chromium is Debian's, driven by playwright-core.
 import { createServer } from 'node:http';
 import { readFile, writeFile } from 'node:fs/promises';
@@ -23,6 +25,37 @@ const page_html = `<!doctype html><html><body style="margin:0">
 <script type="module">
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+// MSFT_lod, written here (three.js's GLTFLoader does not read it): each node with the extension
+// becomes a THREE.LOD placed at the centre of its LOD 0 content, with the coarser levels'
+// nodes as further levels at the switch distances of extras.shellbake_lod (world units).
+class MsftLod {
+  constructor(parser) { this.parser = parser; this.name = 'MSFT_lod'; }
+  async afterRoot(result) {
+    const parser = this.parser;
+    const objects = new Map();
+    result.scene.traverse((o) => {
+      const a = parser.associations.get(o);
+      if (a && a.nodes !== undefined && !objects.has(a.nodes)) objects.set(a.nodes, o);
+    });
+    result.scene.updateMatrixWorld(true);
+    for (const [i, node] of (parser.json.nodes || []).entries()) {
+      const ext = node.extensions && node.extensions.MSFT_lod;
+      const distances = node.extras && node.extras.shellbake_lod && node.extras.shellbake_lod.distances;
+      const obj = objects.get(i);
+      if (!ext || !distances || !obj || !obj.parent) continue;
+      const parent = obj.parent;
+      const centre = parent.worldToLocal(new THREE.Box3().setFromObject(obj).getCenter(new THREE.Vector3()));
+      const lod = new THREE.LOD();
+      lod.name = obj.name;
+      lod.position.copy(centre);
+      parent.add(lod);
+      parent.remove(obj);
+      const levels = [obj];
+      for (const id of ext.ids) levels.push((await parser.getDependency('node', id)).clone());
+      levels.forEach((o, k) => { o.position.sub(centre); lod.addLevel(o, distances[k]); });
+    }
+  }
+}
 window.renderJob = async (job, url) => {
   const canvas = document.createElement('canvas');
   canvas.width = job.width; canvas.height = job.height;
@@ -34,7 +67,9 @@ window.renderJob = async (job, url) => {
   renderer.toneMapping = THREE.NoToneMapping;
   const scene = new THREE.Scene();
   scene.background = new THREE.Color().setRGB(...job.background, THREE.LinearSRGBColorSpace);
-  const gltf = await new GLTFLoader().loadAsync(url);
+  const loader = new GLTFLoader();
+  if (job.msft_lod) loader.register((parser) => new MsftLod(parser));
+  const gltf = await loader.loadAsync(url);
   scene.add(gltf.scene);
   let c = job.camera;
   if (c.auto) {
@@ -55,8 +90,9 @@ window.renderJob = async (job, url) => {
   scene.add(new THREE.AmbientLight(0xffffff, job.ambient));
   renderer.render(scene, camera);
   const data = canvas.toDataURL('image/png');
+  const triangles = renderer.info.render.triangles;
   renderer.dispose();
-  return data;
+  return { data, triangles };
 };
 window.ready = true;
 </script></body></html>`;
@@ -100,9 +136,9 @@ try {
   await page.goto(`http://127.0.0.1:${port}/`);
   await page.waitForFunction(() => window.ready === true, null, { timeout: 30000 });
   for (const [i, job] of jobs.entries()) {
-    const data = await page.evaluate(([j, u]) => window.renderJob(j, u), [job, `/asset/${i}.glb`]);
+    const { data, triangles } = await page.evaluate(([j, u]) => window.renderJob(j, u), [job, `/asset/${i}.glb`]);
     await writeFile(job.png, Buffer.from(data.split(',')[1], 'base64'));
-    console.log(JSON.stringify({ png: job.png, ok: true }));
+    console.log(JSON.stringify({ png: job.png, ok: true, triangles }));
   }
   if (logs.length) console.error(logs.join('\n'));
 } finally {

@@ -1,0 +1,406 @@
+//! Distance LOD and chunking (DESIGN §5): fewer shells where nobody can tell.
+//!
+//! **Levels.** LOD 0 is the full stack. LOD `k` merges runs of `m = 2^k` consecutive layers above
+//! the base into one: the merged layer sits at the run's mean height with its mean colour and
+//! the *lowest* cutoff of the run, so it shows the union of the run's coverage (coverage only
+//! shrinks with height, so the lowest layer's coverage is the union): density does not fade. The
+//! last level has no shells: the base mesh, opaque, untextured, in the averaged fur colour (the
+//! colour seen from above: each layer weighted by the fraction of texels it is the topmost
+//! visible layer at, times the mean strand shade).
+//!
+//! **Switch distances from screen-space error.** A level's geometric error `ε` is what it moves
+//! a visible slice of a strand by: `(m − 1)·Δ·h` for a merged level (`Δ` the layer spacing in
+//! `t`, `h` the shell height), and `max(h, s)` for the bare level (the whole shell collapses,
+//! and a strand of spacing `s` must be under the budget too). Projected at distance `d` through
+//! a vertical field of view `φ` onto a viewport `H` pixels tall it covers `ε·f/d` pixels, with
+//! `f = H / (2·tan(φ/2))`. Level `k` is used from `d_k = ε_k·f / budget` on, where `budget` is
+//! [`LodParams::error_pixels`]: every level is within the budget wherever it is shown. A level
+//! whose distance is not beyond its predecessor's is dropped.
+//!
+//! **Each level's mask keeps LOD 0's coverage at its distance.** A client minifies the mask with
+//! its own mips, and plain box mips average strands away (alpha-tested fur goes bald with
+//! distance). At `d_k` a pixel spans `d_k/f` world units, about `2^ℓ` mask texels; level `k`
+//! gets its own mask, the coverage-preserving mip `ℓ` of LOD 0's ([`strands::coverage_mips`]),
+//! so a client samples near its full resolution there and sees LOD 0's coverage at every cutoff.
+//!
+//! **Chunks.** With [`LodParams::chunk_size`], a surface is cut into square cells of that size
+//! over the two longest axes of its bounding box (each triangle goes to the cell of its
+//! centroid); each chunk has its own LOD chain, so distance means something on a terrain.
+//!
+//! **In the file.** A chunk is a node holding LOD 0's layer nodes, with `MSFT_lod` naming the
+//! coarser levels' nodes, which stay outside the scene (plain viewers draw LOD 0) and
+//! `MSFT_screencoverage` in its `extras`: per level, the fraction of the viewport height the
+//! chunk's bounding sphere covers at the distance where the next level takes over (0 for the
+//! last). `extras.shellbake_lod` repeats the switch distances (world units), layer counts and
+//! errors for engines without `MSFT_lod`.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::error::ParamError;
+use crate::mesh::Mesh;
+use crate::shells::ShellStack;
+use crate::strands::{self, Mask};
+
+/// LOD stage parameters (`lod.rs`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LodParams {
+    /// Screen-space error budget, pixels.
+    pub error_pixels: f32,
+    /// Viewport height the budget is stated for, pixels.
+    pub viewport_height: u32,
+    /// Vertical field of view, degrees.
+    pub fov_y_degrees: f32,
+    /// Levels with shells, LOD 0 included (at most).
+    pub levels: u32,
+    /// Whether the chain ends with a level without shells.
+    pub bare_level: bool,
+    /// Side of a chunk, world units (`None`: the surface is one chunk).
+    pub chunk_size: Option<f32>,
+}
+
+impl Default for LodParams {
+    fn default() -> Self {
+        LodParams {
+            error_pixels: 1.0,
+            viewport_height: 1080,
+            fov_y_degrees: 60.0,
+            levels: 4,
+            bare_level: true,
+            chunk_size: None,
+        }
+    }
+}
+
+impl LodParams {
+    /// Checks ranges; the error names the parameter.
+    pub fn check(&self) -> Result<(), ParamError> {
+        if !(self.error_pixels.is_finite() && self.error_pixels > 0.0) {
+            return Err(ParamError::new("error_pixels", "error_pixels must be > 0"));
+        }
+        if !(16..=16384).contains(&self.viewport_height) {
+            return Err(ParamError::new(
+                "viewport_height",
+                "viewport_height must be in 16..=16384",
+            ));
+        }
+        if !(self.fov_y_degrees > 1.0 && self.fov_y_degrees < 170.0) {
+            return Err(ParamError::new(
+                "fov_y_degrees",
+                "fov_y_degrees must be in (1, 170)",
+            ));
+        }
+        if !(1..=8).contains(&self.levels) {
+            return Err(ParamError::new("levels", "levels must be in 1..=8"));
+        }
+        if let Some(c) = self.chunk_size {
+            if !(c.is_finite() && c > 0.0) {
+                return Err(ParamError::new("chunk_size", "chunk_size must be > 0"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Pixels per world unit at distance 1: `H / (2·tan(φ/2))`.
+    pub fn focal(&self) -> f64 {
+        self.viewport_height as f64 / (2.0 * ((self.fov_y_degrees as f64).to_radians() * 0.5).tan())
+    }
+}
+
+/// One layer of a level.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelLayer {
+    /// Normalised height (the morph weight).
+    pub t: f32,
+    /// Height step whose cutoff the layer uses (the lowest of the layers it merges).
+    pub step: u32,
+    /// Linear RGB shade.
+    pub color: [f32; 3],
+}
+
+/// One level of detail.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Level {
+    /// Layers, the base first (empty for the bare level).
+    pub layers: Vec<LevelLayer>,
+    /// Geometric error, world units.
+    pub error: f64,
+    /// Distance from which the level is used, world units (0 for LOD 0).
+    pub distance: f64,
+    /// Mip of LOD 0's mask this level's mask is (0: the same mask).
+    pub mask_level: u32,
+    /// The bare level's colours (no shells, no texture): `[fur, skin]`, the fur colour where
+    /// the fur is full and the base layer's where density or length is 0.
+    pub bare: Option<[[f32; 3]; 2]>,
+}
+
+/// LOD 0 alone: every layer of the stack.
+pub fn full_level(shells: &ShellStack) -> Level {
+    Level {
+        layers: (0..shells.t.len())
+            .map(|j| LevelLayer {
+                t: shells.t[j],
+                step: shells.steps[j],
+                color: shells.color[j],
+            })
+            .collect(),
+        error: 0.0,
+        distance: 0.0,
+        mask_level: 0,
+        bare: None,
+    }
+}
+
+/// The LOD chain of a stack. `spacing` is the strand spacing in world units (one cell of the
+/// mask), `texel` the world size of one mask texel.
+pub fn build_lods(
+    shells: &ShellStack,
+    mask: &Mask,
+    spacing: f64,
+    texel: f64,
+    params: &LodParams,
+) -> Vec<Level> {
+    let lod0 = full_level(shells);
+    let n = shells.t.len();
+    let h = shells.height as f64;
+    let f = params.focal();
+    let budget = params.error_pixels as f64;
+    let dt = if n >= 3 {
+        (shells.t[2] - shells.t[1]) as f64
+    } else {
+        shells.t.get(1).copied().unwrap_or(1.0) as f64
+    };
+    let max_mip = mask.size.trailing_zeros().saturating_sub(2);
+    let mip_at = |d: f64| -> u32 {
+        let texels_per_pixel = d / f / texel;
+        if texels_per_pixel <= 1.0 {
+            0
+        } else {
+            (texels_per_pixel.log2().floor() as u32).min(max_mip)
+        }
+    };
+    let mut levels = vec![lod0];
+    for k in 1..params.levels {
+        let m = 1usize << k;
+        if n < 3 || (n - 1) / m < 1 {
+            break;
+        }
+        let layers: Vec<LevelLayer> = std::iter::once(levels[0].layers[0])
+            .chain((1..n).step_by(m).map(|first| {
+                let run = &levels[0].layers[first..(first + m).min(n)];
+                let len = run.len() as f32;
+                let mean = |c: usize| run.iter().map(|l| l.color[c]).sum::<f32>() / len;
+                LevelLayer {
+                    t: run.iter().map(|l| l.t).sum::<f32>() / len,
+                    step: run[0].step,
+                    color: [mean(0), mean(1), mean(2)],
+                }
+            }))
+            .collect();
+        if layers.len() >= levels.last().unwrap().layers.len() {
+            break;
+        }
+        let error = (m - 1) as f64 * dt * h;
+        let distance = error * f / budget;
+        levels.push(Level {
+            layers,
+            error,
+            distance,
+            mask_level: mip_at(distance),
+            bare: None,
+        });
+    }
+    if params.bare_level && n > 1 {
+        let error = h.max(spacing);
+        let distance = error * f / budget;
+        levels.push(Level {
+            layers: vec![],
+            error,
+            distance,
+            mask_level: 0,
+            bare: Some([fur_colour(shells, mask), skin_colour(shells, mask)]),
+        });
+    }
+    // keep levels whose distance grows
+    let mut kept: Vec<Level> = Vec::with_capacity(levels.len());
+    for l in levels {
+        if kept.last().is_none_or(|p| l.distance > p.distance) {
+            kept.push(l);
+        }
+    }
+    kept
+}
+
+/// The colour of the fur seen from above: every layer weighted by the fraction of texels where
+/// it is the topmost that shows, times the mean linear strand shade.
+pub fn fur_colour(shells: &ShellStack, mask: &Mask) -> [f32; 3] {
+    let n = shells.t.len();
+    let cov: Vec<f64> = (0..n)
+        .map(|j| {
+            if j == 0 {
+                1.0
+            } else {
+                mask.coverage(shells.steps[j])
+            }
+        })
+        .chain([0.0])
+        .collect();
+    let shade = mean_shade(mask);
+    let mut c = [0.0f64; 3];
+    for j in 0..n {
+        let w = (cov[j] - cov[j + 1]).max(0.0);
+        for (k, ck) in c.iter_mut().enumerate() {
+            *ck += w * shells.color[j][k] as f64;
+        }
+    }
+    c.map(|v| (v * shade) as f32)
+}
+
+/// The base layer's colour times the mean strand shade: bare skin seen from afar.
+pub fn skin_colour(shells: &ShellStack, mask: &Mask) -> [f32; 3] {
+    let shade = mean_shade(mask);
+    shells.color[0].map(|c| (c as f64 * shade) as f32)
+}
+
+fn mean_shade(mask: &Mask) -> f64 {
+    mask.shade
+        .iter()
+        .map(|&g| srgb_to_linear(g as f64 / 255.0))
+        .sum::<f64>()
+        / mask.shade.len().max(1) as f64
+}
+
+fn srgb_to_linear(v: f64) -> f64 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The mask of a level: mip `level` of `mask`, coverage-preserving alpha and box-filtered shade.
+pub fn level_mask(mask: &Mask, level: u32) -> Mask {
+    if level == 0 {
+        return mask.clone();
+    }
+    let i = level as usize - 1;
+    let alpha = strands::coverage_mips(&mask.alpha, mask.size, mask.size).swap_remove(i);
+    let shade = strands::box_mips(&mask.shade, mask.size, mask.size).swap_remove(i);
+    Mask {
+        size: mask.size >> level,
+        alpha,
+        shade,
+        cells_per_tile: (mask.cells_per_tile >> level).max(1),
+        model: mask.model,
+    }
+}
+
+/// Triangles of `mesh` per chunk of side `size` over the two longest axes of its bounds (by
+/// centroid), in row-major order of the cells; empty cells are left out. `None`: one chunk.
+pub fn chunks(mesh: &Mesh, size: Option<f32>) -> Vec<Vec<u32>> {
+    let all = || vec![(0..mesh.triangle_count() as u32).collect::<Vec<u32>>()];
+    let Some(size) = size else { return all() };
+    let (lo, hi) = mesh.bounds();
+    let extent = hi - lo;
+    let mut axes = [0usize, 1, 2];
+    axes.sort_by(|&a, &b| extent[b].total_cmp(&extent[a]).then(a.cmp(&b)));
+    let (a, b) = (axes[0], axes[1]);
+    let cells = |e: f32| ((e / size).ceil() as usize).clamp(1, 256);
+    let (na, nb) = (cells(extent[a]), cells(extent[b]));
+    if na * nb == 1 {
+        return all();
+    }
+    let mut out = vec![Vec::new(); na * nb];
+    for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+        let c: Vec3 = tri
+            .iter()
+            .map(|&v| mesh.positions[v as usize])
+            .sum::<Vec3>()
+            / 3.0;
+        let cell =
+            |x: f32, lo: f32, n: usize| (((x - lo) / size).floor().max(0.0) as usize).min(n - 1);
+        let (ia, ib) = (cell(c[a], lo[a], na), cell(c[b], lo[b], nb));
+        out[ib * na + ia].push(t as u32);
+    }
+    out.retain(|c| !c.is_empty());
+    out
+}
+
+/// `MSFT_screencoverage` of a chain for a chunk of bounding radius `radius`: per level, the
+/// fraction of the viewport height the chunk's bounding sphere covers where the next level takes
+/// over; 0 for the last.
+pub fn screen_coverage(levels: &[Level], radius: f64, params: &LodParams) -> Vec<f64> {
+    let f = params.focal();
+    let h = params.viewport_height as f64;
+    (0..levels.len())
+        .map(|k| match levels.get(k + 1) {
+            Some(next) => (2.0 * radius * f / next.distance / h).min(1.0),
+            None => 0.0,
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::{BakeParams, Preset};
+
+    fn stack(layers: u32) -> (ShellStack, Mask) {
+        let p = BakeParams::preset(Preset::Grass);
+        let shells = crate::shells::ShellParams {
+            layers,
+            ..p.shells.clone()
+        };
+        let s = crate::shells::build_shells(&[Vec3::Y], None, 0.1, &shells, &p.shade);
+        let mask = strands::bake_mask(&crate::strands::StrandParams {
+            mask_size: 64,
+            ..p.strands
+        });
+        (s, mask)
+    }
+
+    #[test]
+    fn levels_halve_layers_keep_the_union_and_switch_by_error() {
+        let (s, mask) = stack(33);
+        let params = LodParams::default();
+        let levels = build_lods(&s, &mask, 0.01, 0.001, &params);
+        let counts: Vec<usize> = levels.iter().map(|l| l.layers.len()).collect();
+        assert_eq!(counts, vec![33, 17, 9, 5, 0]);
+        // distances grow; each level's error projects to the budget at its distance
+        for w in levels.windows(2) {
+            assert!(w[1].distance > w[0].distance);
+        }
+        for l in &levels[1..] {
+            let px = l.error * params.focal() / l.distance;
+            assert!((px - 1.0).abs() < 1e-9);
+        }
+        // a merged layer's cutoff is the lowest of its run: its coverage is the union
+        let l1 = &levels[1];
+        assert_eq!(l1.layers[1].step, s.steps[1]);
+        assert!((l1.layers[1].t - (s.t[1] + s.t[2]) / 2.0).abs() < 1e-6);
+        assert!(levels.last().unwrap().bare.is_some());
+    }
+
+    #[test]
+    fn level_masks_keep_coverage() {
+        let (s, mask) = stack(9);
+        let m2 = level_mask(&mask, 2);
+        assert_eq!(m2.size, 16);
+        for &k in &s.steps[1..] {
+            let (a, b) = (mask.coverage(k), m2.coverage(k));
+            assert!((a - b).abs() <= 0.5 / 256.0 + 1e-9, "step {k}: {a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn chunks_cover_every_triangle_once() {
+        let mesh = crate::procedural::plane(10.0, 10);
+        let c = chunks(&mesh, Some(4.0));
+        assert_eq!(c.len(), 9);
+        let mut all: Vec<u32> = c.concat();
+        all.sort();
+        assert_eq!(all, (0..200).collect::<Vec<u32>>());
+        assert_eq!(chunks(&mesh, None).len(), 1);
+    }
+}
