@@ -247,6 +247,7 @@ pub fn layer_tops(
     delta: &[Vec3],
     cutoffs: &[f32],
 ) -> Culled {
+    assert!(!cutoffs.is_empty(), "at least the base layer");
     assert!(
         cutoffs.windows(2).skip(1).all(|w| w[0] <= w[1]),
         "layer cutoffs rise with the layer"
@@ -262,10 +263,10 @@ pub fn layer_tops(
             let reach = b as f64 / 255.0 * (d as f64 / 255.0);
             let shows = |j: usize| moves && reach >= cutoffs[j] as f64 * (1.0 - SLACK);
             let top = 1 + (1..layers).take_while(|&j| shows(j)).count();
-            for k in &mut kept[..top.min(layers)] {
+            for k in &mut kept[..top] {
                 *k += 1;
             }
-            top.min(layers.max(1)) as u32
+            top as u32
         })
         .collect();
     Culled { top, kept }

@@ -93,29 +93,30 @@ pub struct BakedScene {
     pub surfaces: Vec<BakedSurface>,
 }
 
-/// Everything a one-surface bake produced, for the writer, the report and the tests.
+/// Everything a one-surface bake produced, for the writer, the report and the tests: the file,
+/// and the one surface's results (reached through `Deref`: `baked.mesh`, `baked.report`).
 pub struct Baked {
     /// The GLB file.
     pub glb: Vec<u8>,
     /// The glTF JSON inside it.
     pub json: serde_json::Value,
-    /// The surface's report.
-    pub report: Report,
     /// The file's report (plan, totals, the surface's section).
     pub scene_report: SceneReport,
-    /// The render mesh that was packed (welded-degenerate triangles removed, normals filled).
-    pub mesh: Mesh,
-    pub shells: ShellStack,
-    pub mask: Mask,
-    pub packed: PackedSurface,
-    /// Mask tiles per UV unit.
-    pub tiles_per_uv: Vec2,
-    /// Density per render vertex (`COLOR_0` alpha bytes), when a density map was given.
-    pub density: Option<Vec<u8>>,
-    /// The layers each triangle of `mesh` shows in (LOD 0).
-    pub culled: cull::Culled,
-    /// The LOD chain (LOD 0 alone without the effect `lod`).
-    pub levels: Vec<lod::Level>,
+    pub surface: BakedSurface,
+}
+
+impl std::ops::Deref for Baked {
+    type Target = BakedSurface;
+
+    fn deref(&self) -> &BakedSurface {
+        &self.surface
+    }
+}
+
+impl std::ops::DerefMut for Baked {
+    fn deref_mut(&mut self) -> &mut BakedSurface {
+        &mut self.surface
+    }
 }
 
 /// A surface's meshes as loaded (and placed), its maps, and the time loading took.
@@ -183,16 +184,8 @@ pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Bake
     Baked {
         glb: baked.glb,
         json: baked.json,
-        report: surface.report,
         scene_report: baked.report,
-        mesh: surface.mesh,
-        shells: surface.shells,
-        mask: surface.mask,
-        packed: surface.packed,
-        tiles_per_uv: surface.tiles_per_uv,
-        density: surface.density,
-        culled: surface.culled,
-        levels: surface.levels,
+        surface,
     }
 }
 
@@ -422,48 +415,52 @@ fn bake_surface(
             lod::build_lods(&shells, &mask, spacing, texel, &params.lod)
         })
         .unwrap_or_else(|| vec![lod::full_level(&shells)]);
-    let chunks = if plan.runs(Stage::Lod, i) {
-        lod::chunks(&mesh, params.lod.chunk_size)
-    } else {
-        lod::chunks(&mesh, None)
-    };
+    let lod_runs = plan.runs(Stage::Lod, i);
+    let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
     report.count("levels", levels.len() as f64);
     report.count("chunks", chunks.len() as f64);
-    let masks: Vec<Mask> = levels
-        .iter()
-        .map(|l| lod::level_mask(&mask, l.mask_level))
-        .collect();
-    let uvs_in_tiles: Vec<Vec2> = mesh
-        .uvs
-        .as_ref()
-        .unwrap()
-        .iter()
-        .map(|&uv| uv * tiles_per_uv)
-        .collect();
-    let mut cull_ms = 0.0;
+    // One mask, and one cull bound per triangle, per distinct mip the levels use: the bound
+    // depends on the mask alone, not on a level's layers.
+    let mut mips: Vec<u32> = levels.iter().map(|l| l.mask_level).collect();
+    mips.sort_unstable();
+    mips.dedup();
+    let masks = lod::level_masks(&mask, &mips);
+    let mip_of = |l: &lod::Level| mips.iter().position(|&m| m == l.mask_level).unwrap();
+    let cull_runs = plan.runs(Stage::Cull, i);
+    let cull_start = Instant::now();
+    let bounds: Vec<Vec<u8>> = if cull_runs {
+        let uvs_in_tiles: Vec<Vec2> = mesh
+            .uvs
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|&uv| uv * tiles_per_uv)
+            .collect();
+        masks
+            .iter()
+            .map(|m| cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, &mesh.indices))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let culled: Vec<cull::Culled> = levels
         .iter()
-        .zip(&masks)
-        .map(|(level, m)| {
-            let layers = level.layers.len().max(1);
-            let run = level.bare.is_none() && plan.runs(Stage::Cull, i);
-            if !run {
-                return cull::Culled::none(mesh.triangle_count(), layers);
+        .map(|level| {
+            if level.bare.is_some() || !cull_runs {
+                return cull::Culled::none(mesh.triangle_count(), level.layers.len().max(1));
             }
-            let start = Instant::now();
+            let m = &masks[mip_of(level)];
             let cutoffs: Vec<f32> = level.layers.iter().map(|l| m.cutoff(l.step)).collect();
-            let bounds = cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, &mesh.indices);
-            let c = cull::layer_tops(
-                &bounds,
+            cull::layer_tops(
+                &bounds[mip_of(level)],
                 &mesh.indices,
                 density_map.as_deref(),
                 &shells.delta,
                 &cutoffs,
-            );
-            cull_ms += start.elapsed().as_secs_f64() * 1e3;
-            c
+            )
         })
         .collect();
+    let cull_ms = cull_start.elapsed().as_secs_f64() * 1e3;
     if plan.runs(Stage::Cull, i) {
         report.record(Stage::Cull.name(), cull_ms);
     } else {
@@ -487,11 +484,10 @@ fn bake_surface(
         .collect();
     let pack_levels: Vec<pack::PackLevel> = levels
         .iter()
-        .zip(&masks)
         .zip(&culled)
-        .map(|((level, mask), culled)| pack::PackLevel {
+        .map(|(level, culled)| pack::PackLevel {
             level,
-            mask,
+            mask: &masks[mip_of(level)],
             culled,
         })
         .collect();
@@ -533,9 +529,9 @@ fn bake_surface(
     report.count("guarded_vertices", surface_packed.guarded as f64);
     report.lods = levels
         .iter()
-        .zip(&masks)
-        .zip(&surface_packed.lod_triangles)
-        .map(|((l, m), &triangles)| report::LodEntry {
+        .map(|l| &masks[mip_of(l)])
+        .zip(levels.iter().zip(&surface_packed.lod_triangles))
+        .map(|(m, (l, &triangles))| report::LodEntry {
             layers: l.layers.len(),
             triangles,
             bytes: 0,
@@ -686,12 +682,12 @@ fn fill_sizes(
             .sum();
     }
     report.draw_calls = surface
-        .layer_meshes
+        .layer_meshes()
         .iter()
         .map(|&m| packed.meshes[m].primitives.len())
         .sum();
     report.triangles_drawn = surface
-        .layer_meshes
+        .layer_meshes()
         .iter()
         .map(|&m| packed.mesh_triangles(m))
         .sum();

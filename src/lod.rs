@@ -279,21 +279,28 @@ fn srgb_to_linear(v: f64) -> f64 {
     }
 }
 
-/// The mask of a level: mip `level` of `mask`, coverage-preserving alpha and box-filtered shade.
-pub fn level_mask(mask: &Mask, level: u32) -> Mask {
-    if level == 0 {
-        return mask.clone();
-    }
-    let i = level as usize - 1;
-    let alpha = strands::coverage_mips(&mask.alpha, mask.size, mask.size).swap_remove(i);
-    let shade = strands::box_mips(&mask.shade, mask.size, mask.size).swap_remove(i);
-    Mask {
-        size: mask.size >> level,
-        alpha,
-        shade,
-        cells_per_tile: (mask.cells_per_tile >> level).max(1),
-        model: mask.model,
-    }
+/// The masks of levels using mips `levels` of `mask` (0: `mask` itself): each mip's
+/// coverage-preserving alpha and box-filtered shade. The mip chains are built once.
+pub fn level_masks(mask: &Mask, levels: &[u32]) -> Vec<Mask> {
+    let chains = levels.iter().any(|&l| l > 0).then(|| {
+        (
+            strands::coverage_mips(&mask.alpha, mask.size, mask.size),
+            strands::box_mips(&mask.shade, mask.size, mask.size),
+        )
+    });
+    levels
+        .iter()
+        .map(|&level| match (&chains, level) {
+            (Some((alpha, shade)), 1..) => Mask {
+                size: mask.size >> level,
+                alpha: alpha[level as usize - 1].clone(),
+                shade: shade[level as usize - 1].clone(),
+                cells_per_tile: (mask.cells_per_tile >> level).max(1),
+                model: mask.model,
+            },
+            _ => mask.clone(),
+        })
+        .collect()
 }
 
 /// Triangles of `mesh` per chunk of side `size` over the two longest axes of its bounds (by
@@ -385,7 +392,9 @@ mod tests {
     #[test]
     fn level_masks_keep_coverage() {
         let (s, mask) = stack(9);
-        let m2 = level_mask(&mask, 2);
+        let masks = level_masks(&mask, &[0, 2]);
+        assert_eq!(masks[0], mask);
+        let m2 = &masks[1];
         assert_eq!(m2.size, 16);
         for &k in &s.steps[1..] {
             let (a, b) = (mask.coverage(k), m2.coverage(k));

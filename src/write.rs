@@ -251,7 +251,7 @@ pub fn glb_of_packed(doc: &Value, bin_len: usize, packed: &Packed) -> Vec<u8> {
 pub fn json_bytes_per_layer(doc: &Value, packed: &Packed, surface: &PackedSurface) -> Vec<usize> {
     let len = |v: &Value| serde_json::to_vec(v).map_or(0, |b| b.len());
     surface
-        .layer_meshes
+        .layer_meshes()
         .iter()
         .zip(&surface.layer_nodes)
         .map(|(&m, &n)| {

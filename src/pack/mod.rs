@@ -165,17 +165,17 @@ pub struct PackInput<'a> {
 }
 
 /// The surface's vertices with their quantization grids, in the input's order.
-struct Geometry {
+struct Geometry<'a> {
     grid: PositionGrid,
     uv_grid: UvGrid,
     float_uvs: bool,
-    positions: Vec<Vec3>,
-    normals: Vec<Vec3>,
-    uvs: Vec<Vec2>,
+    positions: &'a [Vec3],
+    normals: &'a [Vec3],
+    uvs: &'a [Vec2],
     /// Extrusion deltas in grid units (already guarded).
     deltas: Vec<Vec3>,
-    density: Option<Vec<u8>>,
-    fur_weight: Option<Vec<f32>>,
+    density: Option<&'a [u8]>,
+    fur_weight: Option<&'a [f32]>,
 }
 
 /// One chunk at one level: triangles ordered so every layer draws a prefix.
@@ -245,7 +245,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     assert!(!input.levels.is_empty() && input.levels[0].level.bare.is_none());
     let nv = mesh.vertex_count();
 
-    let positions = mesh.positions.clone();
+    let positions = &mesh.positions;
     let grid = PositionGrid::fit(
         // the base and the fully extruded surface
         positions
@@ -287,8 +287,8 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             guard::guard(&base, &mut deltas, &mesh.indices, &check)
         }
     };
-    let uvs = mesh.uvs.clone().unwrap();
-    let uv_grid = UvGrid::fit(&uvs);
+    let uvs = mesh.uvs.as_deref().unwrap();
+    let uv_grid = UvGrid::fit(uvs);
     let tiles = input.tiles_per_uv;
     let texel_error =
         (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();
@@ -298,11 +298,11 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         uv_grid,
         float_uvs,
         positions,
-        normals: mesh.normals.clone().unwrap(),
+        normals: mesh.normals.as_deref().unwrap(),
         uvs,
         deltas,
-        density: input.density.map(<[u8]>::to_vec),
-        fur_weight: input.fur_weight.map(<[f32]>::to_vec),
+        density: input.density,
+        fur_weight: input.fur_weight,
     };
 
     let tag = Tag {
@@ -397,7 +397,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             let meshes = match (params.layout, pl.level.bare) {
                 (Layout::Compact, _) => {
                     let shared = shared.get_or_insert_with(|| {
-                        let s = Shared::new(&mut b, &geometry, &ordering.indices, nv);
+                        let s = Shared::new(&mut b, &geometry, &ordering.indices, nv, true);
                         base_vertices += s.order.len();
                         vertex_order.extend(s.order.iter().copied());
                         s
@@ -413,7 +413,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                     single_draw(&mut b, &ctx, &order, &indices, &ordering.kept)
                 }
                 (Layout::SingleDraw, Some(_)) => {
-                    let s = Shared::new(&mut b, &geometry, &ordering.indices, nv);
+                    let s = Shared::new(&mut b, &geometry, &ordering.indices, nv, false);
                     compact(&mut b, &ctx, &s, &ordering)
                 }
             };
@@ -502,7 +502,6 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     let surface = PackedSurface {
         layout: params.layout,
         root,
-        layer_meshes: lod_meshes[0].clone(),
         layer_nodes: layer_nodes_all,
         lod_meshes,
         lod_triangles,
@@ -522,7 +521,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
 
 /// What one level of one chunk is packed with.
 struct LevelCtx<'a> {
-    geometry: &'a Geometry,
+    geometry: &'a Geometry<'a>,
     level: &'a Level,
     mask: &'a Mask,
     texture: Option<TextureRef>,
@@ -535,62 +534,65 @@ struct LevelCtx<'a> {
 }
 
 /// A chunk's vertex streams in the compact layout, shared by every level: fetch order from
-/// LOD 0's index buffer.
+/// LOD 0's index buffer. A bare level of the single-draw layout has its own, without the
+/// streams only shells read (`shells` = false).
 struct Shared {
     order: Vec<u32>,
     /// Input vertex → stored vertex.
     fetch: Vec<u32>,
     position: usize,
     normal: usize,
+    /// Texture coordinates, extrusion target and density (when `shells`).
+    shells: Option<ShellStreams>,
+}
+
+/// The accessors only shell layers read.
+struct ShellStreams {
     texcoord: usize,
     delta: usize,
     density: Option<usize>,
-    /// Index accessors by triangle count, per level ordering.
-    nv: usize,
 }
 
 impl Shared {
-    fn new(b: &mut Builder, g: &Geometry, indices: &[u32], nv: usize) -> Shared {
+    fn new(b: &mut Builder, g: &Geometry, indices: &[u32], nv: usize, shells: bool) -> Shared {
         let (order, _) = fetch_order(indices, nv);
         let mut fetch = vec![u32::MAX; nv];
         for (new, &old) in order.iter().enumerate() {
             fetch[old as usize] = new as u32;
         }
         let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
-        let q: Vec<[u16; 3]> = pick(&g.positions)
+        let q: Vec<[u16; 3]> = pick(g.positions)
             .iter()
             .map(|&p| g.grid.quantize(p))
             .collect();
         let position = b.positions(&q);
-        let normal = b.normals(&pick(&g.normals));
-        let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
-        let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs);
-        let delta = b.deltas(&pick(&g.deltas));
-        let density = g.density.as_ref().map(|d| {
-            let mut bytes = Bytes::default();
-            for &o in &order {
-                bytes.0.extend_from_slice(&[255, 255, 255, d[o as usize]]);
+        let normal = b.normals(&pick(g.normals));
+        let shells = shells.then(|| {
+            let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
+            let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs);
+            let delta = b.deltas(&pick(&g.deltas));
+            let density = g.density.map(|d| {
+                let mut bytes = Bytes::default();
+                for &o in &order {
+                    bytes.0.extend_from_slice(&[255, 255, 255, d[o as usize]]);
+                }
+                let n = order.len();
+                let v = b.stream("density", Semantic::Color(0), None, bytes.0, Some(4), n);
+                b.out
+                    .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
+            });
+            ShellStreams {
+                texcoord,
+                delta,
+                density,
             }
-            let v = b.stream(
-                "density",
-                Semantic::Color(0),
-                None,
-                bytes.0,
-                Some(4),
-                order.len(),
-            );
-            b.out
-                .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
         });
         Shared {
-            nv: order.len(),
             order,
             fetch,
             position,
             normal,
-            texcoord,
-            delta,
-            density,
+            shells,
         }
     }
 }
@@ -604,6 +606,29 @@ struct Builder<'a> {
 }
 
 impl Builder<'_> {
+    /// A mesh of one untargeted primitive, tagged with the builder's tag.
+    fn single_primitive_mesh(
+        &mut self,
+        name: String,
+        attributes: Vec<(Semantic, usize)>,
+        indices: usize,
+        material: usize,
+    ) -> usize {
+        let primitive = Primitive {
+            attributes,
+            targets: vec![],
+            indices: Some(indices),
+            material,
+        };
+        let mesh = PackedMesh {
+            name,
+            tag: self.tag,
+            primitives: vec![primitive],
+            weights: vec![],
+        };
+        Packed::push(&mut self.out.meshes, mesh)
+    }
+
     /// The material of layer `layer` of level `level`, made by `make` the first time.
     fn material(&mut self, level: usize, layer: usize, make: impl FnOnce() -> Material) -> usize {
         if let Some(&(_, m)) = self.materials.iter().find(|(k, _)| *k == (level, layer)) {
@@ -738,17 +763,15 @@ fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> 
         .iter()
         .map(|&i| s.fetch[i as usize])
         .collect();
-    let ix = b.indices("indices", &indices, s.nv);
-    let mut attributes = vec![
+    let ix = b.indices("indices", &indices, s.order.len());
+    let base = vec![
         (Semantic::Position, s.position),
         (Semantic::Normal, s.normal),
-        (Semantic::TexCoord(0), s.texcoord),
     ];
     if let Some([fur, skin]) = ctx.level.bare {
-        let name = format!("{}bare", ctx.prefix);
-        attributes.truncate(2);
+        let mut attributes = base;
         // with maps, the colour per vertex (COLOR_0, linear) and a white material
-        let weight = ctx.geometry.fur_weight.as_ref();
+        let weight = ctx.geometry.fur_weight;
         let colour = if weight.is_some() { [1.0; 3] } else { fur };
         if let Some(w) = weight {
             let mut bytes = Bytes::default();
@@ -774,21 +797,16 @@ fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> 
             texture: None,
             roughness: ctx.roughness,
         });
-        let primitive = Primitive {
-            attributes,
-            targets: vec![],
-            indices: Some(ix),
-            material,
-        };
-        let mesh = PackedMesh {
-            name,
-            tag: b.tag,
-            primitives: vec![primitive],
-            weights: vec![],
-        };
-        return vec![Packed::push(&mut b.out.meshes, mesh)];
+        let name = format!("{}bare", ctx.prefix);
+        return vec![b.single_primitive_mesh(name, attributes, ix, material)];
     }
-    attributes.extend(s.density.map(|d| (Semantic::Color(0), d)));
+    let shells = s
+        .shells
+        .as_ref()
+        .expect("shell levels share LOD 0's shell streams");
+    let mut attributes = base;
+    attributes.push((Semantic::TexCoord(0), shells.texcoord));
+    attributes.extend(shells.density.map(|d| (Semantic::Color(0), d)));
     // one index accessor per distinct triangle count, all over the level's index stream
     let mut prefixes: Vec<(usize, usize)> = vec![(indices.len() / 3, ix)];
     let layers = &ctx.level.layers;
@@ -824,7 +842,7 @@ fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> 
                 targets: if base {
                     vec![]
                 } else {
-                    vec![vec![(Semantic::Position, s.delta)]]
+                    vec![vec![(Semantic::Position, shells.delta)]]
                 },
                 indices: Some(ix),
                 material,
@@ -962,24 +980,13 @@ fn single_draw(
         texture: ctx.texture,
         roughness: ctx.roughness,
     });
-    let primitive = Primitive {
-        attributes: vec![
-            (Semantic::Position, position),
-            (Semantic::Normal, normal),
-            (Semantic::TexCoord(0), texcoord),
-            (Semantic::Color(0), color),
-        ],
-        targets: vec![],
-        indices: Some(ix),
-        material,
-    };
-    let mesh = PackedMesh {
-        name,
-        tag: b.tag,
-        primitives: vec![primitive],
-        weights: vec![],
-    };
-    vec![Packed::push(&mut b.out.meshes, mesh)]
+    let attributes = vec![
+        (Semantic::Position, position),
+        (Semantic::Normal, normal),
+        (Semantic::TexCoord(0), texcoord),
+        (Semantic::Color(0), color),
+    ];
+    vec![b.single_primitive_mesh(name, attributes, ix, material)]
 }
 
 /// The mask as a grey+alpha PNG (grey = the strands' shade, alpha = the noise byte or the

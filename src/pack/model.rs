@@ -203,12 +203,10 @@ pub struct PackedSurface {
     pub layout: Layout,
     /// The surface's root node.
     pub root: usize,
-    /// LOD 0's mesh of each layer, chunk by chunk, in layer order (all layers share one mesh
-    /// in single-draw).
-    pub layer_meshes: Vec<usize>,
     /// The node of each LOD 0 layer mesh.
     pub layer_nodes: Vec<usize>,
-    /// The meshes of each level, over every chunk.
+    /// The meshes of each level, over every chunk, in layer order within a chunk (all layers
+    /// of a level share one mesh in single-draw).
     pub lod_meshes: Vec<Vec<usize>>,
     /// Triangles each level draws, over every chunk.
     pub lod_triangles: Vec<usize>,
@@ -228,6 +226,13 @@ pub struct PackedSurface {
     pub vertex_order: Vec<u32>,
     /// Vertices whose extrusion the inversion guard shortened.
     pub guarded: usize,
+}
+
+impl PackedSurface {
+    /// LOD 0's mesh of each layer, chunk by chunk.
+    pub fn layer_meshes(&self) -> &[usize] {
+        &self.lod_meshes[0]
+    }
 }
 
 /// The packed file: every surface's streams, accessors, materials, meshes and nodes.
