@@ -475,11 +475,11 @@ fn bake_surface(
         culled[0].kept.iter().filter(|&&k| k == 0).count() as f64,
     );
     report.layer_triangles = culled[0].kept.clone();
-    let coverage: Vec<Vec<f64>> = chunks
+    let switches: Vec<lod::ChunkSwitch> = chunks
         .iter()
         .map(|tris| {
             let (lo, hi) = chunk_bounds(&mesh, &shells.delta, tris);
-            lod::screen_coverage(&levels, ((hi - lo).length() / 2.0) as f64, &params.lod)
+            lod::chunk_switch(&levels, ((hi - lo).length() / 2.0) as f64, &params.lod)
         })
         .collect();
     let pack_levels: Vec<pack::PackLevel> = levels
@@ -512,7 +512,7 @@ fn bake_surface(
         height: shells.height,
         levels: &pack_levels,
         chunks: &chunks,
-        coverage: &coverage,
+        switches: &switches,
         tiles_per_uv,
         roughness: params.shade.roughness,
         surface: i,
@@ -669,7 +669,7 @@ fn fill_sizes(
     several: bool,
 ) {
     let surface = &packed.surfaces[s];
-    let layer_json = write::json_bytes_per_layer(json, packed, surface);
+    let layer_json = write::json_bytes_per_layer(json, packed, surface, report.layers);
     report.streams = stream_bytes(packed, Some(s));
     let several_levels = report.lods.len() > 1;
     for (k, entry) in report.lods.iter_mut().enumerate() {

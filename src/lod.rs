@@ -32,7 +32,9 @@
 //! `MSFT_screencoverage` in its `extras`: per level, the fraction of the viewport height the
 //! chunk's bounding sphere covers at the distance where the next level takes over (0 for the
 //! last). `extras.shellbake_lod` repeats the switch distances (world units), layer counts and
-//! errors for engines without `MSFT_lod`.
+//! errors for engines without `MSFT_lod`. The stated distances are from the chunk's *centre*,
+//! since that is what clients measure (`THREE.LOD`, an engine's visibility range): `d_k` plus
+//! the chunk's bounding radius, so that no point of the chunk is nearer than `d_k` ([`chunk_switch`]).
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -190,11 +192,10 @@ pub fn build_lods(
             .chain((1..n).step_by(m).map(|first| {
                 let run = &levels[0].layers[first..(first + m).min(n)];
                 let len = run.len() as f32;
-                let mean = |c: usize| run.iter().map(|l| l.color[c]).sum::<f32>() / len;
                 LevelLayer {
                     t: run.iter().map(|l| l.t).sum::<f32>() / len,
                     step: run[0].step,
-                    color: [mean(0), mean(1), mean(2)],
+                    color: run_colour(run, mask),
                 }
             }))
             .collect();
@@ -230,6 +231,32 @@ pub fn build_lods(
         }
     }
     kept
+}
+
+/// The colour of a merged layer: what its run shows from above, each layer weighted by the
+/// fraction of texels where it is the run's topmost surviving layer (the plain mean would darken
+/// the fur with the shaded lower layers that the upper ones hide).
+fn run_colour(run: &[LevelLayer], mask: &Mask) -> [f32; 3] {
+    let cov: Vec<f64> = run
+        .iter()
+        .map(|l| mask.coverage(l.step))
+        .chain([0.0])
+        .collect();
+    let mut c = [0.0f64; 3];
+    let mut total = 0.0;
+    for (j, l) in run.iter().enumerate() {
+        let w = (cov[j] - cov[j + 1]).max(0.0);
+        total += w;
+        for (k, ck) in c.iter_mut().enumerate() {
+            *ck += w * l.color[k] as f64;
+        }
+    }
+    if total > 0.0 {
+        c.map(|v| (v / total) as f32)
+    } else {
+        let len = run.len().max(1) as f32;
+        [0, 1, 2].map(|k| run.iter().map(|l| l.color[k]).sum::<f32>() / len)
+    }
 }
 
 /// The colour of the fur seen from above: every layer weighted by the fraction of texels where
@@ -334,18 +361,38 @@ pub fn chunks(mesh: &Mesh, size: Option<f32>) -> Vec<Vec<u32>> {
     out
 }
 
-/// `MSFT_screencoverage` of a chain for a chunk of bounding radius `radius`: per level, the
-/// fraction of the viewport height the chunk's bounding sphere covers where the next level takes
-/// over; 0 for the last.
-pub fn screen_coverage(levels: &[Level], radius: f64, params: &LodParams) -> Vec<f64> {
+/// Where a chunk switches levels, as its node states it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ChunkSwitch {
+    /// Distance from the chunk's centre from which each level is used (0 for LOD 0).
+    pub distances: Vec<f64>,
+    /// `MSFT_screencoverage`: per level, the fraction of the viewport height the chunk's
+    /// bounding sphere covers where the next level takes over; 0 for the last.
+    pub coverage: Vec<f64>,
+}
+
+/// The switch of a chunk of bounding radius `radius`. A level's distance [`Level::distance`]
+/// holds from the chunk's *nearest* point; clients measure from its centre (`THREE.LOD`, the
+/// viewer, engines reading `extras`), so each is stated `radius` further: no point of the chunk
+/// is nearer than `Level::distance` when the level shows.
+pub fn chunk_switch(levels: &[Level], radius: f64, params: &LodParams) -> ChunkSwitch {
+    let distances: Vec<f64> = levels
+        .iter()
+        .enumerate()
+        .map(|(k, l)| if k == 0 { 0.0 } else { l.distance + radius })
+        .collect();
     let f = params.focal();
     let h = params.viewport_height as f64;
-    (0..levels.len())
-        .map(|k| match levels.get(k + 1) {
-            Some(next) => (2.0 * radius * f / next.distance / h).min(1.0),
+    let coverage = (0..levels.len())
+        .map(|k| match distances.get(k + 1) {
+            Some(&d) => (2.0 * radius * f / d / h).min(1.0),
             None => 0.0,
         })
-        .collect()
+        .collect();
+    ChunkSwitch {
+        distances,
+        coverage,
+    }
 }
 
 #[cfg(test)]

@@ -561,7 +561,7 @@ mod tests {
         assert!(parse_size("lots").is_err());
         assert_eq!(
             effects(&["bake", "a.obj", "--clamp"]),
-            vec![Effect::Collision]
+            vec![Effect::Collision, Effect::Cull, Effect::Lod]
         );
         assert_eq!(
             effects(&["bake", "a.obj", "--cull", "--lod"]),

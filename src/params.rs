@@ -151,12 +151,33 @@ impl BakeParams {
             .iter()
             .map(|m| m.triangle_count() as u64)
             .sum::<u64>();
+        // chunks: cells of the chunk size over the scene's bounding box (at most one per
+        // triangle); the LOD stage may not run, but the bound holds either way
+        let chunks = match self.lod.chunk_size {
+            Some(size) if size > 0.0 => {
+                let (mut lo, mut hi) = (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY);
+                for m in &scene.meshes {
+                    for p in &m.positions {
+                        let w = m.origin + p.as_dvec3();
+                        lo = lo.min(w);
+                        hi = hi.max(w);
+                    }
+                }
+                let cells = |e: f64| (e / size as f64).floor().max(0.0) as u64 + 1;
+                let e = (hi - lo).max(glam::DVec3::ZERO);
+                let mut axes = [e.x, e.y, e.z];
+                axes.sort_by(|a, b| b.total_cmp(a));
+                (cells(axes[0]).saturating_mul(cells(axes[1]))).min(triangles.max(1))
+            }
+            _ => 1,
+        };
         crate::pack::estimate_bytes(
             3 * triangles,
             triangles,
             self.shells.layers as u64,
             self.strands.mask_size as u64,
             self.pack.layout,
+            (self.lod.levels.max(1) as u64, chunks),
         )
     }
 

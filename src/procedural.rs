@@ -214,7 +214,6 @@ mesh = \"terrain.obj\"
 preset = \"grass\"
 density_map = \"terrain-density.png\"
 length_map = \"terrain-length.png\"
-effects = [\"cull\", \"lod\"]
 
 [surface.shells]
 height = 0.25        # metres

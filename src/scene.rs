@@ -57,10 +57,9 @@ pub enum Effect {
 
 impl Effect {
     pub const ALL: [Effect; 3] = [Effect::Collision, Effect::Cull, Effect::Lod];
-    /// The effects every surface has unless its effect list says `no-<name>`. Empty for now:
-    /// `cull` and `lod` are asked for (`effects = ["cull", "lod"]`, `--cull`, `--lod`) until
-    /// the test suite's structural checks follow chunked, culled files (see the README).
-    pub const DEFAULT: [Effect; 0] = [];
+    /// The effects every surface has unless its effect list says `no-<name>` (`--no-cull`,
+    /// `--no-lod`).
+    pub const DEFAULT: [Effect; 2] = [Effect::Cull, Effect::Lod];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -744,8 +743,9 @@ mod tests {
         let p = plan(&s);
         assert!(!p.runs(Stage::Collision, 0) && p.runs(Stage::Collision, 1));
         assert!(p.stage(Stage::Collision).why.contains("asked by bunny"));
-        assert!(p.runs(Stage::Clamp, 0) && !p.runs(Stage::Lod, 0) && !p.runs(Stage::Lod, 1));
-        assert!(p.runs(Stage::Cull, 1) && !p.runs(Stage::Cull, 0));
+        // cull and lod are on unless a surface turns them off
+        assert!(p.runs(Stage::Clamp, 0) && p.runs(Stage::Lod, 0) && !p.runs(Stage::Lod, 1));
+        assert!(p.runs(Stage::Cull, 0) && p.runs(Stage::Cull, 1));
     }
 
     #[test]

@@ -160,6 +160,18 @@ fn mesh_json(m: &PackedMesh) -> Value {
         let weights: Vec<Value> = m.weights.iter().map(|&w| num(w)).collect();
         mesh.insert("weights".into(), json!(weights));
     }
+    if !m.layer_ranges.is_empty() {
+        let r = &m.layer_ranges;
+        mesh.insert(
+            "extras".into(),
+            json!({ "shellbake_layers": {
+                "first_index": r.iter().map(|l| l.first_index).collect::<Vec<_>>(),
+                "index_count": r.iter().map(|l| l.index_count).collect::<Vec<_>>(),
+                "first_vertex": r.iter().map(|l| l.first_vertex).collect::<Vec<_>>(),
+                "vertex_count": r.iter().map(|l| l.vertex_count).collect::<Vec<_>>(),
+            }}),
+        );
+    }
     Value::Object(mesh)
 }
 
@@ -247,22 +259,30 @@ pub fn glb_of_packed(doc: &Value, bin_len: usize, packed: &Packed) -> Vec<u8> {
     })
 }
 
-/// JSON bytes the document spends on each layer of `surface`: its mesh, material and node.
-pub fn json_bytes_per_layer(doc: &Value, packed: &Packed, surface: &PackedSurface) -> Vec<usize> {
+/// JSON bytes the document spends on each of the `layers` layers of `surface` at LOD 0: its
+/// meshes, materials and nodes over every chunk (0 for a layer culling dropped).
+pub fn json_bytes_per_layer(
+    doc: &Value,
+    packed: &Packed,
+    surface: &PackedSurface,
+    layers: usize,
+) -> Vec<usize> {
     let len = |v: &Value| serde_json::to_vec(v).map_or(0, |b| b.len());
-    surface
-        .layer_meshes()
-        .iter()
-        .zip(&surface.layer_nodes)
-        .map(|(&m, &n)| {
-            let materials: usize = packed.meshes[m]
-                .primitives
-                .iter()
-                .map(|p| len(&doc["materials"][p.material]))
-                .sum();
-            len(&doc["meshes"][m]) + materials + len(&doc["nodes"][n])
-        })
-        .collect()
+    let mut out = vec![0; layers];
+    for (&m, &n) in surface.layer_meshes().iter().zip(&surface.layer_nodes) {
+        let materials: usize = packed.meshes[m]
+            .primitives
+            .iter()
+            .map(|p| len(&doc["materials"][p.material]))
+            .sum();
+        let j = packed.meshes[m]
+            .tag
+            .layer
+            .unwrap_or(0)
+            .min(layers.saturating_sub(1));
+        out[j] += len(&doc["meshes"][m]) + materials + len(&doc["nodes"][n]);
+    }
+    out
 }
 
 /// A GLB container around `doc` and `bin`.

@@ -30,11 +30,12 @@ fn layout_name(l: Layout) -> &'static str {
 
 struct Case {
     file: PathBuf,
-    layers: usize,
     layout: Layout,
     cutoffs: Vec<f32>,
     single_draw_cutoff: f32,
     t: Vec<f32>,
+    /// Layers with a mesh in the scene (culling drops layers on which no strand survives).
+    layers_drawn: usize,
 }
 
 /// Bakes the whole matrix once; checks exactness on the way.
@@ -61,7 +62,6 @@ fn bake_matrix() -> Vec<Case> {
                 shellbake::write::write_glb(&file, &baked.glb).unwrap();
                 cases.push(Case {
                     file,
-                    layers: baked.shells.t.len(),
                     layout,
                     cutoffs: baked
                         .shells
@@ -71,11 +71,17 @@ fn bake_matrix() -> Vec<Case> {
                         .collect(),
                     single_draw_cutoff: shellbake::pack::single_draw_cutoff(&baked.mask),
                     t: baked.shells.t.clone(),
+                    layers_drawn: baked.culled.kept.iter().filter(|&&k| k > 0).count(),
                 });
             }
         }
     }
     cases
+}
+
+/// The layer a mesh or node named `…layer_NNN` draws.
+fn layer_of(name: &str) -> usize {
+    name.rsplit("layer_").next().unwrap().parse().unwrap()
 }
 
 /// Dequantized `T + S·(q + t·d)` (compact) or `T + S·q_j` (single-draw) against the exact
@@ -98,23 +104,41 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
     let bound = s * 1.0001 + 1e-6 * mesh.diagonal() as f64;
     let mut worst: f64 = 0.0;
     let meshes = glb.json["meshes"].as_array().unwrap();
+    // LOD 0's meshes (one per layer in compact, one for all layers in single-draw); culling
+    // drops empty layers and, in single-draw, keeps only each layer's vertex prefix
+    let lod0 = baked.packed.layer_meshes();
     for (j, &t) in baked.shells.t.iter().enumerate() {
-        let (prim, weight, offset) = match baked.packed.layout {
+        let (prim, weight, offset, count) = match baked.packed.layout {
             Layout::Compact => {
-                let m = &meshes[j];
+                // culling drops empty layers: find layer j's mesh by its name
+                let Some(m) = lod0
+                    .iter()
+                    .map(|&m| &meshes[m])
+                    .find(|m| layer_of(m["name"].as_str().unwrap()) == j)
+                else {
+                    continue;
+                };
                 let w = m["weights"][0].as_f64().unwrap_or(0.0);
                 if j > 0 {
                     assert!((w - t as f64).abs() < 1e-6, "{what}: weight {w} vs t {t}");
                 }
-                (&m["primitives"][0], w, 0)
+                (&m["primitives"][0], w, 0, nv)
             }
-            Layout::SingleDraw => (&meshes[0]["primitives"][0], 0.0, j * nv),
+            Layout::SingleDraw => {
+                let m = &meshes[lod0[0]];
+                let ranges = &m["extras"]["shellbake_layers"];
+                let Some(first) = ranges["first_vertex"][j].as_u64() else {
+                    continue;
+                };
+                let count = ranges["vertex_count"][j].as_u64().unwrap() as usize;
+                (&m["primitives"][0], 0.0, first as usize, count)
+            }
         };
         let q = glb.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
         let d = prim["targets"][0]["POSITION"]
             .as_u64()
             .map(|a| glb.accessor(a as usize));
-        for (i, &old) in order.iter().enumerate() {
+        for (i, &old) in order.iter().enumerate().take(count) {
             let qi = &q[offset + i];
             let mut local = DVec3::new(qi[0], qi[1], qi[2]);
             if let Some(d) = &d {
@@ -150,10 +174,11 @@ fn every_fixture_preset_and_layout_is_valid_loads_in_three_and_is_exact() {
             Layout::Compact => {
                 assert_eq!(
                     meshes.len(),
-                    c.layers,
-                    "{name}: one three.js mesh per layer"
+                    c.layers_drawn,
+                    "{name}: one three.js mesh per layer that keeps a triangle"
                 );
-                for (j, m) in meshes.iter().enumerate() {
+                for m in meshes {
+                    let j = layer_of(m["name"].as_str().unwrap());
                     let alpha_test = m["alphaTest"].as_f64().unwrap();
                     if j == 0 {
                         assert_eq!(alpha_test, 0.0, "{name}: base layer is opaque");

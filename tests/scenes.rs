@@ -57,23 +57,47 @@ fn two_surfaces_bake_into_one_valid_file_that_three_js_draws() {
         (root(0)["name"].as_str(), root(1)["name"].as_str()),
         (Some("meadow"), Some("bunny"))
     );
-    assert_eq!(root(0)["children"].as_array().unwrap().len(), 48);
-    assert_eq!(root(1)["children"].as_array().unwrap().len(), 32);
+    // each root holds its surface's one chunk: LOD 0's layers, coarser levels by MSFT_lod
+    let chunk = |i: usize| &doc["nodes"][root(i)["children"][0].as_u64().unwrap() as usize];
+    assert_eq!(root(0)["children"].as_array().unwrap().len(), 1);
+    assert_eq!(chunk(0)["children"].as_array().unwrap().len(), 48);
+    assert_eq!(chunk(1)["children"].as_array().unwrap().len(), 32);
+    assert_eq!(
+        chunk(1)["extensions"]["MSFT_lod"]["ids"]
+            .as_array()
+            .unwrap()
+            .len(),
+        4
+    );
     assert_eq!(root(1)["extras"]["shellbake"]["layers"], 32);
-    assert_eq!(doc["textures"].as_array().unwrap().len(), 2);
-    assert_eq!(doc["images"].as_array().unwrap().len(), 2);
-    let first_bunny_layer = root(1)["children"][0].as_u64().unwrap() as usize;
+    // one mask per surface and distinct mip its levels use (the report lists each level's)
+    let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let masks: usize = (0..2)
+        .map(|i| {
+            let mut sizes: Vec<u64> = r["surfaces"][i]["lods"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter_map(|l| l["mask_size"].as_u64().filter(|&s| s > 0))
+                .collect();
+            sizes.dedup();
+            sizes.len()
+        })
+        .sum();
+    assert_eq!(masks, 7);
+    assert_eq!(doc["textures"].as_array().unwrap().len(), masks);
+    assert_eq!(doc["images"].as_array().unwrap().len(), masks);
+    let first_bunny_layer = chunk(1)["children"][0].as_u64().unwrap() as usize;
     let mesh = doc["nodes"][first_bunny_layer]["mesh"].as_u64().unwrap() as usize;
-    assert_eq!(doc["meshes"][mesh]["name"], "bunny_layer_000");
+    assert_eq!(doc["meshes"][mesh]["name"], "bunny_lod0_layer_000");
     let material = doc["meshes"][mesh]["primitives"][0]["material"]
         .as_u64()
         .unwrap() as usize;
-    assert_eq!(doc["materials"][material]["name"], "bunny_layer_000");
+    assert_eq!(doc["materials"][material]["name"], "bunny_lod0_layer_000");
     // the meadow is scaled to 24 × 24 and its grass is 1.2 tall
     assert_eq!(root(0)["extras"]["shellbake"]["height"], 1.2);
 
     // a report section per surface, and the plan
-    let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     assert_eq!(r["total_bytes"].as_u64().unwrap() as usize, glb.len());
     assert_eq!(r["surfaces"][0]["name"], "meadow");
     assert_eq!(r["surfaces"][1]["layers"], 32);
@@ -112,7 +136,7 @@ fn two_surfaces_bake_into_one_valid_file_that_three_js_draws() {
     assert_eq!((named("meadow_"), named("bunny_")), (48, 32));
     let meadow_box = &meshes
         .iter()
-        .find(|m| m["name"] == "meadow_layer_000")
+        .find(|m| m["name"] == "meadow_lod0_layer_000")
         .unwrap()["box"];
     assert!(
         (meadow_box[1][0].as_f64().unwrap() - 12.0).abs() < 0.01,

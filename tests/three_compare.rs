@@ -75,6 +75,8 @@ fn three_job(glb: &Path, png: &Path, camera: &view::Camera) -> serde_json::Value
         "light": { "direction": light.direction.to_array(), "intensity": light.color.x },
         "ambient": light.ambient.x * std::f32::consts::PI,
         "background": [bg.r, bg.g, bg.b],
+        // both sides pick each chunk's level by distance, as the file says
+        "msft_lod": true,
     })
 }
 

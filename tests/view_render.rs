@@ -499,7 +499,8 @@ fn layer_limit_draws_fewer_triangles_and_both_layouts_agree() {
     for layout in [Layout::Compact, Layout::SingleDraw] {
         let mut p = BakeParams::preset(Preset::Carpet);
         p.pack.layout = layout;
-        let baked = shellbake::bake(&scene, &p);
+        // every layer draws every triangle: one level, nothing culled
+        let baked = shellbake::bake_with(&scene, &p, &[]);
         let mut r = GltfRenderer::from_glb(gpu(), &baked.glb).unwrap();
         assert_eq!(r.layer_count(), 16);
         let all = r.triangles();
@@ -516,6 +517,27 @@ fn layer_limit_draws_fewer_triangles_and_both_layouts_agree() {
         (4, 1),
         "compact: one draw per layer; single-draw: one"
     );
+    // culled (the default): layers draw different prefixes; single-draw finds each layer's end
+    // in extras.shellbake_layers, and both layouts still draw the same triangles at every limit
+    let mut per_limit = Vec::new();
+    for layout in [Layout::Compact, Layout::SingleDraw] {
+        let mut p = BakeParams::preset(Preset::Carpet);
+        p.pack.layout = layout;
+        let baked = shellbake::bake(&scene, &p);
+        assert!(baked.culled.culled() > 0, "the carpet culls on the cube");
+        let mut r = GltfRenderer::from_glb(gpu(), &baked.glb).unwrap();
+        r.set_lod(gpu(), Some(0)).unwrap();
+        let counts: Vec<usize> = [Some(0), Some(3), Some(9), None]
+            .into_iter()
+            .map(|k| {
+                r.set_layer_limit(k);
+                r.triangles()
+            })
+            .collect();
+        assert!(counts.windows(2).all(|w| w[0] < w[1]), "{counts:?}");
+        per_limit.push(counts);
+    }
+    assert_eq!(per_limit[0], per_limit[1]);
 }
 
 #[test]

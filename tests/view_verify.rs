@@ -23,12 +23,12 @@ fn gpu() -> &'static Gpu {
     GPU.get_or_init(|| Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)"))
 }
 
+/// One level, nothing culled: the controls below change LOD 0's layers in place.
 fn bake(fixture: &str, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
-    bake_file(
-        Path::new(&format!("fixtures/{fixture}.obj")),
-        preset,
-        layout,
-    )
+    let mut params = BakeParams::preset(preset);
+    params.pack.layout = layout;
+    let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap();
+    (shellbake::bake_with(&scene, &params, &[]), params)
 }
 
 fn bake_file(path: &Path, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
@@ -45,6 +45,14 @@ fn layout_name(l: Layout) -> &'static str {
     }
 }
 
+fn lines(v: &Verification) -> Vec<String> {
+    v.views
+        .iter()
+        .map(|r| r.line())
+        .chain(v.levels.iter().map(|l| l.line()))
+        .collect()
+}
+
 fn save_failure(v: &Verification, name: &str) {
     let dir = Path::new("out/view-tests");
     for r in &v.views {
@@ -53,6 +61,12 @@ fn save_failure(v: &Verification, name: &str) {
         let _ = r.reference.save(f("reference"));
         let _ = r.baked.save(f("actual"));
         let _ = r.comparison.difference.save(f("difference"));
+    }
+    for l in &v.levels {
+        let f = |kind: &str| dir.join(format!("{name}-lod{}-{kind}.png", l.level));
+        let _ = l.reference.save(f("reference"));
+        let _ = l.baked.save(f("actual"));
+        let _ = l.comparison.difference.save(f("difference"));
     }
 }
 
@@ -91,20 +105,18 @@ fn verify_cases(fixture: &str, path: &Path, cases: &[(Preset, Layout)]) {
                 &baked.glb,
                 ReferenceInput::from_baked(&baked, &params),
                 SIZE,
+                (&params.lod).into(),
             )
             .unwrap();
             let name = format!("{fixture}-{}-{}", preset.name(), layout_name(layout));
             println!("{}", row(&name, &v));
+            assert!(
+                v.levels.len() >= 2,
+                "{name}: the default bake has distance levels"
+            );
             if !v.passed() {
                 save_failure(&v, &name);
-                failures.push(format!(
-                    "{name}:\n  {}",
-                    v.views
-                        .iter()
-                        .map(|r| r.line())
-                        .collect::<Vec<_>>()
-                        .join("\n  ")
-                ));
+                failures.push(format!("{name}:\n  {}", lines(&v).join("\n  ")));
             }
         }
     }
@@ -221,6 +233,7 @@ fn verify_fails_when_the_bake_is_off_by_one_layer() {
                 &wrong,
                 ReferenceInput::from_baked(&baked, &params),
                 SIZE,
+                (&params.lod).into(),
             )
             .unwrap();
             let name = format!(
@@ -255,8 +268,65 @@ fn verify_fails_when_the_strands_come_from_another_seed() {
         &baked.glb,
         ReferenceInput::from_baked(&baked, &other),
         SIZE,
+        (&params.lod).into(),
     )
     .unwrap();
     println!("{}", row("other-seed-sphere-fur", &v));
     assert!(!v.passed());
+}
+
+/// Distance levels whose merged layers take their run's *highest* cutoff (the fur thins with
+/// distance, what the lowest cutoff prevents) must fail the level check, on presets whose runs
+/// span enough height for it to show.
+#[test]
+fn verify_fails_when_distant_levels_thin_the_fur() {
+    for (fixture, preset) in [("bunny", Preset::Fur), ("sphere", Preset::Grass)] {
+        let (baked, params) = bake_file(
+            Path::new(&format!("fixtures/{fixture}.obj")),
+            preset,
+            Layout::Compact,
+        );
+        let (mut doc, bin) = shellbake::view::glb::split_glb(&baked.glb).unwrap();
+        let steps = &baked.shells.steps;
+        let inc = steps[2] - steps[1];
+        let mut changed = 0;
+        for (k, level) in baked.levels.iter().enumerate().skip(1) {
+            for (j, l) in level.layers.iter().enumerate().skip(1) {
+                // the run's top layer: one step below the next run's first
+                let top = level
+                    .layers
+                    .get(j + 1)
+                    .map_or(*steps.last().unwrap(), |n| n.step - inc)
+                    .max(l.step);
+                let name = format!("lod{k}_layer_{j:03}");
+                for m in doc["materials"].as_array_mut().unwrap() {
+                    if m["name"] == name.as_str() {
+                        m["alphaCutoff"] = serde_json::json!(baked.mask.cutoff(top));
+                        changed += 1;
+                    }
+                }
+            }
+        }
+        assert!(changed > 0);
+        let thin = shellbake::write::glb_bytes(&doc, &bin);
+        let v = verify::verify(
+            gpu(),
+            &thin,
+            ReferenceInput::from_baked(&baked, &params),
+            SIZE,
+            (&params.lod).into(),
+        )
+        .unwrap();
+        let name = format!("thin-levels-{fixture}-{}", preset.name());
+        println!("{name}:\n  {}", lines(&v).join("\n  "));
+        assert!(
+            v.views.iter().all(|r| r.passed()),
+            "{name}: LOD 0 untouched"
+        );
+        assert!(
+            v.levels.iter().any(|l| !l.passed()),
+            "{name}: verify did not notice:\n  {}",
+            lines(&v).join("\n  ")
+        );
+    }
 }

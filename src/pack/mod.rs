@@ -36,8 +36,8 @@ mod model;
 mod quantize;
 
 pub use model::{
-    Accessor, Alpha, Material, Mesh as PackedMesh, Node, NodeLod, Packed, PackedSurface, Primitive,
-    Semantic, ShellExtras, Stream, StreamKind, Tag, Texture, TextureRef,
+    Accessor, Alpha, LayerRange, Material, Mesh as PackedMesh, Node, NodeLod, Packed,
+    PackedSurface, Primitive, Semantic, ShellExtras, Stream, StreamKind, Tag, Texture, TextureRef,
 };
 
 pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid};
@@ -147,8 +147,8 @@ pub struct PackInput<'a> {
     pub levels: &'a [PackLevel<'a>],
     /// Triangles of each chunk (one chunk: every triangle).
     pub chunks: &'a [Vec<u32>],
-    /// `MSFT_screencoverage` of each chunk's chain (unused with one level).
-    pub coverage: &'a [Vec<f64>],
+    /// Each chunk's switch distances and `MSFT_screencoverage` (unused with one level).
+    pub switches: &'a [crate::lod::ChunkSwitch],
     /// Mask tiles per UV unit (u and v).
     pub tiles_per_uv: Vec2,
     /// Density per vertex of `mesh` (`COLOR_0` alpha), when the surface has a density map.
@@ -468,8 +468,8 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             children: level_nodes[0].clone(),
             lod: several_levels.then(|| NodeLod {
                 ids,
-                coverage: input.coverage.get(c).cloned().unwrap_or_default(),
-                distances: levels.iter().map(|l| l.distance).collect(),
+                coverage: input.switches[c].coverage.clone(),
+                distances: input.switches[c].distances.clone(),
                 layers: levels.iter().map(|l| l.layers.len()).collect(),
                 errors: levels.iter().map(|l| l.error).collect(),
             }),
@@ -625,6 +625,7 @@ impl Builder<'_> {
             tag: self.tag,
             primitives: vec![primitive],
             weights: vec![],
+            layer_ranges: vec![],
         };
         Packed::push(&mut self.out.meshes, mesh)
     }
@@ -858,6 +859,7 @@ fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> 
                     tag,
                     primitives: vec![primitive],
                     weights: if base { vec![] } else { vec![l.t] },
+                    layer_ranges: vec![],
                 },
             )
         })
@@ -867,32 +869,41 @@ fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> 
 /// An upper bound of the GLB size for a mesh of at most `vertices` render vertices and
 /// `triangles` triangles, made before any work so an oversize bake can be refused with the size
 /// it would at most have had. Counts every stream at its widest encoding (float UVs, the float
-/// extrusion delta, u32 indices past 65535 vertices), the mask PNG at its raw size plus an eighth
-/// (deflate's fixed codes spend at most 9 bits a byte; encoders fall back to stored blocks when
-/// that is larger) and 600 bytes of JSON per layer (a layer's mesh, material and node take about
-/// 450).
+/// extrusion delta, u32 indices past 65535 vertices, the density and bare-level colours), every
+/// LOD level (`levels` with shells, each merging twice as many layers as the one before, and the
+/// bare level) in each of `chunks` chunks, the mask PNG at its raw size plus an eighth (deflate's
+/// fixed codes spend at most 9 bits a byte; encoders fall back to stored blocks when that is
+/// larger) and its mips for the coarser levels (a third more), and 600 bytes of JSON per layer
+/// mesh (a layer's mesh, material and node take about 450) plus 1000 per chunk and level.
 pub fn estimate_bytes(
     vertices: u64,
     triangles: u64,
     layers: u64,
     mask_size: u64,
     layout: Layout,
+    (levels, chunks): (u64, u64),
 ) -> u64 {
-    // grey + alpha per texel, one filter byte per row
+    // grey + alpha per texel, one filter byte per row; mips add at most a third
     let raw = mask_size * (2 * mask_size + 1);
-    let png = raw + raw / 8 + 4096;
-    let json = 8192 + 600 * layers;
-    // each view is padded to 4 bytes; 8 views at most
-    let padding = 8 * 3;
+    let png = (raw + raw / 8) * 4 / 3 + 4096 * (levels + 1);
+    // layer meshes over all levels: LOD 0's, each coarser level's at most half the previous
+    // plus one, and the bare level
+    let level_layers: u64 = (0..levels.max(1))
+        .map(|k| 1 + layers.saturating_sub(1).div_ceil(1 << k.min(62)))
+        .sum::<u64>()
+        + 1;
+    let json = 8192 + chunks * (600 * level_layers + 1000 * (levels + 1));
+    // each view is padded to 4 bytes
+    let padding = 4 * (12 + 4 * (levels + 1) * chunks);
     let body = match layout {
         Layout::Compact => {
             let index = if vertices <= 65535 { 2 } else { 4 };
-            vertices * (8 + 4 + 8 + 12) + triangles * 3 * index
+            vertices * (8 + 4 + 8 + 12 + 4 + 8) + (levels + 1) * triangles * 3 * index
         }
         Layout::SingleDraw => {
-            let n = vertices * layers;
+            let n = vertices * level_layers;
             let index = if n <= 65535 { 2 } else { 4 };
-            n * (8 + 4 + 8 + 8) + triangles * layers * 3 * index
+            n * (8 + 4 + 8 + 8) + triangles * level_layers * 3 * index
         }
     };
     28 + body + png + json + padding
@@ -935,9 +946,16 @@ fn single_draw(
     let mut q = Vec::with_capacity(total);
     let mut colors = Bytes::default();
     let mut all_ix: Vec<u32> = Vec::new();
+    let mut ranges = Vec::with_capacity(layers.len());
     let top_level = grid.max_level() as f32;
     for (j, l) in layers.iter().enumerate() {
         let (nv, first) = (layer_vertices[j], q.len() as u32);
+        ranges.push(LayerRange {
+            first_index: all_ix.len(),
+            index_count: 3 * kept[j],
+            first_vertex: first as usize,
+            vertex_count: nv,
+        });
         q.extend(order[..nv].iter().map(|&o| {
             let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
             let r = guard::layer_point((p - grid.min) / grid.step, d, l.t, top_level);
@@ -986,7 +1004,9 @@ fn single_draw(
         (Semantic::TexCoord(0), texcoord),
         (Semantic::Color(0), color),
     ];
-    vec![b.single_primitive_mesh(name, attributes, ix, material)]
+    let mesh = b.single_primitive_mesh(name, attributes, ix, material);
+    b.out.meshes[mesh].layer_ranges = ranges;
+    vec![mesh]
 }
 
 /// The mask as a grey+alpha PNG (grey = the strands' shade, alpha = the noise byte or the

@@ -155,6 +155,21 @@ pub struct Mesh {
     pub primitives: Vec<Primitive>,
     /// Default weights, one per morph target (empty when there are none).
     pub weights: Vec<f32>,
+    /// Single-draw: where each layer's triangles and vertex copies lie in the primitive
+    /// (`extras.shellbake_layers`), so that a client can draw layers `0..=k`; empty otherwise.
+    pub layer_ranges: Vec<LayerRange>,
+}
+
+/// One layer's part of a single-draw primitive: its triangles are indices
+/// `first_index .. first_index + index_count`, which reference only its own copy of the
+/// vertices, `first_vertex .. first_vertex + vertex_count` (vertex `first_vertex + i` is a copy of
+/// the base layer's vertex `i`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LayerRange {
+    pub first_index: usize,
+    pub index_count: usize,
+    pub first_vertex: usize,
+    pub vertex_count: usize,
 }
 
 /// What a surface's root node tells engines about its shells (`extras.shellbake`).

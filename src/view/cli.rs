@@ -243,6 +243,7 @@ pub fn verify(
         &baked.glb,
         ReferenceInput::from_baked(&baked, params),
         args.size,
+        (&params.lod).into(),
     )?;
     let stem = input
         .file_stem()
@@ -259,21 +260,18 @@ pub fn verify(
         for v in &result.views {
             println!("  {}", v.line());
         }
+        for l in &result.levels {
+            println!("  {}", l.line());
+        }
         println!("  pictures in {}", shown(&args.out_dir));
     }
     if result.passed() {
         Ok(())
     } else {
-        let failed: Vec<&str> = result
-            .views
-            .iter()
-            .filter(|v| !v.passed())
-            .map(|v| v.view.name())
-            .collect();
         Err(ViewError::Verify(format!(
-            "{}: baked and reference differ beyond the tolerance in view(s) {}",
+            "{}: baked and reference differ beyond the tolerance in {}",
             input.display(),
-            failed.join(", ")
+            result.failures().join(", ")
         )))
     }
 }

@@ -23,6 +23,11 @@ pub struct Comparison {
     /// Pixels differing at all.
     pub differing_any: usize,
     pub pixels: usize,
+    /// Pixels that show the asset in either picture (not the clear colour in both).
+    pub covered: usize,
+    /// Mean FLIP error over the covered pixels (what a distant level is judged by: the mean over
+    /// the whole picture shrinks with the asset's share of it).
+    pub flip_covered: f32,
     /// FLIP error map through the magma colour map.
     pub difference: RgbaImage,
 }
@@ -49,6 +54,13 @@ pub fn compare(reference: &RgbaImage, test: &RgbaImage) -> Comparison {
     );
     let (w, h) = reference.dimensions();
     let (a, b) = (rgb(reference), rgb(test));
+    let clear = super::gpu::clear_srgb8();
+    let background = |p: &[u8]| p.iter().zip(clear).all(|(x, y)| x.abs_diff(y) <= 1);
+    let covered: Vec<bool> = a
+        .chunks_exact(3)
+        .zip(b.chunks_exact(3))
+        .map(|(p, q)| !(background(p) && background(q)))
+        .collect();
     let mut differing = 0;
     let mut differing_any = 0;
     for (p, q) in a.chunks_exact(3).zip(b.chunks_exact(3)) {
@@ -67,6 +79,15 @@ pub fn compare(reference: &RgbaImage, test: &RgbaImage) -> Comparison {
         nv_flip::DEFAULT_PIXELS_PER_DEGREE,
     );
     let flip_mean = nv_flip::FlipPool::from_image(&error).mean();
+    let values = error.to_vec();
+    let covered_count = covered.iter().filter(|&&c| c).count();
+    let covered_sum: f64 = values
+        .iter()
+        .zip(&covered)
+        .filter(|(_, &c)| c)
+        .map(|(&v, _)| v as f64)
+        .sum();
+    let flip_covered = (covered_sum / covered_count.max(1) as f64) as f32;
     let map = error.apply_color_lut(&nv_flip::magma_lut()).to_vec();
     let difference = RgbaImage::from_raw(
         w,
@@ -81,6 +102,8 @@ pub fn compare(reference: &RgbaImage, test: &RgbaImage) -> Comparison {
         differing,
         differing_any,
         pixels: (w * h) as usize,
+        covered: covered_count,
+        flip_covered,
         difference,
     }
 }

@@ -212,6 +212,8 @@ pub struct LodSwitch {
     pub centre: DVec3,
     /// Distance from which each level is used (LOD 0 first).
     pub distances: Vec<f64>,
+    /// Layers each level draws (`extras.shellbake_lod.layers`; empty when the file does not say).
+    pub layers: Vec<usize>,
 }
 
 impl LodSwitch {
@@ -488,10 +490,18 @@ impl Asset {
         let mut out = Vec::new();
         let placed = self.doc.walk(|n| n)?;
         for (n, ids) in self.lods.iter().enumerate() {
-            let distances: Vec<f64> = self.doc.json["nodes"][n]["extras"]["shellbake_lod"]
-                ["distances"]
+            let figures = &self.doc.json["nodes"][n]["extras"]["shellbake_lod"];
+            let distances: Vec<f64> = figures["distances"]
                 .as_array()
                 .map(|d| d.iter().filter_map(|v| v.as_f64()).collect())
+                .unwrap_or_default();
+            let layers: Vec<usize> = figures["layers"]
+                .as_array()
+                .map(|d| {
+                    d.iter()
+                        .filter_map(|v| v.as_u64().map(|l| l as usize))
+                        .collect()
+                })
                 .unwrap_or_default();
             if ids.is_empty() || distances.len() != ids.len() + 1 {
                 continue;
@@ -529,10 +539,28 @@ impl Asset {
                     node: n,
                     centre: (lo + hi) / 2.0,
                     distances,
+                    layers,
                 });
             }
         }
         Ok(out)
+    }
+
+    /// The end of each layer's indices in a single-draw mesh (`extras.shellbake_layers`); empty
+    /// for other meshes.
+    pub fn layer_ends(&self, mesh: usize) -> Vec<u32> {
+        let r = &self.doc.json["meshes"][mesh]["extras"]["shellbake_layers"];
+        let list = |k: &str| -> Vec<u64> {
+            r[k].as_array()
+                .map(|a| a.iter().filter_map(Value::as_u64).collect())
+                .unwrap_or_default()
+        };
+        let (first, count) = (list("first_index"), list("index_count"));
+        first
+            .iter()
+            .zip(&count)
+            .map(|(&f, &c)| (f + c).min(u32::MAX as u64) as u32)
+            .collect()
     }
 
     /// Every mesh instance of the scene at LOD `lod` (clamped per node), world matrices in `f64`.

@@ -94,6 +94,8 @@ struct DrawCall {
     indices: Option<usize>,
     /// Indices (or vertices when unindexed) of the whole primitive.
     elements: u32,
+    /// Single-draw: the end of each layer's indices (`extras.shellbake_layers`).
+    layer_ends: Vec<u32>,
     class: Class,
     layer: usize,
 }
@@ -305,6 +307,11 @@ impl GltfRenderer {
         self.build_draws(gpu)
     }
 
+    /// The nodes whose level is picked by distance.
+    pub fn lod_switches(&self) -> &[crate::view::glb::LodSwitch] {
+        &self.switches
+    }
+
     /// The level each distance-switched node draws now (empty when a level is forced or the
     /// file has none).
     pub fn lod_picks(&self) -> &[usize] {
@@ -324,21 +331,16 @@ impl GltfRenderer {
         Ok(())
     }
 
-    fn single_draw_layers(&self) -> Option<u32> {
-        let l = self.asset.shell_layers? as u32;
-        (self.draws.len() == 1 && l > 0 && self.draws[0].elements.is_multiple_of(3 * l))
-            .then_some(l)
-    }
-
     /// Elements drawn of each draw call under the current layer limit (0 = skipped).
     fn visible_elements(&self) -> Vec<u32> {
-        let single = self.single_draw_layers();
         self.draws
             .iter()
-            .map(|d| match (self.layer_limit, single) {
-                (None, _) => d.elements,
-                (Some(k), Some(l)) => d.elements / l * (k as u32 + 1).min(l),
-                (Some(k), None) => {
+            .map(|d| match self.layer_limit {
+                None => d.elements,
+                Some(k) if !d.layer_ends.is_empty() => {
+                    d.layer_ends[k.min(d.layer_ends.len() - 1)].min(d.elements)
+                }
+                Some(k) => {
                     if d.layer <= k {
                         d.elements
                     } else {
@@ -465,6 +467,7 @@ impl GltfRenderer {
                     targets: prim.targets.clone(),
                     indices: prim.indices,
                     elements: elements - elements % 3,
+                    layer_ends: self.asset.layer_ends(inst.mesh),
                     class,
                     layer: inst.sibling,
                 });

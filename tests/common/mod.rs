@@ -180,7 +180,11 @@ pub fn path_str(p: &Path) -> String {
 
 /// Layer triangles of a baked GLB that face against their base triangle (`n_layer · n_base ≤ 0`
 /// in f64, read from the file's own accessors), and the number of layer triangles checked. Base
-/// triangles of zero stored area have no facing and are skipped. Works for both layouts.
+/// triangles of zero stored area have no facing and are skipped. Every mesh of the file is
+/// walked, whatever level or chunk it belongs to: a compact layer is a primitive with a morph
+/// target (base = POSITION, layer = POSITION + w·target); a single-draw mesh states where each
+/// layer's triangles and vertex copies lie (`extras.shellbake_layers`; vertex `first + i` of a
+/// layer copies vertex `i` of the base).
 pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
     let g = Glb::parse(glb);
     let normal = |p: &[[f64; 3]; 3]| {
@@ -195,61 +199,57 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let row = |v: &Vec<f64>| [v[0], v[1], v[2]];
     let (mut inverted, mut checked) = (0, 0);
-    let meshes = g.json["meshes"].as_array().unwrap();
-    let layout = g.json["nodes"][0]["extras"]["shellbake"]["layout"]
-        .as_str()
-        .unwrap();
-    // POSITION rows and indices of the first mesh's primitive
-    let (pos, ix) = {
-        let prim = &meshes[0]["primitives"][0];
+    let mut count = |base: [[f64; 3]; 3], layer: [[f64; 3]; 3]| {
+        let n0 = normal(&base);
+        if n0 != [0.0; 3] {
+            checked += 1;
+            inverted += (dot(normal(&layer), n0) <= 0.0) as usize;
+        }
+    };
+    for mesh in g.json["meshes"].as_array().unwrap() {
+        let prim = &mesh["primitives"][0];
+        let Some(ix) = prim["indices"].as_u64() else {
+            continue;
+        };
         let ix: Vec<usize> = g
-            .accessor(prim["indices"].as_u64().unwrap() as usize)
+            .accessor(ix as usize)
             .iter()
             .map(|v| v[0] as usize)
             .collect();
-        (
-            g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize),
-            ix,
-        )
-    };
-    if layout == "compact" {
-        for mesh in &meshes[1..] {
-            let prim = &mesh["primitives"][0];
+        let pos = g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
+        if let Some(target) = prim["targets"][0]["POSITION"].as_u64() {
             let w = mesh["weights"][0].as_f64().unwrap();
-            let d = g.accessor(prim["targets"][0]["POSITION"].as_u64().unwrap() as usize);
+            let d = g.accessor(target as usize);
             for t in ix.chunks_exact(3) {
                 let base = [0, 1, 2].map(|k| row(&pos[t[k]]));
-                let n0 = normal(&base);
-                if n0 == [0.0; 3] {
-                    continue;
-                }
                 let layer = [0, 1, 2].map(|k| {
                     let (p, dd) = (&pos[t[k]], &d[t[k]]);
                     [0, 1, 2].map(|c| p[c] + w * dd[c])
                 });
-                checked += 1;
-                if dot(normal(&layer), n0) <= 0.0 {
-                    inverted += 1;
-                }
+                count(base, layer);
             }
         }
-    } else {
-        let layers = g.json["nodes"][0]["extras"]["shellbake"]["layers"]
-            .as_u64()
-            .unwrap() as usize;
-        let per = ix.len() / layers;
-        for j in 1..layers {
-            for (b, l) in ix[..per]
-                .chunks_exact(3)
-                .zip(ix[j * per..(j + 1) * per].chunks_exact(3))
-            {
-                let n0 = normal(&[0, 1, 2].map(|k| row(&pos[b[k]])));
-                if n0 == [0.0; 3] {
-                    continue;
-                }
-                checked += 1;
-                if dot(normal(&[0, 1, 2].map(|k| row(&pos[l[k]]))), n0) <= 0.0 {
-                    inverted += 1;
+        let ranges = &mesh["extras"]["shellbake_layers"];
+        if ranges.is_object() {
+            let list = |k: &str| -> Vec<usize> {
+                ranges[k]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_u64().unwrap() as usize)
+                    .collect()
+            };
+            let (fi, ic, fv) = (
+                list("first_index"),
+                list("index_count"),
+                list("first_vertex"),
+            );
+            assert_eq!(fv[0], 0, "the base layer's vertices come first");
+            for j in 1..fi.len() {
+                for t in ix[fi[j]..fi[j] + ic[j]].chunks_exact(3) {
+                    let base = [0, 1, 2].map(|k| row(&pos[t[k] - fv[j]]));
+                    let layer = [0, 1, 2].map(|k| row(&pos[t[k]]));
+                    count(base, layer);
                 }
             }
         }
