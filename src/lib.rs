@@ -16,11 +16,12 @@
 //! | strands | [`strands`] | [`strands::bake_mask`] |
 //! | tiling | [`tiling`] | [`tiling::mask_tiling`] |
 //! | shells | [`shells`] | [`shells::build_shells`] |
-//! | cull, lod | (not yet; skipped) | — |
+//! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
+//! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
 //! | pack | [`pack`] | [`pack::pack`] |
 //! | write | [`write`] | [`write::gltf_json`], [`write::glb_of_packed`] |
 //!
-//! Modules form a tree of imports, ground floor first: `error`, `grid`, `mesh` → the stages
+//! Modules form a tree of imports, ground floor first: `error`, `grid`, `mesh`, `srgb` → the stages
 //! (each owning its parameters) → `params` (gathers them, presets as data) → `scene` (scene
 //! files, the plan) → `report` → this file. After the pipeline, [`view`] draws what was baked
 //! (wgpu), draws the runtime shell technique from the same input as a reference, and compares
@@ -42,6 +43,7 @@ pub mod procedural;
 pub mod report;
 pub mod scene;
 pub mod shells;
+pub mod srgb;
 pub mod strands;
 pub mod tiling;
 #[cfg(feature = "view")]
@@ -461,7 +463,7 @@ fn bake_surface(
         })
         .collect();
     let cull_ms = cull_start.elapsed().as_secs_f64() * 1e3;
-    if plan.runs(Stage::Cull, i) {
+    if cull_runs {
         report.record(Stage::Cull.name(), cull_ms);
     } else {
         report.skip(
@@ -529,15 +531,18 @@ fn bake_surface(
     report.count("guarded_vertices", surface_packed.guarded as f64);
     report.lods = levels
         .iter()
-        .map(|l| &masks[mip_of(l)])
-        .zip(levels.iter().zip(&surface_packed.lod_triangles))
-        .map(|(m, (l, &triangles))| report::LodEntry {
+        .zip(&surface_packed.lod_triangles)
+        .map(|(l, &triangles)| report::LodEntry {
             layers: l.layers.len(),
             triangles,
             bytes: 0,
             distance: l.distance,
             error: l.error,
-            mask_size: if l.bare.is_some() { 0 } else { m.size },
+            mask_size: if l.bare.is_some() {
+                0
+            } else {
+                masks[mip_of(l)].size
+            },
         })
         .collect();
 

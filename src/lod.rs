@@ -233,24 +233,11 @@ pub fn build_lods(
     kept
 }
 
-/// The colour of a merged layer: what its run shows from above, each layer weighted by the
-/// fraction of texels where it is the run's topmost surviving layer (the plain mean would darken
+/// The colour of a merged layer: what its run shows from above (the plain mean would darken
 /// the fur with the shaded lower layers that the upper ones hide).
 fn run_colour(run: &[LevelLayer], mask: &Mask) -> [f32; 3] {
-    let cov: Vec<f64> = run
-        .iter()
-        .map(|l| mask.coverage(l.step))
-        .chain([0.0])
-        .collect();
-    let mut c = [0.0f64; 3];
-    let mut total = 0.0;
-    for (j, l) in run.iter().enumerate() {
-        let w = (cov[j] - cov[j + 1]).max(0.0);
-        total += w;
-        for (k, ck) in c.iter_mut().enumerate() {
-            *ck += w * l.color[k] as f64;
-        }
-    }
+    let cov: Vec<f64> = run.iter().map(|l| mask.coverage(l.step)).collect();
+    let (c, total) = seen_from_above(&cov, run.iter().map(|l| l.color));
     if total > 0.0 {
         c.map(|v| (v / total) as f32)
     } else {
@@ -259,11 +246,10 @@ fn run_colour(run: &[LevelLayer], mask: &Mask) -> [f32; 3] {
     }
 }
 
-/// The colour of the fur seen from above: every layer weighted by the fraction of texels where
-/// it is the topmost that shows, times the mean linear strand shade.
+/// The colour of the fur seen from above, times the mean linear strand shade.
 pub fn fur_colour(shells: &ShellStack, mask: &Mask) -> [f32; 3] {
-    let n = shells.t.len();
-    let cov: Vec<f64> = (0..n)
+    // the base covers every texel
+    let cov: Vec<f64> = (0..shells.t.len())
         .map(|j| {
             if j == 0 {
                 1.0
@@ -271,17 +257,27 @@ pub fn fur_colour(shells: &ShellStack, mask: &Mask) -> [f32; 3] {
                 mask.coverage(shells.steps[j])
             }
         })
-        .chain([0.0])
         .collect();
+    // the weights sum to the base's coverage, 1
+    let (c, _) = seen_from_above(&cov, shells.color.iter().copied());
     let shade = mean_shade(mask);
+    c.map(|v| (v * shade) as f32)
+}
+
+/// Layers of coverage `cov` (bottom to top, each the fraction of texels it shows strands at) and
+/// colours `colors` seen from above: the sum of the colours, each weighted by the fraction of
+/// texels where its layer is the topmost that shows, and the sum of the weights.
+fn seen_from_above(cov: &[f64], colors: impl Iterator<Item = [f32; 3]>) -> ([f64; 3], f64) {
     let mut c = [0.0f64; 3];
-    for j in 0..n {
-        let w = (cov[j] - cov[j + 1]).max(0.0);
-        for (k, ck) in c.iter_mut().enumerate() {
-            *ck += w * shells.color[j][k] as f64;
+    let mut total = 0.0;
+    for (j, color) in colors.enumerate() {
+        let w = (cov[j] - cov.get(j + 1).copied().unwrap_or(0.0)).max(0.0);
+        total += w;
+        for (ck, &v) in c.iter_mut().zip(&color) {
+            *ck += w * v as f64;
         }
     }
-    c.map(|v| (v * shade) as f32)
+    (c, total)
 }
 
 /// The base layer's colour times the mean strand shade: bare skin seen from afar.
@@ -293,17 +289,9 @@ pub fn skin_colour(shells: &ShellStack, mask: &Mask) -> [f32; 3] {
 fn mean_shade(mask: &Mask) -> f64 {
     mask.shade
         .iter()
-        .map(|&g| srgb_to_linear(g as f64 / 255.0))
+        .map(|&g| crate::srgb::decode8(g))
         .sum::<f64>()
         / mask.shade.len().max(1) as f64
-}
-
-fn srgb_to_linear(v: f64) -> f64 {
-    if v <= 0.04045 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 /// The masks of levels using mips `levels` of `mask` (0: `mask` itself): each mip's

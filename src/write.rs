@@ -275,12 +275,8 @@ pub fn json_bytes_per_layer(
             .iter()
             .map(|p| len(&doc["materials"][p.material]))
             .sum();
-        let j = packed.meshes[m]
-            .tag
-            .layer
-            .unwrap_or(0)
-            .min(layers.saturating_sub(1));
-        out[j] += len(&doc["meshes"][m]) + materials + len(&doc["nodes"][n]);
+        out[packed.meshes[m].tag.layer.unwrap_or(0)] +=
+            len(&doc["meshes"][m]) + materials + len(&doc["nodes"][n]);
     }
     out
 }

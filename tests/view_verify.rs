@@ -45,6 +45,18 @@ fn layout_name(l: Layout) -> &'static str {
     }
 }
 
+/// `verify` of `glb` against the reference of `baked` with `params`.
+fn verify_glb(glb: &[u8], baked: &shellbake::Baked, params: &BakeParams) -> Verification {
+    verify::verify(
+        gpu(),
+        glb,
+        ReferenceInput::from_baked(baked, params),
+        SIZE,
+        (&params.lod).into(),
+    )
+    .unwrap()
+}
+
 fn lines(v: &Verification) -> Vec<String> {
     v.views
         .iter()
@@ -100,14 +112,7 @@ fn verify_cases(fixture: &str, path: &Path, cases: &[(Preset, Layout)]) {
     for &(preset, layout) in cases {
         {
             let (baked, params) = bake_file(path, preset, layout);
-            let v = verify::verify(
-                gpu(),
-                &baked.glb,
-                ReferenceInput::from_baked(&baked, &params),
-                SIZE,
-                (&params.lod).into(),
-            )
-            .unwrap();
+            let v = verify_glb(&baked.glb, &baked, &params);
             let name = format!("{fixture}-{}-{}", preset.name(), layout_name(layout));
             println!("{}", row(&name, &v));
             assert!(
@@ -228,14 +233,7 @@ fn verify_fails_when_the_bake_is_off_by_one_layer() {
         for layout in [Layout::Compact, Layout::SingleDraw] {
             let (baked, params) = bake(fixture, preset, layout);
             let wrong = off_by_one_layer(&baked);
-            let v = verify::verify(
-                gpu(),
-                &wrong,
-                ReferenceInput::from_baked(&baked, &params),
-                SIZE,
-                (&params.lod).into(),
-            )
-            .unwrap();
+            let v = verify_glb(&wrong, &baked, &params);
             let name = format!(
                 "off-by-one-{fixture}-{}-{}",
                 preset.name(),
@@ -263,14 +261,7 @@ fn verify_fails_when_the_strands_come_from_another_seed() {
     let (baked, params) = bake("sphere", Preset::Fur, Layout::Compact);
     let mut other = params.clone();
     other.strands.seed += 1;
-    let v = verify::verify(
-        gpu(),
-        &baked.glb,
-        ReferenceInput::from_baked(&baked, &other),
-        SIZE,
-        (&params.lod).into(),
-    )
-    .unwrap();
+    let v = verify_glb(&baked.glb, &baked, &other);
     println!("{}", row("other-seed-sphere-fur", &v));
     assert!(!v.passed());
 }
@@ -309,14 +300,7 @@ fn verify_fails_when_distant_levels_thin_the_fur() {
         }
         assert!(changed > 0);
         let thin = shellbake::write::glb_bytes(&doc, &bin);
-        let v = verify::verify(
-            gpu(),
-            &thin,
-            ReferenceInput::from_baked(&baked, &params),
-            SIZE,
-            (&params.lod).into(),
-        )
-        .unwrap();
+        let v = verify_glb(&thin, &baked, &params);
         let name = format!("thin-levels-{fixture}-{}", preset.name());
         println!("{name}:\n  {}", lines(&v).join("\n  "));
         assert!(

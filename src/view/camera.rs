@@ -98,6 +98,18 @@ pub struct Orbit {
     pub fov_y_deg: f64,
 }
 
+impl Orbit {
+    /// Unit vector from the orbit's centre towards the eye.
+    pub fn direction(&self) -> DVec3 {
+        let (yaw, pitch) = (self.yaw_deg.to_radians(), self.pitch_deg.to_radians());
+        DVec3::new(
+            yaw.sin() * pitch.cos(),
+            pitch.sin(),
+            yaw.cos() * pitch.cos(),
+        )
+    }
+}
+
 impl Default for Orbit {
     fn default() -> Self {
         NamedView::Front.orbit()
@@ -143,12 +155,7 @@ impl Camera {
         let half_x = (half_y.tan() * aspect).atan();
         let half = half_y.min(half_x);
         let d = orbit.distance.map_or(1.02 / half.sin(), |d| d.max(1e-3)) * r;
-        let (yaw, pitch) = (orbit.yaw_deg.to_radians(), orbit.pitch_deg.to_radians());
-        let dir = DVec3::new(
-            yaw.sin() * pitch.cos(),
-            pitch.sin(),
-            yaw.cos() * pitch.cos(),
-        );
+        let dir = orbit.direction();
         let near = (d - 1.05 * r).max(d * 1e-3);
         Camera {
             eye: sphere.center + dir * d,

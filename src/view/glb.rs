@@ -191,6 +191,9 @@ pub struct Primitive {
 pub struct Mesh {
     pub primitives: Vec<Primitive>,
     pub weights: Vec<f32>,
+    /// Single-draw: the end of each layer's indices (`extras.shellbake_layers`); empty for
+    /// other meshes.
+    pub layer_ends: Vec<u32>,
 }
 
 /// One mesh instance to draw: a node's mesh with its world matrix, morph weights and layer.
@@ -241,10 +244,15 @@ pub struct Asset {
 }
 
 fn f32s(v: &Value) -> Option<Vec<f32>> {
-    v.as_array()?
-        .iter()
-        .map(|x| x.as_f64().map(|f| f as f32))
-        .collect()
+    Some(f64s(v)?.into_iter().map(|f| f as f32).collect())
+}
+
+fn f64s(v: &Value) -> Option<Vec<f64>> {
+    v.as_array()?.iter().map(Value::as_f64).collect()
+}
+
+fn u64s(v: &Value) -> Option<Vec<u64>> {
+    v.as_array()?.iter().map(Value::as_u64).collect()
 }
 
 fn index(v: &Value) -> Option<usize> {
@@ -319,9 +327,19 @@ impl Asset {
                     material: prim.material,
                 });
             }
+            let ranges = &doc.json["meshes"][m]["extras"]["shellbake_layers"];
+            let (first, count) = (
+                u64s(&ranges["first_index"]).unwrap_or_default(),
+                u64s(&ranges["index_count"]).unwrap_or_default(),
+            );
             meshes.push(Mesh {
                 primitives,
                 weights: mesh.weights.iter().map(|&w| w as f32).collect(),
+                layer_ends: first
+                    .iter()
+                    .zip(&count)
+                    .map(|(&f, &c)| f.saturating_add(c).min(u32::MAX as u64) as u32)
+                    .collect(),
             });
         }
         let mut lods = Vec::with_capacity(doc.nodes.len());
@@ -491,18 +509,12 @@ impl Asset {
         let placed = self.doc.walk(|n| n)?;
         for (n, ids) in self.lods.iter().enumerate() {
             let figures = &self.doc.json["nodes"][n]["extras"]["shellbake_lod"];
-            let distances: Vec<f64> = figures["distances"]
-                .as_array()
-                .map(|d| d.iter().filter_map(|v| v.as_f64()).collect())
-                .unwrap_or_default();
-            let layers: Vec<usize> = figures["layers"]
-                .as_array()
-                .map(|d| {
-                    d.iter()
-                        .filter_map(|v| v.as_u64().map(|l| l as usize))
-                        .collect()
-                })
-                .unwrap_or_default();
+            let distances = f64s(&figures["distances"]).unwrap_or_default();
+            let layers: Vec<usize> = u64s(&figures["layers"])
+                .unwrap_or_default()
+                .into_iter()
+                .map(|l| l as usize)
+                .collect();
             if ids.is_empty() || distances.len() != ids.len() + 1 {
                 continue;
             }
@@ -544,23 +556,6 @@ impl Asset {
             }
         }
         Ok(out)
-    }
-
-    /// The end of each layer's indices in a single-draw mesh (`extras.shellbake_layers`); empty
-    /// for other meshes.
-    pub fn layer_ends(&self, mesh: usize) -> Vec<u32> {
-        let r = &self.doc.json["meshes"][mesh]["extras"]["shellbake_layers"];
-        let list = |k: &str| -> Vec<u64> {
-            r[k].as_array()
-                .map(|a| a.iter().filter_map(Value::as_u64).collect())
-                .unwrap_or_default()
-        };
-        let (first, count) = (list("first_index"), list("index_count"));
-        first
-            .iter()
-            .zip(&count)
-            .map(|(&f, &c)| (f + c).min(u32::MAX as u64) as u32)
-            .collect()
     }
 
     /// Every mesh instance of the scene at LOD `lod` (clamped per node), world matrices in `f64`.

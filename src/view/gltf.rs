@@ -467,7 +467,7 @@ impl GltfRenderer {
                     targets: prim.targets.clone(),
                     indices: prim.indices,
                     elements: elements - elements % 3,
-                    layer_ends: self.asset.layer_ends(inst.mesh),
+                    layer_ends: self.asset.meshes[inst.mesh].layer_ends.clone(),
                     class,
                     layer: inst.sibling,
                 });

@@ -64,29 +64,9 @@ pub const CLEAR: wgpu::Color = wgpu::Color {
     a: 1.0,
 };
 
-/// Linear light in [0, 1] as an 8-bit sRGB level.
-pub fn encode_srgb8(l: f64) -> u8 {
-    let s = if l <= 0.003_130_8 {
-        12.92 * l
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (s * 255.0).round().clamp(0.0, 255.0) as u8
-}
-
-/// An 8-bit sRGB level as linear light in [0, 1].
-pub fn decode_srgb8(v: u8) -> f64 {
-    let c = v as f64 / 255.0;
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 /// [`CLEAR`] as the 8-bit sRGB a headless picture holds where nothing was drawn.
 pub fn clear_srgb8() -> [u8; 3] {
-    [CLEAR.r, CLEAR.g, CLEAR.b].map(encode_srgb8)
+    [CLEAR.r, CLEAR.g, CLEAR.b].map(crate::srgb::encode8)
 }
 
 /// Instance, adapter, device and queue.

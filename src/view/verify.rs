@@ -139,8 +139,8 @@ pub struct LevelResult {
     pub comparison: Comparison,
     /// LOD 0 against the reference from the same camera (what the level is measured beside).
     pub lod0_flip: f32,
-    /// The reference against itself moved by half a pixel: what two equally right pictures of
-    /// minified strands differ by at this distance.
+    /// The reference against itself moved sideways by the error budget (`lod.error_pixels`):
+    /// what that much camera motion changes at this distance, for scale (not judged).
     pub noise_flip: f32,
     pub reference: RgbaImage,
     pub baked: RgbaImage,
@@ -270,7 +270,7 @@ pub const LEVEL_BLOCK: u32 = 4;
 /// level, and a per-pixel comparison measures that noise; what a level may change is the
 /// coverage and colour a viewer sees, which the averages keep.
 fn smooth(image: &RgbaImage) -> RgbaImage {
-    use super::gpu::{decode_srgb8, encode_srgb8};
+    use crate::srgb::{decode8, encode8};
     let (w, h) = (image.width() / LEVEL_BLOCK, image.height() / LEVEL_BLOCK);
     let n = (LEVEL_BLOCK * LEVEL_BLOCK) as f64;
     RgbaImage::from_fn(w, h, |x, y| {
@@ -279,11 +279,11 @@ fn smooth(image: &RgbaImage) -> RgbaImage {
             for dx in 0..LEVEL_BLOCK {
                 let p = image.get_pixel(x * LEVEL_BLOCK + dx, y * LEVEL_BLOCK + dy);
                 for (acc, &v) in sum.iter_mut().zip(&p.0[..3]) {
-                    *acc += decode_srgb8(v);
+                    *acc += decode8(v);
                 }
             }
         }
-        let [r, g, b] = sum.map(|v| encode_srgb8(v / n));
+        let [r, g, b] = sum.map(|v| encode8(v / n));
         image::Rgba([r, g, b, 255])
     })
 }
@@ -310,13 +310,7 @@ fn verify_levels(
         return Ok(Vec::new());
     };
     let light = Light::default();
-    let front = NamedView::Front.orbit();
-    let (yaw, pitch) = (front.yaw_deg.to_radians(), front.pitch_deg.to_radians());
-    let dir = glam::DVec3::new(
-        yaw.sin() * pitch.cos(),
-        pitch.sin(),
-        yaw.cos() * pitch.cos(),
-    );
+    let dir = NamedView::Front.orbit().direction();
     // The centre `size` pixels of a `viewport.height` picture.
     let half = (viewport.fov_y_deg.to_radians() * 0.5).tan() * size as f64 / viewport.height;
     let fov_y_deg = (2.0 * half.atan()).to_degrees();
@@ -335,7 +329,7 @@ fn verify_levels(
             far: reach + 1.05 * bounds.radius,
         };
         let r = super::render_reference_image(gpu, reference, &camera, &light, (size, size));
-        // the reference moved by the error budget: what a level may differ by
+        // the reference moved sideways by the error budget, for scale
         let pixel = 2.0 * d * half / size as f64;
         let right = (camera.target - camera.eye).cross(camera.up).normalize()
             * (viewport.error_pixels * pixel);
@@ -349,13 +343,14 @@ fn verify_levels(
         let lod0 = super::render_gltf(gpu, baked, &camera, &light, (size, size));
         baked.set_lod(gpu, Some(level))?;
         let b = super::render_gltf(gpu, baked, &camera, &light, (size, size));
+        let smoothed = smooth(&r);
         out.push(LevelResult {
             level,
             layers: switch.layers.get(level).copied().unwrap_or(0),
             distance,
-            comparison: compare(&smooth(&r), &smooth(&b)),
-            lod0_flip: compare(&smooth(&r), &smooth(&lod0)).flip_covered,
-            noise_flip: compare(&smooth(&r), &smooth(&r_moved)).flip_covered,
+            comparison: compare(&smoothed, &smooth(&b)),
+            lod0_flip: compare(&smoothed, &smooth(&lod0)).flip_covered,
+            noise_flip: compare(&smoothed, &smooth(&r_moved)).flip_covered,
             reference: r,
             baked: b,
         });

@@ -1,0 +1,31 @@
+//! The sRGB transfer function (IEC 61966-2-1) between 8-bit levels and linear light.
+
+/// An 8-bit sRGB level as linear light in [0, 1].
+pub fn decode8(v: u8) -> f64 {
+    let c = v as f64 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Linear light in [0, 1] as the nearest 8-bit sRGB level.
+pub fn encode8(l: f64) -> u8 {
+    let s = if l <= 0.003_130_8 {
+        12.92 * l
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn every_level_round_trips() {
+        for v in 0..=255u8 {
+            assert_eq!(super::encode8(super::decode8(v)), v);
+        }
+    }
+}
