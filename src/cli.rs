@@ -127,6 +127,10 @@ pub struct BenchFlags {
     /// Write the figures as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Save each camera's picture of the reference and of each bake (bake0: no LOD, no cull;
+    /// bake1: cull; bake2: LOD + cull) in this folder.
+    #[arg(long)]
+    pictures: Option<PathBuf>,
 }
 
 impl BenchFlags {
@@ -135,6 +139,7 @@ impl BenchFlags {
             frames: self.frames,
             size: self.size,
             json: self.json,
+            pictures: self.pictures,
         }
     }
 }

@@ -228,24 +228,6 @@ impl BakeArgs {
         Ok(scene)
     }
 
-    /// Parameters for the commands that take one mesh (`verify`, `bench`).
-    fn params(&self) -> anyhow::Result<BakeParams> {
-        if self.is_scene() {
-            anyhow::bail!(
-                "{}: this command takes a mesh, not a scene file",
-                self.input.display()
-            );
-        }
-        let scene = self.scene()?;
-        Ok(scene.surfaces[0].params.clone())
-    }
-
-    /// The effects of a mesh bake (see [`BakeArgs::params`]).
-    #[cfg_attr(not(feature = "view"), allow(dead_code))]
-    fn effects(&self) -> anyhow::Result<Vec<Effect>> {
-        Ok(self.scene()?.surfaces[0].effects.clone())
-    }
-
     fn output(&self) -> PathBuf {
         self.output
             .clone()
@@ -451,11 +433,12 @@ fn main() -> ExitCode {
         Command::Plan(args) => plan(args),
         Command::Fixtures { dir, dense } => fixtures(dir, *dense),
         #[cfg(feature = "view")]
-        Command::Bench { bake, bench } => bake.params().and_then(|p| {
+        Command::Bench { bake, bench } => bake.scene().and_then(|scene| {
+            let (loaded, _) = load_checked(bake, &scene)?;
             Ok(shellbake::view::cli::bench(
                 &bake.input,
-                &p,
-                &bake.effects()?,
+                &scene,
+                &loaded,
                 &bench.clone().into_args(),
             )?)
         }),
@@ -468,15 +451,19 @@ fn main() -> ExitCode {
             shellbake::view::cli::view(&args.clone().into_args()).map_err(Into::into)
         }
         #[cfg(feature = "view")]
-        Command::Verify { bake, verify } => bake.params().and_then(|p| {
+        Command::Verify { bake, verify } => bake.scene().and_then(|scene| {
             let out = bake.output.as_deref();
             if let Some(out) = out {
+                for s in &scene.surfaces {
+                    shellbake::write::check_outputs(&s.mesh, &[("output", out)])?;
+                }
                 shellbake::write::check_outputs(&bake.input, &[("output", out)])?;
             }
+            let (loaded, _) = load_checked(bake, &scene)?;
             Ok(shellbake::view::cli::verify(
                 &bake.input,
-                &p,
-                &bake.effects()?,
+                &scene,
+                &loaded,
                 &verify.clone().into_args(),
                 out,
                 bake.quiet,

@@ -1,8 +1,8 @@
 //! The `render`, `view`, `verify` and `bench` commands: their options as plain data and the
 //! functions the binary dispatches to (the binary's `cli.rs` maps its flags onto these structs;
-//! the library has no CLI types). `verify` takes the bake parameters (already [`BakeParams`])
-//! plus [`VerifyArgs`]. What they print goes
-//! through [`escape`] wherever it holds a path or text that did not come from us (a file name
+//! the library has no CLI types). `verify` and `bench` take the scene (a mesh is a one-surface
+//! [`SceneFile`]) and its loaded meshes plus their arguments. What they print goes through
+//! [`escape`] wherever it holds a path or text that did not come from us (a file name
 //! with an escape sequence must not drive the terminal), as the loader's messages do.
 
 use std::path::{Path, PathBuf};
@@ -14,7 +14,9 @@ use super::gpu::{save_png, Gpu, Light, Result, ViewError};
 use super::reference::ReferenceInput;
 use super::verify;
 use crate::load::escape;
-use crate::params::BakeParams;
+use crate::scene::{Effect, SceneFile};
+use glam::DVec3;
+use super::reference::ReferenceRenderer;
 
 /// `path` as printable text (see the module doc).
 fn shown(path: &Path) -> String {
@@ -116,72 +118,226 @@ pub struct BenchArgs {
     pub size: (u32, u32),
     /// Write the figures as JSON here.
     pub json: Option<PathBuf>,
+    /// Save each camera's last picture of the reference and of every bake here.
+    pub pictures: Option<PathBuf>,
 }
 
-/// Runs `bench`: bakes `input`, then draws the baked file and the runtime reference
-/// `args.frames` times from the front, side, close and far views and prints the mean GPU time of
-/// a frame (timestamp queries; wall time where the adapter has none) and the triangles drawn.
+/// The three bakes `bench` draws beside the reference: the surfaces' effects without `cull` and
+/// `lod`, with `cull`, and with both.
+pub const BENCH_VARIANTS: [(&str, &[Effect], &[Effect]); 3] = [
+    ("no LOD, no cull", &[], &[Effect::Cull, Effect::Lod]),
+    ("cull", &[Effect::Cull], &[Effect::Lod]),
+    ("LOD + cull", &[Effect::Cull, Effect::Lod], &[]),
+];
+
+/// `scene` with `add` put into and `remove` taken out of every surface's effects.
+fn with_effects(scene: &SceneFile, add: &[Effect], remove: &[Effect]) -> SceneFile {
+    let mut s = scene.clone();
+    for surface in &mut s.surfaces {
+        surface.effects.retain(|e| !remove.contains(e));
+        for &e in add {
+            if !surface.effects.contains(&e) {
+                surface.effects.push(e);
+            }
+        }
+        surface.effects.sort();
+    }
+    s
+}
+
+/// Stops of the fixed camera path over a scene whose render meshes span `lo..hi`:
+/// [`PATH_STOPS`] eyes on a circle of 0.3 × the larger horizontal extent around the centre,
+/// 2 % of that extent above the highest point, each looking along the circle at a ground point
+/// a quarter of the extent ahead — a walk through a field, near grass below, far grass ahead.
+pub fn camera_path(lo: DVec3, hi: DVec3, aspect: f64) -> Vec<Camera> {
+    let centre = (lo + hi) * 0.5;
+    let extent = (hi.x - lo.x).max(hi.z - lo.z).max(1e-6);
+    let radius = 0.3 * extent;
+    let reach = (hi - lo).length() + extent;
+    (0..PATH_STOPS)
+        .map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / PATH_STOPS as f64;
+            let (s, c) = a.sin_cos();
+            let eye = DVec3::new(
+                centre.x + radius * c,
+                hi.y + 0.02 * extent,
+                centre.z + radius * s,
+            );
+            let ahead = DVec3::new(-s, 0.0, c) * (0.25 * extent);
+            let target = DVec3::new(eye.x + ahead.x, centre.y, eye.z + ahead.z);
+            Camera {
+                eye,
+                target,
+                up: DVec3::Y,
+                fov_y_deg: 60.0,
+                aspect,
+                near: extent * 1e-3,
+                far: reach,
+            }
+        })
+        .collect()
+}
+
+/// Eyes on the camera path of a scene bench.
+pub const PATH_STOPS: usize = 8;
+
+/// Several renderers drawn into one pass (the reference of a scene: one per surface).
+struct Each<D>(Vec<D>);
+
+impl<D: super::Draw> super::Draw for Each<D> {
+    fn prepare(&mut self, gpu: &Gpu, camera: &Camera, light: &Light, format: wgpu::TextureFormat) {
+        for d in &mut self.0 {
+            d.prepare(gpu, camera, light, format);
+        }
+    }
+    fn record(&self, pass: &mut wgpu::RenderPass<'_>) {
+        for d in &self.0 {
+            d.record(pass);
+        }
+    }
+}
+
+/// Runs `bench`: bakes `scene` (the loaded surfaces, in order) three ways ([`BENCH_VARIANTS`]),
+/// then draws each bake and the runtime reference `args.frames` times per camera and prints
+/// the mean GPU time of a frame (timestamp queries; wall time where the adapter has none) and
+/// the triangles drawn. A mesh is drawn from the front, side, close and far views; a scene file
+/// along [`camera_path`].
 pub fn bench(
     input: &Path,
-    params: &BakeParams,
-    effects: &[crate::scene::Effect],
+    scene: &SceneFile,
+    loaded: &[crate::Loaded],
     args: &BenchArgs,
 ) -> Result<()> {
-    let scene = crate::load::load(input)?;
-    let baked = crate::bake_with(&scene, params, effects);
+    let bakes: Vec<crate::BakedScene> = BENCH_VARIANTS
+        .iter()
+        .map(|(_, add, remove)| crate::bake_scene(&with_effects(scene, add, remove), loaded))
+        .collect();
     let gpu = Gpu::new()?;
     let info = gpu.adapter.get_info();
-    let reference_triangles = baked.mesh.triangle_count() * baked.shells.t.len();
+    let full = &bakes[0];
+    let aspect = args.size.0 as f64 / args.size.1 as f64;
+    let cameras: Vec<(String, Camera)> = if scene.path.is_some() {
+        let (lo, hi) = full.surfaces.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), s| {
+                s.mesh.positions.iter().fold((lo, hi), |(lo, hi), p| {
+                    let w = s.mesh.origin + p.as_dvec3();
+                    (lo.min(w), hi.max(w))
+                })
+            },
+        );
+        camera_path(lo, hi, aspect)
+            .into_iter()
+            .enumerate()
+            .map(|(k, c)| (format!("path {k}"), c))
+            .collect()
+    } else {
+        [
+            NamedView::Front,
+            NamedView::Side,
+            NamedView::Close,
+            NamedView::Far,
+        ]
+        .iter()
+        .map(|v| {
+            let c = super::camera_for_glb(&full.glb, v.orbit(), args.size)?;
+            Ok((v.name().to_string(), c))
+        })
+        .collect::<Result<_>>()?
+    };
+    let mut reference = Each(
+        full.surfaces
+            .iter()
+            .zip(&scene.surfaces)
+            .map(|(b, s)| ReferenceRenderer::new(&gpu, ReferenceInput::from_baked(b, &s.params)))
+            .collect(),
+    );
+    let reference_triangles: usize = full
+        .surfaces
+        .iter()
+        .map(|b| b.mesh.triangle_count() * b.shells.t.len())
+        .sum();
+    let mut renderers = bakes
+        .iter()
+        .map(|b| GltfRenderer::from_glb(&gpu, &b.glb))
+        .collect::<Result<Vec<_>>>()?;
     println!(
-        "bench {} on {} ({:?}), {}x{}, {} frames, {} layers, {} layout",
+        "bench {} on {} ({:?}), {}x{}, {} frames; mean GPU ms per frame / triangles drawn{}",
         shown(input),
         escape(&info.name),
         info.backend,
         args.size.0,
         args.size.1,
         args.frames,
-        baked.shells.t.len(),
-        baked.report.layout
+        if gpu.timestamps {
+            ""
+        } else {
+            " (wall time: no timestamp queries)"
+        }
     );
-    println!(
-        "  baked: {} draw call(s), {} triangles; reference: 1 instanced draw, {} triangles",
-        baked.report.draw_calls, baked.report.triangles_drawn, reference_triangles
-    );
+    print!("  {:8} {:>22}", "camera", "reference");
+    for (name, ..) in BENCH_VARIANTS {
+        print!(" {name:>22}");
+    }
+    println!();
     let ms = |t: &super::gpu::Timing| t.gpu_ms.unwrap_or(t.wall_ms);
+    let light = Light::default();
     let mut rows = Vec::new();
-    for v in [
-        NamedView::Front,
-        NamedView::Side,
-        NamedView::Close,
-        NamedView::Far,
-    ] {
-        let camera = super::camera_for_glb(&baked.glb, v.orbit(), args.size)?;
-        let (_, tb) = super::render_baked(&gpu, &baked.glb, &camera, args.size, args.frames)?;
-        let input = ReferenceInput::from_baked(&baked, params);
-        let (_, tr) = super::render_reference(&gpu, input, &camera, args.size, args.frames);
-        println!(
-            "  {:6} baked {:8.3} ms   reference {:8.3} ms   ratio {:.2}{}",
-            v.name(),
-            ms(&tb),
-            ms(&tr),
-            ms(&tb) / ms(&tr),
-            if tb.gpu_ms.is_some() {
-                ""
-            } else {
-                "  (wall time: no timestamp queries)"
-            }
+    let mut totals = vec![(0.0f64, 0usize); 1 + bakes.len()];
+    for (name, camera) in &cameras {
+        let (picture, t) = super::draw_headless(
+            &gpu,
+            &mut reference,
+            camera,
+            &light,
+            args.size,
+            args.frames,
         );
+        let save = |what: &str, image: &image::RgbaImage| match &args.pictures {
+            Some(dir) => save_png(image, &dir.join(format!("{}-{what}.png", name.replace(' ', "-")))),
+            None => Ok(()),
+        };
+        save("reference", &picture)?;
+        let mut row = vec![(ms(&t), reference_triangles)];
+        for (k, r) in renderers.iter_mut().enumerate() {
+            let (picture, t) = super::draw_headless(&gpu, r, camera, &light, args.size, args.frames);
+            save(&format!("bake{k}"), &picture)?;
+            row.push((ms(&t), r.triangles()));
+        }
+        print!("  {name:8}");
+        for (total, &(ms, tris)) in totals.iter_mut().zip(&row) {
+            print!(" {ms:>9.3} ms {tris:>9}");
+            total.0 += ms;
+            total.1 += tris;
+        }
+        println!();
         rows.push(serde_json::json!({
-            "view": v.name(), "baked_ms": ms(&tb), "reference_ms": ms(&tr),
-            "gpu_timestamps": tb.gpu_ms.is_some(),
+            "camera": name, "eye": camera.eye.to_array(), "target": camera.target.to_array(),
+            "reference": { "ms": row[0].0, "triangles": row[0].1 },
+            "bakes": BENCH_VARIANTS.iter().zip(&row[1..]).map(|((v, ..), (ms, tris))| {
+                serde_json::json!({ "variant": v, "ms": ms, "triangles": tris })
+            }).collect::<Vec<_>>(),
         }));
     }
+    print!("  {:8}", "total");
+    for &(ms, tris) in &totals {
+        print!(" {ms:>9.3} ms {tris:>9}");
+    }
+    println!();
+    print!("  {:8} {:>22}", "÷ ref.", "");
+    for &(ms, tris) in &totals[1..] {
+        print!(
+            " {:>9.2}×   {:>9.2}×",
+            totals[0].0 / ms,
+            totals[0].1 as f64 / tris.max(1) as f64
+        );
+    }
+    println!();
     if let Some(path) = &args.json {
         let doc = serde_json::json!({
-            "input": input.display().to_string(), "adapter": info.name, "size": [args.size.0, args.size.1],
-            "frames": args.frames, "layers": baked.shells.t.len(), "layout": baked.report.layout,
-            "baked_triangles": baked.report.triangles_drawn, "reference_triangles": reference_triangles,
-            "draw_calls": baked.report.draw_calls, "views": rows,
+            "input": input.display().to_string(), "adapter": info.name,
+            "gpu_timestamps": gpu.timestamps, "size": [args.size.0, args.size.1],
+            "frames": args.frames, "cameras": rows,
         });
         crate::write::write_atomic(
             path,
@@ -222,18 +378,25 @@ pub fn view(args: &ViewArgs) -> Result<()> {
     )
 }
 
-/// Runs `verify`: bakes `input` with `params`, writes the GLB to `glb_out` when given, renders
-/// baked and reference, prints one line per view and fails when a view exceeds the tolerance.
+/// Runs `verify`: bakes `scene` (one surface, loaded), writes the GLB to `glb_out` when given,
+/// renders baked and reference, prints one line per view and per LOD level and fails when one
+/// exceeds its tolerance.
 pub fn verify(
     input: &Path,
-    params: &BakeParams,
-    effects: &[crate::scene::Effect],
+    scene: &SceneFile,
+    loaded: &[crate::Loaded],
     args: &VerifyArgs,
     glb_out: Option<&Path>,
     quiet: bool,
 ) -> Result<()> {
-    let scene = crate::load::load(input)?;
-    let baked = crate::bake_with(&scene, params, effects);
+    let [surface] = scene.surfaces.as_slice() else {
+        return Err(ViewError::Verify(format!(
+            "{}: verify takes a mesh or a scene with one surface; this scene has {}",
+            input.display(),
+            scene.surfaces.len()
+        )));
+    };
+    let baked = crate::bake_scene(scene, loaded);
     if let Some(path) = glb_out {
         crate::write::write_glb(path, &baked.glb)?;
     }
@@ -241,9 +404,9 @@ pub fn verify(
     let result = verify::verify(
         &gpu,
         &baked.glb,
-        ReferenceInput::from_baked(&baked, params),
+        ReferenceInput::from_baked(&baked.surfaces[0], &surface.params),
         args.size,
-        (&params.lod).into(),
+        (&surface.params.lod).into(),
     )?;
     let stem = input
         .file_stem()

@@ -127,6 +127,8 @@ pub struct GltfRenderer {
     switches: Vec<crate::view::glb::LodSwitch>,
     /// Current level of each switch.
     picks: Vec<usize>,
+    /// One switch held at one level while the others pick by distance.
+    pinned: Option<(usize, usize)>,
     layer_limit: Option<usize>,
     format: Option<wgpu::TextureFormat>,
     /// Bounding sphere of LOD 0, morph extents included.
@@ -262,6 +264,7 @@ impl GltfRenderer {
             lod: None,
             switches: Vec::new(),
             picks: Vec::new(),
+            pinned: None,
             layer_limit: None,
             format: None,
             bounds,
@@ -304,7 +307,18 @@ impl GltfRenderer {
     /// default).
     pub fn set_lod(&mut self, gpu: &Gpu, lod: Option<usize>) -> Result<()> {
         self.lod = lod.map(|l| l.min(self.lod_levels()));
+        self.pinned = None;
         self.build_draws(gpu)
+    }
+
+    /// Picks levels by distance, except switch `pin.0` (an index into
+    /// [`GltfRenderer::lod_switches`]) held at level `pin.1`: one chunk's level seen among its
+    /// neighbours as a viewer would draw them.
+    /// The draws follow at the next frame.
+    pub fn pin_lod(&mut self, pin: Option<(usize, usize)>) {
+        self.lod = None;
+        self.pinned = pin;
+        self.picks.clear();
     }
 
     /// The nodes whose level is picked by distance.
@@ -323,7 +337,15 @@ impl GltfRenderer {
         if self.lod.is_some() || self.switches.is_empty() {
             return Ok(());
         }
-        let picks: Vec<usize> = self.switches.iter().map(|s| s.level_at(eye)).collect();
+        let picks: Vec<usize> = self
+            .switches
+            .iter()
+            .enumerate()
+            .map(|(i, s)| match self.pinned {
+                Some((p, level)) if p == i => level.min(s.distances.len() - 1),
+                _ => s.level_at(eye),
+            })
+            .collect();
         if picks != self.picks {
             self.picks = picks;
             self.build_draws(gpu)?;

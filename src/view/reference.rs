@@ -25,7 +25,7 @@
 //! the layer colour, the base layer included.
 //!
 //! What the reference takes from the bake are the **decisions of the frames stage** — the float
-//! render mesh ([`Baked::mesh`]) and its per-vertex extrusion ([`ShellStack::delta`]) — plus the
+//! render mesh ([`BakedSurface::mesh`]) and its per-vertex extrusion ([`ShellStack::delta`]) — plus the
 //! layer heights, shades and the mask tiling: the inputs of the technique, not its output. The
 //! baked mask is never consulted. The baked file must then match it to rasterization noise
 //! (quantized positions and UVs); any disagreement in which strand texels survive which layer
@@ -50,7 +50,7 @@ use crate::mesh::Mesh;
 use crate::params::{StrandModel, StrandParams};
 use crate::shells::ShellStack;
 use crate::strands;
-use crate::Baked;
+use crate::BakedSurface;
 
 const WGSL: &str = include_str!("reference.wgsl");
 const MAX_LAYERS: usize = 256;
@@ -76,7 +76,7 @@ pub struct ReferenceInput<'a> {
 impl<'a> ReferenceInput<'a> {
     /// The reference for a bake made with `params`.
     pub fn from_baked(
-        baked: &'a Baked,
+        baked: &'a BakedSurface,
         params: &'a crate::params::BakeParams,
     ) -> ReferenceInput<'a> {
         ReferenceInput {

@@ -288,8 +288,10 @@ fn smooth(image: &RgbaImage) -> RgbaImage {
     })
 }
 
-/// Each level ≥ 1 of the chunk nearest the asset's centre, drawn everywhere, from the front
-/// view's direction at the level's switch distance from that chunk's centre.
+/// Each level ≥ 1 of the chunk nearest the asset's centre, from the front view's direction at
+/// the level's switch distance from that chunk's centre; that chunk is held at the level, the
+/// other chunks pick theirs by distance as a viewer would (a chunk nearer the camera keeps a
+/// finer level).
 fn verify_levels(
     gpu: &Gpu,
     baked: &mut GltfRenderer,
@@ -298,14 +300,15 @@ fn verify_levels(
     viewport: Viewport,
 ) -> Result<Vec<LevelResult>> {
     let bounds = baked.bounds;
-    let Some(switch) = baked
+    let Some((index, switch)) = baked
         .lod_switches()
         .iter()
-        .min_by(|a, b| {
+        .enumerate()
+        .min_by(|(_, a), (_, b)| {
             let d = |s: &crate::view::glb::LodSwitch| (s.centre - bounds.center).length();
             d(a).total_cmp(&d(b))
         })
-        .cloned()
+        .map(|(i, s)| (i, s.clone()))
     else {
         return Ok(Vec::new());
     };
@@ -341,7 +344,7 @@ fn verify_levels(
         let r_moved = super::render_reference_image(gpu, reference, &moved, &light, (size, size));
         baked.set_lod(gpu, Some(0))?;
         let lod0 = super::render_gltf(gpu, baked, &camera, &light, (size, size));
-        baked.set_lod(gpu, Some(level))?;
+        baked.pin_lod(Some((index, level)));
         let b = super::render_gltf(gpu, baked, &camera, &light, (size, size));
         let smoothed = smooth(&r);
         out.push(LevelResult {
