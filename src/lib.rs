@@ -410,15 +410,21 @@ fn bake_surface(
     });
     report.count("layers", shells.t.len() as f64);
 
+    let lod_runs = plan.runs(Stage::Lod, i);
+    let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
     let levels = report
         .gate(plan, Stage::Lod, i, || {
             let spacing = 1.0 / density as f64;
             let texel = spacing * mask.cells_per_tile as f64 / mask.size as f64;
-            lod::build_lods(&shells, &mask, spacing, texel, &params.lod)
+            let base = lod::Base {
+                mesh: &mesh,
+                chunks: &chunks,
+                delta: &shells.delta,
+                density: density_map.as_deref(),
+            };
+            lod::build_lods(&shells, &mask, spacing, texel, &params.lod, Some(&base))
         })
         .unwrap_or_else(|| vec![lod::full_level(&shells)]);
-    let lod_runs = plan.runs(Stage::Lod, i);
-    let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
     report.count("levels", levels.len() as f64);
     report.count("chunks", chunks.len() as f64);
     // One mask, and one cull bound per triangle, per distinct mip the levels use: the bound
@@ -430,14 +436,13 @@ fn bake_surface(
     let mip_of = |l: &lod::Level| mips.iter().position(|&m| m == l.mask_level).unwrap();
     let cull_runs = plan.runs(Stage::Cull, i);
     let cull_start = Instant::now();
-    let bounds: Vec<Vec<u8>> = if cull_runs {
-        let uvs_in_tiles: Vec<Vec2> = mesh
-            .uvs
-            .as_ref()
-            .unwrap()
-            .iter()
-            .map(|&uv| uv * tiles_per_uv)
-            .collect();
+    let uvs_in_tiles: Vec<Vec2> = if cull_runs {
+        let uvs = mesh.uvs.as_ref().unwrap();
+        uvs.iter().map(|&uv| uv * tiles_per_uv).collect()
+    } else {
+        Vec::new()
+    };
+    let bounds: Vec<Vec<u8>> = if cull_runs && levels.iter().any(|l| l.base.is_none()) {
         masks
             .iter()
             .map(|m| cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, &mesh.indices))
@@ -445,17 +450,30 @@ fn bake_surface(
     } else {
         Vec::new()
     };
+    // each level's triangles: the render mesh's, or its simplified base's
+    fn level_indices<'a>(l: &'a lod::Level, mesh: &'a Mesh) -> &'a [u32] {
+        l.base.as_ref().map_or(&mesh.indices, |b| &b.indices)
+    }
     let culled: Vec<cull::Culled> = levels
         .iter()
         .map(|level| {
+            let indices = level_indices(level, &mesh);
             if level.bare.is_some() || !cull_runs {
-                return cull::Culled::none(mesh.triangle_count(), level.layers.len().max(1));
+                return cull::Culled::none(indices.len() / 3, level.layers.len().max(1));
             }
             let m = &masks[mip_of(level)];
+            let own;
+            let bounds = match level.base {
+                Some(_) => {
+                    own = cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, indices);
+                    &own
+                }
+                None => &bounds[mip_of(level)],
+            };
             let cutoffs: Vec<f32> = level.layers.iter().map(|l| m.cutoff(l.step)).collect();
             cull::layer_tops(
-                &bounds[mip_of(level)],
-                &mesh.indices,
+                bounds,
+                indices,
                 density_map.as_deref(),
                 &shells.delta,
                 &cutoffs,
@@ -491,6 +509,8 @@ fn bake_surface(
             level,
             mask: &masks[mip_of(level)],
             culled,
+            indices: level_indices(level, &mesh),
+            chunks: level.base.as_ref().map_or(&chunks, |b| &b.chunks),
         })
         .collect();
 

@@ -60,6 +60,8 @@ pub struct LodParams {
     pub bare_level: bool,
     /// Side of a chunk, world units (`None`: the surface is one chunk).
     pub chunk_size: Option<f32>,
+    /// Whether coarser levels draw a simplified base (meshopt), within their error.
+    pub simplify: bool,
 }
 
 impl Default for LodParams {
@@ -71,6 +73,7 @@ impl Default for LodParams {
             levels: 4,
             bare_level: true,
             chunk_size: None,
+            simplify: false,
         }
     }
 }
@@ -135,6 +138,108 @@ pub struct Level {
     /// The bare level's colours (no shells, no texture): `[fur, skin]`, the fur colour where
     /// the fur is full and the base layer's where density or length is 0.
     pub bare: Option<[[f32; 3]; 2]>,
+    /// The level's own simplified base (`None`: the render mesh's triangles).
+    pub base: Option<SimplifiedBase>,
+}
+
+/// A coarser level's base: the render mesh simplified within the level's error, over the same
+/// vertices (meshopt only drops triangles and collapses edges onto kept vertices).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimplifiedBase {
+    /// Triangle list over the render mesh's vertices.
+    pub indices: Vec<u32>,
+    /// Triangles of each chunk (into `indices / 3`), chunk for chunk as [`chunks`] gives them.
+    pub chunks: Vec<Vec<u32>>,
+    /// How far the simplified surface strays from the original, world units (meshopt's result
+    /// error, attributes included), the largest over the chunks.
+    pub error: f64,
+}
+
+/// What simplifying a base needs: the render mesh, its chunks and the per-vertex attributes
+/// whose changes the error counts.
+pub struct Base<'a> {
+    pub mesh: &'a Mesh,
+    /// Triangles of each chunk ([`chunks`]).
+    pub chunks: &'a [Vec<u32>],
+    /// Extrusion at t = 1 per vertex (world units).
+    pub delta: &'a [Vec3],
+    /// Density per vertex, when a map gives one.
+    pub density: Option<&'a [u8]>,
+}
+
+/// Simplifies `base` chunk by chunk to an absolute error of `target` world units. Each
+/// chunk's border is locked (neighbouring chunks at other levels meet without cracks, and open
+/// borders of the mesh stay); UV seams hold because meshopt collapses seam vertices only along
+/// their seam. The error weighs, besides position: the extrusion vector (a different extrusion
+/// moves the tips by its difference, world units), the texture coordinates scaled by the world
+/// size of a UV unit (strands slide by that much), and the density scaled by the shell height.
+/// A chunk that would lose every triangle keeps its own.
+pub fn simplify_base(base: &Base, target: f64) -> SimplifiedBase {
+    let mesh = base.mesh;
+    let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
+    // world units per UV unit: √(world area / UV area) over the mesh
+    let (mut world, mut uv_area) = (0.0f64, 0.0f64);
+    for t in mesh.indices.chunks_exact(3) {
+        let p = |k: usize| mesh.positions[t[k] as usize];
+        world += (p(1) - p(0)).cross(p(2) - p(0)).length() as f64;
+        if !uvs.is_empty() {
+            let u = |k: usize| uvs[t[k] as usize];
+            uv_area += (u(1) - u(0)).perp_dot(u(2) - u(0)).abs() as f64;
+        }
+    }
+    let uv_scale = if uv_area > 0.0 && world > 0.0 {
+        (world / uv_area).sqrt() as f32
+    } else {
+        0.0
+    };
+    let height = base.delta.iter().map(|d| d.length()).fold(0.0f32, f32::max);
+    const STRIDE: usize = 6;
+    let mut attributes = Vec::with_capacity(mesh.vertex_count() * STRIDE);
+    for v in 0..mesh.vertex_count() {
+        let uv = uvs.get(v).copied().unwrap_or_default();
+        let d = base.delta[v];
+        let density = base.density.map_or(1.0, |d| d[v] as f32 / 255.0);
+        attributes.extend([uv.x, uv.y, d.x, d.y, d.z, density]);
+    }
+    let weights = [uv_scale, uv_scale, 1.0, 1.0, 1.0, height];
+    let positions: &[u8] = bytemuck::cast_slice(&mesh.positions);
+    let adapter = meshopt::VertexDataAdapter::new(positions, 12, 0).expect("f32 positions");
+    let locks = vec![false; mesh.vertex_count()];
+    let mut indices = Vec::new();
+    let mut chunks = Vec::with_capacity(base.chunks.len());
+    let mut error = 0.0f64;
+    for tris in base.chunks {
+        let ix: Vec<u32> = tris
+            .iter()
+            .flat_map(|&t| mesh.indices[3 * t as usize..3 * t as usize + 3].iter().copied())
+            .collect();
+        let mut e = 0.0f32;
+        let mut out = meshopt::simplify_with_attributes_and_locks(
+            &ix,
+            &adapter,
+            &attributes,
+            &weights,
+            STRIDE * 4,
+            &locks,
+            0,
+            target as f32,
+            meshopt::SimplifyOptions::LockBorder | meshopt::SimplifyOptions::ErrorAbsolute,
+            Some(&mut e),
+        );
+        if out.is_empty() {
+            out = ix;
+            e = 0.0;
+        }
+        error = error.max(e as f64);
+        let first = (indices.len() / 3) as u32;
+        chunks.push((first..first + (out.len() / 3) as u32).collect());
+        indices.extend(out);
+    }
+    SimplifiedBase {
+        indices,
+        chunks,
+        error,
+    }
 }
 
 /// LOD 0 alone: every layer of the stack.
@@ -151,6 +256,7 @@ pub fn full_level(shells: &ShellStack) -> Level {
         distance: 0.0,
         mask_level: 0,
         bare: None,
+        base: None,
     }
 }
 
@@ -162,8 +268,14 @@ pub fn build_lods(
     spacing: f64,
     texel: f64,
     params: &LodParams,
+    base: Option<&Base>,
 ) -> Vec<Level> {
     let lod0 = full_level(shells);
+    // a level's simplified base (with `simplify`), within the level's own error
+    let simplified = |error: f64| {
+        base.filter(|_| params.simplify)
+            .map(|b| simplify_base(b, error))
+    };
     let n = shells.t.len();
     let h = shells.height as f64;
     let f = params.focal();
@@ -210,6 +322,7 @@ pub fn build_lods(
             distance,
             mask_level: mip_at(distance),
             bare: None,
+            base: simplified(error),
         });
     }
     if params.bare_level && n > 1 {
@@ -221,6 +334,7 @@ pub fn build_lods(
             distance,
             mask_level: 0,
             bare: Some([fur_colour(shells, mask), skin_colour(shells, mask)]),
+            base: simplified(error),
         });
     }
     // keep levels whose distance grows
@@ -406,7 +520,7 @@ mod tests {
     fn levels_halve_layers_keep_the_union_and_switch_by_error() {
         let (s, mask) = stack(33);
         let params = LodParams::default();
-        let levels = build_lods(&s, &mask, 0.01, 0.001, &params);
+        let levels = build_lods(&s, &mask, 0.01, 0.001, &params, None);
         let counts: Vec<usize> = levels.iter().map(|l| l.layers.len()).collect();
         assert_eq!(counts, vec![33, 17, 9, 5, 0]);
         // distances grow; each level's error projects to the budget at its distance
@@ -435,6 +549,67 @@ mod tests {
             let (a, b) = (mask.coverage(k), m2.coverage(k));
             assert!((a - b).abs() <= 0.5 / 256.0 + 1e-9, "step {k}: {a} vs {b}");
         }
+    }
+
+    /// Edges used by one triangle of `tris` (of `indices`), as sorted vertex pairs.
+    fn open_edges(indices: &[u32], tris: &[u32]) -> Vec<(u32, u32)> {
+        let mut count = std::collections::BTreeMap::new();
+        for &t in tris {
+            let v = &indices[3 * t as usize..3 * t as usize + 3];
+            for k in 0..3 {
+                let (a, b) = (v[k], v[(k + 1) % 3]);
+                *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+        }
+        count.into_iter().filter(|&(_, n)| n == 1).map(|(e, _)| e).collect()
+    }
+
+    #[test]
+    fn simplified_bases_keep_chunk_borders_and_stay_within_the_error() {
+        let mesh = crate::procedural::terrain(40.0, 40);
+        let chunks = chunks(&mesh, Some(10.0));
+        let delta: Vec<Vec3> = mesh.normals.as_ref().unwrap().iter().map(|n| *n * 0.2).collect();
+        let base = Base {
+            mesh: &mesh,
+            chunks: &chunks,
+            delta: &delta,
+            density: None,
+        };
+        let coarse = simplify_base(&base, 0.2);
+        let fine = simplify_base(&base, 0.002);
+        assert!(coarse.indices.len() * 2 < mesh.indices.len(), "{}", coarse.indices.len());
+        assert!(fine.indices.len() > coarse.indices.len());
+        assert!(coarse.error <= 0.2 && coarse.error > 0.0, "{}", coarse.error);
+        assert_eq!(coarse.chunks.len(), chunks.len());
+        // every chunk keeps its border (neighbours at other levels meet it without cracks):
+        // the border's vertices all stay, and no new open edge crosses between them
+        for (c, tris) in chunks.iter().enumerate() {
+            let before = open_edges(&mesh.indices, tris);
+            let after = open_edges(&coarse.indices, &coarse.chunks[c]);
+            let on_border: std::collections::BTreeSet<u32> =
+                before.iter().flat_map(|&(a, b)| [a, b]).collect();
+            let kept: std::collections::BTreeSet<u32> =
+                after.iter().flat_map(|&(a, b)| [a, b]).collect();
+            assert_eq!(on_border, kept, "chunk {c}");
+            assert_eq!(before, after, "chunk {c}");
+        }
+        // the same vertices, and no triangle turns over (slivers standing on a straight locked
+        // border are edge-on from above: zero, not negative)
+        let up = |t: &[u32]| {
+            let p = |k: usize| mesh.positions[t[k] as usize];
+            (p(1) - p(0)).cross(p(2) - p(0)).y
+        };
+        let side = up(&mesh.indices[..3]).signum();
+        assert!(mesh.indices.chunks_exact(3).all(|t| up(t) * side > 0.0));
+        assert!(coarse.indices.chunks_exact(3).all(|t| up(t) * side >= 0.0));
+        // a stronger extrusion change counts as error: the same target keeps more triangles
+        let bumpy: Vec<Vec3> = delta
+            .iter()
+            .enumerate()
+            .map(|(v, d)| *d * if v % 7 == 0 { 3.0 } else { 1.0 })
+            .collect();
+        let kept = simplify_base(&Base { delta: &bumpy, ..base }, 0.2);
+        assert!(kept.indices.len() > coarse.indices.len());
     }
 
     #[test]

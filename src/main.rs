@@ -131,6 +131,9 @@ struct BakeArgs {
     /// Write one level of detail, in one piece (turns the effect `lod` off).
     #[arg(long)]
     no_lod: bool,
+    /// Coarser LOD levels draw a base simplified within their error (meshopt; `lod.simplify`).
+    #[arg(long)]
+    lod_simplify: bool,
     /// Winding: `auto` makes faces agree and turns closed parts outward (with a warning saying
     /// what was flipped), `keep` leaves it as loaded, `flip` reverses every triangle
     /// [default: auto].
@@ -172,6 +175,9 @@ impl BakeArgs {
         }
         if let Some(m) = self.orient {
             p.orient.mode = m;
+        }
+        if self.lod_simplify {
+            p.lod.simplify = true;
         }
         if self.clamp && !effects.contains(&Effect::Collision) {
             effects.push(Effect::Collision);
@@ -226,6 +232,12 @@ impl BakeArgs {
             })?;
         }
         Ok(scene)
+    }
+
+    /// The first surface's parameters (what a mesh bake uses).
+    #[cfg(test)]
+    fn params(&self) -> anyhow::Result<BakeParams> {
+        Ok(self.scene()?.surfaces[0].params.clone())
     }
 
     fn output(&self) -> PathBuf {

@@ -141,3 +141,59 @@ fn terrain_chunks_switch_levels_in_the_viewer_and_in_three_js() {
         t[2]
     );
 }
+
+/// The terrain through `verify` (each level at its switch distance, the tested chunk among
+/// neighbours at their own levels) and `bench` (reference and three bakes along the camera
+/// path), with coarser levels on a simplified base: every level within the budget, and LOD +
+/// culling drawing at least 3× fewer triangles than the reference at every stop.
+#[test]
+fn terrain_levels_verify_and_the_camera_path_draws_fewer_triangles() {
+    let dir = scratch("lod_terrain_bench");
+    let (code, _, err) = shellbake(&["fixtures", dir.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let scene = dir.join("terrain.toml");
+    let scene = scene.to_str().unwrap();
+
+    let verify = dir.join("verify");
+    let (code, out, err) = shellbake(&[
+        "verify",
+        scene,
+        "--lod-simplify",
+        "--out-dir",
+        verify.to_str().unwrap(),
+    ]);
+    println!("{out}");
+    assert_eq!(code, Some(0), "{out}{err}");
+    let levels = out.lines().filter(|l| l.trim_start().starts_with("lod")).count();
+    assert!(levels >= 4, "{out}");
+
+    let json = dir.join("bench.json");
+    let (code, out, err) = shellbake(&[
+        "bench",
+        scene,
+        "--lod-simplify",
+        "--frames",
+        "1",
+        "--size",
+        "160x90",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    println!("{out}");
+    assert_eq!(code, Some(0), "{out}{err}");
+    let doc: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let cameras = doc["cameras"].as_array().unwrap();
+    assert_eq!(cameras.len(), shellbake::view::cli::PATH_STOPS);
+    for c in cameras {
+        let reference = c["reference"]["triangles"].as_u64().unwrap();
+        let t: Vec<u64> = c["bakes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|b| b["triangles"].as_u64().unwrap())
+            .collect();
+        // no LOD, no cull: every layer triangle; cull drops the bare patches' and paths'
+        assert_eq!(t[0], reference, "{c}");
+        assert!(t[1] < t[0] && t[2] * 3 < reference, "{c}");
+    }
+}

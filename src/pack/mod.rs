@@ -132,8 +132,13 @@ pub struct PackLevel<'a> {
     pub level: &'a Level,
     /// The level's mask (LOD 0's, or the mip its distance calls for).
     pub mask: &'a Mask,
-    /// The layers each triangle of the mesh shows in, at this level.
+    /// The layers each triangle of `indices` shows in, at this level.
     pub culled: &'a crate::cull::Culled,
+    /// The level's triangle list over the mesh's vertices (the mesh's own, or a simplified
+    /// base's).
+    pub indices: &'a [u32],
+    /// Triangles of `indices` in each chunk (chunk for chunk as [`PackInput::chunks`]).
+    pub chunks: &'a [Vec<u32>],
 }
 
 /// What `pack` needs besides the parameters.
@@ -188,27 +193,34 @@ struct Ordering {
 
 /// Triangles `tris` by the number of layers they show in (`top`), most first, so that every
 /// layer draws a prefix of one index buffer; meshopt's vertex cache order within each group.
-fn order_triangles(mesh: &Mesh, tris: &[u32], top: &[u32], layers: usize) -> Ordering {
+fn order_triangles(
+    indices: &[u32],
+    vertices: usize,
+    tris: &[u32],
+    top: &[u32],
+    layers: usize,
+) -> Ordering {
     let mut tris = tris.to_vec();
     tris.sort_by_key(|&t| std::cmp::Reverse(top[t as usize]));
-    let mut indices = Vec::with_capacity(tris.len() * 3);
+    let mut out = Vec::with_capacity(tris.len() * 3);
     let mut kept = vec![0usize; layers];
     for group in tris.chunk_by(|&a, &b| top[a as usize] == top[b as usize]) {
         let ix: Vec<u32> = group
             .iter()
             .flat_map(|&t| {
-                mesh.indices[3 * t as usize..3 * t as usize + 3]
-                    .iter()
-                    .copied()
+                indices[3 * t as usize..3 * t as usize + 3].iter().copied()
             })
             .collect();
-        indices.extend(meshopt::optimize_vertex_cache(&ix, mesh.vertex_count()));
+        out.extend(meshopt::optimize_vertex_cache(&ix, vertices));
         let top = (top[group[0] as usize] as usize).min(layers);
         for k in &mut kept[..top] {
             *k += group.len();
         }
     }
-    Ordering { indices, kept }
+    Ordering {
+        indices: out,
+        kept,
+    }
 }
 
 /// Fetch order = first use in the index buffer (what meshopt's optimizeVertexFetchRemap
@@ -354,7 +366,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     let mut base_vertices = 0;
     let mut vertex_order = Vec::new();
     let mut lod_triangles = vec![0usize; input.levels.len()];
-    for (c, tris) in input.chunks.iter().enumerate() {
+    for c in 0..input.chunks.len() {
         let chunk_tag = Tag {
             chunk: several_chunks.then_some(c),
             ..tag
@@ -373,7 +385,13 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 ..chunk_tag
             };
             let layers = pl.level.layers.len().max(1);
-            let ordering = order_triangles(mesh, tris, &pl.culled.top, layers);
+            let ordering = order_triangles(
+                pl.indices,
+                mesh.vertex_count(),
+                &pl.chunks[c],
+                &pl.culled.top,
+                layers,
+            );
             let name = if several_levels {
                 format!("{chunk_prefix}lod{k}_")
             } else {
