@@ -131,8 +131,8 @@ pub struct Loaded {
 /// The density and length maps of a surface, when its scene names them.
 #[derive(Clone, Debug, Default)]
 pub struct SurfaceMaps {
-    pub density: Option<maps::GreyMap>,
-    pub length: Option<maps::GreyMap>,
+    pub density: Option<maps::Map>,
+    pub length: Option<maps::Map>,
 }
 
 /// Loads every surface's mesh and places it (scale, then translation). Fails on the first
@@ -147,11 +147,30 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
             for m in &mut loaded.meshes {
                 m.place(glam::DVec3::from(s.translation), s.scale);
             }
-            let read =
-                |p: &Option<std::path::PathBuf>| p.as_deref().map(maps::GreyMap::read).transpose();
+            let has_colors = loaded.meshes.iter().any(|m| m.colors.is_some());
+            let read = |key: &str, source: &Option<scene::MapSource>| -> Result<Option<maps::Map>> {
+                Ok(match source {
+                    None => None,
+                    Some(scene::MapSource::Image(p)) => Some(maps::Map::Image(maps::GreyMap::read(p)?)),
+                    Some(scene::MapSource::VertexColor(c)) if has_colors => {
+                        Some(maps::Map::VertexColor(*c))
+                    }
+                    Some(scene::MapSource::VertexColor(c)) => {
+                        return Err(Error::invalid(
+                            &s.mesh,
+                            "COLOR_0",
+                            format!(
+                                "surface '{}' takes its {key} from COLOR_0.{}, but the mesh has no vertex colours",
+                                s.name,
+                                ["r", "g", "b", "a"][*c]
+                            ),
+                        ))
+                    }
+                })
+            };
             let maps = SurfaceMaps {
-                density: read(&s.density_map)?,
-                length: read(&s.length_map)?,
+                density: read("density_map", &s.density_map)?,
+                length: read("length_map", &s.length_map)?,
             };
             Ok(Loaded {
                 scene: loaded,
@@ -351,20 +370,14 @@ fn bake_surface(
     });
     drop(collision);
     let mut clamp = clamp;
-    let length = maps
-        .length
-        .as_ref()
-        .map(|m| m.per_vertex(mesh.uvs.as_ref().unwrap()));
+    let length = maps.length.as_ref().map(|m| m.per_vertex(&mesh));
     if let Some(length) = &length {
         for (s, &l) in clamp.scale.iter_mut().zip(length) {
             *s *= l as f32 / 255.0;
         }
         report.note("clamp", "extrusion scaled by the length map");
     }
-    let density_map = maps
-        .density
-        .as_ref()
-        .map(|m| m.per_vertex(mesh.uvs.as_ref().unwrap()));
+    let density_map = maps.density.as_ref().map(|m| m.per_vertex(&mesh));
     frames.direction = clamp.directions(&welded);
     let (min_scale, mean_scale) = clamp.limited_scale();
     report.count("smoothed_directions", clamp.smoothed as f64);

@@ -23,6 +23,17 @@
 //! gets its own mask, the coverage-preserving mip `ℓ` of LOD 0's ([`strands::coverage_mips`]),
 //! so a client samples near its full resolution there and sees LOD 0's coverage at every cutoff.
 //!
+//! **Simplified base** (`lod.simplify`, off by default). A coarser level may also draw fewer base
+//! triangles: the render mesh simplified by meshopt to an *absolute* error equal to the level's
+//! own error `ε_k`, chunk by chunk with each chunk's border locked (chunks at different levels
+//! meet without cracks; open borders of the mesh stay). The error weighs the extrusion vector,
+//! the texture coordinates (times the world size of a UV unit) and the density (times the shell
+//! height) besides position, so strands do not slide and UV seams hold. Switch distances stay
+//! those of the merged layers: the base and the layers each stay within the budget there, and
+//! `verify` measures the level as drawn (bunny and terrain levels read within 0.01 FLIP of their
+//! unsimplified twins). Simplification keeps the render mesh's vertices, so a level only gets
+//! its own index list ([`SimplifiedBase`]); culling runs on its triangles.
+//!
 //! **Chunks.** With [`LodParams::chunk_size`], a surface is cut into square cells of that size
 //! over the two longest axes of its bounding box (each triangle goes to the cell of its
 //! centroid); each chunk has its own LOD chain, so distance means something on a terrain.
@@ -211,7 +222,11 @@ pub fn simplify_base(base: &Base, target: f64) -> SimplifiedBase {
     for tris in base.chunks {
         let ix: Vec<u32> = tris
             .iter()
-            .flat_map(|&t| mesh.indices[3 * t as usize..3 * t as usize + 3].iter().copied())
+            .flat_map(|&t| {
+                mesh.indices[3 * t as usize..3 * t as usize + 3]
+                    .iter()
+                    .copied()
+            })
             .collect();
         let mut e = 0.0f32;
         let mut out = meshopt::simplify_with_attributes_and_locks(
@@ -561,14 +576,24 @@ mod tests {
                 *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
             }
         }
-        count.into_iter().filter(|&(_, n)| n == 1).map(|(e, _)| e).collect()
+        count
+            .into_iter()
+            .filter(|&(_, n)| n == 1)
+            .map(|(e, _)| e)
+            .collect()
     }
 
     #[test]
     fn simplified_bases_keep_chunk_borders_and_stay_within_the_error() {
         let mesh = crate::procedural::terrain(40.0, 40);
         let chunks = chunks(&mesh, Some(10.0));
-        let delta: Vec<Vec3> = mesh.normals.as_ref().unwrap().iter().map(|n| *n * 0.2).collect();
+        let delta: Vec<Vec3> = mesh
+            .normals
+            .as_ref()
+            .unwrap()
+            .iter()
+            .map(|n| *n * 0.2)
+            .collect();
         let base = Base {
             mesh: &mesh,
             chunks: &chunks,
@@ -577,9 +602,17 @@ mod tests {
         };
         let coarse = simplify_base(&base, 0.2);
         let fine = simplify_base(&base, 0.002);
-        assert!(coarse.indices.len() * 2 < mesh.indices.len(), "{}", coarse.indices.len());
+        assert!(
+            coarse.indices.len() * 2 < mesh.indices.len(),
+            "{}",
+            coarse.indices.len()
+        );
         assert!(fine.indices.len() > coarse.indices.len());
-        assert!(coarse.error <= 0.2 && coarse.error > 0.0, "{}", coarse.error);
+        assert!(
+            coarse.error <= 0.2 && coarse.error > 0.0,
+            "{}",
+            coarse.error
+        );
         assert_eq!(coarse.chunks.len(), chunks.len());
         // every chunk keeps its border (neighbours at other levels meet it without cracks):
         // the border's vertices all stay, and no new open edge crosses between them
@@ -608,7 +641,13 @@ mod tests {
             .enumerate()
             .map(|(v, d)| *d * if v % 7 == 0 { 3.0 } else { 1.0 })
             .collect();
-        let kept = simplify_base(&Base { delta: &bumpy, ..base }, 0.2);
+        let kept = simplify_base(
+            &Base {
+                delta: &bumpy,
+                ..base
+            },
+            0.2,
+        );
         assert!(kept.indices.len() > coarse.indices.len());
     }
 

@@ -14,6 +14,11 @@
 //!   is scaled by `d` (the base layer keeps 1). The value is quantized to a byte here, once, so
 //!   the cull stage, the file and the runtime reference all use the same `d`.
 //!
+//! A map may also be a channel of the mesh's vertex colours (`density_map = "COLOR_0.r"`, a
+//! painted mask from a DCC tool): the byte is read per vertex as is (glTF colours are linear,
+//! so a painted 50 % grey is half density), and a scene naming a channel of a mesh without
+//! vertex colours is refused, naming both.
+//!
 //! Per-vertex sampling means a map's detail is that of the mesh: a 1 m bare patch needs
 //! vertices about every metre. The maps drive culling: a triangle whose corners all have
 //! density 0, or all length 0, loses every layer above the base.
@@ -26,6 +31,28 @@ use crate::error::{Error, Result};
 
 /// Largest map file read, in bytes.
 const MAX_BYTES: u64 = 256 << 20;
+
+/// A density or length map as loaded.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Map {
+    Image(GreyMap),
+    /// Channel 0–3 of the mesh's vertex colours.
+    VertexColor(usize),
+}
+
+impl Map {
+    /// The map at each vertex of `mesh` as a byte. A vertex-colour map of a mesh without
+    /// colours reads as full (loading refuses that pairing, see [`crate::load_surfaces`]).
+    pub fn per_vertex(&self, mesh: &crate::mesh::Mesh) -> Vec<u8> {
+        match self {
+            Map::Image(m) => m.per_vertex(mesh.uvs.as_deref().unwrap_or(&[])),
+            Map::VertexColor(c) => match &mesh.colors {
+                Some(colors) => colors.iter().map(|rgba| rgba[*c]).collect(),
+                None => vec![255; mesh.vertex_count()],
+            },
+        }
+    }
+}
 
 /// A grey image over the UV square.
 #[derive(Clone, Debug, PartialEq)]

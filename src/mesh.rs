@@ -22,6 +22,9 @@ pub struct Mesh {
     pub normals: Option<Vec<Vec3>>,
     /// Texture coordinates (glTF convention: v points down the image), one per vertex.
     pub uvs: Option<Vec<Vec2>>,
+    /// Vertex colours (glTF `COLOR_0`, or an OBJ `v x y z r g b`) as bytes, RGBA (alpha 255
+    /// where the input has three channels); they can drive the density and length maps.
+    pub colors: Option<Vec<[u8; 4]>>,
     /// Triangle list.
     pub indices: Vec<u32>,
 }
@@ -86,6 +89,7 @@ impl Mesh {
         }
         assert_eq!(self.normals.is_some(), other.normals.is_some());
         assert_eq!(self.uvs.is_some(), other.uvs.is_some());
+        assert_eq!(self.colors.is_some(), other.colors.is_some());
         let base = self.positions.len() as u32;
         let shift = other.origin - self.origin;
         self.positions.extend(
@@ -98,6 +102,9 @@ impl Mesh {
             a.extend_from_slice(b);
         }
         if let (Some(a), Some(b)) = (&mut self.uvs, &other.uvs) {
+            a.extend_from_slice(b);
+        }
+        if let (Some(a), Some(b)) = (&mut self.colors, &other.colors) {
             a.extend_from_slice(b);
         }
         self.indices.extend(other.indices.iter().map(|i| i + base));
@@ -117,6 +124,7 @@ impl Mesh {
         self.positions = pick(&self.positions, source);
         self.normals = self.normals.as_deref().map(|n| pick(n, source));
         self.uvs = self.uvs.as_deref().map(|uv| pick(uv, source));
+        self.colors = self.colors.as_deref().map(|c| pick(c, source));
     }
 
     /// Negates the shading normal of each vertex from `first` on (copies split off for the other
@@ -168,7 +176,15 @@ impl Mesh {
             assert_eq!(uv.len(), self.positions.len(), "uv count");
             assert!(uv.iter().all(|v| v.is_finite()), "non-finite uv");
         }
+        if let Some(c) = &self.colors {
+            assert_eq!(c.len(), self.positions.len(), "colour count");
+        }
     }
+}
+
+/// A colour component in [0, 1] as a byte (out-of-range values clamp; NaN reads as 0).
+pub fn color_byte(v: f64) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
 /// What `load` returns: the meshes of one input file, world transforms applied.
@@ -181,10 +197,12 @@ pub struct Scene {
 
 impl Scene {
     /// All meshes as one, relative to the common bounding-box centre. Normals are kept only if
-    /// every mesh has them (the bake fills them otherwise); UVs likewise.
+    /// every mesh has them (the bake fills them otherwise); UVs likewise. Vertex colours are
+    /// kept if any mesh has them, white where a mesh has none (full density and length).
     pub fn merged(&self) -> Mesh {
         let all_normals = self.meshes.iter().all(|m| m.normals.is_some());
         let all_uvs = self.meshes.iter().all(|m| m.uvs.is_some());
+        let any_colors = self.meshes.iter().any(|m| m.colors.is_some());
         let mut out = Mesh::default();
         for m in &self.meshes {
             let mut m = m.clone();
@@ -193,6 +211,9 @@ impl Scene {
             }
             if !all_uvs {
                 m.uvs = None;
+            }
+            if any_colors && m.colors.is_none() {
+                m.colors = Some(vec![[255; 4]; m.vertex_count()]);
             }
             out.append(&m);
         }

@@ -167,10 +167,28 @@ pub struct Surface {
     /// Placement in the file: positions are scaled, then translated.
     pub translation: [f64; 3],
     pub scale: f64,
-    /// Grey PNG over the UV square thinning the fur (see [`crate::maps`]).
-    pub density_map: Option<PathBuf>,
-    /// Grey PNG over the UV square scaling the fur's length.
-    pub length_map: Option<PathBuf>,
+    /// What thins the fur: a grey PNG over the UV square or a vertex colour channel (see
+    /// [`crate::maps`]).
+    pub density_map: Option<MapSource>,
+    /// What scales the fur's length, likewise.
+    pub length_map: Option<MapSource>,
+}
+
+/// Where a density or length map comes from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum MapSource {
+    /// A grey PNG over the UV square (a path beside the scene file).
+    Image(PathBuf),
+    /// A channel of the mesh's vertex colours (`"COLOR_0.r"` … `"COLOR_0.a"`): 0 red … 3 alpha.
+    VertexColor(usize),
+}
+
+impl MapSource {
+    /// The channel a `COLOR_0.<r|g|b|a>` value names.
+    fn channel(value: &str) -> Option<usize> {
+        let c = value.strip_prefix("COLOR_0.")?;
+        ["r", "g", "b", "a"].iter().position(|&n| n == c)
+    }
 }
 
 impl Surface {
@@ -422,10 +440,21 @@ impl Reader<'_> {
             return Err(self.error(here, "no `mesh` key: every surface names its mesh file"));
         };
         let mesh = self.mesh_path(&at(here, "mesh"), mesh)?;
-        let map = |key: &str| -> Result<Option<PathBuf>> {
-            string(key)?
-                .map(|m| self.mesh_path(&at(here, key), m))
-                .transpose()
+        let map = |key: &str| -> Result<Option<MapSource>> {
+            let Some(value) = string(key)? else {
+                return Ok(None);
+            };
+            if let Some(c) = MapSource::channel(value) {
+                return Ok(Some(MapSource::VertexColor(c)));
+            }
+            if value.starts_with("COLOR_") {
+                return Err(self.error(
+                    &at(here, key),
+                    format!("'{value}' is no vertex colour channel (COLOR_0.r, .g, .b or .a)"),
+                ));
+            }
+            self.mesh_path(&at(here, key), value)
+                .map(|p| Some(MapSource::Image(p)))
         };
         let (density_map, length_map) = (map("density_map")?, map("length_map")?);
         let preset = match string("preset")? {
@@ -717,6 +746,20 @@ mod tests {
     }
 
     #[test]
+    fn maps_name_an_image_or_a_vertex_colour_channel() {
+        let s = parse(
+            "[[surface]]\nmesh = \"a.glb\"\ndensity_map = \"COLOR_0.g\"\nlength_map = \"COLOR_0.a\"\n",
+        )
+        .unwrap();
+        assert_eq!(s.surfaces[0].density_map, Some(MapSource::VertexColor(1)));
+        assert_eq!(s.surfaces[0].length_map, Some(MapSource::VertexColor(3)));
+        let e = parse("[[surface]]\nmesh = \"a.glb\"\ndensity_map = \"COLOR_0.x\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("density_map") && e.contains("COLOR_0.x"), "{e}");
+    }
+
+    #[test]
     fn surfaces_read_presets_overrides_and_effects() {
         let s = parse(
             "[[surface]]\nname = \"ground\"\nmesh = \"plane.obj\"\npreset = \"grass\"\n\
@@ -737,8 +780,8 @@ mod tests {
         assert_eq!(b.effects, vec![Effect::Collision, Effect::Cull]);
         assert_eq!(b.translation, [0.0, 1.5, 0.0]);
         assert_eq!(
-            b.density_map.as_deref(),
-            Some(Path::new("scenes/sub/bare.png"))
+            b.density_map,
+            Some(MapSource::Image("scenes/sub/bare.png".into()))
         );
         let p = plan(&s);
         assert!(!p.runs(Stage::Collision, 0) && p.runs(Stage::Collision, 1));

@@ -164,7 +164,10 @@ fn terrain_levels_verify_and_the_camera_path_draws_fewer_triangles() {
     ]);
     println!("{out}");
     assert_eq!(code, Some(0), "{out}{err}");
-    let levels = out.lines().filter(|l| l.trim_start().starts_with("lod")).count();
+    let levels = out
+        .lines()
+        .filter(|l| l.trim_start().starts_with("lod"))
+        .count();
     assert!(levels >= 4, "{out}");
 
     let json = dir.join("bench.json");

@@ -200,6 +200,33 @@ fn read_primitive(
     {
         return Err(Error::invalid(path, element, "non-finite TEXCOORD_0"));
     }
+    // COLOR_0: VEC3 or VEC4 (float, or normalized unsigned byte/short), linear values in [0, 1]
+    let colors = match prim.attribute("COLOR_0") {
+        Some(a) => {
+            let kind = if doc.accessors[a].kind == Kind::Vec3 {
+                Kind::Vec3
+            } else {
+                Kind::Vec4
+            };
+            let n = if kind == Kind::Vec3 { 3 } else { 4 };
+            let values = read_checked(
+                doc,
+                element,
+                a,
+                buffers,
+                ("COLOR_0", kind, &[5126, 5121, 5123]),
+            )?;
+            let colors: Vec<[u8; 4]> = values
+                .chunks_exact(n)
+                .map(|c| {
+                    let at = |k: usize| c.get(k).map_or(255, |&v| crate::mesh::color_byte(v));
+                    [at(0), at(1), at(2), at(3)]
+                })
+                .collect();
+            (colors.len() == nv).then_some(colors)
+        }
+        None => None,
+    };
     if DMat3::from_mat4(world).determinant() < 0.0 {
         for t in indices.chunks_exact_mut(3) {
             t.swap(1, 2);
@@ -211,6 +238,7 @@ fn read_primitive(
         positions: world_pos.iter().map(|p| (*p - origin).as_vec3()).collect(),
         normals: normals.filter(|n| n.iter().all(|v| v.is_finite())),
         uvs,
+        colors,
         indices,
     };
     mesh.recentre();

@@ -193,6 +193,7 @@ pub fn generate_box_uvs(mesh: &mut Mesh) {
     let mut slot = vec![[u32::MAX; 3]; n];
     let mut positions = Vec::with_capacity(n);
     let mut normals = mesh.normals.as_ref().map(|_| Vec::with_capacity(n));
+    let mut colors = mesh.colors.as_ref().map(|_| Vec::with_capacity(n));
     let mut uvs = Vec::with_capacity(n);
     let mut indices = Vec::with_capacity(mesh.indices.len());
     for tri in mesh.indices.chunks_exact(3) {
@@ -208,6 +209,9 @@ pub fn generate_box_uvs(mesh: &mut Mesh) {
                 if let (Some(out), Some(src)) = (&mut normals, &mesh.normals) {
                     out.push(src[v as usize]);
                 }
+                if let (Some(out), Some(src)) = (&mut colors, &mesh.colors) {
+                    out.push(src[v as usize]);
+                }
                 let (u, w) = match axis {
                     0 => (p.z, p.y),
                     1 => (p.x, p.z),
@@ -220,6 +224,7 @@ pub fn generate_box_uvs(mesh: &mut Mesh) {
     }
     mesh.positions = positions;
     mesh.normals = normals;
+    mesh.colors = colors;
     mesh.uvs = Some(uvs);
     mesh.indices = indices;
 }

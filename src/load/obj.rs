@@ -96,11 +96,22 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
                 .map(|t| Vec2::new(t[0] as f32, 1.0 - t[1] as f32))
                 .collect()
         });
+        // `v x y z r g b`: colours in [0, 1]
+        let colors = (m.vertex_color.len() == nv * 3 && nv > 0).then(|| {
+            m.vertex_color
+                .chunks_exact(3)
+                .map(|c| {
+                    let b = |v: f64| crate::mesh::color_byte(v);
+                    [b(c[0]), b(c[1]), b(c[2]), 255]
+                })
+                .collect()
+        });
         let mut mesh = Mesh {
             origin,
             positions,
             normals,
             uvs,
+            colors,
             indices: triangulate(&world, &m.indices, &m.face_arities, &mut fanned),
         };
         if mesh

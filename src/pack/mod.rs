@@ -207,9 +207,7 @@ fn order_triangles(
     for group in tris.chunk_by(|&a, &b| top[a as usize] == top[b as usize]) {
         let ix: Vec<u32> = group
             .iter()
-            .flat_map(|&t| {
-                indices[3 * t as usize..3 * t as usize + 3].iter().copied()
-            })
+            .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
             .collect();
         out.extend(meshopt::optimize_vertex_cache(&ix, vertices));
         let top = (top[group[0] as usize] as usize).min(layers);
@@ -217,10 +215,7 @@ fn order_triangles(
             *k += group.len();
         }
     }
-    Ordering {
-        indices: out,
-        kept,
-    }
+    Ordering { indices: out, kept }
 }
 
 /// Fetch order = first use in the index buffer (what meshopt's optimizeVertexFetchRemap

@@ -12,11 +12,11 @@ use super::glb::Asset;
 use super::gltf::GltfRenderer;
 use super::gpu::{save_png, Gpu, Light, Result, ViewError};
 use super::reference::ReferenceInput;
+use super::reference::ReferenceRenderer;
 use super::verify;
 use crate::load::escape;
 use crate::scene::{Effect, SceneFile};
 use glam::DVec3;
-use super::reference::ReferenceRenderer;
 
 /// `path` as printable text (see the module doc).
 fn shown(path: &Path) -> String {
@@ -285,22 +285,20 @@ pub fn bench(
     let mut rows = Vec::new();
     let mut totals = vec![(0.0f64, 0usize); 1 + bakes.len()];
     for (name, camera) in &cameras {
-        let (picture, t) = super::draw_headless(
-            &gpu,
-            &mut reference,
-            camera,
-            &light,
-            args.size,
-            args.frames,
-        );
+        let (picture, t) =
+            super::draw_headless(&gpu, &mut reference, camera, &light, args.size, args.frames);
         let save = |what: &str, image: &image::RgbaImage| match &args.pictures {
-            Some(dir) => save_png(image, &dir.join(format!("{}-{what}.png", name.replace(' ', "-")))),
+            Some(dir) => save_png(
+                image,
+                &dir.join(format!("{}-{what}.png", name.replace(' ', "-"))),
+            ),
             None => Ok(()),
         };
         save("reference", &picture)?;
         let mut row = vec![(ms(&t), reference_triangles)];
         for (k, r) in renderers.iter_mut().enumerate() {
-            let (picture, t) = super::draw_headless(&gpu, r, camera, &light, args.size, args.frames);
+            let (picture, t) =
+                super::draw_headless(&gpu, r, camera, &light, args.size, args.frames);
             save(&format!("bake{k}"), &picture)?;
             row.push((ms(&t), r.triangles()));
         }
