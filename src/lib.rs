@@ -28,6 +28,7 @@
 //! the two (`shellbake verify`).
 
 pub mod clamp;
+pub mod compress;
 pub mod cull;
 pub mod error;
 pub mod frames;
@@ -236,8 +237,13 @@ fn run_plan(scene: &SceneFile, loaded: &[(&Scene, &SurfaceMaps, f64)]) -> BakedS
         })
         .collect();
     let write_start = Instant::now();
-    let (json, bin_len) = write::gltf_json(&packed);
-    let glb = write::glb_of_packed(&json, bin_len, &packed);
+    let ext = scene.output.meshopt_extension;
+    let compressed = match scene.output.compress {
+        compress::Compression::Meshopt => write::compress_streams(&mut packed, ext),
+        compress::Compression::None => Vec::new(),
+    };
+    let (json, bin_len) = write::gltf_json_with(&packed, &compressed, ext);
+    let glb = write::glb_of_packed_with(&json, bin_len, &packed, &compressed);
     let write_ms = write_start.elapsed().as_secs_f64() * 1e3;
     let json_len = serde_json::to_vec(&json).map_or(0, |b| b.len());
     for (s, b) in surfaces.iter_mut().enumerate() {

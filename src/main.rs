@@ -17,6 +17,7 @@ mod cli;
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use image::ImageEncoder as _;
+use shellbake::compress::{Compression, MeshoptExtension};
 use shellbake::orient::OrientMode;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::{Effect, SceneFile};
@@ -134,6 +135,14 @@ struct BakeArgs {
     /// Coarser LOD levels draw a base simplified within their error (meshopt; `lod.simplify`).
     #[arg(long)]
     lod_simplify: bool,
+    /// Buffer compression: `meshopt` (vertex and index codecs) or `none` [default: the scene's
+    /// `[output] compress`, else none].
+    #[arg(long, value_parser = named(&Compression::ALL, |c| c.name()))]
+    compress: Option<Compression>,
+    /// Extension a meshopt-compressed file is written under: `ext` (EXT_meshopt_compression,
+    /// what clients read today) or `khr` (KHR_meshopt_compression) [default: ext].
+    #[arg(long, value_parser = named(&MeshoptExtension::ALL, |c| c.name()))]
+    meshopt_extension: Option<MeshoptExtension>,
     /// Winding: `auto` makes faces agree and turns closed parts outward (with a warning saying
     /// what was flipped), `keep` leaves it as loaded, `flip` reverses every triangle
     /// [default: auto].
@@ -217,6 +226,12 @@ impl BakeArgs {
                 &Effect::DEFAULT,
             )
         };
+        if let Some(c) = self.compress {
+            scene.output.compress = c;
+        }
+        if let Some(e) = self.meshopt_extension {
+            scene.output.meshopt_extension = e;
+        }
         for s in &mut scene.surfaces {
             if let Some(preset) = self.preset.filter(|&p| p != s.preset) {
                 s.params = s.with_preset(preset);

@@ -212,6 +212,8 @@ pub struct SceneFile {
     /// The scene file (`None` for the one-surface shortcut).
     pub path: Option<PathBuf>,
     pub surfaces: Vec<Surface>,
+    /// How the file is written (the `[output]` table): compression.
+    pub output: crate::compress::OutputParams,
 }
 
 /// Name of the root node of a one-surface bake.
@@ -328,6 +330,7 @@ impl SceneFile {
         effects.dedup();
         SceneFile {
             path: None,
+            output: Default::default(),
             surfaces: vec![Surface {
                 name: SINGLE_SURFACE_NAME.into(),
                 mesh: mesh.to_path_buf(),
@@ -368,13 +371,20 @@ impl SceneFile {
         let r = Reader { path, text, spans };
         let doc: toml::Table = toml::from_str(text).map_err(|e| r.error(&[], e.message()))?;
         for key in doc.keys() {
-            if key != "surface" {
+            if key != "surface" && key != "output" {
                 return Err(r.error(
                     &[Seg::Key(key.clone())],
-                    "unknown key (a scene holds `[[surface]]` tables)",
+                    "unknown key (a scene holds `[[surface]]` tables and an `[output]` table)",
                 ));
             }
         }
+        let output: crate::compress::OutputParams = match doc.get("output") {
+            None => Default::default(),
+            Some(v) => v
+                .clone()
+                .try_into()
+                .map_err(|e: toml::de::Error| r.error(&[Seg::Key("output".into())], e.message()))?,
+        };
         let Some(list) = doc.get("surface") else {
             return Err(r.error(&[], "no `[[surface]]` table: nothing to bake"));
         };
@@ -408,6 +418,7 @@ impl SceneFile {
         Ok(SceneFile {
             path: Some(path.to_path_buf()),
             surfaces,
+            output,
         })
     }
 }

@@ -19,6 +19,7 @@ use std::path::Path;
 
 use serde_json::{json, Map, Value};
 
+use crate::compress::{self, Filter, MeshoptExtension, Mode};
 use crate::error::{Error, Result};
 use crate::pack::{
     Accessor, Alpha, Material, Node, Packed, PackedMesh, PackedSurface, Semantic, Stream,
@@ -34,16 +35,121 @@ fn num(x: f32) -> Value {
     json!(v)
 }
 
+/// A stream as meshopt compressed it ([`compress_streams`]).
+#[derive(Clone, Debug)]
+pub struct Encoded {
+    pub bytes: Vec<u8>,
+    pub mode: Mode,
+    pub filter: Filter,
+    /// Element size the codec saw (vertex stride, or 2 / 4 for indices).
+    pub stride: usize,
+}
+
+/// Compresses every vertex and index stream of `packed` as [`crate::compress`] describes (images
+/// are left as they are: `None`). Normal streams are replaced by what the octahedral filter
+/// decodes to, so the file (and its uncompressed twin, written from the same `packed`)
+/// declares what a decoder gives back.
+pub fn compress_streams(packed: &mut Packed, ext: MeshoptExtension) -> Vec<Option<Encoded>> {
+    packed
+        .streams
+        .iter_mut()
+        .map(|s| match (s.kind, s.stride) {
+            (StreamKind::Vertex, Some(stride)) if stride % 4 == 0 && stride <= 256 => {
+                let normal = s.semantic == Semantic::Normal && s.target.is_none() && stride == 4;
+                let (data, filter) = if normal {
+                    let (encoded, decoded) = compress::octahedral_normals(&s.bytes);
+                    s.bytes = decoded;
+                    (encoded, Filter::Octahedral)
+                } else {
+                    (s.bytes.clone(), Filter::None)
+                };
+                Some(Encoded {
+                    bytes: compress::encode_vertices(&data, stride, ext),
+                    mode: Mode::Attributes,
+                    filter,
+                    stride,
+                })
+            }
+            (StreamKind::Index, _) if s.count > 0 => {
+                // u16 streams may carry two bytes of padding after the last index
+                let size = s.bytes.len() / s.count;
+                let n = s.count * size;
+                let (bytes, mode) = compress::encode_indices(&s.bytes[..n], size);
+                // the codec may rotate a triangle's corners (same triangle, same winding): the
+                // file declares what it decodes to
+                let view = compress::MeshoptView {
+                    buffer: 0,
+                    byte_offset: 0,
+                    byte_length: bytes.len(),
+                    byte_stride: size,
+                    count: s.count,
+                    mode,
+                    filter: Filter::None,
+                };
+                compress::decode_view(&view, &bytes, &mut s.bytes[..n])
+                    .expect("own stream decodes");
+                Some(Encoded {
+                    bytes,
+                    mode,
+                    filter: Filter::None,
+                    stride: size,
+                })
+            }
+            _ => None,
+        })
+        .collect()
+}
+
 /// The glTF document for `packed` (buffer 0 = the GLB binary chunk: the streams in order, each
 /// starting on a 4-byte boundary) and the length of that chunk. Stream *i* is buffer view *i*,
 /// node *i* is node *i*: the writer maps the model one to one and decides nothing.
 pub fn gltf_json(packed: &Packed) -> (Value, usize) {
+    gltf_json_with(packed, &[], MeshoptExtension::default())
+}
+
+/// [`gltf_json`] with the streams `compressed` holds (empty: none) stored compressed in buffer
+/// 0 under extension `ext`, their views placed in the fallback buffer 1.
+pub fn gltf_json_with(
+    packed: &Packed,
+    compressed: &[Option<Encoded>],
+    ext: MeshoptExtension,
+) -> (Value, usize) {
     let mut len = 0usize;
+    let mut fallback = 0usize;
     let mut views = Vec::new();
-    for v in &packed.streams {
+    for (i, v) in packed.streams.iter().enumerate() {
         len = len.next_multiple_of(4);
-        views.push(view_json(v, len));
-        len += v.bytes.len();
+        match compressed.get(i).and_then(|c| c.as_ref()) {
+            Some(c) => {
+                fallback = fallback.next_multiple_of(4);
+                let mut view = view_json(v, fallback);
+                view["buffer"] = json!(1);
+                if c.mode != Mode::Attributes {
+                    // the codec's element size, not a vertex stride
+                    view.as_object_mut().unwrap().remove("byteStride");
+                }
+                let mut e = Map::new();
+                e.insert("buffer".into(), json!(0));
+                if len != 0 {
+                    e.insert("byteOffset".into(), json!(len));
+                }
+                e.insert("byteLength".into(), json!(c.bytes.len()));
+                e.insert("byteStride".into(), json!(c.stride));
+                e.insert("count".into(), json!(v.count));
+                e.insert("mode".into(), json!(c.mode.name()));
+                if c.filter != Filter::None {
+                    e.insert("filter".into(), json!(c.filter.name()));
+                }
+                view["extensions"] = json!({ ext.extension(): e });
+                views.push(view);
+                fallback += v.bytes.len();
+                len += c.bytes.len();
+            }
+            None => {
+                views.push(view_json(v, len));
+                len += v.bytes.len();
+            }
+        }
     }
     let len = len.next_multiple_of(4);
     let accessors: Vec<Value> = packed.accessors.iter().map(accessor_json).collect();
@@ -59,13 +165,24 @@ pub fn gltf_json(packed: &Packed) -> (Value, usize) {
         .map(|t| json!({ "bufferView": t.image, "mimeType": "image/png" }))
         .collect();
     let mut used: Vec<&str> = EXTENSIONS.to_vec();
+    let mut required: Vec<&str> = EXTENSIONS.to_vec();
+    let mut buffers = vec![json!({ "byteLength": len })];
+    if compressed.iter().any(|c| c.is_some()) {
+        used.push(ext.extension());
+        // the fallback buffer has no data: clients must decode
+        required.push(ext.extension());
+        buffers.push(json!({
+            "byteLength": fallback.next_multiple_of(4),
+            "extensions": { ext.extension(): { "fallback": true } },
+        }));
+    }
     if packed.nodes.iter().any(|n| n.lod.is_some()) {
         used.push("MSFT_lod");
     }
     let doc = json!({
         "asset": { "version": "2.0", "generator": concat!("shellbake ", env!("CARGO_PKG_VERSION")) },
         "extensionsUsed": used,
-        "extensionsRequired": EXTENSIONS,
+        "extensionsRequired": required,
         "scene": 0,
         "scenes": [{ "nodes": packed.roots }],
         "nodes": nodes,
@@ -78,7 +195,7 @@ pub fn gltf_json(packed: &Packed) -> (Value, usize) {
         "samplers": [{ "magFilter": 9729, "minFilter": 9987 }],
         "accessors": accessors,
         "bufferViews": views,
-        "buffers": [{ "byteLength": len }],
+        "buffers": buffers,
     });
     (doc, len)
 }
@@ -251,10 +368,23 @@ fn node_json(n: &Node) -> Value {
 /// container: no separate binary chunk is held, so a bake's peak memory is the views plus the
 /// file, not three copies of it.
 pub fn glb_of_packed(doc: &Value, bin_len: usize, packed: &Packed) -> Vec<u8> {
+    glb_of_packed_with(doc, bin_len, packed, &[])
+}
+
+/// [`glb_of_packed`] for a document from [`gltf_json_with`] with the same `compressed`.
+pub fn glb_of_packed_with(
+    doc: &Value,
+    bin_len: usize,
+    packed: &Packed,
+    compressed: &[Option<Encoded>],
+) -> Vec<u8> {
     glb_with(doc, bin_len, |out| {
-        for v in &packed.streams {
+        for (i, v) in packed.streams.iter().enumerate() {
             out.resize(out.len().next_multiple_of(4), 0);
-            out.extend_from_slice(&v.bytes);
+            match compressed.get(i).and_then(|c| c.as_ref()) {
+                Some(c) => out.extend_from_slice(&c.bytes),
+                None => out.extend_from_slice(&v.bytes),
+            }
         }
     })
 }

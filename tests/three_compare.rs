@@ -26,7 +26,9 @@ use std::path::{Path, PathBuf};
 use common::{node, scratch};
 use image::RgbaImage;
 use serde_json::json;
+use shellbake::compress::Compression;
 use shellbake::params::{BakeParams, Layout, Preset};
+use shellbake::scene::Effect;
 use shellbake::view::{self, compare, NamedView};
 
 /// FLIP mean three.js may differ from the wgpu viewer by (set on SwiftShader vs llvmpipe).
@@ -49,15 +51,31 @@ fn bake(
     layout: Layout,
     seed: u32,
 ) -> (PathBuf, Vec<u8>) {
-    let scene = shellbake::load::load(&common::fixture(fixture)).unwrap();
+    bake_compressed(dir, fixture, (preset, layout), seed, Compression::None)
+}
+
+/// [`bake`] with the buffers compressed as `compress` says (meshopt: `EXT_meshopt_compression`,
+/// which three.js decodes with its `MeshoptDecoder`).
+fn bake_compressed(
+    dir: &Path,
+    fixture: &str,
+    (preset, layout): (Preset, Layout),
+    seed: u32,
+    compress: Compression,
+) -> (PathBuf, Vec<u8>) {
+    let path = common::fixture(fixture);
     let mut p = BakeParams::preset(preset);
     p.pack.layout = layout;
     p.strands.seed = seed;
-    let baked = shellbake::bake(&scene, &p);
+    let mut file = shellbake::scene::SceneFile::single(&path, preset, p, &Effect::DEFAULT);
+    file.output.compress = compress;
+    let loaded = shellbake::load_surfaces(&file).unwrap();
+    let baked = shellbake::bake_scene(&file, &loaded);
     let path = dir.join(format!(
-        "{}-{}-{layout:?}-{seed}.glb",
+        "{}-{}-{layout:?}-{seed}-{}.glb",
         fixture.trim_end_matches(".obj"),
-        preset.name()
+        preset.name(),
+        compress.name()
     ));
     std::fs::write(&path, &baked.glb).unwrap();
     (path, baked.glb)
@@ -83,25 +101,30 @@ fn three_job(glb: &Path, png: &Path, camera: &view::Camera) -> serde_json::Value
 #[test]
 fn three_js_in_chromium_renders_what_the_viewer_renders() {
     let dir = scratch("three_compare");
+    let (none, meshopt) = (Compression::None, Compression::Meshopt);
     let cases = [
-        ("bunny.obj", Preset::Fur, Layout::Compact),
-        ("bunny.obj", Preset::Fur, Layout::SingleDraw),
-        ("torus.obj", Preset::Grass, Layout::Compact),
-        ("teapot.obj", Preset::Carpet, Layout::Compact),
-        ("sphere.obj", Preset::Moss, Layout::SingleDraw),
+        ("bunny.obj", Preset::Fur, Layout::Compact, none),
+        ("bunny.obj", Preset::Fur, Layout::SingleDraw, none),
+        ("torus.obj", Preset::Grass, Layout::Compact, none),
+        ("teapot.obj", Preset::Carpet, Layout::Compact, none),
+        ("sphere.obj", Preset::Moss, Layout::SingleDraw, none),
+        // compressed files: three.js decodes them (MeshoptDecoder), the viewer reads them too
+        ("bunny.obj", Preset::Fur, Layout::Compact, meshopt),
+        ("sphere.obj", Preset::Moss, Layout::SingleDraw, meshopt),
     ];
     let mut jobs = Vec::new();
     let mut specs = Vec::new();
-    for (fixture, preset, layout) in cases {
-        let (glb_path, glb) = bake(&dir, fixture, preset, layout, 1);
+    for (fixture, preset, layout, compress) in cases {
+        let (glb_path, glb) = bake_compressed(&dir, fixture, (preset, layout), 1, compress);
         for v in [NamedView::Front, NamedView::Close] {
             let camera = view::camera_for_glb(&glb, v.orbit(), SIZE).unwrap();
             let wgpu =
                 view::render_glb_to_png_with(&glb, v.orbit(), SIZE, view::MaskMips::Box).unwrap();
             let name = format!(
-                "{}-{}-{layout:?}-{}",
+                "{}-{}-{layout:?}-{}-{}",
                 fixture.trim_end_matches(".obj"),
                 preset.name(),
+                compress.name(),
                 v.name()
             );
             let png = dir.join(format!("{name}-three.png"));

@@ -59,7 +59,18 @@ use crate::error::{Error, Result};
 /// Extensions a file may list in `extensionsRequired`: quantized attributes (decoded by
 /// `accessor.rs`) and texture transforms (drawn by the viewer; UVs are read untransformed by the
 /// loader, where they only set the strand pattern's placement).
-pub const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_mesh_quantization", "KHR_texture_transform"];
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_mesh_quantization",
+    "KHR_texture_transform",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+];
+
+/// The meshopt compression extensions (read alike).
+const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
+
+/// Most bytes the fallback buffers of one file may decode to.
+pub const MAX_DECODED_BYTES: usize = 1 << 31;
 
 /// Deepest node hierarchy walked; deeper is refused.
 pub const MAX_DEPTH: usize = 256;
@@ -138,9 +149,12 @@ pub fn component_name(component_type: u64) -> &'static str {
 /// A buffer as declared: where its bytes are and how many.
 #[derive(Clone, Debug)]
 pub struct Buffer {
-    /// `None`: the GLB binary chunk.
+    /// `None`: the GLB binary chunk (or, for a fallback buffer, no data at all).
     pub uri: Option<String>,
     pub byte_length: usize,
+    /// A meshopt fallback buffer (`EXT_`/`KHR_meshopt_compression` `"fallback": true`): its
+    /// bytes are what the compressed views decode to.
+    pub fallback: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -149,6 +163,8 @@ pub struct BufferView {
     pub byte_offset: usize,
     pub byte_length: usize,
     pub byte_stride: Option<usize>,
+    /// Where the view's bytes are compressed (`EXT_`/`KHR_meshopt_compression`).
+    pub meshopt: Option<crate::compress::MeshoptView>,
 }
 
 #[derive(Clone, Debug)]
@@ -561,9 +577,22 @@ impl Document {
         let mut buffers = Vec::with_capacity(n.buffers);
         for f in each("buffers", "buffer")? {
             let f = f?;
+            let mut fallback = false;
+            for name in MESHOPT {
+                let here = format!("{}: {name}", f.element);
+                if let Some(e) = f
+                    .object("extensions", f.element.clone())?
+                    .map(|x| x.object(name, here))
+                    .transpose()?
+                    .flatten()
+                {
+                    fallback |= e.boolean("fallback")?.unwrap_or(false);
+                }
+            }
             buffers.push(Buffer {
                 uri: f.string("uri")?.map(str::to_string),
                 byte_length: f.required_count("byteLength")?,
+                fallback,
             });
         }
         let mut views = Vec::with_capacity(n.views);
@@ -573,6 +602,38 @@ impl Document {
             if let Some(s) = byte_stride.filter(|s| !(4..=252).contains(s)) {
                 return Err(f.err(format!("byteStride {s} is outside 4..=252")));
             }
+            let mut meshopt = None;
+            for name in MESHOPT {
+                let here = format!("{}: {name}", f.element);
+                let Some(e) = f
+                    .object("extensions", f.element.clone())?
+                    .map(|x| x.object(name, here))
+                    .transpose()?
+                    .flatten()
+                else {
+                    continue;
+                };
+                let word = |key: &str| -> Result<Option<&str>> { e.string(key) };
+                let mode = word("mode")?.ok_or_else(|| e.err("mode is missing"))?;
+                let mode = crate::compress::Mode::from_name(mode)
+                    .ok_or_else(|| e.err(format!("unknown mode '{}'", escape(mode))))?;
+                let filter = match word("filter")? {
+                    None => crate::compress::Filter::None,
+                    Some(s) => crate::compress::Filter::from_name(s)
+                        .ok_or_else(|| e.err(format!("unknown filter '{}'", escape(s))))?,
+                };
+                meshopt = Some(crate::compress::MeshoptView {
+                    buffer: e
+                        .index("buffer", "buffer", n.buffers)?
+                        .ok_or_else(|| e.err("buffer is missing"))?,
+                    byte_offset: e.count("byteOffset")?.unwrap_or(0),
+                    byte_length: e.required_count("byteLength")?,
+                    byte_stride: e.required_count("byteStride")?,
+                    count: e.required_count("count")?,
+                    mode,
+                    filter,
+                });
+            }
             views.push(BufferView {
                 buffer: f
                     .index("buffer", "buffer", n.buffers)?
@@ -580,6 +641,7 @@ impl Document {
                 byte_offset: f.count("byteOffset")?.unwrap_or(0),
                 byte_length: f.required_count("byteLength")?,
                 byte_stride,
+                meshopt,
             });
         }
         let mut accessors = Vec::with_capacity(n.accessors);
@@ -740,8 +802,23 @@ impl Document {
     /// The bytes of every buffer, each cut to its `byteLength` (see the module doc).
     pub fn load_buffers(&self) -> Result<Vec<Vec<u8>>> {
         let mut out = Vec::with_capacity(self.buffers.len());
+        let mut decoded = 0usize;
         for (i, buffer) in self.buffers.iter().enumerate() {
             let element = format!("buffer {i}");
+            if buffer.fallback && buffer.uri.is_none() {
+                decoded = decoded.saturating_add(buffer.byte_length);
+                if decoded > MAX_DECODED_BYTES {
+                    return Err(Error::invalid(
+                        &self.path,
+                        &element,
+                        format!(
+                            "fallback buffers decode to over {MAX_DECODED_BYTES} bytes (refused)"
+                        ),
+                    ));
+                }
+                out.push(vec![0; buffer.byte_length]);
+                continue;
+            }
             let (mut data, from_file) = match &buffer.uri {
                 None => (
                     self.bin.clone().ok_or_else(|| {
@@ -772,7 +849,41 @@ impl Document {
             data.truncate(buffer.byte_length);
             out.push(data);
         }
+        self.decode_meshopt(&mut out)?;
         Ok(out)
+    }
+
+    /// Decodes every compressed view into its place (see [`crate::compress`]).
+    fn decode_meshopt(&self, buffers: &mut [Vec<u8>]) -> Result<()> {
+        for (i, view) in self.views.iter().enumerate() {
+            let Some(m) = &view.meshopt else { continue };
+            let element = format!("buffer view {i}");
+            let bad = |message: String| Error::invalid(&self.path, &element, message);
+            if m.buffer == view.buffer {
+                return Err(bad("decodes into the buffer it reads".into()));
+            }
+            let src = buffers[m.buffer]
+                .get(m.byte_offset..m.byte_offset.saturating_add(m.byte_length))
+                .ok_or_else(|| {
+                    bad(format!(
+                        "compressed bytes ({} at offset {}) run past buffer {}",
+                        m.byte_length, m.byte_offset, m.buffer
+                    ))
+                })?
+                .to_vec();
+            let n = m.count.saturating_mul(m.byte_stride);
+            let dst = buffers[view.buffer]
+                .get_mut(view.byte_offset..view.byte_offset.saturating_add(n))
+                .filter(|_| n <= view.byte_length)
+                .ok_or_else(|| {
+                    bad(format!(
+                        "{} decoded bytes do not fit the view ({} at offset {} of buffer {})",
+                        n, view.byte_length, view.byte_offset, view.buffer
+                    ))
+                })?;
+            crate::compress::decode_view(m, &src, dst).map_err(bad)?;
+        }
+        Ok(())
     }
 
     /// Reads a URI: `data:` (base64), or a relative path inside the asset's folder when the

@@ -25,6 +25,7 @@ const page_html = `<!doctype html><html><body style="margin:0">
 <script type="module">
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 // MSFT_lod, written here (three.js's GLTFLoader does not read it): each node with the extension
 // becomes a THREE.LOD placed at the centre of its LOD 0 content, with the coarser levels'
 // nodes as further levels at the switch distances of extras.shellbake_lod (world units).
@@ -68,6 +69,7 @@ window.renderJob = async (job, url) => {
   const scene = new THREE.Scene();
   scene.background = new THREE.Color().setRGB(...job.background, THREE.LinearSRGBColorSpace);
   const loader = new GLTFLoader();
+  loader.setMeshoptDecoder(MeshoptDecoder);
   if (job.msft_lod) loader.register((parser) => new MsftLod(parser));
   const gltf = await loader.loadAsync(url);
   scene.add(gltf.scene);
