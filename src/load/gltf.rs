@@ -24,8 +24,9 @@
 //! the base surface. The same geometry under a different transform (real instancing) is baked
 //! once per instance. Lower LODs (`MSFT_lod`) live outside the scene and are not read. A
 //! single-draw output holds every layer in one primitive and would be baked as it stands.
-//! Compressed buffer views (`KHR_meshopt_compression`) are refused by the reader's
-//! required-extension check with the extension's name.
+//! Buffer views compressed with `EXT_`/`KHR_meshopt_compression` (shellbake's own `--compress
+//! meshopt`, gltfpack's `-c`) are decoded by the shared reader; other compression
+//! (`KHR_draco_mesh_compression`) is refused by its required-extension check, by name.
 //!
 //! Every primitive with mode TRIANGLES of every node of the default scene (or, with no scene,
 //! every root node) becomes one [`Mesh`] with its world transform applied in `f64`; normals go
