@@ -290,7 +290,10 @@ fn required_extensions_the_reader_lacks_are_refused_by_name() {
         }});
         assert_refused(
             load_json("packed.gltf", &g),
-            &["packed.gltf: buffer view 0", "decodes into the buffer it reads"],
+            &[
+                "packed.gltf: buffer view 0",
+                "decodes into the buffer it reads",
+            ],
         );
         g["buffers"] = json!([g["buffers"][0].clone(), {"byteLength": 36,
             "extensions": {ext: {"fallback": true}}}]);

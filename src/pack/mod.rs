@@ -184,11 +184,34 @@ struct Geometry<'a> {
 }
 
 /// One chunk at one level: triangles ordered so every layer draws a prefix.
+#[derive(Clone)]
 struct Ordering {
     /// Index buffer in the input's vertex numbering.
     indices: Vec<u32>,
+    /// The triangle (of the level's list) at each place of `indices`.
+    tris: Vec<u32>,
     /// Triangles each layer draws: a prefix of `indices`.
     kept: Vec<usize>,
+}
+
+impl Ordering {
+    /// The same triangles in the same order for another level of the same triangle list whose
+    /// layers show each triangle up to `top` (that level's culling): each layer draws the
+    /// shortest prefix holding every triangle it needs (a few triangles it would have culled
+    /// come along; none it needs is left out), so the level draws LOD 0's index stream.
+    fn reused(&self, top: &[u32], layers: usize) -> Ordering {
+        let mut kept = vec![0usize; layers];
+        for (p, &t) in self.tris.iter().enumerate() {
+            let shows = (top[t as usize] as usize).min(layers);
+            for k in &mut kept[..shows] {
+                *k = p + 1;
+            }
+        }
+        Ordering {
+            kept,
+            ..self.clone()
+        }
+    }
 }
 
 /// Triangles `tris` by the number of layers they show in (`top`), most first, so that every
@@ -203,19 +226,39 @@ fn order_triangles(
     let mut tris = tris.to_vec();
     tris.sort_by_key(|&t| std::cmp::Reverse(top[t as usize]));
     let mut out = Vec::with_capacity(tris.len() * 3);
+    let mut order = Vec::with_capacity(tris.len());
     let mut kept = vec![0usize; layers];
     for group in tris.chunk_by(|&a, &b| top[a as usize] == top[b as usize]) {
         let ix: Vec<u32> = group
             .iter()
             .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
             .collect();
-        out.extend(meshopt::optimize_vertex_cache(&ix, vertices));
+        let optimized = meshopt::optimize_vertex_cache(&ix, vertices);
+        // which triangle each optimized one is (the cache order keeps corners in place)
+        let mut at: std::collections::HashMap<[u32; 3], Vec<u32>> = Default::default();
+        for (k, &t) in group.iter().enumerate() {
+            at.entry([ix[3 * k], ix[3 * k + 1], ix[3 * k + 2]])
+                .or_default()
+                .push(t);
+        }
+        for tri in optimized.chunks_exact(3) {
+            let t = at
+                .get_mut(&[tri[0], tri[1], tri[2]])
+                .and_then(|v| v.pop())
+                .expect("the cache order keeps each triangle's corners");
+            order.push(t);
+        }
+        out.extend(optimized);
         let top = (top[group[0] as usize] as usize).min(layers);
         for k in &mut kept[..top] {
             *k += group.len();
         }
     }
-    Ordering { indices: out, kept }
+    Ordering {
+        indices: out,
+        tris: order,
+        kept,
+    }
 }
 
 /// Fetch order = first use in the index buffer (what meshopt's optimizeVertexFetchRemap
@@ -374,19 +417,28 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         };
         let mut level_nodes = Vec::new();
         let mut shared: Option<Shared> = None;
+        let mut lod0: Option<(Ordering, usize)> = None;
         for (k, pl) in input.levels.iter().enumerate() {
             b.tag = Tag {
                 lod: several_levels.then_some(k),
                 ..chunk_tag
             };
             let layers = pl.level.layers.len().max(1);
-            let ordering = order_triangles(
-                pl.indices,
-                mesh.vertex_count(),
-                &pl.chunks[c],
-                &pl.culled.top,
-                layers,
-            );
+            // in the compact layout, a level over LOD 0's triangles draws LOD 0's index stream
+            let reuse = match (&lod0, params.layout) {
+                (Some((o, ix)), Layout::Compact) if pl.level.base.is_none() => Some((o, *ix)),
+                _ => None,
+            };
+            let ordering = match reuse {
+                Some((o, _)) => o.reused(&pl.culled.top, layers),
+                None => order_triangles(
+                    pl.indices,
+                    mesh.vertex_count(),
+                    &pl.chunks[c],
+                    &pl.culled.top,
+                    layers,
+                ),
+            };
             let name = if several_levels {
                 format!("{chunk_prefix}lod{k}_")
             } else {
@@ -415,7 +467,11 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                         vertex_order.extend(s.order.iter().copied());
                         s
                     });
-                    compact(&mut b, &ctx, shared, &ordering)
+                    let (meshes, ix) = compact(&mut b, &ctx, shared, &ordering, reuse.map(|r| r.1));
+                    if k == 0 {
+                        lod0 = Some((ordering, ix));
+                    }
+                    meshes
                 }
                 (Layout::SingleDraw, None) => {
                     let (order, indices) = fetch_order(&ordering.indices, nv);
@@ -427,7 +483,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 }
                 (Layout::SingleDraw, Some(_)) => {
                     let s = Shared::new(&mut b, &geometry, &ordering.indices, nv, false);
-                    compact(&mut b, &ctx, &s, &ordering)
+                    compact(&mut b, &ctx, &s, &ordering, None).0
                 }
             };
             lod_triangles[k] += meshes
@@ -771,13 +827,22 @@ impl Builder<'_> {
 /// The compact layout of one level of one chunk: one mesh per layer over the chunk's shared
 /// streams, each with the index prefix its layer keeps (one index stream per level). The bare
 /// level is one opaque, untextured mesh. Returns the meshes in layer order.
-fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> Vec<usize> {
+fn compact(
+    b: &mut Builder,
+    ctx: &LevelCtx,
+    s: &Shared,
+    ordering: &Ordering,
+    reuse: Option<usize>,
+) -> (Vec<usize>, usize) {
     let indices: Vec<u32> = ordering
         .indices
         .iter()
         .map(|&i| s.fetch[i as usize])
         .collect();
-    let ix = b.indices("indices", &indices, s.order.len());
+    let ix = match reuse {
+        Some(ix) => ix,
+        None => b.indices("indices", &indices, s.order.len()),
+    };
     let base = vec![
         (Semantic::Position, s.position),
         (Semantic::Normal, s.normal),
@@ -812,7 +877,10 @@ fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> 
             roughness: ctx.roughness,
         });
         let name = format!("{}bare", ctx.prefix);
-        return vec![b.single_primitive_mesh(name, attributes, ix, material)];
+        return (
+            vec![b.single_primitive_mesh(name, attributes, ix, material)],
+            ix,
+        );
     }
     let shells = s
         .shells
@@ -824,7 +892,7 @@ fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> 
     // one index accessor per distinct triangle count, all over the level's index stream
     let mut prefixes: Vec<(usize, usize)> = vec![(indices.len() / 3, ix)];
     let layers = &ctx.level.layers;
-    (0..layers.len())
+    let meshes = (0..layers.len())
         .filter(|&j| j == 0 || ordering.kept[j] > 0)
         .map(|j| {
             let ix = match prefixes.iter().find(|&&(n, _)| n == ordering.kept[j]) {
@@ -876,7 +944,8 @@ fn compact(b: &mut Builder, ctx: &LevelCtx, s: &Shared, ordering: &Ordering) -> 
                 },
             )
         })
-        .collect()
+        .collect();
+    (meshes, ix)
 }
 
 /// An upper bound of the GLB size for a mesh of at most `vertices` render vertices and
