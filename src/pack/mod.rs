@@ -14,7 +14,11 @@
 //!   accessors with its own material (`MASK`, `alphaCutoff` = the mask's cutoff for the layer's
 //!   step, per-layer colour) and weight `t_j`. The base layer is opaque (still textured: the
 //!   mask's grey carries the strands' shade onto the skin) and has no morph target. Adding a
-//!   layer costs JSON only.
+//!   layer costs JSON only. LOD levels over the same triangles (merged layers, the bare level)
+//!   draw LOD 0's index stream too: its triangles are ordered by how many LOD 0 layers keep them,
+//!   and a coarser layer draws the shortest prefix that holds every triangle its own culling
+//!   keeps (the few extra triangles show no strand: culling is conservative either way). A level
+//!   with a simplified base (`lod.simplify`) has its own triangles and its own index stream.
 //! - **single-draw**: every layer's vertices explicitly (positions quantized per layer), all in
 //!   one primitive with one material; `COLOR_0` (u16 normalized RGBA) carries the layer's shade
 //!   and an alpha `a_j = C/cutoff_j` against one fixed cutoff `C`, so `a_j·alpha >= C ⇔
