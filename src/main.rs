@@ -19,6 +19,7 @@ use clap::{Args, Parser, Subcommand};
 use image::ImageEncoder as _;
 use shellbake::compress::{Compression, MeshoptExtension};
 use shellbake::orient::OrientMode;
+use shellbake::pack::Quantize;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::{Effect, SceneFile};
 
@@ -135,6 +136,10 @@ struct BakeArgs {
     /// Coarser LOD levels draw a base simplified within their error (meshopt; `lod.simplify`).
     #[arg(long)]
     lod_simplify: bool,
+    /// Attribute storage: `khr` (KHR_mesh_quantization, smallest) or `none` (plain floats, no
+    /// required extension, for clients that read no quantized attributes) [default: khr].
+    #[arg(long, value_parser = named(&Quantize::ALL, |q| q.name()))]
+    quantize: Option<Quantize>,
     /// Buffer compression: `meshopt` (vertex and index codecs) or `none` [default: the scene's
     /// `[output] compress`, else none].
     #[arg(long, value_parser = named(&Compression::ALL, |c| c.name()))]
@@ -187,6 +192,9 @@ impl BakeArgs {
         }
         if self.lod_simplify {
             p.lod.simplify = true;
+        }
+        if let Some(q) = self.quantize {
+            p.pack.quantize = q;
         }
         if self.clamp && !effects.contains(&Effect::Collision) {
             effects.push(Effect::Collision);

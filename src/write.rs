@@ -26,7 +26,8 @@ use crate::pack::{
     StreamKind,
 };
 
-/// Extensions every output uses.
+/// Extensions outputs use: quantized attributes, and the mask's tiling (neither with
+/// `--quantize none`).
 pub const EXTENSIONS: [&str; 2] = ["KHR_mesh_quantization", "KHR_texture_transform"];
 
 /// Shortest decimal of an `f32`, as the `f64` JSON number it denotes.
@@ -164,8 +165,32 @@ pub fn gltf_json_with(
         .iter()
         .map(|t| json!({ "bufferView": t.image, "mimeType": "image/png" }))
         .collect();
-    let mut used: Vec<&str> = EXTENSIONS.to_vec();
-    let mut required: Vec<&str> = EXTENSIONS.to_vec();
+    // each extension only where the file uses it (`--quantize none` needs neither)
+    let quantized = packed.meshes.iter().any(|m| {
+        m.primitives.iter().any(|p| {
+            p.attributes
+                .iter()
+                .chain(p.targets.iter().flatten())
+                .any(|&(s, a)| {
+                    matches!(
+                        s,
+                        Semantic::Position | Semantic::Normal | Semantic::TexCoord(_)
+                    ) && packed.accessors[a].component != crate::pack::component::FLOAT
+                })
+        })
+    });
+    let transformed = packed
+        .materials
+        .iter()
+        .any(|m| m.texture.is_some_and(|t| !t.is_identity()));
+    let present: Vec<&str> = EXTENSIONS
+        .iter()
+        .zip([quantized, transformed])
+        .filter(|(_, on)| *on)
+        .map(|(e, _)| *e)
+        .collect();
+    let mut used = present.clone();
+    let mut required = present;
     let mut buffers = vec![json!({ "byteLength": len })];
     if compressed.iter().any(|c| c.is_some()) {
         used.push(ext.extension());
@@ -197,6 +222,12 @@ pub fn gltf_json_with(
         "bufferViews": views,
         "buffers": buffers,
     });
+    let mut doc = doc;
+    for key in ["extensionsUsed", "extensionsRequired"] {
+        if doc[key].as_array().is_some_and(|a| a.is_empty()) {
+            doc.as_object_mut().unwrap().remove(key);
+        }
+    }
     (doc, len)
 }
 
@@ -298,14 +329,15 @@ fn material_json(m: &Material) -> Value {
         pbr.insert("baseColorFactor".into(), json!(m.base_color.map(num)));
     }
     if let Some(t) = m.texture {
-        let transform = json!({
-            "offset": [num(t.offset.x), num(t.offset.y)],
-            "scale": [num(t.scale.x), num(t.scale.y)],
-        });
-        pbr.insert(
-            "baseColorTexture".into(),
-            json!({ "index": t.texture, "extensions": { "KHR_texture_transform": transform } }),
-        );
+        let mut binding = json!({ "index": t.texture });
+        if !t.is_identity() {
+            let transform = json!({
+                "offset": [num(t.offset.x), num(t.offset.y)],
+                "scale": [num(t.scale.x), num(t.scale.y)],
+            });
+            binding["extensions"] = json!({ "KHR_texture_transform": transform });
+        }
+        pbr.insert("baseColorTexture".into(), binding);
     }
     pbr.insert("metallicFactor".into(), json!(0));
     pbr.insert("roughnessFactor".into(), num(m.roughness));

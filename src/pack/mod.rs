@@ -86,6 +86,32 @@ impl Layout {
     }
 }
 
+/// How vertex attributes are stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Quantize {
+    /// `KHR_mesh_quantization`: POSITION u16 on the grid, NORMAL i8, TEXCOORD_0 u16 (with
+    /// `KHR_texture_transform`). Smallest.
+    #[default]
+    Khr,
+    /// Plain glTF 2.0 floats and no required extension, for clients that read neither extension
+    /// (the `gltf` crate and Bevy, f3d, libGDX): the same geometry as `khr` (the grid's
+    /// positions and the quantized normals, as floats; texture coordinates with the tiling
+    /// multiplied in), so both draw alike.
+    None,
+}
+
+impl Quantize {
+    pub const ALL: [Quantize; 2] = [Quantize::Khr, Quantize::None];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantize::Khr => "khr",
+            Quantize::None => "none",
+        }
+    }
+}
+
 /// Pack stage parameters (`pack/`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -94,6 +120,8 @@ pub struct PackParams {
     pub layout: Layout,
     /// Position quantization bits, 8–16. 14 keeps the error under 1/16384 of the largest extent.
     pub position_bits: u32,
+    /// Attribute storage: quantized (`KHR_mesh_quantization`) or floats.
+    pub quantize: Quantize,
 }
 
 impl Default for PackParams {
@@ -101,6 +129,7 @@ impl Default for PackParams {
         PackParams {
             layout: Layout::Compact,
             position_bits: 14,
+            quantize: Quantize::Khr,
         }
     }
 }
@@ -178,6 +207,8 @@ struct Geometry<'a> {
     grid: PositionGrid,
     uv_grid: UvGrid,
     float_uvs: bool,
+    /// Mask tiles per UV unit.
+    tiles: Vec2,
     positions: &'a [Vec3],
     normals: &'a [Vec3],
     uvs: &'a [Vec2],
@@ -351,6 +382,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         grid,
         uv_grid,
         float_uvs,
+        tiles,
         positions,
         normals: mesh.normals.as_deref().unwrap(),
         uvs,
@@ -368,9 +400,13 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     let mut b = Builder {
         out,
         tag,
+        float: params.quantize == Quantize::None,
         materials: Vec::new(),
     };
-    let (uv_offset, uv_scale) = if float_uvs {
+    let (uv_offset, uv_scale) = if b.float {
+        // the tiling is in the coordinates: no transform
+        (Vec2::ZERO, Vec2::ONE)
+    } else if float_uvs {
         (Vec2::ZERO, tiles)
     } else {
         (uv_grid.lo * tiles, uv_grid.extent * tiles)
@@ -642,7 +678,7 @@ impl Shared {
         let normal = b.normals(&pick(g.normals));
         let shells = shells.then(|| {
             let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
-            let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs);
+            let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs, g.tiles);
             let delta = b.deltas(&pick(&g.deltas));
             let density = g.density.map(|d| {
                 let mut bytes = Bytes::default();
@@ -674,6 +710,8 @@ impl Shared {
 struct Builder<'a> {
     out: &'a mut Packed,
     tag: Tag,
+    /// Positions and normals as floats (`Quantize::None`).
+    float: bool,
     /// Materials by (level, layer): every chunk's layer shares one.
     materials: Vec<((usize, usize), usize)>,
 }
@@ -726,28 +764,37 @@ impl Builder<'_> {
             .stream(name, semantic, target, self.tag, (bytes, stride, count))
     }
 
-    /// POSITION stream (u16 × 3, stride 8) with exact integer bounds.
+    /// POSITION stream (u16 × 3, stride 8; floats of the same grid values, stride 12, without
+    /// quantization) with exact integer bounds.
     fn positions(&mut self, q: &[[u16; 3]]) -> usize {
         let mut bytes = Bytes::default();
         let (mut lo, mut hi) = ([u16::MAX; 3], [0u16; 3]);
         for p in q {
-            bytes.u16s(p, 8);
+            if self.float {
+                bytes.f32s(&p.map(f32::from));
+            } else {
+                bytes.u16s(p, 8);
+            }
             for c in 0..3 {
                 lo[c] = lo[c].min(p[c]);
                 hi[c] = hi[c].max(p[c]);
             }
         }
+        let (stride, component) = if self.float {
+            (12, component::FLOAT)
+        } else {
+            (8, component::UNSIGNED_SHORT)
+        };
         let v = self.stream(
             "position",
             Semantic::Position,
             None,
             bytes.0,
-            Some(8),
+            Some(stride),
             q.len(),
         );
         let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
-        self.out
-            .accessor(v, component::UNSIGNED_SHORT, false, "VEC3", Some(bounds))
+        self.out.accessor(v, component, false, "VEC3", Some(bounds))
     }
 
     /// Morph target 0: the extrusion delta as float, in grid units, with exact bounds.
@@ -783,6 +830,14 @@ impl Builder<'_> {
 
     fn normals(&mut self, n: &[Vec3]) -> usize {
         let mut bytes = Bytes::default();
+        if self.float {
+            // the quantized normal, as floats: both forms shade alike
+            for &v in n {
+                bytes.f32s(&dequantize_normal(quantize_normal(v)).to_array());
+            }
+            let v = self.stream("normal", Semantic::Normal, None, bytes.0, Some(12), n.len());
+            return self.out.accessor(v, component::FLOAT, false, "VEC3", None);
+        }
         for &v in n {
             bytes.i8s(&quantize_normal(v), 4);
         }
@@ -790,8 +845,17 @@ impl Builder<'_> {
         self.out.accessor(v, component::BYTE, true, "VEC3", None)
     }
 
-    fn texcoords(&mut self, uvs: &[Vec2], grid: UvGrid, float: bool) -> usize {
+    fn texcoords(&mut self, uvs: &[Vec2], grid: UvGrid, float: bool, tiles: Vec2) -> usize {
         let mut bytes = Bytes::default();
+        if self.float {
+            // no KHR_texture_transform: the tiling multiplied in
+            for &uv in uvs {
+                bytes.f32s(&(uv * tiles).to_array());
+            }
+            let uv = Semantic::TexCoord(0);
+            let v = self.stream("texcoord", uv, None, bytes.0, Some(8), uvs.len());
+            return self.out.accessor(v, component::FLOAT, false, "VEC2", None);
+        }
         if float {
             for uv in uvs {
                 bytes.f32s(&[uv.x, uv.y]);
@@ -1070,7 +1134,7 @@ fn single_draw(
     let all_uvs: Vec<Vec2> = (0..layers.len())
         .flat_map(|j| pick(j).map(|v| g.uvs[v]))
         .collect();
-    let texcoord = b.texcoords(&all_uvs, g.uv_grid, g.float_uvs);
+    let texcoord = b.texcoords(&all_uvs, g.uv_grid, g.float_uvs, g.tiles);
     let cv = b.stream("color", Semantic::Color(0), None, colors.0, Some(8), total);
     let color = b
         .out

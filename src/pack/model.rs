@@ -110,6 +110,13 @@ pub struct TextureRef {
     pub scale: Vec2,
 }
 
+impl TextureRef {
+    /// Whether the transform does nothing (no `KHR_texture_transform` is written).
+    pub fn is_identity(&self) -> bool {
+        self.offset == Vec2::ZERO && self.scale == Vec2::ONE
+    }
+}
+
 /// A material (glTF metallic-roughness, metallic 0).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
