@@ -29,7 +29,7 @@ fn main() {
     let mut views: Vec<Value> = Vec::new();
     let mut accessors: Vec<Value> = Vec::new();
     let mut push = |bytes: &[u8], target: Option<u32>| -> usize {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let mut v = json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len() });
@@ -108,7 +108,7 @@ fn main() {
             "translation": [origin.x, origin.y, origin.z],
         }));
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let doc = json!({
