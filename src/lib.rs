@@ -19,9 +19,10 @@
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
 //! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
 //! | pack | [`pack`] | [`pack::pack`] |
-//! | write | [`write`] | [`write::gltf_json`], [`write::glb_of_packed`] |
+//! | write (with `--compress meshopt`: [`compress`]) | [`write`] | [`write::compress_streams`], [`write::gltf_json_with`], [`write::glb_of_packed_with`] |
 //!
-//! Modules form a tree of imports, ground floor first: `error`, `grid`, `mesh`, `srgb` → the stages
+//! Modules form a tree of imports, ground floor first: `error`, `grid`, `mesh`, `srgb`, `compress`
+//! (the meshopt codecs, read by `load` and written by `write`) → the stages
 //! (each owning its parameters) → `params` (gathers them, presets as data) → `scene` (scene
 //! files, the plan) → `report` → this file. After the pipeline, [`view`] draws what was baked
 //! (wgpu), draws the runtime shell technique from the same input as a reference, and compares
