@@ -105,6 +105,12 @@ fn compressed_files_decode_to_their_valid_twins_byte_for_byte() {
                 .iter()
                 .any(|v| v["extensions"][name]["filter"] == "OCTAHEDRAL"));
         }
+        // filtered normals and rotated index triangles keep every layer triangle facing out
+        let (inverted, total) = common::inverted_layer_triangles(&twin);
+        assert!(
+            total > 0 && inverted == 0,
+            "{tag}: {inverted} of {total} inverted"
+        );
         // the viewer reads the compressed files and draws what it draws from the twin
         for v in [
             shellbake::view::NamedView::Front,

@@ -200,3 +200,25 @@ fn terrain_levels_verify_and_the_camera_path_draws_fewer_triangles() {
         assert!(t[1] < t[0] && t[2] * 3 < reference, "{c}");
     }
 }
+
+/// Simplified bases join vertices that were not neighbours, so their layer triangles are
+/// guarded too: no layer triangle of any level faces against its base (the bunny's simplified
+/// levels inverted 2 of 185 646 before they were).
+#[test]
+fn simplified_levels_keep_every_layer_triangle_facing_out() {
+    use shellbake::params::{BakeParams, Layout, Preset};
+    for (name, preset) in [("bunny.obj", Preset::Fur), ("torus.obj", Preset::Grass)] {
+        for layout in [Layout::Compact, Layout::SingleDraw] {
+            let mut p = BakeParams::preset(preset);
+            p.lod.simplify = true;
+            p.pack.layout = layout;
+            let scene = shellbake::load::load(&common::fixture(name)).unwrap();
+            let baked = shellbake::bake(&scene, &p);
+            let (inverted, total) = common::inverted_layer_triangles(&baked.glb);
+            assert!(
+                total > 0 && inverted == 0,
+                "{name} {layout:?}: {inverted} of {total}"
+            );
+        }
+    }
+}

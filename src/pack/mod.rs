@@ -350,6 +350,15 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     heights.sort_by(f32::total_cmp);
     heights.dedup();
     let top = heights.last().copied().unwrap_or(0.0);
+    // every layer triangle any level draws: LOD 0's, and those of simplified bases
+    let mut guarded_indices = mesh.indices.clone();
+    for l in input
+        .levels
+        .iter()
+        .filter(|l| l.level.base.is_some() && l.level.bare.is_none())
+    {
+        guarded_indices.extend_from_slice(l.indices);
+    }
     let guarded = match params.layout {
         Layout::Compact => {
             let base: Vec<Vec3> = positions
@@ -357,7 +366,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 .map(|&p| grid.quantize(p).map(f32::from).into())
                 .collect();
             let check = guard::MorphPath { base: &base, top };
-            guard::guard(&base, &mut deltas, &mesh.indices, &check)
+            guard::guard(&base, &mut deltas, &guarded_indices, &check)
         }
         Layout::SingleDraw => {
             let base: Vec<Vec3> = positions
@@ -369,7 +378,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 t: &heights,
                 top_level: grid.max_level() as f32,
             };
-            guard::guard(&base, &mut deltas, &mesh.indices, &check)
+            guard::guard(&base, &mut deltas, &guarded_indices, &check)
         }
     };
     let uvs = mesh.uvs.as_deref().unwrap();
