@@ -11,10 +11,13 @@
 //! carry the direction, which the codec then stores in about half the bytes. The filter changes
 //! the values a client sees (octahedral 8-bit against our best-of-8 rounding), so the stream the
 //! file *declares* — the fallback, and the uncompressed twin — holds the filter's decoded
-//! normals, and both files draw the same. The extrusion deltas are floats with their length,
-//! which the octahedral filter cannot carry (it stores unit vectors); the exponent filter would
-//! round them after the inversion guard has checked them, so they go through the plain codec.
-//! Positions and texture coordinates are already 16-bit integers: no filter suits them.
+//! normals, and both files draw the same. The extrusion deltas (floats with their length, which
+//! the octahedral filter cannot carry) go through the `EXPONENTIAL` filter with one exponent per
+//! component: pack already stores every delta on that filter's grid ([`DeltaGrid`], a
+//! [`DELTA_BITS`]-bit mantissa: at most 1/64 of a position step off), and the inversion guard
+//! checks the values on the grid, so the filter changes nothing and no layer triangle inverts.
+//! On the dragon the compressed deltas drop from 1.35 MB to 0.83 MB. Positions and texture
+//! coordinates are already 16-bit integers: no filter suits them.
 //!
 //! **Versions.** `EXT_meshopt_compression` decoders read vertex codec version 0 only, so the EXT
 //! form writes version 0; the KHR form writes version 1 at level 2, which is smaller. Both use
@@ -181,6 +184,62 @@ pub fn octahedral_normals(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
     let mut decoded = encoded.clone();
     meshopt::decode_filter_oct(&mut decoded);
     let flat = |v: &[[i8; 4]]| v.iter().flatten().map(|&c| c as u8).collect::<Vec<u8>>();
+    (flat(&encoded), flat(&decoded))
+}
+
+/// Mantissa bits of the extrusion deltas ([`DeltaGrid`]).
+pub const DELTA_BITS: i32 = 16;
+
+/// The grid the exponential filter (one exponent per component over a stream) stores float
+/// `VEC3`s on: per component, a step of `2^(e − (DELTA_BITS − 1))` where `2^e` bounds the
+/// component's magnitude (meshoptimizer's `optlog2`). Values rounded onto it with
+/// [`DeltaGrid::round`] (magnitudes below `2^e`, so shortening them never raises the exponent)
+/// go through the filter unchanged, whatever smaller exponent the final values give.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DeltaGrid {
+    step: [f32; 3],
+}
+
+impl DeltaGrid {
+    /// The grid for `values` (and any shortened copy of them).
+    pub fn fit(values: &[glam::Vec3]) -> DeltaGrid {
+        let exp = |v: f32| ((v.to_bits() >> 23) & 0xff) as i32 - 126;
+        let mut e = [-100i32; 3];
+        for v in values {
+            for (k, &c) in v.to_array().iter().enumerate() {
+                e[k] = e[k].max(exp(c));
+            }
+        }
+        DeltaGrid {
+            step: e.map(|e| 2f32.powi(e - (DELTA_BITS - 1))),
+        }
+    }
+
+    /// `v` on the grid: each component rounded half away from zero to a multiple of its step,
+    /// its magnitude kept below `2^e`.
+    pub fn round(&self, v: glam::Vec3) -> glam::Vec3 {
+        let max = ((1 << (DELTA_BITS - 1)) - 1) as f32;
+        let a = v.to_array();
+        glam::Vec3::from_array([0, 1, 2].map(|k| {
+            let m = (a[k] / self.step[k]).round().clamp(-max, max);
+            // + 0.0: a zero is stored as +0, as the filter's decoder gives it back
+            m * self.step[k] + 0.0
+        }))
+    }
+}
+
+/// Float `VEC3` deltas (stride 12) as the exponential filter stores them, and the bytes its
+/// decoder gives back (the same bytes when the deltas lie on their [`DeltaGrid`]).
+pub fn exponential_deltas(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
+    let data: Vec<[f32; 3]> = bytes
+        .chunks_exact(12)
+        .map(|c| [0, 4, 8].map(|k| f32::from_le_bytes([c[k], c[k + 1], c[k + 2], c[k + 3]])))
+        .collect();
+    let encoded =
+        meshopt::encode_filter_exp::<3>(&data, DELTA_BITS, meshopt::EncodeExpMode::SharedComponent);
+    let mut decoded = encoded.clone();
+    meshopt::decode_filter_exp(&mut decoded);
+    let flat = |v: &[[u32; 3]]| v.iter().flatten().flat_map(|u| u.to_le_bytes()).collect();
     (flat(&encoded), flat(&decoded))
 }
 
@@ -387,6 +446,52 @@ mod tests {
         }
         let bad = MeshoptView { count: 89, ..v };
         assert!(decode_view(&bad, &enc, &mut out[..178]).is_err());
+    }
+
+    #[test]
+    fn deltas_on_their_grid_pass_the_exponential_filter_unchanged() {
+        let raw: Vec<glam::Vec3> = (0..500)
+            .map(|i| {
+                let f = i as f32;
+                glam::Vec3::new(
+                    (f * 0.731).sin() * 812.3,
+                    (f * 1.37).cos() * 0.02,
+                    -f * 1.999 + 3.0,
+                )
+            })
+            .collect();
+        let grid = DeltaGrid::fit(&raw);
+        // on the grid, then some shortened by arbitrary factors (as the guard does) and rounded
+        let on: Vec<glam::Vec3> = raw
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| grid.round(if i % 3 == 0 { v * 0.37 } else { v }))
+            .collect();
+        for (a, b) in raw.iter().zip(&on).skip(1).step_by(3) {
+            assert!(
+                (*a - *b).abs().max_element() <= 2f32.powi(10 - 15),
+                "{a} {b}"
+            );
+        }
+        let bytes: Vec<u8> = on
+            .iter()
+            .flat_map(|v| v.to_array())
+            .flat_map(f32::to_le_bytes)
+            .collect();
+        let (_, decoded) = exponential_deltas(&bytes);
+        assert_eq!(decoded, bytes);
+        // one value rounding up to the power of two would have changed the exponent: kept below
+        let edge = [
+            glam::Vec3::new(1023.9999, 0.0, 0.0),
+            glam::Vec3::new(3.0, 0.0, 0.0),
+        ];
+        let g = DeltaGrid::fit(&edge);
+        let on: Vec<u8> = edge
+            .iter()
+            .flat_map(|&v| g.round(v).to_array())
+            .flat_map(f32::to_le_bytes)
+            .collect();
+        assert_eq!(exponential_deltas(&on).1, on);
     }
 
     #[test]

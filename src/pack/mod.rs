@@ -32,8 +32,11 @@
 //! direction (the Stanford dragon kept 158 inverted outer-shell triangles that way). A float
 //! delta costs 4 more bytes per vertex than an `i16` one; scaling an `i16` delta up and the layer
 //! weights down would keep it at 8 bytes but breaks every client's bounding box (three.js adds
-//! the whole target to the bounds). Then `guard.rs` checks the stored geometry, so no layer
-//! triangle of the written file inverts.
+//! the whole target to the bounds). The floats lie on the exponent filter's grid (16-bit
+//! mantissas, one exponent per component: at most 1/64 of a grid step off, see
+//! [`crate::compress::DeltaGrid`]), so `--compress meshopt` stores them exactly with its
+//! `EXPONENTIAL` filter. Then `guard.rs` checks the stored geometry (deltas as rounded onto that
+//! grid), so no layer triangle of the written file inverts.
 
 mod guard;
 mod model;
@@ -365,8 +368,19 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 .iter()
                 .map(|&p| grid.quantize(p).map(f32::from).into())
                 .collect();
-            let check = guard::MorphPath { base: &base, top };
-            guard::guard(&base, &mut deltas, &guarded_indices, &check)
+            // deltas are stored on the exponent filter's grid (compressed or not, so a
+            // compressed file's twin is the plain file), and checked as stored
+            let grid = crate::compress::DeltaGrid::fit(&deltas);
+            let check = guard::MorphPath {
+                base: &base,
+                top,
+                grid: Some(grid),
+            };
+            let n = guard::guard(&base, &mut deltas, &guarded_indices, &check);
+            for d in &mut deltas {
+                *d = grid.round(*d);
+            }
+            n
         }
         Layout::SingleDraw => {
             let base: Vec<Vec3> = positions
