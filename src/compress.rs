@@ -326,32 +326,21 @@ pub fn decode_view(v: &MeshoptView, src: &[u8], dst: &mut [u8]) -> Result<(), St
             v.count
         ));
     }
+    let decode = match v.mode {
+        Mode::Attributes => meshopt::ffi::meshopt_decodeVertexBuffer,
+        Mode::Triangles => meshopt::ffi::meshopt_decodeIndexBuffer,
+        Mode::Indices => meshopt::ffi::meshopt_decodeIndexSequence,
+    };
     // SAFETY: `dst` holds exactly `count × byte_stride` bytes (checked above); the decoders
     // read at most `src.len()` bytes and are safe for any input.
     let rc = unsafe {
-        match v.mode {
-            Mode::Attributes => meshopt::ffi::meshopt_decodeVertexBuffer(
-                dst.as_mut_ptr().cast(),
-                v.count,
-                v.byte_stride,
-                src.as_ptr(),
-                src.len(),
-            ),
-            Mode::Triangles => meshopt::ffi::meshopt_decodeIndexBuffer(
-                dst.as_mut_ptr().cast(),
-                v.count,
-                v.byte_stride,
-                src.as_ptr(),
-                src.len(),
-            ),
-            Mode::Indices => meshopt::ffi::meshopt_decodeIndexSequence(
-                dst.as_mut_ptr().cast(),
-                v.count,
-                v.byte_stride,
-                src.as_ptr(),
-                src.len(),
-            ),
-        }
+        decode(
+            dst.as_mut_ptr().cast(),
+            v.count,
+            v.byte_stride,
+            src.as_ptr(),
+            src.len(),
+        )
     };
     if rc != 0 {
         return Err(format!(

@@ -462,18 +462,12 @@ fn bake_surface(
     } else {
         Vec::new()
     };
-    let bounds: Vec<Vec<u8>> = if cull_runs && levels.iter().any(|l| l.base.is_none()) {
-        masks
-            .iter()
-            .map(|m| cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, &mesh.indices))
-            .collect()
-    } else {
-        Vec::new()
-    };
     // each level's triangles: the render mesh's, or its simplified base's
     fn level_indices<'a>(l: &'a lod::Level, mesh: &'a Mesh) -> &'a [u32] {
         l.base.as_ref().map_or(&mesh.indices, |b| &b.indices)
     }
+    // the render mesh's bounds per mip, made when a level over its triangles first asks
+    let mut mesh_bounds: Vec<Option<Vec<u8>>> = vec![None; masks.len()];
     let culled: Vec<cull::Culled> = levels
         .iter()
         .map(|level| {
@@ -482,13 +476,15 @@ fn bake_surface(
                 return cull::Culled::none(indices.len() / 3, level.layers.len().max(1));
             }
             let m = &masks[mip_of(level)];
+            let triangle_bounds =
+                || cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, indices);
             let own;
             let bounds = match level.base {
                 Some(_) => {
-                    own = cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, indices);
+                    own = triangle_bounds();
                     &own
                 }
-                None => &bounds[mip_of(level)],
+                None => &*mesh_bounds[mip_of(level)].get_or_insert_with(triangle_bounds),
             };
             let cutoffs: Vec<f32> = level.layers.iter().map(|l| m.cutoff(l.step)).collect();
             cull::layer_tops(

@@ -178,82 +178,95 @@ pub struct Base<'a> {
     pub density: Option<&'a [u8]>,
 }
 
-/// Simplifies `base` chunk by chunk to an absolute error of `target` world units. Each
-/// chunk's border is locked (neighbouring chunks at other levels meet without cracks, and open
-/// borders of the mesh stay); UV seams hold because meshopt collapses seam vertices only along
-/// their seam. The error weighs, besides position: the extrusion vector (a different extrusion
-/// moves the tips by its difference, world units), the texture coordinates scaled by the world
-/// size of a UV unit (strands slide by that much), and the density scaled by the shell height.
-/// A chunk that would lose every triangle keeps its own.
-pub fn simplify_base(base: &Base, target: f64) -> SimplifiedBase {
-    let mesh = base.mesh;
-    let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
-    // world units per UV unit: √(world area / UV area) over the mesh
-    let (mut world, mut uv_area) = (0.0f64, 0.0f64);
-    for t in mesh.indices.chunks_exact(3) {
-        let p = |k: usize| mesh.positions[t[k] as usize];
-        world += (p(1) - p(0)).cross(p(2) - p(0)).length() as f64;
-        if !uvs.is_empty() {
-            let u = |k: usize| uvs[t[k] as usize];
-            uv_area += (u(1) - u(0)).perp_dot(u(2) - u(0)).abs() as f64;
-        }
-    }
-    let uv_scale = if uv_area > 0.0 && world > 0.0 {
-        (world / uv_area).sqrt() as f32
-    } else {
-        0.0
-    };
-    let height = base.delta.iter().map(|d| d.length()).fold(0.0f32, f32::max);
+/// Simplifies a [`Base`] chunk by chunk, at any error: the per-vertex attributes and their
+/// weights are gathered once, for every level.
+///
+/// Each chunk's border is locked (neighbouring chunks at other levels meet without cracks, and
+/// open borders of the mesh stay); UV seams hold because meshopt collapses seam vertices only
+/// along their seam. The error weighs, besides position: the extrusion vector (a different
+/// extrusion moves the tips by its difference, world units), the texture coordinates scaled by
+/// the world size of a UV unit (strands slide by that much), and the density scaled by the
+/// shell height. A chunk that would lose every triangle keeps its own.
+pub struct Simplifier<'a> {
+    base: &'a Base<'a>,
+    /// Per vertex: u, v, the extrusion vector, the density ([`Simplifier::STRIDE`] floats).
+    attributes: Vec<f32>,
+    weights: [f32; Simplifier::STRIDE],
+}
+
+impl<'a> Simplifier<'a> {
     const STRIDE: usize = 6;
-    let mut attributes = Vec::with_capacity(mesh.vertex_count() * STRIDE);
-    for v in 0..mesh.vertex_count() {
-        let uv = uvs.get(v).copied().unwrap_or_default();
-        let d = base.delta[v];
-        let density = base.density.map_or(1.0, |d| d[v] as f32 / 255.0);
-        attributes.extend([uv.x, uv.y, d.x, d.y, d.z, density]);
-    }
-    let weights = [uv_scale, uv_scale, 1.0, 1.0, 1.0, height];
-    let positions: &[u8] = bytemuck::cast_slice(&mesh.positions);
-    let adapter = meshopt::VertexDataAdapter::new(positions, 12, 0).expect("f32 positions");
-    let locks = vec![false; mesh.vertex_count()];
-    let mut indices = Vec::new();
-    let mut chunks = Vec::with_capacity(base.chunks.len());
-    let mut error = 0.0f64;
-    for tris in base.chunks {
-        let ix: Vec<u32> = tris
-            .iter()
-            .flat_map(|&t| {
-                mesh.indices[3 * t as usize..3 * t as usize + 3]
-                    .iter()
-                    .copied()
-            })
-            .collect();
-        let mut e = 0.0f32;
-        let mut out = meshopt::simplify_with_attributes_and_locks(
-            &ix,
-            &adapter,
-            &attributes,
-            &weights,
-            STRIDE * 4,
-            &locks,
-            0,
-            target as f32,
-            meshopt::SimplifyOptions::LockBorder | meshopt::SimplifyOptions::ErrorAbsolute,
-            Some(&mut e),
-        );
-        if out.is_empty() {
-            out = ix;
-            e = 0.0;
+
+    pub fn new(base: &'a Base<'a>) -> Simplifier<'a> {
+        let mesh = base.mesh;
+        let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
+        // world units per UV unit: √(world area / UV area) over the mesh
+        let (world, uv) = (crate::mesh::world_area(mesh), crate::mesh::uv_area(mesh));
+        let uv_scale = if uv > 0.0 && world > 0.0 {
+            (world / uv).sqrt() as f32
+        } else {
+            0.0
+        };
+        let height = base.delta.iter().map(|d| d.length()).fold(0.0f32, f32::max);
+        let mut attributes = Vec::with_capacity(mesh.vertex_count() * Self::STRIDE);
+        for v in 0..mesh.vertex_count() {
+            let uv = uvs.get(v).copied().unwrap_or_default();
+            let d = base.delta[v];
+            let density = base.density.map_or(1.0, |d| d[v] as f32 / 255.0);
+            attributes.extend([uv.x, uv.y, d.x, d.y, d.z, density]);
         }
-        error = error.max(e as f64);
-        let first = (indices.len() / 3) as u32;
-        chunks.push((first..first + (out.len() / 3) as u32).collect());
-        indices.extend(out);
+        Simplifier {
+            base,
+            attributes,
+            weights: [uv_scale, uv_scale, 1.0, 1.0, 1.0, height],
+        }
     }
-    SimplifiedBase {
-        indices,
-        chunks,
-        error,
+
+    /// The base simplified to an absolute error of `target` world units.
+    pub fn simplify(&self, target: f64) -> SimplifiedBase {
+        let mesh = self.base.mesh;
+        let positions: &[u8] = bytemuck::cast_slice(&mesh.positions);
+        let adapter = meshopt::VertexDataAdapter::new(positions, 12, 0).expect("f32 positions");
+        let locks = vec![false; mesh.vertex_count()];
+        let mut indices = Vec::new();
+        let mut chunks = Vec::with_capacity(self.base.chunks.len());
+        let mut error = 0.0f64;
+        for tris in self.base.chunks {
+            let ix: Vec<u32> = tris
+                .iter()
+                .flat_map(|&t| {
+                    mesh.indices[3 * t as usize..3 * t as usize + 3]
+                        .iter()
+                        .copied()
+                })
+                .collect();
+            let mut e = 0.0f32;
+            let mut out = meshopt::simplify_with_attributes_and_locks(
+                &ix,
+                &adapter,
+                &self.attributes,
+                &self.weights,
+                Self::STRIDE * 4,
+                &locks,
+                0,
+                target as f32,
+                meshopt::SimplifyOptions::LockBorder | meshopt::SimplifyOptions::ErrorAbsolute,
+                Some(&mut e),
+            );
+            if out.is_empty() {
+                out = ix;
+                e = 0.0;
+            }
+            error = error.max(e as f64);
+            let first = (indices.len() / 3) as u32;
+            chunks.push((first..first + (out.len() / 3) as u32).collect());
+            indices.extend(out);
+        }
+        SimplifiedBase {
+            indices,
+            chunks,
+            error,
+        }
     }
 }
 
@@ -287,10 +300,8 @@ pub fn build_lods(
 ) -> Vec<Level> {
     let lod0 = full_level(shells);
     // a level's simplified base (with `simplify`), within the level's own error
-    let simplified = |error: f64| {
-        base.filter(|_| params.simplify)
-            .map(|b| simplify_base(b, error))
-    };
+    let simplifier = base.filter(|_| params.simplify).map(Simplifier::new);
+    let simplified = |error: f64| simplifier.as_ref().map(|s| s.simplify(error));
     let n = shells.t.len();
     let h = shells.height as f64;
     let f = params.focal();
@@ -600,8 +611,9 @@ mod tests {
             delta: &delta,
             density: None,
         };
-        let coarse = simplify_base(&base, 0.2);
-        let fine = simplify_base(&base, 0.002);
+        let simplifier = Simplifier::new(&base);
+        let coarse = simplifier.simplify(0.2);
+        let fine = simplifier.simplify(0.002);
         assert!(
             coarse.indices.len() * 2 < mesh.indices.len(),
             "{}",
@@ -641,13 +653,11 @@ mod tests {
             .enumerate()
             .map(|(v, d)| *d * if v % 7 == 0 { 3.0 } else { 1.0 })
             .collect();
-        let kept = simplify_base(
-            &Base {
-                delta: &bumpy,
-                ..base
-            },
-            0.2,
-        );
+        let bumpy_base = Base {
+            delta: &bumpy,
+            ..base
+        };
+        let kept = Simplifier::new(&bumpy_base).simplify(0.2);
         assert!(kept.indices.len() > coarse.indices.len());
     }
 

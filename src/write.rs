@@ -190,11 +190,10 @@ pub fn gltf_json_with(
         .materials
         .iter()
         .any(|m| m.texture.is_some_and(|t| !t.is_identity()));
-    let present: Vec<&str> = EXTENSIONS
-        .iter()
-        .zip([quantized, transformed])
-        .filter(|(_, on)| *on)
-        .map(|(e, _)| *e)
+    let [quantization, transform] = EXTENSIONS;
+    let present: Vec<&str> = [(quantization, quantized), (transform, transformed)]
+        .into_iter()
+        .filter_map(|(e, on)| on.then_some(e))
         .collect();
     let mut used = present.clone();
     let mut required = present;

@@ -437,6 +437,20 @@ impl<'a> Fields<'a> {
             .transpose()
     }
 
+    /// The object's `KHR_meshopt_compression` (or, failing that, `EXT_meshopt_compression`)
+    /// extension object, named `<element>: <extension>`.
+    fn meshopt(&self) -> Result<Option<Fields<'a>>> {
+        let Some(extensions) = self.object("extensions", self.element.clone())? else {
+            return Ok(None);
+        };
+        for name in MESHOPT.iter().rev() {
+            if let Some(e) = extensions.object(name, format!("{}: {name}", self.element))? {
+                return Ok(Some(e));
+            }
+        }
+        Ok(None)
+    }
+
     /// An array of objects (absent: empty).
     fn array(&self, key: &str) -> Result<&'a [Value]> {
         match self.get(key) {
@@ -578,18 +592,10 @@ impl Document {
         let mut buffers = Vec::with_capacity(n.buffers);
         for f in each("buffers", "buffer")? {
             let f = f?;
-            let mut fallback = false;
-            for name in MESHOPT {
-                let here = format!("{}: {name}", f.element);
-                if let Some(e) = f
-                    .object("extensions", f.element.clone())?
-                    .map(|x| x.object(name, here))
-                    .transpose()?
-                    .flatten()
-                {
-                    fallback |= e.boolean("fallback")?.unwrap_or(false);
-                }
-            }
+            let fallback = match f.meshopt()? {
+                Some(e) => e.boolean("fallback")?.unwrap_or(false),
+                None => false,
+            };
             buffers.push(Buffer {
                 uri: f.string("uri")?.map(str::to_string),
                 byte_length: f.required_count("byteLength")?,
@@ -604,21 +610,11 @@ impl Document {
                 return Err(f.err(format!("byteStride {s} is outside 4..=252")));
             }
             let mut meshopt = None;
-            for name in MESHOPT {
-                let here = format!("{}: {name}", f.element);
-                let Some(e) = f
-                    .object("extensions", f.element.clone())?
-                    .map(|x| x.object(name, here))
-                    .transpose()?
-                    .flatten()
-                else {
-                    continue;
-                };
-                let word = |key: &str| -> Result<Option<&str>> { e.string(key) };
-                let mode = word("mode")?.ok_or_else(|| e.err("mode is missing"))?;
+            if let Some(e) = f.meshopt()? {
+                let mode = e.string("mode")?.ok_or_else(|| e.err("mode is missing"))?;
                 let mode = crate::compress::Mode::from_name(mode)
                     .ok_or_else(|| e.err(format!("unknown mode '{}'", escape(mode))))?;
-                let filter = match word("filter")? {
+                let filter = match e.string("filter")? {
                     None => crate::compress::Filter::None,
                     Some(s) => crate::compress::Filter::from_name(s)
                         .ok_or_else(|| e.err(format!("unknown filter '{}'", escape(s))))?,
@@ -863,6 +859,8 @@ impl Document {
             if m.buffer == view.buffer {
                 return Err(bad("decodes into the buffer it reads".into()));
             }
+            // the two buffers differ: decode from one into the other without copying
+            let mut target = std::mem::take(&mut buffers[view.buffer]);
             let src = buffers[m.buffer]
                 .get(m.byte_offset..m.byte_offset.saturating_add(m.byte_length))
                 .ok_or_else(|| {
@@ -870,10 +868,9 @@ impl Document {
                         "compressed bytes ({} at offset {}) run past buffer {}",
                         m.byte_length, m.byte_offset, m.buffer
                     ))
-                })?
-                .to_vec();
+                })?;
             let n = m.count.saturating_mul(m.byte_stride);
-            let dst = buffers[view.buffer]
+            let dst = target
                 .get_mut(view.byte_offset..view.byte_offset.saturating_add(n))
                 .filter(|_| n <= view.byte_length)
                 .ok_or_else(|| {
@@ -882,7 +879,8 @@ impl Document {
                         n, view.byte_length, view.byte_offset, view.buffer
                     ))
                 })?;
-            crate::compress::decode_view(m, &src, dst).map_err(bad)?;
+            crate::compress::decode_view(m, src, dst).map_err(bad)?;
+            buffers[view.buffer] = target;
         }
         Ok(())
     }

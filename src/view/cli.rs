@@ -220,10 +220,9 @@ pub fn bench(
         let (lo, hi) = full.surfaces.iter().fold(
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), s| {
-                s.mesh.positions.iter().fold((lo, hi), |(lo, hi), p| {
-                    let w = s.mesh.origin + p.as_dvec3();
-                    (lo.min(w), hi.max(w))
-                })
+                let (a, b) = s.mesh.bounds();
+                let o = s.mesh.origin;
+                (lo.min(o + a.as_dvec3()), hi.max(o + b.as_dvec3()))
             },
         );
         camera_path(lo, hi, aspect)
