@@ -19,7 +19,7 @@ use clap::{Args, Parser, Subcommand};
 use image::ImageEncoder as _;
 use shellbake::compress::{Compression, MeshoptExtension};
 use shellbake::orient::OrientMode;
-use shellbake::pack::Quantize;
+use shellbake::pack::{LayerWeights, Quantize};
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::{Effect, SceneFile};
 
@@ -140,6 +140,11 @@ struct BakeArgs {
     /// required extension, for clients that read no quantized attributes) [default: khr].
     #[arg(long, value_parser = named(&Quantize::ALL, |q| q.name()))]
     quantize: Option<Quantize>,
+    /// Where compact layers' morph weights go: `node` (node.weights; lets gltfpack keep the
+    /// shared geometry once) or `mesh` (mesh.weights, for clients that read no node weights)
+    /// [default: node].
+    #[arg(long, value_parser = named(&LayerWeights::ALL, |w| w.name()))]
+    layer_weights: Option<LayerWeights>,
     /// Buffer compression: `meshopt` (vertex and index codecs) or `none` [default: the scene's
     /// `[output] compress`, else none].
     #[arg(long, value_parser = named(&Compression::ALL, |c| c.name()))]
@@ -195,6 +200,9 @@ impl BakeArgs {
         }
         if let Some(q) = self.quantize {
             p.pack.quantize = q;
+        }
+        if let Some(w) = self.layer_weights {
+            p.pack.layer_weights = w;
         }
         if self.clamp && !effects.contains(&Effect::Collision) {
             effects.push(Effect::Collision);

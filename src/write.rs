@@ -365,6 +365,10 @@ fn node_json(n: &Node) -> Value {
     if let Some(m) = n.mesh {
         o.insert("mesh".into(), json!(m));
     }
+    if !n.weights.is_empty() {
+        let weights: Vec<Value> = n.weights.iter().map(|&w| num(w)).collect();
+        o.insert("weights".into(), json!(weights));
+    }
     if !n.children.is_empty() {
         o.insert("children".into(), json!(n.children));
     }

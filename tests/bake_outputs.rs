@@ -100,10 +100,23 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
     let order = &baked.packed.vertex_order;
     let nv = order.len();
     let mesh = &baked.mesh;
-    // Bound: one grid step per component, plus f32 rounding of the relative coordinates.
-    let bound = s * 1.0001 + 1e-6 * mesh.diagonal() as f64;
-    let mut worst: f64 = 0.0;
+    // the node scales stored units: 32767 grid steps for normalized i16 positions
     let meshes = glb.json["meshes"].as_array().unwrap();
+    let position = &glb.json["accessors"][meshes[0]["primitives"][0]["attributes"]["POSITION"]
+        .as_u64()
+        .unwrap() as usize];
+    let step = if position["normalized"].as_bool() == Some(true) {
+        assert_eq!(
+            position["componentType"], 5122,
+            "{what}: normalized positions are i16"
+        );
+        s / 32767.0
+    } else {
+        s
+    };
+    // Bound: one grid step per component, plus f32 rounding of the relative coordinates.
+    let bound = step * 1.0001 + 1e-6 * mesh.diagonal() as f64;
+    let mut worst: f64 = 0.0;
     // LOD 0's meshes (one per layer in compact, one for all layers in single-draw); culling
     // drops empty layers and, in single-draw, keeps only each layer's vertex prefix
     let lod0 = baked.packed.layer_meshes();
@@ -111,14 +124,15 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
         let (prim, weight, offset, count) = match baked.packed.layout {
             Layout::Compact => {
                 // culling drops empty layers: find layer j's mesh by its name
-                let Some(m) = lod0
+                let Some(mi) = lod0
                     .iter()
-                    .map(|&m| &meshes[m])
-                    .find(|m| layer_of(m["name"].as_str().unwrap()) == j)
+                    .copied()
+                    .find(|&m| layer_of(meshes[m]["name"].as_str().unwrap()) == j)
                 else {
                     continue;
                 };
-                let w = m["weights"][0].as_f64().unwrap_or(0.0);
+                let m = &meshes[mi];
+                let w = glb.weight(mi).unwrap_or(0.0);
                 if j > 0 {
                     assert!((w - t as f64).abs() < 1e-6, "{what}: weight {w} vs t {t}");
                 }
@@ -148,7 +162,7 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
             let o = old as usize;
             let want = mesh.origin + (mesh.positions[o] + baked.shells.delta[o] * t).as_dvec3();
             let err = (got - want).abs().max_element();
-            worst = worst.max(err / s);
+            worst = worst.max(err / step);
             assert!(
                 err <= bound,
                 "{what}: layer {j} vertex {i}: error {err} > bound {bound}"

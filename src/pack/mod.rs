@@ -47,7 +47,7 @@ pub use model::{
     PackedSurface, Primitive, Semantic, ShellExtras, Stream, StreamKind, Tag, Texture, TextureRef,
 };
 
-pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid};
+pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid, SNORM16};
 
 use glam::{Vec2, Vec3};
 use image::ImageEncoder;
@@ -115,6 +115,30 @@ impl Quantize {
     }
 }
 
+/// Where a compact layer's morph weight `t_j` is written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LayerWeights {
+    /// On the layer's node (`node.weights`): a mesh without default weights is one that
+    /// gltfpack may share between layers, so running it over the file keeps the geometry once
+    /// (with mesh weights it copies the geometry into every layer).
+    #[default]
+    Node,
+    /// On the layer's mesh (`mesh.weights`), for clients that read no node weights.
+    Mesh,
+}
+
+impl LayerWeights {
+    pub const ALL: [LayerWeights; 2] = [LayerWeights::Node, LayerWeights::Mesh];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LayerWeights::Node => "node",
+            LayerWeights::Mesh => "mesh",
+        }
+    }
+}
+
 /// Pack stage parameters (`pack/`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -125,6 +149,8 @@ pub struct PackParams {
     pub position_bits: u32,
     /// Attribute storage: quantized (`KHR_mesh_quantization`) or floats.
     pub quantize: Quantize,
+    /// Where layer weights are written.
+    pub layer_weights: LayerWeights,
 }
 
 impl Default for PackParams {
@@ -133,6 +159,7 @@ impl Default for PackParams {
             layout: Layout::Compact,
             position_bits: 14,
             quantize: Quantize::Khr,
+            layer_weights: LayerWeights::Node,
         }
     }
 }
@@ -362,6 +389,12 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     {
         guarded_indices.extend_from_slice(l.indices);
     }
+    // quantized positions are stored in units of 32767 grid steps (normalized i16), float
+    // ones in grid steps; the morph target is in the same unit
+    let unit = match params.quantize {
+        Quantize::Khr => SNORM16,
+        Quantize::None => 1.0,
+    };
     let guarded = match params.layout {
         Layout::Compact => {
             let base: Vec<Vec3> = positions
@@ -370,15 +403,17 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 .collect();
             // deltas are stored on the exponent filter's grid (compressed or not, so a
             // compressed file's twin is the plain file), and checked as stored
-            let grid = crate::compress::DeltaGrid::fit(&deltas);
+            let stored: Vec<Vec3> = deltas.iter().map(|&d| d / unit).collect();
+            let delta_grid = crate::compress::DeltaGrid::fit(&stored);
             let check = guard::MorphPath {
                 base: &base,
                 top,
-                grid: Some(grid),
+                grid: Some((delta_grid, unit)),
             };
             let n = guard::guard(&base, &mut deltas, &guarded_indices, &check);
+            // from here on, compact deltas are in the stored unit
             for d in &mut deltas {
-                *d = grid.round(*d);
+                *d = delta_grid.round(*d / unit);
             }
             n
         }
@@ -556,11 +591,16 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             let nodes: Vec<usize> = meshes
                 .iter()
                 .map(|&m| {
-                    let mesh = &b.out.meshes[m];
+                    let mesh = &mut b.out.meshes[m];
+                    let weights = match params.layer_weights {
+                        LayerWeights::Node => std::mem::take(&mut mesh.weights),
+                        LayerWeights::Mesh => vec![],
+                    };
                     let node = Node {
                         name: mesh.name.clone(),
                         tag: mesh.tag,
                         mesh: Some(m),
+                        weights,
                         ..Node::default()
                     };
                     Packed::push(&mut b.out.nodes, node)
@@ -610,7 +650,16 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         chunk_nodes.push(Packed::push(&mut b.out.nodes, node));
     }
 
-    let translation = grid.min.as_dvec3() + mesh.origin;
+    // the node that dequantizes: stored value → world
+    let (translation, scale) = if b.float {
+        (grid.min.as_dvec3() + mesh.origin, grid.step as f64)
+    } else {
+        let step = grid.step as f64;
+        (
+            grid.min.as_dvec3() + mesh.origin + step * grid.center() as f64,
+            step * SNORM16 as f64,
+        )
+    };
     let out = b.out;
     let lod0 = input.levels[0].level;
     out.nodes[root] = Node {
@@ -618,7 +667,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         tag,
         children: chunk_nodes,
         translation: Some(translation),
-        scale: Some(grid.step as f64),
+        scale: Some(scale),
         extras: Some(ShellExtras {
             layout: params.layout,
             height: input.height,
@@ -640,7 +689,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         uv_offset,
         uv_scale,
         translation,
-        scale: grid.step as f64,
+        scale,
         grid,
         float_uvs,
         base_vertices,
@@ -697,7 +746,7 @@ impl Shared {
             .iter()
             .map(|&p| g.grid.quantize(p))
             .collect();
-        let position = b.positions(&q);
+        let position = b.positions(&q, &g.grid);
         let normal = b.normals(&pick(g.normals));
         let shells = shells.then(|| {
             let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
@@ -787,26 +836,32 @@ impl Builder<'_> {
             .stream(name, semantic, target, self.tag, (bytes, stride, count))
     }
 
-    /// POSITION stream (u16 × 3, stride 8; floats of the same grid values, stride 12, without
-    /// quantization) with exact integer bounds.
-    fn positions(&mut self, q: &[[u16; 3]]) -> usize {
+    /// POSITION stream of grid levels `q`: normalized i16 centred on the grid (stride 8), or
+    /// floats of the grid levels (stride 12) without quantization, with exact bounds.
+    fn positions(&mut self, q: &[[u16; 3]], grid: &PositionGrid) -> usize {
         let mut bytes = Bytes::default();
-        let (mut lo, mut hi) = ([u16::MAX; 3], [0u16; 3]);
+        let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
         for p in q {
-            if self.float {
+            let v = if self.float {
                 bytes.f32s(&p.map(f32::from));
+                p.map(i32::from)
             } else {
-                bytes.u16s(p, 8);
-            }
+                let s = grid.stored(*p);
+                bytes.i16s(&s, 8);
+                s.map(i32::from)
+            };
             for c in 0..3 {
-                lo[c] = lo[c].min(p[c]);
-                hi[c] = hi[c].max(p[c]);
+                lo[c] = lo[c].min(v[c]);
+                hi[c] = hi[c].max(v[c]);
             }
         }
-        let (stride, component) = if self.float {
-            (12, component::FLOAT)
+        if q.is_empty() {
+            (lo, hi) = ([0; 3], [0; 3]);
+        }
+        let (stride, component, normalized) = if self.float {
+            (12, component::FLOAT, false)
         } else {
-            (8, component::UNSIGNED_SHORT)
+            (8, component::SHORT, true)
         };
         let v = self.stream(
             "position",
@@ -817,10 +872,12 @@ impl Builder<'_> {
             q.len(),
         );
         let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
-        self.out.accessor(v, component, false, "VEC3", Some(bounds))
+        self.out
+            .accessor(v, component, normalized, "VEC3", Some(bounds))
     }
 
-    /// Morph target 0: the extrusion delta as float, in grid units, with exact bounds.
+    /// Morph target 0: the extrusion delta as float, in the stored position unit, with exact
+    /// bounds.
     fn deltas(&mut self, deltas: &[Vec3]) -> usize {
         let mut bytes = Bytes::default();
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
@@ -1148,7 +1205,7 @@ fn single_draw(
         }
         all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
     }
-    let position = b.positions(&q);
+    let position = b.positions(&q, &g.grid);
     let pick = |j: usize| order[..layer_vertices[j]].iter().map(|&o| o as usize);
     let all_normals: Vec<Vec3> = (0..layers.len())
         .flat_map(|j| pick(j).map(|v| g.normals[v]))

@@ -195,6 +195,8 @@ pub struct Node {
     pub name: String,
     pub tag: Tag,
     pub mesh: Option<usize>,
+    /// Morph weights overriding the mesh's (empty: none).
+    pub weights: Vec<f32>,
     pub children: Vec<usize>,
     pub translation: Option<DVec3>,
     /// Uniform scale.

@@ -1,11 +1,17 @@
 //! Quantization of vertex attributes (KHR_mesh_quantization) and their byte encoding.
 //!
-//! - POSITION: unsigned integers of `bits` (default 14) on a **uniform** grid over the box that
-//!   holds the base and the fully extruded surface; the node carrying the mesh scales by the grid
-//!   step and translates to the box corner. Uniform, not per-axis, so normals need no correction
-//!   (a non-uniform node scale would bend them). Error ≤ step/2 per component.
-//! - Extrusion delta (morph target): 32-bit float in grid units (a precision of its own, see
-//!   `mod.rs`); the single-draw layout rounds each layer's positions to the grid instead.
+//! - POSITION: integers of `bits` (default 14) on a **uniform** grid over the box that holds the
+//!   base and the fully extruded surface, stored as normalized `i16` centred on the grid
+//!   (`q − 2^(bits−1)`, read as `(q − 2^(bits−1)) / 32767`); the node carrying the mesh scales by
+//!   `32767 ·` the grid step and translates to the box's grid centre. Uniform, not per-axis, so
+//!   normals need no correction (a non-uniform node scale would bend them). Error ≤ step/2 per
+//!   component. Normalized and signed, not plain `u16`, because general optimizers re-quantize
+//!   positions by writing transformed values back into the accessor's own array:
+//!   glTF-Transform's `quantize` (so `optimize`) turns plain integers into 0 and 1 there and
+//!   clamps negative values of normalized unsigned ones, flattening the surface; normalized
+//!   `i16` round-trips. [`SNORM16`] is the stored unit.
+//! - Extrusion delta (morph target): 32-bit float in the stored position unit (a precision of its
+//!   own, see `mod.rs`); the single-draw layout rounds each layer's positions to the grid instead.
 //! - NORMAL: normalized `i8`, searched among the 8 integer vectors around the exact one (each
 //!   component rounded down or up) for the one closest to unit length, so dequantized normals
 //!   are unit to ~4e-3.
@@ -68,6 +74,16 @@ impl PositionGrid {
         let q = ((p - self.min) / self.step).round();
         let top = self.max_level() as f32;
         [q.x, q.y, q.z].map(|v| v.clamp(0.0, top) as u16)
+    }
+
+    /// The grid level stored as zero (`2^(bits−1)`).
+    pub fn center(&self) -> u32 {
+        1 << (self.bits - 1)
+    }
+
+    /// Level `q` as stored: normalized `i16`, centred (`bits` ≤ 15 keeps it within ±16384).
+    pub fn stored(&self, q: [u16; 3]) -> [i16; 3] {
+        q.map(|v| (v as i32 - self.center() as i32) as i16)
     }
 
     pub fn dequantize(&self, q: [u16; 3]) -> Vec3 {
@@ -138,12 +154,22 @@ impl UvGrid {
     }
 }
 
+/// What a normalized `i16` of 1 reads as 1/32767 of: one stored position unit is this many
+/// grid steps.
+pub const SNORM16: f32 = 32767.0;
+
 /// Little-endian byte writer for interleaved-free, padded attribute streams.
 #[derive(Default)]
 pub struct Bytes(pub Vec<u8>);
 
 impl Bytes {
     pub fn u16s(&mut self, v: &[u16], pad_to: usize) {
+        for x in v {
+            self.0.extend_from_slice(&x.to_le_bytes());
+        }
+        self.pad_element(v.len() * 2, pad_to);
+    }
+    pub fn i16s(&mut self, v: &[i16], pad_to: usize) {
         for x in v {
             self.0.extend_from_slice(&x.to_le_bytes());
         }

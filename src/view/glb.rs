@@ -532,12 +532,24 @@ impl Asset {
                     let (Some(a), Some(b)) = (acc["min"].as_array(), acc["max"].as_array()) else {
                         continue;
                     };
+                    // bounds of a normalized accessor are in its integer range
+                    let unit = match (acc["normalized"].as_bool(), acc["componentType"].as_u64()) {
+                        (Some(true), Some(5120)) => 127.0,
+                        (Some(true), Some(5121)) => 255.0,
+                        (Some(true), Some(5122)) => 32767.0,
+                        (Some(true), Some(5123)) => 65535.0,
+                        _ => 1.0,
+                    };
                     let v = |x: &Vec<Value>| {
-                        DVec3::new(
-                            x[0].as_f64().unwrap_or(0.0),
-                            x[1].as_f64().unwrap_or(0.0),
-                            x[2].as_f64().unwrap_or(0.0),
-                        )
+                        let c = |i: usize| {
+                            let f = x[i].as_f64().unwrap_or(0.0);
+                            if unit > 1.0 {
+                                (f / unit).max(-1.0)
+                            } else {
+                                f
+                            }
+                        };
+                        DVec3::new(c(0), c(1), c(2))
                     };
                     for c in [v(a), v(b)] {
                         let w = p.world.transform_point3(c);

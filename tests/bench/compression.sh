@@ -13,10 +13,6 @@ out="${1:-out/bench-compression}"
 runs="${RUNS:-3}"
 mkdir -p "$out"
 bash tests/setup.sh >/dev/null
-if [ ! -d tests/bench/node_modules/gltfpack ] || [ tests/bench/package-lock.json -nt tests/bench/node_modules ]; then
-  (cd tests/bench && npm ci --no-audit --no-fund --loglevel=error) >&2
-  touch tests/bench/node_modules
-fi
 cargo build --release --quiet --bin shellbake --example explicit_shells
 shellbake=target/release/shellbake
 gltfpack=tests/bench/node_modules/.bin/gltfpack

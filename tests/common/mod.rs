@@ -46,6 +46,17 @@ impl Glb {
     }
 
     /// Accessor `i` as rows of f64 components, dequantized if `normalized`.
+    /// Mesh `m`'s first morph weight as drawn: its node's weights (which override the mesh's),
+    /// else the mesh's.
+    pub fn weight(&self, m: usize) -> Option<f64> {
+        let node = self.json["nodes"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .find(|n| n["mesh"].as_u64() == Some(m as u64) && n["weights"].is_array());
+        node.map_or(&self.json["meshes"][m], |n| n)["weights"][0].as_f64()
+    }
+
     pub fn accessor(&self, i: usize) -> Vec<Vec<f64>> {
         let a = &self.json["accessors"][i];
         let view = &self.json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
@@ -206,7 +217,7 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
             inverted += (dot(normal(&layer), n0) <= 0.0) as usize;
         }
     };
-    for mesh in g.json["meshes"].as_array().unwrap() {
+    for (mi, mesh) in g.json["meshes"].as_array().unwrap().iter().enumerate() {
         let prim = &mesh["primitives"][0];
         let Some(ix) = prim["indices"].as_u64() else {
             continue;
@@ -218,7 +229,7 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
             .collect();
         let pos = g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
         if let Some(target) = prim["targets"][0]["POSITION"].as_u64() {
-            let w = mesh["weights"][0].as_f64().unwrap();
+            let w = g.weight(mi).unwrap();
             let d = g.accessor(target as usize);
             for t in ix.chunks_exact(3) {
                 let base = [0, 1, 2].map(|k| row(&pos[t[k]]));
