@@ -39,6 +39,7 @@
 //! trilinear filtering (the glTF sampler's, and every client's default).
 
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 
 use crate::strands;
 
@@ -87,21 +88,22 @@ impl MaxPyramid {
     /// lie outside the level: they wrap).
     pub fn rect_max(&self, x: (i64, i64), y: (i64, i64)) -> u8 {
         let s = self.size as i64;
-        let xs = wrap_ranges(x, s);
-        let ys = wrap_ranges(y, s);
+        let (xs, nx) = wrap_ranges(x, s);
+        let (ys, ny) = wrap_ranges(y, s);
+        let (xs, ys) = (&xs[..nx], &ys[..ny]);
         let mut m = 0usize;
         let blocks = |r: &[(i64, i64)], m: usize| -> i64 {
             r.iter().map(|&(a, b)| (b >> m) - (a >> m) + 1).sum()
         };
-        while m + 1 < self.levels.len() && (blocks(&xs, m) > 4 || blocks(&ys, m) > 4) {
+        while m + 1 < self.levels.len() && (blocks(xs, m) > 4 || blocks(ys, m) > 4) {
             m += 1;
         }
         let level = &self.levels[m];
         let width = (s as u64).div_ceil(1 << m) as i64;
         let mut best = 0u8;
-        for &(ya, yb) in &ys {
+        for &(ya, yb) in ys {
             for by in (ya >> m)..=(yb >> m) {
-                for &(xa, xb) in &xs {
+                for &(xa, xb) in xs {
                     for bx in (xa >> m)..=(xb >> m) {
                         best = best.max(level[(by * width + bx) as usize]);
                     }
@@ -112,16 +114,16 @@ impl MaxPyramid {
     }
 }
 
-/// `a..=b` wrapped into `0..s`: one or two ranges, or the whole of it.
-fn wrap_ranges((a, b): (i64, i64), s: i64) -> Vec<(i64, i64)> {
+/// `a..=b` wrapped into `0..s`: one or two ranges (the first `n` of the pair), or the whole of it.
+fn wrap_ranges((a, b): (i64, i64), s: i64) -> ([(i64, i64); 2], usize) {
     if b - a + 1 >= s {
-        return vec![(0, s - 1)];
+        return ([(0, s - 1), (0, 0)], 1);
     }
     let (a, b) = (a.rem_euclid(s), b.rem_euclid(s));
     if a <= b {
-        vec![(a, b)]
+        ([(a, b), (0, 0)], 1)
     } else {
-        vec![(0, b), (a, s - 1)]
+        ([(0, b), (a, s - 1)], 2)
     }
 }
 
@@ -173,7 +175,11 @@ pub fn triangle_bounds(alpha: &[u8], size: u32, uvs: &[Vec2], indices: &[u32]) -
         .into_iter()
         .map(|(s, v)| MaxPyramid::new(v, s))
         .collect();
-    footprints(uvs, indices)
+    // triangles in parallel: each bound depends on its triangle only (same bytes on any count
+    // of threads)
+    indices
+        .par_chunks(3 * 4096)
+        .flat_map_iter(|chunk| footprints(uvs, chunk))
         .map(|(lo, hi)| {
             let mut best = 0u8;
             for p in &pyramids {
@@ -405,9 +411,13 @@ mod tests {
 
     #[test]
     fn wrapped_ranges() {
-        assert_eq!(wrap_ranges((-2, 1), 8), vec![(0, 1), (6, 7)]);
-        assert_eq!(wrap_ranges((6, 9), 8), vec![(0, 1), (6, 7)]);
-        assert_eq!(wrap_ranges((3, 5), 8), vec![(3, 5)]);
-        assert_eq!(wrap_ranges((-20, 20), 8), vec![(0, 7)]);
+        let ranges = |r: (i64, i64)| {
+            let (v, n) = wrap_ranges(r, 8);
+            v[..n].to_vec()
+        };
+        assert_eq!(ranges((-2, 1)), vec![(0, 1), (6, 7)]);
+        assert_eq!(ranges((6, 9)), vec![(0, 1), (6, 7)]);
+        assert_eq!(ranges((3, 5)), vec![(3, 5)]);
+        assert_eq!(ranges((-20, 20)), vec![(0, 7)]);
     }
 }

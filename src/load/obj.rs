@@ -32,30 +32,36 @@ pub const MAX_EAR_CLIP: usize = 64;
 
 pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
     let bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
-    let lines = prescan(path, bytes)?;
+    let parse = |text: &[u8]| {
+        let options = tobj::LoadOptions {
+            triangulate: false,
+            single_index: true,
+            ignore_points: true,
+            ignore_lines: true,
+        };
+        let mut reader = std::io::BufReader::new(text);
+        tobj::load_obj_buf(&mut reader, &options, |_| {
+            // Materials do not affect shells; a missing .mtl must not fail the bake.
+            Ok((Vec::new(), Default::default()))
+        })
+        .map(|(models, _)| models)
+    };
+    // the check (which names the line of any error) and the parse run side by side; the
+    // check's verdict comes first, and a file with `l` statements is parsed again without them
+    let (lines, parsed) = rayon::join(|| prescan(path, bytes), || parse(bytes));
+    let lines = lines?;
     let mut scene = Scene::default();
-    let text = match lines {
-        0 => std::borrow::Cow::Borrowed(bytes),
+    let parsed = match lines {
+        0 => parsed,
         n => {
             scene.warnings.push(format!(
                 "{}: {n} line statement(s) ('l') skipped: lines are not surfaces",
                 path.display()
             ));
-            std::borrow::Cow::Owned(without_lines(bytes))
+            parse(&without_lines(bytes))
         }
     };
-    let options = tobj::LoadOptions {
-        triangulate: false,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let mut reader = std::io::BufReader::new(&text[..]);
-    let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| {
-        // Materials do not affect shells; a missing .mtl must not fail the bake.
-        Ok((Vec::new(), Default::default()))
-    })
-    .map_err(|e| {
+    let models = parsed.map_err(|e| {
         Error::invalid(
             path,
             "obj",
