@@ -16,6 +16,7 @@
 //! | strands | [`strands`] | [`strands::bake_mask`] |
 //! | tiling | [`tiling`] | [`tiling::mask_tiling`] |
 //! | shells | [`shells`] | [`shells::build_shells`] |
+//! | gravity (effect `gravity`) | [`gravity`] | [`gravity::bend`] |
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
 //! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
 //! | pack | [`pack`] | [`pack::pack`] |
@@ -33,6 +34,7 @@ pub mod compress;
 pub mod cull;
 pub mod error;
 pub mod frames;
+pub mod gravity;
 pub mod grid;
 pub mod load;
 pub mod lod;
@@ -429,6 +431,13 @@ fn bake_surface(
         )
     });
     report.count("layers", shells.t.len() as f64);
+    let mut shells = shells;
+    let bend = gravity::Bend::of(&params.gravity);
+    shells.bend = report
+        .gate(plan, Stage::Gravity, i, || {
+            gravity::bend(&shells.delta, &bend)
+        })
+        .map(|b| (b, bend));
 
     let lod_runs = plan.runs(Stage::Lod, i);
     let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
@@ -558,6 +567,7 @@ fn bake_surface(
         prefix: &prefix,
         density: density_map.as_deref(),
         fur_weight: fur_weight.as_deref(),
+        bend: shells.bend.as_ref().map(|(_, b)| *b),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(

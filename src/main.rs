@@ -121,6 +121,10 @@ struct BakeArgs {
     /// vertex): the effect `collision` on every surface. Shells are always kept from inverting.
     #[arg(long)]
     clamp: bool,
+    /// Bend the strands down (the effect `gravity`; `[surface.gravity]` in a scene file sets
+    /// direction, strength and exponent).
+    #[arg(long)]
+    gravity: bool,
     /// Drop layer triangles on which no strand can survive (the effect `cull`; changes no pixel).
     #[arg(long, overrides_with = "no_cull")]
     cull: bool,
@@ -204,9 +208,14 @@ impl BakeArgs {
         if let Some(w) = self.layer_weights {
             p.pack.layer_weights = w;
         }
-        if self.clamp && !effects.contains(&Effect::Collision) {
-            effects.push(Effect::Collision);
-            effects.sort();
+        for (on, effect) in [
+            (self.clamp, Effect::Collision),
+            (self.gravity, Effect::Gravity),
+        ] {
+            if on && !effects.contains(&effect) {
+                effects.push(effect);
+                effects.sort();
+            }
         }
         for (on, effect) in [(self.cull, Effect::Cull), (self.lod, Effect::Lod)] {
             if on && !effects.contains(&effect) {

@@ -80,6 +80,8 @@ pub struct BakeParams {
     pub shade: ShadeParams,
     pub lod: LodParams,
     pub pack: PackParams,
+    /// The `gravity` effect's bend (used only when a surface asks for the effect).
+    pub gravity: crate::gravity::GravityParams,
 }
 
 /// Keys whose value replaces the base value whole instead of merging into it: a strand model
@@ -132,6 +134,7 @@ impl BakeParams {
         self.shade.check().map_err(|e| e.within("shade"))?;
         self.lod.check().map_err(|e| e.within("lod"))?;
         self.pack.check().map_err(|e| e.within("pack"))?;
+        self.gravity.check().map_err(|e| e.within("gravity"))?;
         Ok(())
     }
 

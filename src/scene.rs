@@ -53,10 +53,18 @@ pub enum Effect {
     Cull,
     /// Distance LOD levels and chunks (on by default; `--no-lod`, `"no-lod"`).
     Lod,
+    /// Bend the strands toward a direction (world gravity or a comb), a second morph target
+    /// weighted `t^k` (`--gravity`, `[surface.gravity]`).
+    Gravity,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 3] = [Effect::Collision, Effect::Cull, Effect::Lod];
+    pub const ALL: [Effect; 4] = [
+        Effect::Collision,
+        Effect::Cull,
+        Effect::Lod,
+        Effect::Gravity,
+    ];
     /// The effects every surface has unless its effect list says `no-<name>` (`--no-cull`,
     /// `--no-lod`).
     pub const DEFAULT: [Effect; 2] = [Effect::Cull, Effect::Lod];
@@ -66,6 +74,7 @@ impl Effect {
             Effect::Collision => "collision",
             Effect::Cull => "cull",
             Effect::Lod => "lod",
+            Effect::Gravity => "gravity",
         }
     }
 
@@ -79,6 +88,7 @@ impl Effect {
             Effect::Collision => Stage::Collision,
             Effect::Cull => Stage::Cull,
             Effect::Lod => Stage::Lod,
+            Effect::Gravity => Stage::Gravity,
         }
     }
 }
@@ -97,6 +107,7 @@ pub enum Stage {
     Strands,
     Tiling,
     Shells,
+    Gravity,
     Cull,
     Lod,
     Pack,
@@ -104,7 +115,7 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 15] = [
+    pub const ALL: [Stage; 16] = [
         Stage::Load,
         Stage::Merge,
         Stage::Orient,
@@ -116,6 +127,7 @@ impl Stage {
         Stage::Strands,
         Stage::Tiling,
         Stage::Shells,
+        Stage::Gravity,
         Stage::Cull,
         Stage::Lod,
         Stage::Pack,
@@ -136,6 +148,7 @@ impl Stage {
             Stage::Strands => "strands",
             Stage::Tiling => "tiling",
             Stage::Shells => "shells",
+            Stage::Gravity => "gravity",
             Stage::Cull => "cull",
             Stage::Lod => "lod",
             Stage::Pack => "pack",
@@ -232,8 +245,8 @@ const SURFACE_KEYS: [&str; 8] = [
 ];
 
 /// Sections of [`BakeParams`] a surface may override.
-const SECTIONS: [&str; 7] = [
-    "orient", "clamp", "strands", "shells", "shade", "lod", "pack",
+const SECTIONS: [&str; 8] = [
+    "orient", "clamp", "strands", "shells", "shade", "lod", "pack", "gravity",
 ];
 
 /// One step of a key path inside the scene file.

@@ -51,7 +51,14 @@ fn bake(
     layout: Layout,
     seed: u32,
 ) -> (PathBuf, Vec<u8>) {
-    bake_compressed(dir, fixture, (preset, layout), seed, Compression::None)
+    bake_compressed(
+        dir,
+        fixture,
+        (preset, layout),
+        seed,
+        Compression::None,
+        false,
+    )
 }
 
 /// [`bake`] with the buffers compressed as `compress` says (meshopt: `EXT_meshopt_compression`,
@@ -62,20 +69,26 @@ fn bake_compressed(
     (preset, layout): (Preset, Layout),
     seed: u32,
     compress: Compression,
+    gravity: bool,
 ) -> (PathBuf, Vec<u8>) {
     let path = common::fixture(fixture);
     let mut p = BakeParams::preset(preset);
     p.pack.layout = layout;
     p.strands.seed = seed;
-    let mut file = shellbake::scene::SceneFile::single(&path, preset, p, &Effect::DEFAULT);
+    let mut effects = Effect::DEFAULT.to_vec();
+    if gravity {
+        effects.push(Effect::Gravity);
+    }
+    let mut file = shellbake::scene::SceneFile::single(&path, preset, p, &effects);
     file.output.compress = compress;
     let loaded = shellbake::load_surfaces(&file).unwrap();
     let baked = shellbake::bake_scene(&file, &loaded);
     let path = dir.join(format!(
-        "{}-{}-{layout:?}-{seed}-{}.glb",
+        "{}-{}-{layout:?}-{seed}-{}{}.glb",
         fixture.trim_end_matches(".obj"),
         preset.name(),
-        compress.name()
+        compress.name(),
+        if gravity { "-gravity" } else { "" }
     ));
     std::fs::write(&path, &baked.glb).unwrap();
     (path, baked.glb)
@@ -103,28 +116,38 @@ fn three_js_in_chromium_renders_what_the_viewer_renders() {
     let dir = scratch("three_compare");
     let (none, meshopt) = (Compression::None, Compression::Meshopt);
     let cases = [
-        ("bunny.obj", Preset::Fur, Layout::Compact, none),
-        ("bunny.obj", Preset::Fur, Layout::SingleDraw, none),
-        ("torus.obj", Preset::Grass, Layout::Compact, none),
-        ("teapot.obj", Preset::Carpet, Layout::Compact, none),
-        ("sphere.obj", Preset::Moss, Layout::SingleDraw, none),
+        ("bunny.obj", Preset::Fur, Layout::Compact, none, false),
+        ("bunny.obj", Preset::Fur, Layout::SingleDraw, none, false),
+        ("torus.obj", Preset::Grass, Layout::Compact, none, false),
+        ("teapot.obj", Preset::Carpet, Layout::Compact, none, false),
+        ("sphere.obj", Preset::Moss, Layout::SingleDraw, none, false),
         // compressed files: three.js decodes them (MeshoptDecoder), the viewer reads them too
-        ("bunny.obj", Preset::Fur, Layout::Compact, meshopt),
-        ("sphere.obj", Preset::Moss, Layout::SingleDraw, meshopt),
+        ("bunny.obj", Preset::Fur, Layout::Compact, meshopt, false),
+        (
+            "sphere.obj",
+            Preset::Moss,
+            Layout::SingleDraw,
+            meshopt,
+            false,
+        ),
+        // the gravity effect: a second morph target with its own weight
+        ("sphere.obj", Preset::Fur, Layout::Compact, none, true),
     ];
     let mut jobs = Vec::new();
     let mut specs = Vec::new();
-    for (fixture, preset, layout, compress) in cases {
-        let (glb_path, glb) = bake_compressed(&dir, fixture, (preset, layout), 1, compress);
+    for (fixture, preset, layout, compress, gravity) in cases {
+        let (glb_path, glb) =
+            bake_compressed(&dir, fixture, (preset, layout), 1, compress, gravity);
         for v in [NamedView::Front, NamedView::Close] {
             let camera = view::camera_for_glb(&glb, v.orbit(), SIZE).unwrap();
             let wgpu =
                 view::render_glb_to_png_with(&glb, v.orbit(), SIZE, view::MaskMips::Box).unwrap();
             let name = format!(
-                "{}-{}-{layout:?}-{}-{}",
+                "{}-{}-{layout:?}-{}{}-{}",
                 fixture.trim_end_matches(".obj"),
                 preset.name(),
                 compress.name(),
+                if gravity { "-gravity" } else { "" },
                 v.name()
             );
             let png = dir.join(format!("{name}-three.png"));

@@ -14,7 +14,9 @@
 //! Triangles whose stored base is degenerate (zero area after quantization) have no facing and
 //! are not checked.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+
+use crate::gravity::Bend;
 
 use crate::mesh::Adjacency;
 use rayon::prelude::*;
@@ -107,16 +109,63 @@ pub struct MorphPath<'a> {
     /// The grid the deltas are stored on, in a unit of that many of `base`'s: the check reads
     /// each delta as it will be stored.
     pub grid: Option<(crate::compress::DeltaGrid, f32)>,
+    /// The `gravity` effect's second target (derived from each delta, stored on its own grid)
+    /// and the layer heights to check: a bent stack is not a straight path, so each stored layer
+    /// is compared with the base.
+    pub bend: Option<(Bend, crate::compress::DeltaGrid, &'a [f32])>,
 }
 
 impl Check for MorphPath<'_> {
     fn check(&self, c: [u32; 3], deltas: &[Vec3], _round: usize) -> Option<f32> {
         let p = c.map(|v| self.base[v as usize]);
+        let unit = self.grid.map_or(1.0, |(_, u)| u);
         let stored = |d: Vec3| self.grid.map_or(d, |(g, unit)| g.round(d / unit) * unit);
+        if let Some((bend, bend_grid, heights)) = &self.bend {
+            let d = c.map(|v| stored(deltas[v as usize]).as_dvec3());
+            let b = c.map(|v| {
+                (bend_grid.round(crate::gravity::bend_of(deltas[v as usize], bend) / unit) * unit)
+                    .as_dvec3()
+            });
+            let p = p.map(|p| p.as_dvec3());
+            // edges at a layer: e(t) = a + t·b + w·c (w = t^k); the layer's normal along the
+            // base's is a quadratic in (t, w), its six coefficients made once per triangle
+            let edge = |i: usize| (p[i] - p[0], d[i] - d[0], b[i] - b[0]);
+            let ((a1, b1, c1), (a2, b2, c2)) = (edge(1), edge(2));
+            let n0 = a1.cross(a2);
+            if n0 == DVec3::ZERO {
+                return None;
+            }
+            let f = [
+                n0.dot(n0),
+                n0.dot(a1.cross(b2) + b1.cross(a2)),
+                n0.dot(a1.cross(c2) + c1.cross(a2)),
+                n0.dot(b1.cross(b2)),
+                n0.dot(b1.cross(c2) + c1.cross(b2)),
+                n0.dot(c1.cross(c2)),
+            ];
+            let facing = |t: f32| {
+                let (t, w) = (t as f64, bend.weight(t) as f64);
+                f[0] + f[1] * t + f[2] * w + f[3] * t * t + f[4] * t * w + f[5] * w * w
+            };
+            return heights.iter().any(|&t| facing(t) <= 0.0).then_some(0.5);
+        }
         let g = c.map(|v| stored(deltas[v as usize]) * self.top);
         let root = crate::clamp::ray_inversion(p, g)?;
         (root <= 1.0).then_some(root as f32 * 0.9)
     }
+}
+
+/// Whether any of `layers` faces against `base` (a degenerate base has no facing).
+fn inverts(base: [DVec3; 3], mut layers: impl Iterator<Item = [DVec3; 3]>) -> bool {
+    let normal = |q: [DVec3; 3]| (q[1] - q[0]).cross(q[2] - q[0]);
+    let n0 = normal(base);
+    n0 != DVec3::ZERO && layers.any(|l| normal(l).dot(n0) <= 0.0)
+}
+
+/// Where a layer at height `t` moves a vertex of extrusion `d`: `t·d`, plus the bend's
+/// `t^k · bend_of(d)` under the `gravity` effect.
+pub fn displacement(d: Vec3, t: f32, bend: Option<&Bend>) -> Vec3 {
+    d * t + bend.map_or(Vec3::ZERO, |b| crate::gravity::bend_of(d, b) * b.weight(t))
 }
 
 /// Single-draw layout: every layer's corners are rounded to the grid on their own, so each
@@ -126,11 +175,13 @@ pub struct RoundedLayers<'a> {
     pub base: &'a [Vec3],
     pub t: &'a [f32],
     pub top_level: f32,
+    pub bend: Option<Bend>,
 }
 
-/// A single-draw layer vertex in grid units, as stored: `base + t · delta` rounded to the grid.
-pub fn layer_point(p: Vec3, d: Vec3, t: f32, top_level: f32) -> Vec3 {
-    (p + d * t)
+/// A single-draw layer vertex in grid units, as stored: `base + displacement` rounded to the
+/// grid.
+pub fn layer_point(p: Vec3, displacement: Vec3, top_level: f32) -> Vec3 {
+    (p + displacement)
         .round()
         .clamp(Vec3::ZERO, Vec3::splat(top_level))
 }
@@ -139,18 +190,11 @@ impl Check for RoundedLayers<'_> {
     fn check(&self, c: [u32; 3], deltas: &[Vec3], _round: usize) -> Option<f32> {
         let layer = |t: f32| {
             c.map(|v| {
-                layer_point(self.base[v as usize], deltas[v as usize], t, self.top_level).as_dvec3()
+                let d = displacement(deltas[v as usize], t, self.bend.as_ref());
+                layer_point(self.base[v as usize], d, self.top_level).as_dvec3()
             })
         };
-        let normal = |q: [glam::DVec3; 3]| (q[1] - q[0]).cross(q[2] - q[0]);
-        let n0 = normal(layer(0.0));
-        if n0 == glam::DVec3::ZERO {
-            return None;
-        }
-        self.t[1..]
-            .iter()
-            .any(|&t| normal(layer(t)).dot(n0) <= 0.0)
-            .then_some(0.5)
+        inverts(layer(0.0), self.t[1..].iter().map(|&t| layer(t))).then_some(0.5)
     }
 }
 
@@ -171,6 +215,7 @@ mod tests {
                 base: &base,
                 top: 1.0,
                 grid: None,
+                bend: None,
             },
         );
         assert_eq!(n, 3);
@@ -187,6 +232,7 @@ mod tests {
                     base: &base,
                     top: 1.0,
                     grid: None,
+                    bend: None,
                 }
             ),
             0
@@ -207,6 +253,7 @@ mod tests {
             base: &base,
             t: &[0.0, 0.5, 1.0],
             top_level: 16383.0,
+            bend: None,
         };
         assert!(check.check([0, 1, 2], &d, 0).is_some());
         guard(&base, &mut d, &[0, 1, 2], &check);
@@ -233,6 +280,7 @@ mod tests {
                 base: &base,
                 top: 1.0,
                 grid: None,
+                bend: None,
             },
         );
         assert_eq!(d[1], d[3]);

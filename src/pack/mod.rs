@@ -230,6 +230,8 @@ pub struct PackInput<'a> {
     pub name: &'a str,
     /// Prefix of the surface's mesh and material names (empty for a file of one surface).
     pub prefix: &'a str,
+    /// The `gravity` effect's bend law (`None`: straight strands).
+    pub bend: Option<crate::gravity::Bend>,
 }
 
 /// The surface's vertices with their quantization grids, in the input's order.
@@ -244,6 +246,9 @@ struct Geometry<'a> {
     uvs: &'a [Vec2],
     /// Extrusion deltas in grid units (already guarded).
     deltas: Vec<Vec3>,
+    /// Compact layout under the `gravity` effect: the bend target per vertex, stored unit.
+    bends: Option<Vec<Vec3>>,
+    bend: Option<crate::gravity::Bend>,
     density: Option<&'a [u8]>,
     fur_weight: Option<&'a [f32]>,
 }
@@ -362,11 +367,14 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
 
     let positions = &mesh.positions;
     let grid = PositionGrid::fit(
-        // the base and the fully extruded surface
-        positions
-            .iter()
-            .copied()
-            .chain(positions.iter().zip(input.delta).map(|(&p, &d)| p + d)),
+        // the base and the fully extruded surface (bent: every layer lies within the box of
+        // `p + a·d + c·b`, a and c in [0, 1])
+        positions.iter().zip(input.delta).flat_map(|(&p, &d)| {
+            let b = input
+                .bend
+                .map_or(Vec3::ZERO, |b| crate::gravity::bend_of(d, &b));
+            [p, p + d, p + b, p + d + b]
+        }),
         params.position_bits.min(15),
     );
     // Deltas in grid units, shortened where the stored geometry would invert at any layer
@@ -395,6 +403,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         Quantize::Khr => SNORM16,
         Quantize::None => 1.0,
     };
+    let mut bends = None;
     let guarded = match params.layout {
         Layout::Compact => {
             let base: Vec<Vec3> = positions
@@ -405,12 +414,21 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             // compressed file's twin is the plain file), and checked as stored
             let stored: Vec<Vec3> = deltas.iter().map(|&d| d / unit).collect();
             let delta_grid = crate::compress::DeltaGrid::fit(&stored);
+            // the bend target, derived from each (guarded) delta, on a grid of its own
+            let bend_of = |d: Vec3, b: &crate::gravity::Bend| crate::gravity::bend_of(d, b) / unit;
+            let bend_grid = input.bend.map(|b| {
+                let v: Vec<Vec3> = deltas.iter().map(|&d| bend_of(d, &b)).collect();
+                (b, crate::compress::DeltaGrid::fit(&v))
+            });
             let check = guard::MorphPath {
                 base: &base,
                 top,
                 grid: Some((delta_grid, unit)),
+                bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
             };
             let n = guard::guard(&base, &mut deltas, &guarded_indices, &check);
+            bends =
+                bend_grid.map(|(b, g)| deltas.iter().map(|&d| g.round(bend_of(d, &b))).collect());
             // from here on, compact deltas are in the stored unit
             for d in &mut deltas {
                 *d = delta_grid.round(*d / unit);
@@ -426,6 +444,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 base: &base,
                 t: &heights,
                 top_level: grid.max_level() as f32,
+                bend: input.bend,
             };
             guard::guard(&base, &mut deltas, &guarded_indices, &check)
         }
@@ -445,6 +464,8 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         normals: mesh.normals.as_deref().unwrap(),
         uvs,
         deltas,
+        bends,
+        bend: input.bend,
         density: input.density,
         fur_weight: input.fur_weight,
     };
@@ -731,6 +752,8 @@ struct Shared {
 struct ShellStreams {
     texcoord: usize,
     delta: usize,
+    /// The `gravity` effect's target.
+    bend: Option<usize>,
     density: Option<usize>,
 }
 
@@ -751,7 +774,8 @@ impl Shared {
         let shells = shells.then(|| {
             let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
             let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs, g.tiles);
-            let delta = b.deltas(&pick(&g.deltas));
+            let delta = b.deltas(&pick(&g.deltas), "extrusion", 0);
+            let bend = g.bends.as_ref().map(|v| b.deltas(&pick(v), "bend", 1));
             let density = g.density.map(|d| {
                 let mut bytes = Bytes::default();
                 for &o in &order {
@@ -765,6 +789,7 @@ impl Shared {
             ShellStreams {
                 texcoord,
                 delta,
+                bend,
                 density,
             }
         });
@@ -878,7 +903,7 @@ impl Builder<'_> {
 
     /// Morph target 0: the extrusion delta as float, in the stored position unit, with exact
     /// bounds.
-    fn deltas(&mut self, deltas: &[Vec3]) -> usize {
+    fn deltas(&mut self, deltas: &[Vec3], name: &'static str, target: usize) -> usize {
         let mut bytes = Bytes::default();
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for d in deltas {
@@ -890,14 +915,7 @@ impl Builder<'_> {
             (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
         }
         let n = deltas.len();
-        let dv = self.stream(
-            "extrusion",
-            Semantic::Position,
-            Some(0),
-            bytes.0,
-            Some(12),
-            n,
-        );
+        let dv = self.stream(name, Semantic::Position, Some(target), bytes.0, Some(12), n);
         let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
         self.out.accessor(
             dv,
@@ -1072,7 +1090,9 @@ fn compact(
                 targets: if base {
                     vec![]
                 } else {
-                    vec![vec![(Semantic::Position, shells.delta)]]
+                    let mut t = vec![vec![(Semantic::Position, shells.delta)]];
+                    t.extend(shells.bend.map(|b| vec![(Semantic::Position, b)]));
+                    t
                 },
                 indices: Some(ix),
                 material,
@@ -1087,7 +1107,11 @@ fn compact(
                     name,
                     tag,
                     primitives: vec![primitive],
-                    weights: if base { vec![] } else { vec![l.t] },
+                    weights: match (base, ctx.geometry.bend.filter(|_| shells.bend.is_some())) {
+                        (true, _) => vec![],
+                        (false, None) => vec![l.t],
+                        (false, Some(bend)) => vec![l.t, bend.weight(l.t)],
+                    },
                     layer_ranges: vec![],
                 },
             )
@@ -1188,7 +1212,11 @@ fn single_draw(
         });
         q.extend(order[..nv].iter().map(|&o| {
             let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
-            let r = guard::layer_point((p - grid.min) / grid.step, d, l.t, top_level);
+            let r = guard::layer_point(
+                (p - grid.min) / grid.step,
+                guard::displacement(d, l.t, g.bend.as_ref()),
+                top_level,
+            );
             [r.x as u16, r.y as u16, r.z as u16]
         }));
         let alpha = single_draw_alpha(ctx.mask, l.step);

@@ -224,7 +224,7 @@ pub struct ReferenceRenderer {
     data: Box<ShellData>,
     uniform: wgpu::Buffer,
     group: wgpu::BindGroup,
-    vertices: [wgpu::Buffer; 5],
+    vertices: [wgpu::Buffer; 6],
     indices: wgpu::Buffer,
     index_count: u32,
     layers: u32,
@@ -272,6 +272,14 @@ impl ReferenceRenderer {
                 },
                 "densities",
             ),
+            // the `gravity` effect's bend at the tip (zero: straight strands)
+            f32s(
+                match &shells.bend {
+                    Some((b, _)) => flat3(b),
+                    None => vec![0.0; 3 * mesh.vertex_count()],
+                },
+                "bends",
+            ),
         ];
         let ix = if mesh.indices.is_empty() {
             vec![0u32; 3]
@@ -317,7 +325,9 @@ impl ReferenceRenderer {
         ];
         data.law = [threshold, 0.0, 0.0, 0.0];
         data.ints = [seed, shells.t.len() as u32, 0, 0];
-        data.material = [0.0, input.roughness, 0.0, 0.0];
+        // z: the bend's exponent k (layer weight t^k)
+        let k = shells.bend.as_ref().map_or(1.0, |(_, b)| b.k);
+        data.material = [0.0, input.roughness, k, 0.0];
         for (j, (c, &t)) in shells.color.iter().zip(&shells.t).enumerate() {
             data.layers[j] = [c[0], c[1], c[2], t];
             data.cutoffs[j / 4][j % 4] = strands::step_cutoff(shells.steps[j]);
@@ -377,8 +387,10 @@ impl ReferenceRenderer {
         let t_max = shells.t.iter().copied().fold(0.0f32, f32::max);
         let mut lo = glam::DVec3::splat(f64::INFINITY);
         let mut hi = glam::DVec3::splat(f64::NEG_INFINITY);
-        for (p, d) in mesh.positions.iter().zip(&shells.delta) {
-            for q in [*p, *p + *d * t_max] {
+        let bends = shells.bend.as_ref().map(|(b, _)| b.as_slice());
+        for (v, (p, d)) in mesh.positions.iter().zip(&shells.delta).enumerate() {
+            let b = bends.map_or(Vec3::ZERO, |b| b[v]);
+            for q in [*p, *p + *d * t_max, *p + *d * t_max + b] {
                 let w = mesh.origin + q.as_dvec3();
                 lo = lo.min(w);
                 hi = hi.max(w);
@@ -459,6 +471,7 @@ impl ReferenceRenderer {
                 attr(2, wgpu::VertexFormat::Float32x2),
                 attr(3, wgpu::VertexFormat::Float32x3),
                 attr(4, wgpu::VertexFormat::Float32),
+                attr(5, wgpu::VertexFormat::Float32x3),
             ];
             let layouts: Vec<Option<wgpu::VertexBufferLayout>> = a
                 .iter()

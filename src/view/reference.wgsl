@@ -1,5 +1,5 @@
 // The runtime reference: the classic shell technique, one instance per layer.
-// Vertex: extrude `position + delta * t_j`. Fragment: sample the law texture (filtered, mipmapped,
+// Vertex: extrude `position + delta * t_j` (+ `bend * t_j^k` under the gravity effect). Fragment: sample the law texture (filtered, mipmapped,
 // like the baked mask), test the strand law on the interpolated value and discard.
 
 struct Shell {
@@ -10,7 +10,7 @@ struct Shell {
     law: vec4<f32>,
     // seed (as bits), layers shown, unused, unused
     ints: vec4<u32>,
-    // metallic, roughness
+    // metallic, roughness, bend exponent k
     material: vec4<f32>,
     // per layer: linear rgb shade, t
     layers: array<vec4<f32>, 256>,
@@ -29,6 +29,8 @@ struct VsIn {
     @location(2) uv: vec2<f32>,
     @location(3) delta: vec3<f32>,
     @location(4) density: f32,
+    // the gravity effect's bend at the tip, weighted t^k (k = shell.material.z)
+    @location(5) bend: vec3<f32>,
 }
 
 struct VsOut {
@@ -43,7 +45,7 @@ struct VsOut {
 @vertex
 fn vs_main(in: VsIn, @builtin(instance_index) layer: u32) -> VsOut {
     let t = shell.layers[layer].w;
-    let p = in.position + in.delta * t;
+    let p = in.position + in.delta * t + in.bend * pow(t, shell.material.z);
     var out: VsOut;
     let world = shell.model * vec4<f32>(p, 1.0);
     out.world = world.xyz;

@@ -49,12 +49,22 @@ impl Glb {
     /// Mesh `m`'s first morph weight as drawn: its node's weights (which override the mesh's),
     /// else the mesh's.
     pub fn weight(&self, m: usize) -> Option<f64> {
+        self.weights(m).first().copied()
+    }
+
+    /// Mesh `m`'s morph weights as drawn (empty: none).
+    pub fn weights(&self, m: usize) -> Vec<f64> {
         let node = self.json["nodes"]
             .as_array()
             .into_iter()
             .flatten()
             .find(|n| n["mesh"].as_u64() == Some(m as u64) && n["weights"].is_array());
-        node.map_or(&self.json["meshes"][m], |n| n)["weights"][0].as_f64()
+        node.map_or(&self.json["meshes"][m], |n| n)["weights"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|w| w.as_f64().unwrap())
+            .collect()
     }
 
     pub fn accessor(&self, i: usize) -> Vec<Vec<f64>> {
@@ -228,14 +238,25 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
             .map(|v| v[0] as usize)
             .collect();
         let pos = g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
-        if let Some(target) = prim["targets"][0]["POSITION"].as_u64() {
-            let w = g.weight(mi).unwrap();
-            let d = g.accessor(target as usize);
+        let targets: Vec<Vec<Vec<f64>>> = prim["targets"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|t| g.accessor(t["POSITION"].as_u64().unwrap() as usize))
+            .collect();
+        if !targets.is_empty() {
+            let w = g.weights(mi);
             for t in ix.chunks_exact(3) {
                 let base = [0, 1, 2].map(|k| row(&pos[t[k]]));
                 let layer = [0, 1, 2].map(|k| {
-                    let (p, dd) = (&pos[t[k]], &d[t[k]]);
-                    [0, 1, 2].map(|c| p[c] + w * dd[c])
+                    let p = &pos[t[k]];
+                    [0, 1, 2].map(|c| {
+                        p[c] + targets
+                            .iter()
+                            .zip(&w)
+                            .map(|(d, w)| w * d[t[k]][c])
+                            .sum::<f64>()
+                    })
                 });
                 count(base, layer);
             }
