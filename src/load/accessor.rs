@@ -50,6 +50,19 @@ pub fn component_size(component_type: u64) -> Option<usize> {
     }
 }
 
+/// The value a normalized integer component `v` of `component_type` stands for (the spec's
+/// rules, see the module doc); other types are returned as they are. Accessor bounds of a
+/// normalized accessor are integers too and read the same way.
+pub fn normalized_value(component_type: u64, v: f64) -> f64 {
+    match component_type {
+        5120 => (v / 127.0).max(-1.0),
+        5121 => v / 255.0,
+        5122 => (v / 32767.0).max(-1.0),
+        5123 => v / 65535.0,
+        _ => v,
+    }
+}
+
 /// Checks `layout` against `view` (see the module doc) and decodes every component.
 pub fn decode(view: &[u8], layout: &Layout) -> Result<Vec<f64>, LayoutError> {
     if layout.count == 0 {
@@ -81,28 +94,14 @@ pub fn decode(view: &[u8], layout: &Layout) -> Result<Vec<f64>, LayoutError> {
         let start = layout.offset + e * stride;
         for c in view[start..start + element].chunks_exact(comp) {
             let v = match ct {
-                5120 => {
-                    let v = c[0] as i8 as f64;
-                    if norm {
-                        (v / 127.0).max(-1.0)
-                    } else {
-                        v
-                    }
-                }
-                5121 => c[0] as f64 / if norm { 255.0 } else { 1.0 },
-                5122 => {
-                    let v = i16::from_le_bytes([c[0], c[1]]) as f64;
-                    if norm {
-                        (v / 32767.0).max(-1.0)
-                    } else {
-                        v
-                    }
-                }
-                5123 => u16::from_le_bytes([c[0], c[1]]) as f64 / if norm { 65535.0 } else { 1.0 },
+                5120 => c[0] as i8 as f64,
+                5121 => c[0] as f64,
+                5122 => i16::from_le_bytes([c[0], c[1]]) as f64,
+                5123 => u16::from_le_bytes([c[0], c[1]]) as f64,
                 5125 => u32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64,
                 _ => f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64,
             };
-            out.push(v);
+            out.push(if norm { normalized_value(ct, v) } else { v });
         }
     }
     Ok(out)

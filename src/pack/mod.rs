@@ -397,11 +397,12 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     {
         guarded_indices.extend_from_slice(l.indices);
     }
-    // quantized positions are stored in units of 32767 grid steps (normalized i16), float
-    // ones in grid steps; the morph target is in the same unit
-    let unit = match params.quantize {
-        Quantize::Khr => SNORM16,
-        Quantize::None => 1.0,
+    // quantized positions are stored in units of 32767 grid steps (normalized i16) from the
+    // grid's centre level, float ones in grid steps from its corner; the morph target is in the
+    // same unit
+    let (unit, zero_level) = match params.quantize {
+        Quantize::Khr => (SNORM16, grid.center()),
+        Quantize::None => (1.0, 0),
     };
     let mut bends = None;
     let guarded = match params.layout {
@@ -672,15 +673,9 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     }
 
     // the node that dequantizes: stored value → world
-    let (translation, scale) = if b.float {
-        (grid.min.as_dvec3() + mesh.origin, grid.step as f64)
-    } else {
-        let step = grid.step as f64;
-        (
-            grid.min.as_dvec3() + mesh.origin + step * grid.center() as f64,
-            step * SNORM16 as f64,
-        )
-    };
+    let step = grid.step as f64;
+    let translation = grid.min.as_dvec3() + mesh.origin + step * zero_level as f64;
+    let scale = step * unit as f64;
     let out = b.out;
     let lod0 = input.levels[0].level;
     out.nodes[root] = Node {

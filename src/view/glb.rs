@@ -533,18 +533,13 @@ impl Asset {
                         continue;
                     };
                     // bounds of a normalized accessor are in its integer range
-                    let unit = match (acc["normalized"].as_bool(), acc["componentType"].as_u64()) {
-                        (Some(true), Some(5120)) => 127.0,
-                        (Some(true), Some(5121)) => 255.0,
-                        (Some(true), Some(5122)) => 32767.0,
-                        (Some(true), Some(5123)) => 65535.0,
-                        _ => 1.0,
-                    };
+                    let normalized = acc["normalized"].as_bool() == Some(true);
+                    let ct = acc["componentType"].as_u64().unwrap_or(0);
                     let v = |x: &Vec<Value>| {
                         let c = |i: usize| {
                             let f = x[i].as_f64().unwrap_or(0.0);
-                            if unit > 1.0 {
-                                (f / unit).max(-1.0)
+                            if normalized {
+                                crate::load::accessor::normalized_value(ct, f)
                             } else {
                                 f
                             }
