@@ -16,7 +16,7 @@
 //! | strands | [`strands`] | [`strands::bake_mask`] |
 //! | tiling | [`tiling`] | [`tiling::mask_tiling`] |
 //! | shells | [`shells`] | [`shells::build_shells`] |
-//! | gravity (effect `gravity`) | [`gravity`] | [`gravity::bend`] |
+//! | gravity (effect `gravity`) | [`gravity`] | [`gravity::Bend::of`] (per vertex [`gravity::bend_of`], in pack and the reference) |
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
 //! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
 //! | pack | [`pack`] | [`pack::pack`] |
@@ -432,12 +432,10 @@ fn bake_surface(
     });
     report.count("layers", shells.t.len() as f64);
     let mut shells = shells;
-    let bend = gravity::Bend::of(&params.gravity);
-    shells.bend = report
-        .gate(plan, Stage::Gravity, i, || {
-            gravity::bend(&shells.delta, &bend)
-        })
-        .map(|b| (b, bend));
+    // the law only: each vertex's bend follows from its (guarded) delta where it is drawn
+    shells.bend = report.gate(plan, Stage::Gravity, i, || {
+        gravity::Bend::of(&params.gravity)
+    });
 
     let lod_runs = plan.runs(Stage::Lod, i);
     let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
@@ -567,7 +565,7 @@ fn bake_surface(
         prefix: &prefix,
         density: density_map.as_deref(),
         fur_weight: fur_weight.as_deref(),
-        bend: shells.bend.as_ref().map(|(_, b)| *b),
+        bend: shells.bend,
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(

@@ -142,9 +142,9 @@ pub struct ShellStack {
     pub color: Vec<[f32; 3]>,
     /// Extrusion delta at t = 1, per render vertex.
     pub delta: Vec<Vec3>,
-    /// The `gravity` effect: bend at the tip per render vertex (derived from `delta`, see
-    /// [`crate::gravity::bend_of`]) and its law; layer `j` adds `bend · t_j^k`.
-    pub bend: Option<(Vec<Vec3>, crate::gravity::Bend)>,
+    /// The `gravity` effect's law: layer `j` adds `bend_of(delta) · t_j^k` (see
+    /// [`crate::gravity::bend_of`]).
+    pub bend: Option<crate::gravity::Bend>,
 }
 
 /// Colour of a layer at normalised height `t`.

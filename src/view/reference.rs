@@ -260,6 +260,11 @@ impl ReferenceRenderer {
             })
         };
         let flat3 = |v: &[Vec3]| v.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>();
+        // the `gravity` effect's bend at the tip per vertex (zero: straight strands)
+        let bends = match &shells.bend {
+            Some(b) => crate::gravity::bend(&shells.delta, b),
+            None => vec![Vec3::ZERO; mesh.vertex_count()],
+        };
         let vertices = [
             f32s(flat3(&mesh.positions), "positions"),
             f32s(flat3(normals), "normals"),
@@ -272,14 +277,7 @@ impl ReferenceRenderer {
                 },
                 "densities",
             ),
-            // the `gravity` effect's bend at the tip (zero: straight strands)
-            f32s(
-                match &shells.bend {
-                    Some((b, _)) => flat3(b),
-                    None => vec![0.0; 3 * mesh.vertex_count()],
-                },
-                "bends",
-            ),
+            f32s(flat3(&bends), "bends"),
         ];
         let ix = if mesh.indices.is_empty() {
             vec![0u32; 3]
@@ -326,7 +324,7 @@ impl ReferenceRenderer {
         data.law = [threshold, 0.0, 0.0, 0.0];
         data.ints = [seed, shells.t.len() as u32, 0, 0];
         // z: the bend's exponent k (layer weight t^k)
-        let k = shells.bend.as_ref().map_or(1.0, |(_, b)| b.k);
+        let k = shells.bend.map_or(1.0, |b| b.k);
         data.material = [0.0, input.roughness, k, 0.0];
         for (j, (c, &t)) in shells.color.iter().zip(&shells.t).enumerate() {
             data.layers[j] = [c[0], c[1], c[2], t];
@@ -387,10 +385,8 @@ impl ReferenceRenderer {
         let t_max = shells.t.iter().copied().fold(0.0f32, f32::max);
         let mut lo = glam::DVec3::splat(f64::INFINITY);
         let mut hi = glam::DVec3::splat(f64::NEG_INFINITY);
-        let bends = shells.bend.as_ref().map(|(b, _)| b.as_slice());
-        for (v, (p, d)) in mesh.positions.iter().zip(&shells.delta).enumerate() {
-            let b = bends.map_or(Vec3::ZERO, |b| b[v]);
-            for q in [*p, *p + *d * t_max, *p + *d * t_max + b] {
+        for ((p, d), b) in mesh.positions.iter().zip(&shells.delta).zip(&bends) {
+            for q in [*p, *p + *d * t_max, *p + *d * t_max + *b] {
                 let w = mesh.origin + q.as_dvec3();
                 lo = lo.min(w);
                 hi = hi.max(w);
