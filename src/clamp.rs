@@ -29,8 +29,9 @@
 //! (quantized) geometry, so the guarantee holds for the written file.
 //!
 //! The stage is three verbs, so that the plan can gate the expensive one: [`smooth`], then
-//! [`collision_bound`] (the `collision` effect, run only for surfaces that ask; the only place a
-//! BVH is built, counted by [`bvh_builds`]), then [`clamp_heights`].
+//! [`collision_bound`] (the `collision` effect, run only for surfaces that ask), then
+//! [`clamp_heights`]. The BVH ([`MeshBvh`], counted by [`bvh_builds`]) is built only when an
+//! effect casts rays — the collision bound or `occlusion` — and is shared by both.
 //!
 //! **Collision bound** (opt-in). A ray from each vertex along its direction against the whole
 //! mesh (an obvhs BVH; triangles that contain the vertex are skipped), keeping `ray_keep` of the
@@ -426,11 +427,11 @@ fn incident(welded: &Welded, tri: usize, v: u32) -> bool {
     welded.indices[3 * tri..3 * tri + 3].contains(&v)
 }
 
-/// Number of BVHs the collision bound has built in this process: the plan's promise that a
-/// scene asking for no collision builds none is tested against it.
+/// Number of BVHs built in this process ([`MeshBvh::build`]): the plan's promise that a scene
+/// asking for no ray-casting effect builds none is tested against it.
 static BVH_BUILDS: AtomicUsize = AtomicUsize::new(0);
 
-/// BVHs built so far in this process (see [`collision_bound`]).
+/// BVHs built so far in this process (see [`MeshBvh`]).
 pub fn bvh_builds() -> usize {
     BVH_BUILDS.load(Ordering::Relaxed)
 }
@@ -460,46 +461,81 @@ pub fn smooth(welded: &Welded, frames: &Frames, height: f32, params: &ClampParam
     }
 }
 
+/// The welded mesh's triangles in a BVH: built once per surface when an effect casts rays (the
+/// collision bound, occlusion) and shared by them. Counted by [`bvh_builds`].
+pub struct MeshBvh {
+    tris: Vec<Triangle>,
+    bvh: Bvh2,
+}
+
+impl MeshBvh {
+    pub fn build(welded: &Welded) -> MeshBvh {
+        let tris = triangles(welded);
+        let mut bvh = if tris.is_empty() {
+            Bvh2::default()
+        } else {
+            build_bvh2_from_tris(
+                &tris,
+                BvhBuildParams::medium_build(),
+                &mut Duration::default(),
+            )
+        };
+        BVH_BUILDS.fetch_add(1, Ordering::Relaxed);
+        // Traversal sizes its stack from `max_depth`; set it from the tree as built, so that a
+        // pathological tree (thousands of coincident triangles) is traversed correctly instead of
+        // overflowing a fixed stack.
+        bvh.max_depth = bvh.max_depth.max(tree_depth(&bvh) + 1);
+        MeshBvh { tris, bvh }
+    }
+
+    /// Distance to the nearest triangle along `ray` (within its range) that `skip` does not
+    /// exclude; infinite when there is none.
+    pub fn nearest(&self, ray: Ray, skip: impl Fn(usize) -> bool) -> f32 {
+        if self.tris.is_empty() {
+            return f32::INFINITY;
+        }
+        let mut hit = RayHit::none();
+        // traversal leaves `hit.t` at the ray's end when nothing is hit; its result says
+        // whether something was
+        let found = self.bvh.ray_traverse(ray, &mut hit, |r, id| {
+            let t = self.bvh.primitive_indices[id] as usize;
+            if skip(t) {
+                f32::INFINITY
+            } else {
+                self.tris[t].intersect(r)
+            }
+        });
+        if found {
+            hit.t
+        } else {
+            f32::INFINITY
+        }
+    }
+}
+
 /// The `collision` effect: per welded vertex, `ray_keep` times the free distance along its
 /// direction before the ray meets another part of the mesh (infinite when it meets none within
-/// reach). Builds a BVH; the plan runs it only for surfaces that ask.
+/// reach). Casts against `bvh` (the surface's [`MeshBvh`]); the plan runs it only for surfaces
+/// that ask.
 pub fn collision_bound(
     welded: &Welded,
+    bvh: &MeshBvh,
     smoothed: &Smoothed,
     height: f32,
     params: &ClampParams,
 ) -> Vec<f64> {
-    let tris = triangles(welded);
-    if tris.is_empty() || height <= 0.0 {
+    if bvh.tris.is_empty() || height <= 0.0 {
         return vec![f64::INFINITY; welded.positions.len()];
     }
     let dirs = &smoothed.directions;
-    let mut bvh = build_bvh2_from_tris(
-        &tris,
-        BvhBuildParams::medium_build(),
-        &mut Duration::default(),
-    );
-    BVH_BUILDS.fetch_add(1, Ordering::Relaxed);
-    // Traversal sizes its stack from `max_depth`; set it from the tree as built, so that a
-    // pathological tree (thousands of coincident triangles) is traversed correctly instead of
-    // overflowing a fixed stack.
-    bvh.max_depth = bvh.max_depth.max(tree_depth(&bvh) + 1);
     let reach = height / params.ray_keep;
     (0..welded.positions.len() as u32)
         .into_par_iter()
         .map(|v| {
             let ray = vertex_ray(welded, dirs, v, reach);
-            let mut hit = RayHit::none();
-            bvh.ray_traverse(ray, &mut hit, |r, id| {
-                let t = bvh.primitive_indices[id] as usize;
-                if incident(welded, t, v) {
-                    f32::INFINITY
-                } else {
-                    tris[t].intersect(r)
-                }
-            });
-            if hit.t.is_finite() && hit.t <= reach {
-                hit.t as f64 * params.ray_keep as f64
+            let t = bvh.nearest(ray, |t| incident(welded, t, v));
+            if t.is_finite() && t <= reach {
+                t as f64 * params.ray_keep as f64
             } else {
                 f64::INFINITY
             }
@@ -618,6 +654,10 @@ mod tests {
         clamp_heights(w, s, h, p, Some(&c))
     }
 
+    fn bvh_bound(w: &Welded, s: &Smoothed, h: f32, p: &ClampParams) -> Vec<f64> {
+        collision_bound(w, &MeshBvh::build(w), s, h, p)
+    }
+
     fn without_collision(w: &Welded, f: &Frames, h: f32, p: &ClampParams) -> Clamp {
         clamp_heights(w, smooth(w, f, h, p), h, p, None)
     }
@@ -638,7 +678,7 @@ mod tests {
     fn run(p: &[Vec3], ix: &[u32], height: f32) -> (Welded, Frames, Clamp) {
         let w = weld(p, ix);
         let f = extrusion_frames(&w, None);
-        let c = with_collision(&w, &f, height, &ClampParams::default(), collision_bound);
+        let c = with_collision(&w, &f, height, &ClampParams::default(), bvh_bound);
         (w, f, c)
     }
 
@@ -700,7 +740,7 @@ mod tests {
         let w = weld(&m.positions, &m.indices);
         let f = extrusion_frames(&w, None);
         let params = ClampParams::default();
-        let a = with_collision(&w, &f, 0.5, &params, collision_bound);
+        let a = with_collision(&w, &f, 0.5, &params, bvh_bound);
         let b = with_collision(&w, &f, 0.5, &params, collision_bound_brute_force);
         // Same intersection function, so the same hits give the same floats; only hits at the
         // ray origin itself (t ≈ 1e-15, where the BVH's node test may cull a touching triangle)

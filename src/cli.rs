@@ -52,6 +52,9 @@ pub struct RenderFlags {
     size: (u32, u32),
     #[command(flatten)]
     camera: CameraFlags,
+    /// Draw the file's animations (the `wind` effect) at this time, in seconds.
+    #[arg(long)]
+    time: Option<f32>,
 }
 
 impl RenderFlags {
@@ -61,6 +64,7 @@ impl RenderFlags {
             output: self.output,
             size: self.size,
             camera: self.camera.into_args(),
+            time: self.time,
         }
     }
 }
@@ -104,6 +108,10 @@ pub struct VerifyFlags {
     /// Side of the square pictures.
     #[arg(long, default_value_t = shellbake::view::verify::DEFAULT_SIZE)]
     size: u32,
+    /// Also compare at these animation times, seconds (comma-separated; the `wind` effect)
+    /// [default: a quarter and three quarters of the wind's period when a surface asks for it].
+    #[arg(long, value_delimiter = ',')]
+    time: Vec<f32>,
 }
 
 impl VerifyFlags {
@@ -111,6 +119,7 @@ impl VerifyFlags {
         view::VerifyArgs {
             out_dir: self.out_dir,
             size: self.size,
+            times: self.time,
         }
     }
 }

@@ -40,12 +40,14 @@ pub mod load;
 pub mod lod;
 pub mod maps;
 pub mod mesh;
+pub mod occlusion;
 pub mod orient;
 pub mod pack;
 pub mod params;
 pub mod procedural;
 pub mod report;
 pub mod scene;
+pub mod sheen;
 pub mod shells;
 pub mod srgb;
 pub mod strands;
@@ -53,6 +55,7 @@ pub mod tiling;
 #[cfg(feature = "view")]
 pub mod view;
 pub mod weld;
+pub mod wind;
 pub mod write;
 
 use std::path::Path;
@@ -364,10 +367,12 @@ fn bake_surface(
     let smoothed = report.run("smooth", || {
         clamp::smooth(&welded, &frames, height, &params.clamp)
     });
+    // one BVH per surface, built by the first effect that casts rays and shared by the rest
+    let mut bvh: Option<clamp::MeshBvh> = None;
     let collision = report.gate(plan, Stage::Collision, i, || {
-        clamp::collision_bound(&welded, &smoothed, height, &params.clamp)
+        let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
+        clamp::collision_bound(&welded, bvh, &smoothed, height, &params.clamp)
     });
-    report.count("bvh_builds", collision.is_some() as u8 as f64);
     let clamp = report.run("clamp", || {
         clamp::clamp_heights(
             &welded,
@@ -407,6 +412,30 @@ fn bake_surface(
         mesh.normals = Some(frames.direction.clone());
     }
 
+    let occlusion = report.gate(plan, Stage::Occlusion, i, || {
+        let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
+        occlusion::occlusion(
+            &welded,
+            bvh,
+            &clamp.welded_direction,
+            diagonal,
+            &params.occlusion,
+        )
+    });
+    report.count("bvh_builds", bvh.is_some() as u8 as f64);
+    if let Some(a) = &occlusion {
+        let n = a.len().max(1) as f64;
+        report.count(
+            "mean_darkening",
+            a.iter().map(|&a| a as f64).sum::<f64>() / n,
+        );
+        report.count(
+            "max_darkening",
+            a.iter().fold(0.0f32, |m, &a| m.max(a)) as f64,
+        );
+    }
+    drop(bvh);
+
     let mask = report.run("strands", || strands::bake_mask(&params.strands));
     report.count("mask_texels", (mask.size * mask.size) as f64);
     report.count("cells_per_tile", mask.cells_per_tile as f64);
@@ -436,6 +465,11 @@ fn bake_surface(
     shells.bend = report.gate(plan, Stage::Gravity, i, || {
         gravity::Bend::of(&params.gravity)
     });
+    shells.wind = report.gate(plan, Stage::Wind, i, || {
+        wind::Wind::new(&params.wind, &mesh.positions, diagonal, params.strands.seed)
+    });
+    shells.sheen = report.gate(plan, Stage::Sheen, i, || params.sheen.clone());
+    shells.occlusion = occlusion;
 
     let lod_runs = plan.runs(Stage::Lod, i);
     let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
@@ -566,6 +600,9 @@ fn bake_surface(
         density: density_map.as_deref(),
         fur_weight: fur_weight.as_deref(),
         bend: shells.bend,
+        wind: shells.wind.as_ref(),
+        occlusion: shells.occlusion.as_deref(),
+        sheen: shells.sheen.as_ref(),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(

@@ -125,6 +125,18 @@ struct BakeArgs {
     /// direction, strength and exponent).
     #[arg(long)]
     gravity: bool,
+    /// Darken folds by ambient occlusion of the base surface (the effect `occlusion`;
+    /// `[surface.occlusion]` sets samples, radius and strength).
+    #[arg(long)]
+    occlusion: bool,
+    /// Velvet sheen on the layers, stronger toward the tips (the effect `sheen`,
+    /// KHR_materials_sheen; `[surface.sheen]` sets colour and roughness).
+    #[arg(long)]
+    sheen: bool,
+    /// Strands sway in a looping animation (the effect `wind`; `[surface.wind]` sets direction,
+    /// strength, period).
+    #[arg(long)]
+    wind: bool,
     /// Drop layer triangles on which no strand can survive (the effect `cull`; changes no pixel).
     #[arg(long, overrides_with = "no_cull")]
     cull: bool,
@@ -211,6 +223,9 @@ impl BakeArgs {
         for (on, effect) in [
             (self.clamp, Effect::Collision),
             (self.gravity, Effect::Gravity),
+            (self.occlusion, Effect::Occlusion),
+            (self.sheen, Effect::Sheen),
+            (self.wind, Effect::Wind),
         ] {
             if on && !effects.contains(&effect) {
                 effects.push(effect);

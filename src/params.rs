@@ -82,6 +82,12 @@ pub struct BakeParams {
     pub pack: PackParams,
     /// The `gravity` effect's bend (used only when a surface asks for the effect).
     pub gravity: crate::gravity::GravityParams,
+    /// The `occlusion` effect's rays and strength.
+    pub occlusion: crate::occlusion::OcclusionParams,
+    /// The `sheen` effect's colour and roughness (per preset).
+    pub sheen: crate::sheen::SheenParams,
+    /// The `wind` effect's sway and period.
+    pub wind: crate::wind::WindParams,
 }
 
 /// Keys whose value replaces the base value whole instead of merging into it: a strand model
@@ -135,6 +141,9 @@ impl BakeParams {
         self.lod.check().map_err(|e| e.within("lod"))?;
         self.pack.check().map_err(|e| e.within("pack"))?;
         self.gravity.check().map_err(|e| e.within("gravity"))?;
+        self.occlusion.check().map_err(|e| e.within("occlusion"))?;
+        self.sheen.check().map_err(|e| e.within("sheen"))?;
+        self.wind.check().map_err(|e| e.within("wind"))?;
         Ok(())
     }
 

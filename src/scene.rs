@@ -56,14 +56,26 @@ pub enum Effect {
     /// Bend the strands toward a direction (world gravity or a comb), a second morph target
     /// weighted `t^k` (`--gravity`, `[surface.gravity]`).
     Gravity,
+    /// Ambient occlusion of the base surface folded into each layer's shade, `COLOR_0` (rays
+    /// against the BVH the collision bound shares; `--occlusion`, `[surface.occlusion]`).
+    Occlusion,
+    /// `KHR_materials_sheen` on the layer materials, stronger toward the tips (`--sheen`,
+    /// `[surface.sheen]`).
+    Sheen,
+    /// Strands sway: two morph targets and a looping animation of the layer weights (`--wind`,
+    /// `[surface.wind]`).
+    Wind,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 4] = [
+    pub const ALL: [Effect; 7] = [
         Effect::Collision,
         Effect::Cull,
         Effect::Lod,
         Effect::Gravity,
+        Effect::Occlusion,
+        Effect::Sheen,
+        Effect::Wind,
     ];
     /// The effects every surface has unless its effect list says `no-<name>` (`--no-cull`,
     /// `--no-lod`).
@@ -75,6 +87,9 @@ impl Effect {
             Effect::Cull => "cull",
             Effect::Lod => "lod",
             Effect::Gravity => "gravity",
+            Effect::Occlusion => "occlusion",
+            Effect::Sheen => "sheen",
+            Effect::Wind => "wind",
         }
     }
 
@@ -89,6 +104,9 @@ impl Effect {
             Effect::Cull => Stage::Cull,
             Effect::Lod => Stage::Lod,
             Effect::Gravity => Stage::Gravity,
+            Effect::Occlusion => Stage::Occlusion,
+            Effect::Sheen => Stage::Sheen,
+            Effect::Wind => Stage::Wind,
         }
     }
 }
@@ -104,10 +122,13 @@ pub enum Stage {
     Smooth,
     Collision,
     Clamp,
+    Occlusion,
     Strands,
     Tiling,
     Shells,
     Gravity,
+    Wind,
+    Sheen,
     Cull,
     Lod,
     Pack,
@@ -115,7 +136,7 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 16] = [
+    pub const ALL: [Stage; 19] = [
         Stage::Load,
         Stage::Merge,
         Stage::Orient,
@@ -124,10 +145,13 @@ impl Stage {
         Stage::Smooth,
         Stage::Collision,
         Stage::Clamp,
+        Stage::Occlusion,
         Stage::Strands,
         Stage::Tiling,
         Stage::Shells,
         Stage::Gravity,
+        Stage::Wind,
+        Stage::Sheen,
         Stage::Cull,
         Stage::Lod,
         Stage::Pack,
@@ -149,6 +173,9 @@ impl Stage {
             Stage::Tiling => "tiling",
             Stage::Shells => "shells",
             Stage::Gravity => "gravity",
+            Stage::Occlusion => "occlusion",
+            Stage::Wind => "wind",
+            Stage::Sheen => "sheen",
             Stage::Cull => "cull",
             Stage::Lod => "lod",
             Stage::Pack => "pack",
@@ -245,8 +272,18 @@ const SURFACE_KEYS: [&str; 8] = [
 ];
 
 /// Sections of [`BakeParams`] a surface may override.
-const SECTIONS: [&str; 8] = [
-    "orient", "clamp", "strands", "shells", "shade", "lod", "pack", "gravity",
+const SECTIONS: [&str; 11] = [
+    "orient",
+    "clamp",
+    "strands",
+    "shells",
+    "shade",
+    "lod",
+    "pack",
+    "gravity",
+    "occlusion",
+    "sheen",
+    "wind",
 ];
 
 /// One step of a key path inside the scene file.

@@ -145,6 +145,13 @@ pub struct ShellStack {
     /// The `gravity` effect's law: layer `j` adds `bend_of(delta) · t_j^k` (see
     /// [`crate::gravity::bend_of`]).
     pub bend: Option<crate::gravity::Bend>,
+    /// The `wind` effect's sway law and per-vertex phases (see [`crate::wind`]).
+    pub wind: Option<crate::wind::Wind>,
+    /// The `occlusion` effect's darkening `a` per render vertex: layer `t` is shaded by
+    /// `lerp(1 − a, 1, t)` on top of [`ShellStack::color`] (see [`crate::occlusion`]).
+    pub occlusion: Option<Vec<f32>>,
+    /// The `sheen` effect's parameters (layer `t` carries `KHR_materials_sheen`).
+    pub sheen: Option<crate::sheen::SheenParams>,
 }
 
 /// Colour of a layer at normalised height `t`.
@@ -179,6 +186,9 @@ pub fn build_shells(
         t,
         delta,
         bend: None,
+        wind: None,
+        occlusion: None,
+        sheen: None,
     }
 }
 

@@ -229,6 +229,15 @@ pub fn gltf_json_with(
         "buffers": buffers,
     });
     let mut doc = doc;
+    if !packed.animations.is_empty() {
+        doc["animations"] = packed.animations.iter().map(animation_json).collect();
+    }
+    if packed.materials.iter().any(|m| m.sheen.is_some()) {
+        doc["extensionsUsed"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!("KHR_materials_sheen"));
+    }
     for key in ["extensionsUsed", "extensionsRequired"] {
         if doc[key].as_array().is_some_and(|a| a.is_empty()) {
             doc.as_object_mut().unwrap().remove(key);
@@ -253,10 +262,26 @@ fn view_json(v: &Stream, offset: usize) -> Value {
     match v.kind {
         StreamKind::Vertex => o.insert("target".into(), json!(34962)),
         StreamKind::Index => o.insert("target".into(), json!(34963)),
-        StreamKind::Image => None,
+        StreamKind::Image | StreamKind::Animation => None,
     };
     o.insert("name".into(), json!(v.name));
     Value::Object(o)
+}
+
+/// An animation: one `LINEAR` sampler per channel, each channel a node's `weights`.
+fn animation_json(a: &crate::pack::Animation) -> Value {
+    let samplers: Vec<Value> = a
+        .channels
+        .iter()
+        .map(|c| json!({ "input": c.input, "output": c.output, "interpolation": "LINEAR" }))
+        .collect();
+    let channels: Vec<Value> = a
+        .channels
+        .iter()
+        .enumerate()
+        .map(|(i, c)| json!({ "sampler": i, "target": { "node": c.node, "path": "weights" } }))
+        .collect();
+    json!({ "name": a.name, "channels": channels, "samplers": samplers })
 }
 
 fn accessor_json(a: &Accessor) -> Value {
@@ -355,6 +380,15 @@ fn material_json(m: &Material) -> Value {
         if cutoff != 0.5 {
             mat.insert("alphaCutoff".into(), num(cutoff));
         }
+    }
+    if let Some(s) = m.sheen {
+        mat.insert(
+            "extensions".into(),
+            json!({ "KHR_materials_sheen": {
+                "sheenColorFactor": s.color.map(num),
+                "sheenRoughnessFactor": num(s.roughness),
+            }}),
+        );
     }
     Value::Object(mat)
 }

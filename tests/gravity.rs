@@ -45,6 +45,7 @@ fn verify_glb(glb: &[u8], reference: &shellbake::Baked, params: &BakeParams) -> 
         ReferenceInput::from_baked(reference, params),
         256,
         (&params.lod).into(),
+        &[],
     )
     .unwrap()
 }

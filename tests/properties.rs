@@ -93,7 +93,7 @@ proptest! {
         let h = m.diagonal() * frac;
         let params = shellbake::clamp::ClampParams::default();
         let s = shellbake::clamp::smooth(&w, &f, h, &params);
-        let bound = shellbake::clamp::collision_bound(&w, &s, h, &params);
+        let bound = shellbake::clamp::collision_bound(&w, &shellbake::clamp::MeshBvh::build(&w), &s, h, &params);
         let c = shellbake::clamp::clamp_heights(&w, s, h, &params, Some(&bound));
         prop_assert!(c.welded_scale.iter().all(|s| s.is_finite() && (0.0..=1.0).contains(s)));
         let dirs = &c.welded_direction;

@@ -53,6 +53,7 @@ fn verify_glb(glb: &[u8], baked: &shellbake::Baked, params: &BakeParams) -> Veri
         ReferenceInput::from_baked(baked, params),
         SIZE,
         (&params.lod).into(),
+        &[],
     )
     .unwrap()
 }

@@ -43,8 +43,9 @@ mod model;
 mod quantize;
 
 pub use model::{
-    Accessor, Alpha, LayerRange, Material, Mesh as PackedMesh, Node, NodeLod, Packed,
+    Accessor, Alpha, Animation, LayerRange, Material, Mesh as PackedMesh, Node, NodeLod, Packed,
     PackedSurface, Primitive, Semantic, ShellExtras, Stream, StreamKind, Tag, Texture, TextureRef,
+    WeightChannel,
 };
 
 pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid, SNORM16};
@@ -55,7 +56,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::lod::Level;
-use crate::mesh::Mesh;
+use crate::mesh::{color_byte, Mesh};
 use crate::strands::{Mask, BASE_CODE};
 use quantize::Bytes;
 
@@ -232,6 +233,12 @@ pub struct PackInput<'a> {
     pub prefix: &'a str,
     /// The `gravity` effect's bend law (`None`: straight strands).
     pub bend: Option<crate::gravity::Bend>,
+    /// The `wind` effect's sway and phases (`None`: still).
+    pub wind: Option<&'a crate::wind::Wind>,
+    /// The `occlusion` effect's darkening per vertex of `mesh`.
+    pub occlusion: Option<&'a [f32]>,
+    /// The `sheen` effect's parameters.
+    pub sheen: Option<&'a crate::sheen::SheenParams>,
 }
 
 /// The surface's vertices with their quantization grids, in the input's order.
@@ -249,6 +256,12 @@ struct Geometry<'a> {
     /// Compact layout under the `gravity` effect: the bend target per vertex, stored unit.
     bends: Option<Vec<Vec3>>,
     bend: Option<crate::gravity::Bend>,
+    /// The `wind` effect's two targets per vertex (`s cos φ`, `s sin φ`), stored unit (compact:
+    /// on the exponent filter's grids).
+    winds: Option<[Vec<Vec3>; 2]>,
+    wind: Option<&'a crate::wind::Wind>,
+    occlusion: Option<&'a [f32]>,
+    sheen: Option<&'a crate::sheen::SheenParams>,
     density: Option<&'a [u8]>,
     fur_weight: Option<&'a [f32]>,
 }
@@ -450,6 +463,27 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             guard::guard(&base, &mut deltas, &guarded_indices, &check)
         }
     };
+    // the wind's targets, from the guarded deltas (compact: `deltas` are stored already)
+    let winds = input.wind.map(|w| {
+        let to_grid = match params.layout {
+            Layout::Compact => unit,
+            Layout::SingleDraw => 1.0,
+        };
+        let [a, b]: [Vec<Vec3>; 2] = [0, 1].map(|k| {
+            deltas
+                .iter()
+                .zip(&w.phase)
+                .map(|(&d, &phase)| w.targets(d * to_grid, phase)[k] / unit)
+                .collect()
+        });
+        match params.layout {
+            Layout::Compact => [a, b].map(|v| {
+                let g = crate::compress::DeltaGrid::fit(&v);
+                v.iter().map(|&x| g.round(x)).collect()
+            }),
+            Layout::SingleDraw => [a, b],
+        }
+    });
     let uvs = mesh.uvs.as_deref().unwrap();
     let uv_grid = UvGrid::fit(uvs);
     let tiles = input.tiles_per_uv;
@@ -467,6 +501,10 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         deltas,
         bends,
         bend: input.bend,
+        winds,
+        wind: input.wind,
+        occlusion: input.occlusion,
+        sheen: input.sheen,
         density: input.density,
         fur_weight: input.fur_weight,
     };
@@ -518,6 +556,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
 
     let several_chunks = input.chunks.len() > 1;
     let several_levels = input.levels.len() > 1;
+    let mut animation = WindAnimation::default();
     let mut chunk_nodes = Vec::new();
     let mut lod_meshes: Vec<Vec<usize>> = vec![Vec::new(); input.levels.len()];
     let mut layer_nodes_all = Vec::new();
@@ -628,6 +667,14 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                     Packed::push(&mut b.out.nodes, node)
                 })
                 .collect();
+            if let Some(wind) = input.wind {
+                for (&node, &m) in nodes.iter().zip(&meshes) {
+                    let channel = wind_channel(&mut b, wind, (node, m), pl.level, &mut animation);
+                    // coarser levels (MSFT_lod alternatives, outside the scene) animate apart,
+                    // so that a client without MSFT_lod finds every node the clip names
+                    animation.channels[(k > 0) as usize].extend(channel);
+                }
+            }
             lod_meshes[k].extend(meshes.iter().copied());
             if k == 0 {
                 layer_nodes_all.extend(nodes.iter().copied());
@@ -672,6 +719,14 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         chunk_nodes.push(Packed::push(&mut b.out.nodes, node));
     }
 
+    for (channels, name) in animation.channels.into_iter().zip(["wind", "wind_lod"]) {
+        if !channels.is_empty() {
+            b.out.animations.push(Animation {
+                name: format!("{}{name}", input.prefix),
+                channels,
+            });
+        }
+    }
     // the node that dequantizes: stored value → world
     let step = grid.step as f64;
     let translation = grid.min.as_dvec3() + mesh.origin + step * zero_level as f64;
@@ -716,6 +771,72 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     surface
 }
 
+/// A surface's wind animation as it is built: its channels (LOD 0's, then the coarser levels'),
+/// the keyframe times, and the value accessors made so far (nodes with the same weights share
+/// one).
+#[derive(Default)]
+struct WindAnimation {
+    channels: [Vec<WeightChannel>; 2],
+    times: Option<usize>,
+    outputs: Vec<(Vec<u32>, usize)>,
+}
+
+/// The wind channel of `node` (showing mesh `m` of `level`), when the mesh has the wind's
+/// targets (its last two): every key holds the node's own weights with the wind's replaced by
+/// their value at that time (compact: the layer's `t^k sin ωτ`, `t^k cos ωτ`; single-draw, whose
+/// targets hold `t^k`: `sin ωτ`, `cos ωτ`).
+fn wind_channel(
+    b: &mut Builder,
+    wind: &crate::wind::Wind,
+    (node, m): (usize, usize),
+    level: &Level,
+    animation: &mut WindAnimation,
+) -> Option<WeightChannel> {
+    let mesh = &b.out.meshes[m];
+    let targets = mesh.primitives.first().map_or(0, |p| p.targets.len());
+    let rest = match &b.out.nodes[node].weights {
+        w if !w.is_empty() => w.clone(),
+        _ => mesh.weights.clone(),
+    };
+    if targets < 2 || rest.len() != targets {
+        return None;
+    }
+    let t = mesh.tag.layer.map_or(1.0, |j| level.layers[j].t);
+    let times = wind.times();
+    let mut values = Vec::with_capacity(times.len() * targets);
+    for &time in &times {
+        values.extend_from_slice(&rest[..targets - 2]);
+        values.extend(wind.weights(time, t));
+    }
+    let key: Vec<u32> = values.iter().map(|v| v.to_bits()).collect();
+    let output = match animation.outputs.iter().find(|(k, _)| *k == key) {
+        Some(&(_, a)) => a,
+        None => {
+            let mut bytes = Bytes::default();
+            bytes.f32s(&values);
+            let n = values.len();
+            let v = b.stream("wind_weights", Semantic::Animation, None, bytes.0, None, n);
+            let a = b.out.accessor(v, component::FLOAT, false, "SCALAR", None);
+            animation.outputs.push((key, a));
+            a
+        }
+    };
+    let input = *animation.times.get_or_insert_with(|| {
+        let mut bytes = Bytes::default();
+        bytes.f32s(&times);
+        let n = times.len();
+        let v = b.stream("wind_times", Semantic::Animation, None, bytes.0, None, n);
+        let bounds = (vec![0.0], vec![wind.period as f64]);
+        b.out
+            .accessor(v, component::FLOAT, false, "SCALAR", Some(bounds))
+    });
+    Some(WeightChannel {
+        node,
+        input,
+        output,
+    })
+}
+
 /// What one level of one chunk is packed with.
 struct LevelCtx<'a> {
     geometry: &'a Geometry<'a>,
@@ -749,7 +870,12 @@ struct ShellStreams {
     delta: usize,
     /// The `gravity` effect's target.
     bend: Option<usize>,
-    density: Option<usize>,
+    /// The `wind` effect's two targets.
+    wind: Option<[usize; 2]>,
+    /// `COLOR_0`: density (alpha) and the occlusion's root shade (rgb).
+    color: Option<usize>,
+    /// The occlusion's `COLOR_0` delta in the extrusion target (shade 1 at `t` = 1).
+    color_delta: Option<usize>,
 }
 
 impl Shared {
@@ -771,21 +897,61 @@ impl Shared {
             let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs, g.tiles);
             let delta = b.deltas(&pick(&g.deltas), "extrusion", 0);
             let bend = g.bends.as_ref().map(|v| b.deltas(&pick(v), "bend", 1));
-            let density = g.density.map(|d| {
+            let wind = g.winds.as_ref().map(|[sin, cos]| {
+                let first = 1 + bend.is_some() as usize;
+                [
+                    b.deltas(&pick(sin), "wind_sin", first),
+                    b.deltas(&pick(cos), "wind_cos", first + 1),
+                ]
+            });
+            // COLOR_0: the root's occlusion shade `1 − a` (rgb) and the density (alpha); the
+            // extrusion target adds `a` to the rgb, so layer t shows `1 − a + a·t`
+            let n = order.len();
+            let root = |o: u32| {
+                g.occlusion
+                    .map_or(255, |a| color_byte(1.0 - a[o as usize] as f64))
+            };
+            let color = (g.density.is_some() || g.occlusion.is_some()).then(|| {
                 let mut bytes = Bytes::default();
                 for &o in &order {
-                    bytes.0.extend_from_slice(&[255, 255, 255, d[o as usize]]);
+                    let c = root(o);
+                    let d = g.density.map_or(255, |d| d[o as usize]);
+                    bytes.0.extend_from_slice(&[c, c, c, d]);
                 }
-                let n = order.len();
-                let v = b.stream("density", Semantic::Color(0), None, bytes.0, Some(4), n);
+                let name = if g.occlusion.is_some() {
+                    "color"
+                } else {
+                    "density"
+                };
+                let v = b.stream(name, Semantic::Color(0), None, bytes.0, Some(4), n);
                 b.out
                     .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
+            });
+            let color_delta = g.occlusion.map(|_| {
+                let mut bytes = Bytes::default();
+                for &o in &order {
+                    // what brings the stored root byte to 1 at t = 1
+                    let rest = 1.0 - root(o) as f32 / 255.0;
+                    let c = (rest * 127.0).round() as i8 as u8;
+                    bytes.0.extend_from_slice(&[c, c, c, 0]);
+                }
+                let v = b.stream(
+                    "color_delta",
+                    Semantic::Color(0),
+                    Some(0),
+                    bytes.0,
+                    Some(4),
+                    n,
+                );
+                b.out.accessor(v, component::BYTE, true, "VEC4", None)
             });
             ShellStreams {
                 texcoord,
                 delta,
                 bend,
-                density,
+                wind,
+                color,
+                color_delta,
             }
         });
         Shared {
@@ -1010,15 +1176,19 @@ fn compact(
     ];
     if let Some([fur, skin]) = ctx.level.bare {
         let mut attributes = base;
-        // with maps, the colour per vertex (COLOR_0, linear) and a white material
+        // with maps or occlusion, the colour per vertex (COLOR_0, linear) and a white material;
+        // occlusion darkens by the layers' mean shade, 1 − a/2
         let weight = ctx.geometry.fur_weight;
-        let colour = if weight.is_some() { [1.0; 3] } else { fur };
-        if let Some(w) = weight {
+        let occlusion = ctx.geometry.occlusion;
+        let per_vertex = weight.is_some() || occlusion.is_some();
+        let colour = if per_vertex { [1.0; 3] } else { fur };
+        if per_vertex {
             let mut bytes = Bytes::default();
             for &o in &s.order {
-                let w = w[o as usize];
+                let w = weight.map_or(1.0, |w| w[o as usize]);
+                let shade = occlusion.map_or(1.0, |a| 1.0 - 0.5 * a[o as usize]);
                 let c = [0, 1, 2].map(|k| {
-                    let v = skin[k] + (fur[k] - skin[k]) * w;
+                    let v = (skin[k] + (fur[k] - skin[k]) * w) * shade;
                     (v.clamp(0.0, 1.0) * 255.0).round() as u8
                 });
                 bytes.0.extend_from_slice(&[c[0], c[1], c[2], 255]);
@@ -1036,6 +1206,7 @@ fn compact(
             alpha: Alpha::Opaque,
             texture: None,
             roughness: ctx.roughness,
+            sheen: None,
         });
         let name = format!("{}bare", ctx.prefix);
         return (
@@ -1049,7 +1220,7 @@ fn compact(
         .expect("shell levels share LOD 0's shell streams");
     let mut attributes = base;
     attributes.push((Semantic::TexCoord(0), shells.texcoord));
-    attributes.extend(shells.density.map(|d| (Semantic::Color(0), d)));
+    attributes.extend(shells.color.map(|d| (Semantic::Color(0), d)));
     // one index accessor per distinct triangle count, all over the level's index stream
     let mut prefixes: Vec<(usize, usize)> = vec![(indices.len() / 3, ix)];
     let layers = &ctx.level.layers;
@@ -1079,14 +1250,23 @@ fn compact(
                 },
                 texture: ctx.texture,
                 roughness: ctx.roughness,
+                sheen: ctx
+                    .geometry
+                    .sheen
+                    .and_then(|s| crate::sheen::Sheen::of(s, l.t)),
             });
             let primitive = Primitive {
                 attributes: attributes.clone(),
                 targets: if base {
                     vec![]
                 } else {
-                    let mut t = vec![vec![(Semantic::Position, shells.delta)]];
+                    let mut extrusion = vec![(Semantic::Position, shells.delta)];
+                    extrusion.extend(shells.color_delta.map(|c| (Semantic::Color(0), c)));
+                    let mut t = vec![extrusion];
                     t.extend(shells.bend.map(|b| vec![(Semantic::Position, b)]));
+                    for w in shells.wind.into_iter().flatten() {
+                        t.push(vec![(Semantic::Position, w)]);
+                    }
                     t
                 },
                 indices: Some(ix),
@@ -1104,8 +1284,13 @@ fn compact(
                     primitives: vec![primitive],
                     weights: match (base, ctx.geometry.bend.filter(|_| shells.bend.is_some())) {
                         (true, _) => vec![],
-                        (false, None) => vec![l.t],
-                        (false, Some(bend)) => vec![l.t, bend.weight(l.t)],
+                        (false, bend) => {
+                            let mut w = vec![l.t];
+                            w.extend(bend.map(|b| b.weight(l.t)));
+                            // the wind at rest (the animation moves it)
+                            w.extend(shells.wind.map_or(&[][..], |_| &[0.0, 0.0]));
+                            w
+                        }
                     },
                     layer_ranges: vec![],
                 },
@@ -1221,9 +1406,12 @@ fn single_draw(
                 Some(d) if j > 0 => (alpha as u32 * d[o as usize] as u32 + 127) / 255,
                 _ => alpha as u32,
             };
+            let shade = g
+                .occlusion
+                .map_or(1.0, |a| crate::occlusion::shade(a[o as usize], l.t));
             let c = l
                 .color
-                .map(|c| (c.clamp(0.0, 1.0) * 65535.0).round() as u16);
+                .map(|c| ((c * shade).clamp(0.0, 1.0) * 65535.0).round() as u16);
             colors.u16s(&[c[0], c[1], c[2], a as u16], 8);
         }
         all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
@@ -1250,6 +1438,11 @@ fn single_draw(
         alpha: Alpha::Mask(single_draw_cutoff(ctx.mask)),
         texture: ctx.texture,
         roughness: ctx.roughness,
+        // one material for every layer: the sheen of their mean height
+        sheen: g.sheen.and_then(|s| {
+            let mean = layers.iter().map(|l| l.t).sum::<f32>() / layers.len().max(1) as f32;
+            crate::sheen::Sheen::of(s, mean)
+        }),
     });
     let attributes = vec![
         (Semantic::Position, position),
@@ -1258,6 +1451,27 @@ fn single_draw(
         (Semantic::Color(0), color),
     ];
     let mesh = b.single_primitive_mesh(name, attributes, ix, material);
+    // the wind's targets hold each layer's t^k; the animation weighs them sin ωτ and cos ωτ
+    if let (Some(wind), Some(winds)) = (g.wind, &g.winds) {
+        let targets: Vec<usize> = [("wind_sin", 0), ("wind_cos", 1)]
+            .into_iter()
+            .map(|(name, k)| {
+                let v: Vec<Vec3> = (0..layers.len())
+                    .flat_map(|j| {
+                        let w = wind.weights(0.0, layers[j].t)[1];
+                        pick(j).map(move |o| winds[k][o] * w)
+                    })
+                    .collect();
+                b.deltas(&v, name, k)
+            })
+            .collect();
+        let m = &mut b.out.meshes[mesh];
+        m.primitives[0].targets = targets
+            .iter()
+            .map(|&a| vec![(Semantic::Position, a)])
+            .collect();
+        m.weights = vec![0.0, 0.0];
+    }
     b.out.meshes[mesh].layer_ranges = ranges;
     vec![mesh]
 }

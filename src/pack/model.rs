@@ -28,6 +28,8 @@ pub enum Semantic {
     Indices,
     /// An encoded image (PNG).
     Image,
+    /// Animation keyframe times or values.
+    Animation,
 }
 
 impl Semantic {
@@ -38,7 +40,7 @@ impl Semantic {
             Semantic::Normal => Some("NORMAL".into()),
             Semantic::TexCoord(i) => Some(format!("TEXCOORD_{i}")),
             Semantic::Color(i) => Some(format!("COLOR_{i}")),
-            Semantic::Indices | Semantic::Image => None,
+            Semantic::Indices | Semantic::Image | Semantic::Animation => None,
         }
     }
 }
@@ -62,6 +64,8 @@ pub enum StreamKind {
     Index,
     /// Image bytes (no target).
     Image,
+    /// Animation data (no target).
+    Animation,
 }
 
 /// A byte stream: one glTF buffer view.
@@ -126,6 +130,8 @@ pub struct Material {
     /// The mask bound as the base colour texture, or none.
     pub texture: Option<TextureRef>,
     pub roughness: f32,
+    /// `KHR_materials_sheen` (the `sheen` effect).
+    pub sheen: Option<crate::sheen::Sheen>,
 }
 
 /// A texture: an image stream, sampled with the file's one sampler.
@@ -221,6 +227,22 @@ pub struct NodeLod {
     pub errors: Vec<f64>,
 }
 
+/// A glTF animation of morph weights: each channel sets one node's weights from keyframe times
+/// (`input`) and values (`output`, every target's weight per key), `LINEAR`.
+#[derive(Clone, Debug, Default)]
+pub struct Animation {
+    pub name: String,
+    pub channels: Vec<WeightChannel>,
+}
+
+/// One node's weights over time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WeightChannel {
+    pub node: usize,
+    pub input: usize,
+    pub output: usize,
+}
+
 /// What one surface's packing decided, for the report and the tests.
 #[derive(Clone, Debug)]
 pub struct PackedSurface {
@@ -270,6 +292,7 @@ pub struct Packed {
     pub nodes: Vec<Node>,
     /// The scene's root nodes, one per surface.
     pub roots: Vec<usize>,
+    pub animations: Vec<Animation>,
     pub surfaces: Vec<PackedSurface>,
 }
 
@@ -285,6 +308,7 @@ impl Packed {
         let kind = match semantic {
             Semantic::Indices => StreamKind::Index,
             Semantic::Image => StreamKind::Image,
+            Semantic::Animation => StreamKind::Animation,
             _ => StreamKind::Vertex,
         };
         self.streams.push(Stream {

@@ -84,6 +84,8 @@ pub struct RenderArgs {
     /// Picture size.
     pub size: (u32, u32),
     pub camera: CameraArgs,
+    /// Draw the file's animations at this time, seconds (`None`: the static weights).
+    pub time: Option<f32>,
 }
 
 /// `shellbake view`.
@@ -107,6 +109,8 @@ pub struct VerifyArgs {
     pub out_dir: PathBuf,
     /// Side of the square pictures.
     pub size: u32,
+    /// Animation times to compare at besides the rest pose (seconds; the `wind` effect).
+    pub times: Vec<f32>,
 }
 
 /// `shellbake bench` flags besides the bake flags.
@@ -350,6 +354,9 @@ pub fn bench(
 pub fn render(args: &RenderArgs) -> Result<()> {
     let gpu = Gpu::new()?;
     let mut r = GltfRenderer::new(&gpu, Asset::open(&args.input)?)?;
+    if args.time.is_some() {
+        r.set_time(&gpu, args.time)?;
+    }
     let (w, h) = args.size;
     let camera = Camera::frame(r.bounds, args.camera.orbit(), w as f64 / h as f64);
     let image = super::render_gltf(&gpu, &mut r, &camera, &Light::default(), args.size);
@@ -404,6 +411,7 @@ pub fn verify(
         ReferenceInput::from_baked(&baked.surfaces[0], &surface.params),
         args.size,
         (&surface.params.lod).into(),
+        &args.times,
     )?;
     let stem = input
         .file_stem()

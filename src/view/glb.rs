@@ -22,8 +22,12 @@
 //! - **Images**: PNG from a buffer view or a URI the reader resolves; sampler filters (mipmapped
 //!   ones get a mip chain, see `gltf.rs`; a sampler without `minFilter` is read as
 //!   `LINEAR_MIPMAP_LINEAR`, as three.js does) and wrap modes.
-//! - **Morph targets**: `POSITION` deltas only (the only kind shellbake writes), at most
-//!   [`MAX_MORPH_TARGETS`] per primitive.
+//! - **Morph targets**: `POSITION` deltas, at most [`MAX_MORPH_TARGETS`] per primitive, and one
+//!   `COLOR_0` delta (shellbake's occlusion puts one in the extrusion target).
+//! - **Animations** of morph `weights` (`LINEAR` or `STEP`; other paths are ignored): with a
+//!   time set ([`Asset::time`]) each node's weights are its channel's value then, every
+//!   animation looping over its own length, as a player that plays them all would show.
+//! - **`KHR_materials_sheen`** factors (colour, roughness).
 //!
 //! Decoding to `f32` on the CPU (rather than binding the quantized streams with integer vertex
 //! formats) was chosen because wgpu has no 3-component 8/16-bit vertex formats and strides vary
@@ -156,6 +160,8 @@ pub struct Material {
     pub uv_transform: [[f32; 3]; 2],
     pub alpha: AlphaMode,
     pub double_sided: bool,
+    /// `KHR_materials_sheen`: colour (rgb) and roughness (w).
+    pub sheen: Option<[f32; 4]>,
 }
 
 impl Default for Material {
@@ -170,6 +176,7 @@ impl Default for Material {
             uv_transform: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
             alpha: AlphaMode::Opaque,
             double_sided: false,
+            sheen: None,
         }
     }
 }
@@ -184,6 +191,8 @@ pub struct Primitive {
     pub indices: Option<usize>,
     /// POSITION morph targets.
     pub targets: Vec<usize>,
+    /// A `COLOR_0` morph target: (target index, accessor).
+    pub color_target: Option<(usize, usize)>,
     pub material: Option<usize>,
 }
 
@@ -241,6 +250,47 @@ pub struct Asset {
     pub textures: Vec<Texture>,
     /// Layer count from `extras.shellbake.layers` of node 0, when the file is a shellbake bake.
     pub shell_layers: Option<usize>,
+    /// Morph weight tracks of each animation.
+    pub animations: Vec<Vec<WeightTrack>>,
+    /// The time the weights are taken at (`None`: the file's static weights).
+    pub time: Option<f32>,
+}
+
+/// One channel animating a node's morph weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightTrack {
+    pub node: usize,
+    /// Keyframe times, seconds.
+    pub times: Vec<f32>,
+    /// Every target's weight per key.
+    pub values: Vec<f32>,
+    /// `STEP` instead of `LINEAR`.
+    pub step: bool,
+}
+
+impl WeightTrack {
+    /// The weights at `time` (within the keys; clamped at either end).
+    pub fn at(&self, time: f32) -> Vec<f32> {
+        let keys = self.times.len();
+        let n = self.values.len() / keys.max(1);
+        let row = |k: usize| &self.values[k * n..(k + 1) * n];
+        let Some(next) = self.times.iter().position(|&t| t > time) else {
+            return row(keys.saturating_sub(1)).to_vec();
+        };
+        if next == 0 {
+            return row(0).to_vec();
+        }
+        let (t0, t1) = (self.times[next - 1], self.times[next]);
+        if self.step || t1 <= t0 {
+            return row(next - 1).to_vec();
+        }
+        let f = (time - t0) / (t1 - t0);
+        row(next - 1)
+            .iter()
+            .zip(row(next))
+            .map(|(&a, &b)| a + (b - a) * f)
+            .collect()
+    }
 }
 
 fn f32s(v: &Value) -> Option<Vec<f32>> {
@@ -308,6 +358,9 @@ impl Asset {
                     .iter()
                     .filter_map(|t| t.iter().find(|(n, _)| n == "POSITION").map(|&(_, a)| a))
                     .collect();
+                let color_target = prim.targets.iter().enumerate().find_map(|(i, t)| {
+                    t.iter().find(|(n, _)| n == "COLOR_0").map(|&(_, a)| (i, a))
+                });
                 if targets.len() > MAX_MORPH_TARGETS {
                     return Err(invalid(
                         element(),
@@ -324,6 +377,7 @@ impl Asset {
                     color: prim.attribute("COLOR_0"),
                     indices: prim.indices,
                     targets,
+                    color_target,
                     material: prim.material,
                 });
             }
@@ -371,9 +425,85 @@ impl Asset {
             lods,
             materials,
             textures: Vec::new(),
+            animations: Vec::new(),
+            time: None,
         };
         asset.textures = asset.parse_textures()?;
+        asset.animations = asset.parse_animations()?;
         Ok(asset)
+    }
+
+    /// The `weights` channels of every animation, decoded.
+    fn parse_animations(&self) -> Result<Vec<Vec<WeightTrack>>> {
+        let mut out = Vec::new();
+        let empty = Vec::new();
+        for (i, anim) in self.doc.json["animations"]
+            .as_array()
+            .unwrap_or(&empty)
+            .iter()
+            .enumerate()
+        {
+            let mut tracks = Vec::new();
+            for channel in anim["channels"].as_array().unwrap_or(&empty) {
+                let target = &channel["target"];
+                let (Some(node), Some(s)) = (index(&target["node"]), index(&channel["sampler"]))
+                else {
+                    continue;
+                };
+                if target["path"].as_str() != Some("weights") {
+                    continue;
+                }
+                let sampler = &anim["samplers"][s];
+                let (Some(input), Some(output)) =
+                    (index(&sampler["input"]), index(&sampler["output"]))
+                else {
+                    return Err(self.invalid(
+                        format!("animation {i} sampler {s}"),
+                        "has no input or output accessor",
+                    ));
+                };
+                let times = self.floats(input)?.data;
+                let values = self.floats(output)?.data;
+                if times.is_empty() || values.len() % times.len() != 0 {
+                    return Err(self.invalid(
+                        format!("animation {i} sampler {s}"),
+                        format!(
+                            "{} values for {} keyframes (not a whole number per key)",
+                            values.len(),
+                            times.len()
+                        ),
+                    ));
+                }
+                tracks.push(WeightTrack {
+                    node,
+                    times,
+                    values,
+                    step: sampler["interpolation"].as_str() == Some("STEP"),
+                });
+            }
+            out.push(tracks);
+        }
+        Ok(out)
+    }
+
+    /// Animated weights of each node at `time`, every animation looping over its own length.
+    pub fn weights_at(&self, time: f32) -> HashMap<usize, Vec<f32>> {
+        let mut out = HashMap::new();
+        for tracks in &self.animations {
+            let length = tracks
+                .iter()
+                .filter_map(|t| t.times.last().copied())
+                .fold(0.0f32, f32::max);
+            let local = if length > 0.0 {
+                time.rem_euclid(length)
+            } else {
+                0.0
+            };
+            for t in tracks {
+                out.insert(t.node, t.at(local));
+            }
+        }
+        out
     }
 
     fn invalid(&self, element: String, message: impl Into<String>) -> GlbError {
@@ -572,6 +702,7 @@ impl Asset {
 
     /// Every mesh instance of the scene, node `n` replaced by `pick(n)` (an `MSFT_lod` level).
     pub fn instances_with(&self, pick: impl Fn(usize) -> usize) -> Result<Vec<Instance>> {
+        let animated = self.time.map(|t| self.weights_at(t)).unwrap_or_default();
         Ok(self
             .doc
             .walk(pick)?
@@ -579,9 +710,10 @@ impl Asset {
             .filter_map(|p| {
                 let node = &self.doc.nodes[p.node];
                 let m = node.mesh?;
-                let weights = match &node.weights {
-                    Some(w) => w.iter().map(|&w| w as f32).collect(),
-                    None => self.meshes[m].weights.clone(),
+                let weights = match (animated.get(&p.node), &node.weights) {
+                    (Some(w), _) => w.clone(),
+                    (None, Some(w)) => w.iter().map(|&w| w as f32).collect(),
+                    (None, None) => self.meshes[m].weights.clone(),
                 };
                 Some(Instance {
                     node: p.node,
@@ -671,6 +803,16 @@ fn parse_material(m: &Value) -> Material {
         uv_transform,
         alpha,
         double_sided: m["doubleSided"].as_bool().unwrap_or(false),
+        sheen: {
+            let s = &m["extensions"]["KHR_materials_sheen"];
+            s.is_object().then(|| {
+                let c = f32s(&s["sheenColorFactor"])
+                    .filter(|v| v.len() == 3)
+                    .unwrap_or(vec![0.0; 3]);
+                let r = s["sheenRoughnessFactor"].as_f64().unwrap_or(0.0) as f32;
+                [c[0], c[1], c[2], r]
+            })
+        },
     }
 }
 

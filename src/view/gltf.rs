@@ -62,12 +62,18 @@ struct DrawData {
     weights: [f32; 4],
     material: [f32; 4],
     emissive: [f32; 4],
+    /// `KHR_materials_sheen` colour and roughness (zero: none).
+    sheen: [f32; 4],
+    /// x: the weight of the `COLOR_0` morph target.
+    color_weight: [f32; 4],
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 struct Key {
     targets: usize,
     color: bool,
+    /// The target index of a `COLOR_0` morph target.
+    color_target: Option<usize>,
     blend: bool,
     cull: bool,
     mirrored: bool,
@@ -84,6 +90,7 @@ enum Class {
 struct DrawCall {
     world: DMat4,
     weights: [f32; 4],
+    color_weight: f32,
     material: Material,
     material_group: usize,
     position: usize,
@@ -91,6 +98,7 @@ struct DrawCall {
     texcoord: Stream,
     color: Option<usize>,
     targets: Vec<usize>,
+    color_target: Option<(usize, usize)>,
     indices: Option<usize>,
     /// Indices (or vertices when unindexed) of the whole primitive.
     elements: u32,
@@ -113,9 +121,12 @@ pub struct GltfRenderer {
     frame: Frame,
     draw_layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
-    shaders: HashMap<(usize, bool), wgpu::ShaderModule>,
+    shaders: HashMap<(usize, bool, Option<usize>), wgpu::ShaderModule>,
     pipelines: HashMap<Key, wgpu::RenderPipeline>,
     buffers: HashMap<usize, wgpu::Buffer>,
+    /// `COLOR_0` interleaved with its morph target (stride 32), by the two accessors: one vertex
+    /// buffer for both keeps the most a primitive binds within wgpu's eight.
+    color_pairs: HashMap<(usize, usize), wgpu::Buffer>,
     zeros: HashMap<(u64, usize), wgpu::Buffer>,
     index_buffers: HashMap<usize, wgpu::Buffer>,
     material_groups: Vec<wgpu::BindGroup>,
@@ -255,6 +266,7 @@ impl GltfRenderer {
             shaders: HashMap::new(),
             pipelines: HashMap::new(),
             buffers: HashMap::new(),
+            color_pairs: HashMap::new(),
             zeros: HashMap::new(),
             index_buffers: HashMap::new(),
             material_groups,
@@ -305,6 +317,17 @@ impl GltfRenderer {
     /// Draws `MSFT_lod` level `lod` everywhere (0 = the full asset); `None`: each node's level
     /// by its distance from the camera, as the file's `extras.shellbake_lod` says (the
     /// default).
+    /// Takes animated morph weights at `time` seconds (`None`: the file's static weights).
+    pub fn set_time(&mut self, gpu: &Gpu, time: Option<f32>) -> Result<()> {
+        self.asset.time = time;
+        self.build_draws(gpu)
+    }
+
+    /// Whether the file animates anything the renderer draws.
+    pub fn animated(&self) -> bool {
+        self.asset.animations.iter().any(|a| !a.is_empty())
+    }
+
     pub fn set_lod(&mut self, gpu: &Gpu, lod: Option<usize>) -> Result<()> {
         self.lod = lod.map(|l| l.min(self.lod_levels()));
         self.pinned = None;
@@ -413,6 +436,8 @@ impl GltfRenderer {
                 accessors.extend(prim.texcoord);
                 accessors.extend(prim.color);
                 accessors.extend(&prim.targets);
+                // a colour target without a base colour would be invalid glTF: ignored
+                let color_target = prim.color_target.filter(|_| prim.color.is_some());
                 for a in accessors {
                     if !self.buffers.contains_key(&a) {
                         let f = self.asset.floats(a)?;
@@ -426,6 +451,34 @@ impl GltfRenderer {
                             f.data
                         };
                         self.buffers.insert(a, vertex_buffer(gpu, &data));
+                    }
+                }
+                if let (Some(c), Some((_, t))) = (prim.color, color_target) {
+                    if !self.color_pairs.contains_key(&(c, t)) {
+                        let rgba = |a: usize| -> Result<Vec<f32>> {
+                            let f = self.asset.floats(a)?;
+                            Ok(match f.components {
+                                3 => f
+                                    .data
+                                    .chunks_exact(3)
+                                    .flat_map(|c| [c[0], c[1], c[2], 0.0])
+                                    .collect(),
+                                _ => f.data,
+                            })
+                        };
+                        let (base, delta) = (rgba(c)?, rgba(t)?);
+                        let mut data = Vec::with_capacity(base.len() * 2);
+                        for (b, d) in base.chunks_exact(4).zip(delta.chunks_exact(4)) {
+                            // a VEC3 base colour has alpha 1
+                            let a = if self.asset.floats(c)?.components == 3 {
+                                1.0
+                            } else {
+                                b[3]
+                            };
+                            data.extend_from_slice(&[b[0], b[1], b[2], a]);
+                            data.extend_from_slice(d);
+                        }
+                        self.color_pairs.insert((c, t), vertex_buffer(gpu, &data));
                     }
                 }
                 let normal = match prim.normal {
@@ -472,6 +525,9 @@ impl GltfRenderer {
                 for (i, w) in weights.iter_mut().enumerate().take(prim.targets.len()) {
                     *w = inst.weights.get(i).copied().unwrap_or(0.0);
                 }
+                // the colour target's weight rides in the material vector's spare slot
+                let color_weight =
+                    color_target.map_or(0.0, |(i, _)| inst.weights.get(i).copied().unwrap_or(0.0));
                 let class = match material.alpha {
                     AlphaMode::Opaque => Class::Opaque,
                     AlphaMode::Mask(_) => Class::Mask,
@@ -480,6 +536,7 @@ impl GltfRenderer {
                 draws.push(DrawCall {
                     world: inst.world,
                     weights,
+                    color_weight,
                     material,
                     material_group,
                     position: prim.position,
@@ -487,6 +544,7 @@ impl GltfRenderer {
                     texcoord,
                     color: prim.color,
                     targets: prim.targets.clone(),
+                    color_target,
                     indices: prim.indices,
                     elements: elements - elements % 3,
                     layer_ends: self.asset.meshes[inst.mesh].layer_ends.clone(),
@@ -508,6 +566,7 @@ impl GltfRenderer {
         Key {
             targets: d.targets.len(),
             color: d.color.is_some(),
+            color_target: d.color_target.map(|c| c.0),
             blend: d.class == Class::Blend,
             cull: !d.material.double_sided,
             mirrored: DMat3::from_mat4(d.world).determinant() < 0.0,
@@ -555,6 +614,8 @@ impl GltfRenderer {
                     0.0,
                 ],
                 weights: d.weights,
+                color_weight: [d.color_weight, 0.0, 0.0, 0.0],
+                sheen: m.sheen.unwrap_or([0.0; 4]),
                 material: [m.metallic, m.roughness, cutoff, mode],
                 emissive: [
                     m.emissive[0],
@@ -583,7 +644,7 @@ impl GltfRenderer {
     fn build_pipeline(&mut self, gpu: &Gpu, key: Key) -> wgpu::RenderPipeline {
         let module = self
             .shaders
-            .entry((key.targets, key.color))
+            .entry((key.targets, key.color, key.color_target))
             .or_insert_with(|| {
                 let mut inputs = String::new();
                 let mut morph = String::new();
@@ -594,10 +655,13 @@ impl GltfRenderer {
                     inputs.push_str(&format!("    @location({}) target{t}: vec3<f32>,\n", 4 + t));
                     morph.push_str(&format!("    p += in.target{t} * draw.weights[{t}];\n"));
                 }
-                let color = if key.color {
-                    "    out.color = in.color;\n"
-                } else {
-                    "    out.color = vec4<f32>(1.0);\n"
+                let color = match (key.color, key.color_target) {
+                    (true, Some(_)) => {
+                        inputs.push_str("    @location(8) color_target: vec4<f32>,\n");
+                        "    out.color = in.color + in.color_target * draw.color_weight.x;\n"
+                    }
+                    (true, None) => "    out.color = in.color;\n",
+                    _ => "    out.color = vec4<f32>(1.0);\n",
                 };
                 let src = format!(
                     "{}\n{}",
@@ -631,7 +695,7 @@ impl GltfRenderer {
                     shader_location: 2,
                 }],
             ];
-            if key.color {
+            if key.color && key.color_target.is_none() {
                 v.push([wgpu::VertexAttribute {
                     format: wgpu::VertexFormat::Float32x4,
                     offset: 0,
@@ -647,7 +711,20 @@ impl GltfRenderer {
             }
             v
         };
-        let layouts: Vec<Option<wgpu::VertexBufferLayout>> = attrs
+        // COLOR_0 and its morph target, interleaved in one buffer
+        let pair = [
+            wgpu::VertexAttribute {
+                format: wgpu::VertexFormat::Float32x4,
+                offset: 0,
+                shader_location: 3,
+            },
+            wgpu::VertexAttribute {
+                format: wgpu::VertexFormat::Float32x4,
+                offset: 16,
+                shader_location: 8,
+            },
+        ];
+        let mut layouts: Vec<Option<wgpu::VertexBufferLayout>> = attrs
             .iter()
             .map(|a| {
                 let stride = match a[0].format {
@@ -662,6 +739,17 @@ impl GltfRenderer {
                 })
             })
             .collect();
+        if key.color && key.color_target.is_some() {
+            // bound right after TEXCOORD_0, where a lone COLOR_0 goes
+            layouts.insert(
+                3,
+                Some(wgpu::VertexBufferLayout {
+                    array_stride: 32,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &pair,
+                }),
+            );
+        }
         let blend = key.blend.then_some(wgpu::BlendState::ALPHA_BLENDING);
         gpu.device
             .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -710,9 +798,16 @@ impl GltfRenderer {
             pass.set_vertex_buffer(1, stream(d.normal).slice(..));
             pass.set_vertex_buffer(2, stream(d.texcoord).slice(..));
             let mut slot = 3;
-            if let Some(c) = d.color {
-                pass.set_vertex_buffer(slot, self.buffers[&c].slice(..));
-                slot += 1;
+            match (d.color, d.color_target) {
+                (Some(c), Some((_, t))) => {
+                    pass.set_vertex_buffer(slot, self.color_pairs[&(c, t)].slice(..));
+                    slot += 1;
+                }
+                (Some(c), None) => {
+                    pass.set_vertex_buffer(slot, self.buffers[&c].slice(..));
+                    slot += 1;
+                }
+                _ => {}
             }
             for t in &d.targets {
                 pass.set_vertex_buffer(slot, self.buffers[t].slice(..));

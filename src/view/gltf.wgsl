@@ -13,6 +13,10 @@ struct Draw {
     material: vec4<f32>,
     // emissive rgb, w = 1 when the primitive has no NORMAL (flat shading)
     emissive: vec4<f32>,
+    // KHR_materials_sheen colour (rgb) and roughness (w); zero: none
+    sheen: vec4<f32>,
+    // x: weight of the COLOR_0 morph target
+    color_weight: vec4<f32>,
 }
 
 @group(1) @binding(0) var<uniform> draw: Draw;
@@ -71,6 +75,6 @@ fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f
     if (draw.emissive.w == 1.0) {
         n = normalize(flat_n);
     }
-    let rgb = shade(base.rgb, draw.material.x, draw.material.y, n, in.world) + draw.emissive.xyz;
+    let rgb = shade_sheen(base.rgb, draw.material.x, draw.material.y, draw.sheen, n, in.world) + draw.emissive.xyz;
     return vec4<f32>(rgb, select(1.0, base.a, draw.material.w == 2.0));
 }

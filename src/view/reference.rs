@@ -71,6 +71,9 @@ pub struct ReferenceInput<'a> {
     /// Density per vertex (bytes; `None`: 1): the sampled law value is scaled by it on every
     /// layer above the base, as the density map asks.
     pub density: Option<&'a [u8]>,
+    /// One sheen for every layer, that of their mean height: what the single-draw layout's one
+    /// material can carry (`crate::sheen`); the technique's per-layer sheen otherwise.
+    pub mean_sheen: bool,
 }
 
 impl<'a> ReferenceInput<'a> {
@@ -86,6 +89,7 @@ impl<'a> ReferenceInput<'a> {
             tiles_per_uv: baked.tiles_per_uv,
             roughness: params.shade.roughness,
             density: baked.density.as_deref(),
+            mean_sheen: params.pack.layout == crate::params::Layout::SingleDraw,
         }
     }
 }
@@ -101,6 +105,10 @@ struct ShellData {
     layers: [[f32; 4]; MAX_LAYERS],
     /// Cells law: per-layer code cutoff, four to a vector.
     cutoffs: [[f32; 4]; MAX_LAYERS / 4],
+    /// The wind's angle `2π·time/period` (x) and growth exponent (y).
+    wind: [f32; 4],
+    /// Per layer: `KHR_materials_sheen` colour (rgb) and roughness (w); zero: none.
+    sheen: [[f32; 4]; MAX_LAYERS],
 }
 
 /// One strand as the reference derives it from its cell hash.
@@ -224,7 +232,9 @@ pub struct ReferenceRenderer {
     data: Box<ShellData>,
     uniform: wgpu::Buffer,
     group: wgpu::BindGroup,
-    vertices: [wgpu::Buffer; 6],
+    vertices: [wgpu::Buffer; 7],
+    /// The `wind` effect's period (seconds), when the stack sways.
+    wind_period: Option<f32>,
     indices: wgpu::Buffer,
     index_count: u32,
     layers: u32,
@@ -265,19 +275,32 @@ impl ReferenceRenderer {
             Some(b) => crate::gravity::bend(&shells.delta, b),
             None => vec![Vec3::ZERO; mesh.vertex_count()],
         };
+        let sways = match &shells.wind {
+            Some(w) => crate::gravity::bend(&shells.delta, &w.law),
+            None => vec![Vec3::ZERO; mesh.vertex_count()],
+        };
         let vertices = [
             f32s(flat3(&mesh.positions), "positions"),
             f32s(flat3(normals), "normals"),
             f32s(uvs.iter().flat_map(|p| p.to_array()).collect(), "uvs"),
             f32s(flat3(&shells.delta), "deltas"),
+            // per vertex: density (1: none), the `occlusion` effect's darkening (0: none), the
+            // `wind` effect's phase
             f32s(
-                match input.density {
-                    Some(d) => d.iter().map(|&d| d as f32 / 255.0).collect(),
-                    None => vec![1.0; mesh.vertex_count()],
-                },
-                "densities",
+                (0..mesh.vertex_count())
+                    .flat_map(|v| {
+                        [
+                            input.density.map_or(1.0, |d| d[v] as f32 / 255.0),
+                            shells.occlusion.as_ref().map_or(0.0, |a| a[v]),
+                            shells.wind.as_ref().map_or(0.0, |w| w.phase[v]),
+                        ]
+                    })
+                    .collect(),
+                "scalars",
             ),
             f32s(flat3(&bends), "bends"),
+            // the `wind` effect's sway at the tip per vertex
+            f32s(flat3(&sways), "sways"),
         ];
         let ix = if mesh.indices.is_empty() {
             vec![0u32; 3]
@@ -329,7 +352,13 @@ impl ReferenceRenderer {
         for (j, (c, &t)) in shells.color.iter().zip(&shells.t).enumerate() {
             data.layers[j] = [c[0], c[1], c[2], t];
             data.cutoffs[j / 4][j % 4] = strands::step_cutoff(shells.steps[j]);
+            if let Some(s) = &shells.sheen {
+                let mean = shells.t.iter().sum::<f32>() / shells.t.len().max(1) as f32;
+                let c = s.layer_color(if input.mean_sheen { mean } else { t });
+                data.sheen[j] = [c[0], c[1], c[2], s.roughness];
+            }
         }
+        data.wind = [0.0, shells.wind.as_ref().map_or(1.0, |w| w.law.k), 0.0, 0.0];
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shell"),
             size: std::mem::size_of::<ShellData>() as u64,
@@ -414,12 +443,22 @@ impl ReferenceRenderer {
             index_count: mesh.indices.len() as u32,
             layers: shells.t.len() as u32,
             layer_limit: None,
+            wind_period: shells.wind.as_ref().map(|w| w.period),
             origin: mesh.origin,
             bounds,
         }
     }
 
     /// Number of layers (instances).
+    /// Sways the layers as the wind does `time` seconds into its period (`None`: at rest).
+    pub fn set_time(&mut self, time: Option<f32>) {
+        self.data.wind[0] = match (time, self.wind_period) {
+            (Some(t), Some(period)) => std::f32::consts::TAU * t / period,
+            _ => 0.0,
+        };
+        self.data.wind[2] = (time.is_some() && self.wind_period.is_some()) as u8 as f32;
+    }
+
     pub fn layer_count(&self) -> usize {
         self.layers as usize
     }
@@ -466,8 +505,9 @@ impl ReferenceRenderer {
                 attr(1, wgpu::VertexFormat::Float32x3),
                 attr(2, wgpu::VertexFormat::Float32x2),
                 attr(3, wgpu::VertexFormat::Float32x3),
-                attr(4, wgpu::VertexFormat::Float32),
+                attr(4, wgpu::VertexFormat::Float32x3),
                 attr(5, wgpu::VertexFormat::Float32x3),
+                attr(6, wgpu::VertexFormat::Float32x3),
             ];
             let layouts: Vec<Option<wgpu::VertexBufferLayout>> = a
                 .iter()

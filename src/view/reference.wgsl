@@ -1,6 +1,9 @@
 // The runtime reference: the classic shell technique, one instance per layer.
-// Vertex: extrude `position + delta * t_j` (+ `bend * t_j^k` under the gravity effect). Fragment: sample the law texture (filtered, mipmapped,
-// like the baked mask), test the strand law on the interpolated value and discard.
+// Vertex: extrude `position + delta * t_j` (+ `bend * t_j^k` under the gravity effect, + the
+// wind's `sway * t_j^k' * sin(angle + phase)` at a time). Fragment: sample the law texture
+// (filtered, mipmapped, like the baked mask), test the strand law on the interpolated value and
+// discard; shade by the layer colour times the occlusion's lerp(1 - a, 1, t), with the layer's
+// sheen.
 
 struct Shell {
     model: mat4x4<f32>,
@@ -16,6 +19,10 @@ struct Shell {
     layers: array<vec4<f32>, 256>,
     // cells law: per-layer code cutoff, four to a vector
     cutoffs: array<vec4<f32>, 64>,
+    // wind: angle 2π·time/period, growth exponent, 1 when swaying
+    wind: vec4<f32>,
+    // per layer: sheen colour (rgb) and roughness (w)
+    sheen: array<vec4<f32>, 256>,
 }
 
 @group(1) @binding(0) var<uniform> shell: Shell;
@@ -28,9 +35,12 @@ struct VsIn {
     @location(1) normal: vec3<f32>,
     @location(2) uv: vec2<f32>,
     @location(3) delta: vec3<f32>,
-    @location(4) density: f32,
+    // density (1: none), the occlusion effect's darkening a, the wind effect's phase
+    @location(4) scalars: vec3<f32>,
     // the gravity effect's bend at the tip, weighted t^k (k = shell.material.z)
     @location(5) bend: vec3<f32>,
+    // the wind effect's sway at the tip
+    @location(6) sway: vec3<f32>,
 }
 
 struct VsOut {
@@ -40,12 +50,16 @@ struct VsOut {
     @location(2) uv: vec2<f32>,
     @location(3) @interpolate(flat) layer: u32,
     @location(4) density: f32,
+    @location(5) occlusion: f32,
 }
 
 @vertex
 fn vs_main(in: VsIn, @builtin(instance_index) layer: u32) -> VsOut {
     let t = shell.layers[layer].w;
-    let p = in.position + in.delta * t + in.bend * pow(t, shell.material.z);
+    var p = in.position + in.delta * t + in.bend * pow(t, shell.material.z);
+    if (shell.wind.z > 0.0) {
+        p += in.sway * (pow(t, shell.wind.y) * sin(shell.wind.x + in.scalars.z));
+    }
     var out: VsOut;
     let world = shell.model * vec4<f32>(p, 1.0);
     out.world = world.xyz;
@@ -53,7 +67,8 @@ fn vs_main(in: VsIn, @builtin(instance_index) layer: u32) -> VsOut {
     out.normal = in.normal;
     out.uv = in.uv;
     out.layer = layer;
-    out.density = in.density;
+    out.density = in.scalars.x;
+    out.occlusion = in.scalars.y;
     return out;
 }
 
@@ -77,6 +92,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     if (in.layer > 0u && !survives(law.a * in.density, in.layer, layer.w)) {
         discard;
     }
-    let rgb = shade(layer.rgb * law.rgb, shell.material.x, shell.material.y, normalize(in.normal), in.world);
+    let occlusion = 1.0 - in.occlusion + in.occlusion * layer.w;
+    let rgb = shade_sheen(layer.rgb * occlusion * law.rgb, shell.material.x, shell.material.y, shell.sheen[in.layer], normalize(in.normal), in.world);
     return vec4<f32>(rgb, 1.0);
 }

@@ -95,12 +95,22 @@ pub const LEVEL_FLIP_BUDGET: f32 = 0.16;
 /// One view's result.
 pub struct ViewResult {
     pub view: NamedView,
+    /// The animation time compared at (`None`: the rest pose).
+    pub time: Option<f32>,
     pub comparison: Comparison,
     pub reference: RgbaImage,
     pub baked: RgbaImage,
 }
 
 impl ViewResult {
+    /// The view's name, with the time when it is not the rest pose (`front@0.5s`).
+    pub fn name(&self) -> String {
+        match self.time {
+            Some(t) => format!("{}@{t}s", self.view.name()),
+            None => self.view.name().to_string(),
+        }
+    }
+
     pub fn passed(&self) -> bool {
         let t = tolerance(self.view);
         self.comparison.flip_mean <= t.flip_mean
@@ -113,7 +123,7 @@ impl ViewResult {
         let t = tolerance(self.view);
         format!(
             "{:<6} FLIP mean {:.5} (max {})  differing pixels {:>5} of {} = {:.3}% (max {:.2}%; {} differ at all)  {}",
-            self.view.name(),
+            self.name(),
             c.flip_mean,
             t.flip_mean,
             c.differing,
@@ -214,7 +224,7 @@ impl Verification {
     /// Writes `<prefix>-<view>-reference.png`, `-baked.png`, `-difference.png` into `dir`.
     pub fn write_pictures(&self, dir: &Path, prefix: &str) -> Result<()> {
         for v in &self.views {
-            let name = |kind: &str| dir.join(format!("{prefix}-{}-{kind}.png", v.view.name()));
+            let name = |kind: &str| dir.join(format!("{prefix}-{}-{kind}.png", v.name()));
             save_png(&v.reference, &name("reference"))?;
             save_png(&v.baked, &name("baked"))?;
             save_png(&v.comparison.difference, &name("difference"))?;
@@ -230,30 +240,47 @@ impl Verification {
 }
 
 /// Renders LOD 0 of `glb` and the reference of `input` from [`VIEWS`] at `size × size` and
-/// compares; then each coarser level at its switch distance (see [`LevelResult`]).
+/// compares, at rest and at each of `times` (seconds: the baked file's animations played to that
+/// time, the reference swayed by the exact wind then; empty: a quarter and three quarters of the
+/// wind's period when the stack sways); then each coarser level at its switch distance (see
+/// [`LevelResult`]).
 pub fn verify(
     gpu: &Gpu,
     glb: &[u8],
     input: ReferenceInput,
     size: u32,
     viewport: Viewport,
+    times: &[f32],
 ) -> Result<Verification> {
     let mut baked = GltfRenderer::from_glb(gpu, glb)?;
     baked.set_lod(gpu, Some(0))?;
+    let mut times: Vec<Option<f32>> = times.iter().map(|&t| Some(t)).collect();
+    if let (true, Some(w)) = (times.is_empty(), &input.shells.wind) {
+        times = vec![Some(0.25 * w.period), Some(0.75 * w.period)];
+    }
+    times.insert(0, None);
     let mut reference = ReferenceRenderer::new(gpu, input);
     let light = Light::default();
     let mut views = Vec::new();
-    for view in VIEWS {
-        let camera = Camera::frame(baked.bounds, view.orbit(), 1.0);
-        let b = super::render_gltf(gpu, &mut baked, &camera, &light, (size, size));
-        let r = super::render_reference_image(gpu, &mut reference, &camera, &light, (size, size));
-        views.push(ViewResult {
-            view,
-            comparison: compare(&r, &b),
-            reference: r,
-            baked: b,
-        });
+    for &time in &times {
+        baked.set_time(gpu, time)?;
+        reference.set_time(time);
+        for view in VIEWS {
+            let camera = Camera::frame(baked.bounds, view.orbit(), 1.0);
+            let b = super::render_gltf(gpu, &mut baked, &camera, &light, (size, size));
+            let r =
+                super::render_reference_image(gpu, &mut reference, &camera, &light, (size, size));
+            views.push(ViewResult {
+                view,
+                time,
+                comparison: compare(&r, &b),
+                reference: r,
+                baked: b,
+            });
+        }
     }
+    baked.set_time(gpu, None)?;
+    reference.set_time(None);
     let levels = verify_levels(gpu, &mut baked, &mut reference, size, viewport)?;
     Ok(Verification {
         adapter: gpu.adapter_name(),

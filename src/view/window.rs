@@ -4,7 +4,8 @@
 //! step the layers shown (`layers ≤ k`), `L` steps the `MSFT_lod` level when the file has LODs,
 //! `R` resets the camera, `Esc` quits. The title shows the file, the frame time (GPU timestamps
 //! when the adapter has them, CPU frame-to-frame time otherwise), the triangles and draw calls
-//! per frame, the layer limit and the LOD.
+//! per frame, the layer limit and the LOD. A file with animations (shellbake's `wind`) plays
+//! them, looping, from the moment the window opens.
 //!
 //! `--screenshot PATH --frames N` renders N frames to the window surface and saves the last one
 //! by copying the **surface texture** itself (configured with `COPY_SRC` where the surface allows
@@ -59,6 +60,8 @@ struct App {
     lod: Option<usize>,
     frames: u32,
     last_frame: Option<Instant>,
+    /// When the animations started.
+    clock: Instant,
     frame_ms: f64,
     error: Option<ViewError>,
 }
@@ -78,6 +81,7 @@ pub fn run(asset: Asset, options: ViewOptions) -> Result<()> {
         lod: None,
         frames: 0,
         last_frame: None,
+        clock: Instant::now(),
         frame_ms: 0.0,
         error: None,
     };
@@ -197,6 +201,10 @@ impl App {
         let aspect = r.config.width as f64 / r.config.height as f64;
         let camera = Camera::frame(r.renderer.bounds, self.orbit, aspect);
         r.renderer.set_layer_limit(self.layer_limit);
+        if r.renderer.animated() {
+            let time = self.clock.elapsed().as_secs_f32();
+            r.renderer.set_time(&r.gpu, Some(time))?;
+        }
         r.renderer
             .prepare(&r.gpu, &camera, &Light::default(), r.config.format);
         let timing = r.gpu.time_passes(1, |encoder, ts| {

@@ -6,7 +6,9 @@
 //                      or { "auto": true, "yaw": deg, "pitch": deg, "distance": radii, "fovy_deg": f },
 //               "light": { "direction": [x,y,z] (towards the light), "intensity": i },
 //               "ambient": a, "background": [r,g,b] (linear),
-//               "msft_lod": true (optional: switch MSFT_lod levels by distance) }, ...]
+//               "msft_lod": true (optional: switch MSFT_lod levels by distance),
+//               "time": seconds (optional: every animation of the file played to that time by
+//                       three.js's AnimationMixer, looping) }, ...]
 // Prints one JSON line per job: { png, ok, triangles (drawn in the frame) }.
 // Files are served from a loopback HTTP server; Chromium is Debian's, driven by playwright-core.
 import { createServer } from 'node:http';
@@ -73,6 +75,11 @@ window.renderJob = async (job, url) => {
   if (job.msft_lod) loader.register((parser) => new MsftLod(parser));
   const gltf = await loader.loadAsync(url);
   scene.add(gltf.scene);
+  if (job.time !== undefined && gltf.animations.length) {
+    const mixer = new THREE.AnimationMixer(gltf.scene);
+    for (const clip of gltf.animations) mixer.clipAction(clip).play();
+    mixer.setTime(job.time);
+  }
   let c = job.camera;
   if (c.auto) {
     // Frame the bounding sphere from yaw/pitch (degrees) at c.distance radii.
