@@ -373,6 +373,7 @@ fn bake_surface(
         let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
         clamp::collision_bound(&welded, bvh, &smoothed, height, &params.clamp)
     });
+    report.count("bvh_builds", bvh.is_some() as u8 as f64);
     let clamp = report.run("clamp", || {
         clamp::clamp_heights(
             &welded,
@@ -412,6 +413,7 @@ fn bake_surface(
         mesh.normals = Some(frames.direction.clone());
     }
 
+    let shared_bvh = bvh.is_some();
     let occlusion = report.gate(plan, Stage::Occlusion, i, || {
         let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
         occlusion::occlusion(
@@ -422,8 +424,9 @@ fn bake_surface(
             &params.occlusion,
         )
     });
-    report.count("bvh_builds", bvh.is_some() as u8 as f64);
     if let Some(a) = &occlusion {
+        // the BVH built here, or the collision bound's reused
+        report.count("bvh_builds", (!shared_bvh) as u8 as f64);
         let n = a.len().max(1) as f64;
         report.count(
             "mean_darkening",

@@ -19,10 +19,11 @@
 //! The reference (`view/reference.wgsl`) displaces its layers by the exact sine at the same time;
 //! `verify --time` compares frames of both.
 //!
-//! Decision (the design is silent): the sway is not part of the inversion guard — its targets
-//! move neighbouring vertices alike (the phase changes over a wavelength, not between vertices)
-//! and are across the extrusion; `tests/effects.rs` checks sampled times for inverted layer
-//! triangles on the hard cases instead.
+//! The inversion guard (`pack/guard.rs`, `Swaying`) checks every stored layer at every keyframe
+//! and shortens a vertex's delta — and with it its sway, which is linear in the delta — where a
+//! layer triangle would face against its base; `tests/effects.rs` checks sampled times on the
+//! hard cases. Decision (the design is silent): the phase is a noise of the position in the
+//! mesh's frame seeded by the strand seed, so re-baking gives the same sway.
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};

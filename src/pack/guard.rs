@@ -286,3 +286,51 @@ mod tests {
         assert_eq!(d[1], d[3]);
     }
 }
+
+/// The `wind` effect on top of another check: the sway moves every layer with the animation, so
+/// each stored layer is compared with the base at each keyframe of the period (the animation
+/// interpolates linearly between them). The sway is linear in the delta (see [`crate::wind`]), so
+/// shortening a delta shortens its sway.
+pub struct Swaying<'a, C: Check> {
+    pub inner: C,
+    /// Base positions in the deltas' unit, as `inner` reads them.
+    pub base: &'a [Vec3],
+    pub wind: &'a crate::wind::Wind,
+    pub heights: &'a [f32],
+    pub bend: Option<Bend>,
+    /// Single-draw: layers are rounded to the grid (top level) before the sway is added.
+    pub rounded: Option<f32>,
+}
+
+impl<C: Check> Check for Swaying<'_, C> {
+    fn check(&self, c: [u32; 3], deltas: &[Vec3], round: usize) -> Option<f32> {
+        if let Some(f) = self.inner.check(c, deltas, round) {
+            return Some(f);
+        }
+        let at = |t: f32| {
+            c.map(|v| {
+                let p = self.base[v as usize];
+                let d = displacement(deltas[v as usize], t, self.bend.as_ref());
+                match self.rounded {
+                    Some(top) => layer_point(p, d, top),
+                    None => p + d,
+                }
+            })
+        };
+        let base = at(0.0).map(|p| p.as_dvec3());
+        let times = self.wind.times();
+        let swayed = self.heights.iter().filter(|&&t| t > 0.0).flat_map(|&t| {
+            let layer = at(t);
+            times.iter().map(move |&time| {
+                [0, 1, 2].map(|k| {
+                    let v = c[k] as usize;
+                    let s = self
+                        .wind
+                        .displacement(deltas[v], self.wind.phase[v], time, t);
+                    (layer[k] + s).as_dvec3()
+                })
+            })
+        });
+        inverts(base, swayed).then_some(0.5)
+    }
+}

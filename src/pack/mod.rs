@@ -440,7 +440,20 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 grid: Some((delta_grid, unit)),
                 bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
             };
-            let n = guard::guard(&base, &mut deltas, &guarded_indices, &check);
+            let n = match input.wind {
+                Some(wind) => {
+                    let swaying = guard::Swaying {
+                        inner: check,
+                        base: &base,
+                        wind,
+                        heights: &heights,
+                        bend: input.bend,
+                        rounded: None,
+                    };
+                    guard::guard(&base, &mut deltas, &guarded_indices, &swaying)
+                }
+                None => guard::guard(&base, &mut deltas, &guarded_indices, &check),
+            };
             bends =
                 bend_grid.map(|(b, g)| deltas.iter().map(|&d| g.round(bend_of(d, &b))).collect());
             // from here on, compact deltas are in the stored unit
@@ -460,7 +473,20 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 top_level: grid.max_level() as f32,
                 bend: input.bend,
             };
-            guard::guard(&base, &mut deltas, &guarded_indices, &check)
+            match input.wind {
+                Some(wind) => {
+                    let swaying = guard::Swaying {
+                        inner: check,
+                        base: &base,
+                        wind,
+                        heights: &heights,
+                        bend: input.bend,
+                        rounded: Some(grid.max_level() as f32),
+                    };
+                    guard::guard(&base, &mut deltas, &guarded_indices, &swaying)
+                }
+                None => guard::guard(&base, &mut deltas, &guarded_indices, &check),
+            }
         }
     };
     // the wind's targets, from the guarded deltas (compact: `deltas` are stored already)

@@ -67,6 +67,50 @@ impl Glb {
             .collect()
     }
 
+    /// Mesh `m`'s morph weights at `time` seconds: the `weights` channel of its node (each
+    /// animation looping over its own length, LINEAR), else its static weights.
+    pub fn weights_at(&self, m: usize, time: f64) -> Vec<f64> {
+        let nodes = self.json["nodes"].as_array().unwrap();
+        let Some(node) = nodes
+            .iter()
+            .position(|n| n["mesh"].as_u64() == Some(m as u64))
+        else {
+            return self.weights(m);
+        };
+        for anim in self.json["animations"].as_array().into_iter().flatten() {
+            for c in anim["channels"].as_array().unwrap() {
+                if c["target"]["node"].as_u64() != Some(node as u64)
+                    || c["target"]["path"] != "weights"
+                {
+                    continue;
+                }
+                let s = &anim["samplers"][c["sampler"].as_u64().unwrap() as usize];
+                let times: Vec<f64> = self
+                    .accessor(s["input"].as_u64().unwrap() as usize)
+                    .iter()
+                    .map(|v| v[0])
+                    .collect();
+                let values: Vec<f64> = self
+                    .accessor(s["output"].as_u64().unwrap() as usize)
+                    .iter()
+                    .map(|v| v[0])
+                    .collect();
+                let n = values.len() / times.len();
+                let t = time.rem_euclid(*times.last().unwrap());
+                let k = times
+                    .iter()
+                    .rposition(|&k| k <= t)
+                    .unwrap_or(0)
+                    .min(times.len() - 2);
+                let f = ((t - times[k]) / (times[k + 1] - times[k])).clamp(0.0, 1.0);
+                return (0..n)
+                    .map(|i| values[k * n + i] + (values[(k + 1) * n + i] - values[k * n + i]) * f)
+                    .collect();
+            }
+        }
+        self.weights(m)
+    }
+
     pub fn accessor(&self, i: usize) -> Vec<Vec<f64>> {
         let a = &self.json["accessors"][i];
         let view = &self.json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
@@ -207,6 +251,21 @@ pub fn path_str(p: &Path) -> String {
 /// layer's triangles and vertex copies lie (`extras.shellbake_layers`; vertex `first + i` of a
 /// layer copies vertex `i` of the base).
 pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
+    inverted_layer_triangles_with(glb, |g, m| g.weights(m))
+}
+
+/// [`inverted_layer_triangles`] with the morph weights of the file's animations at `time`
+/// seconds (a node without a channel keeps its static weights).
+pub fn inverted_layer_triangles_at(glb: &[u8], time: f64) -> (usize, usize) {
+    inverted_layer_triangles_with(glb, |g, m| g.weights_at(m, time))
+}
+
+/// [`inverted_layer_triangles`] with mesh `m`'s weights from `weights`; single-draw layer copies
+/// are morphed by their mesh's targets too.
+pub fn inverted_layer_triangles_with(
+    glb: &[u8],
+    weights: impl Fn(&Glb, usize) -> Vec<f64>,
+) -> (usize, usize) {
     let g = Glb::parse(glb);
     let normal = |p: &[[f64; 3]; 3]| {
         let e1 = [0, 1, 2].map(|c| p[1][c] - p[0][c]);
@@ -244,8 +303,19 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
             .flatten()
             .map(|t| g.accessor(t["POSITION"].as_u64().unwrap() as usize))
             .collect();
-        if !targets.is_empty() {
-            let w = g.weights(mi);
+        let w = weights(&g, mi);
+        let morphed = |v: usize| -> [f64; 3] {
+            let p = &pos[v];
+            [0, 1, 2].map(|c| {
+                p[c] + targets
+                    .iter()
+                    .zip(&w)
+                    .map(|(d, w)| w * d[v][c])
+                    .sum::<f64>()
+            })
+        };
+        let ranges = &mesh["extras"]["shellbake_layers"];
+        if !targets.is_empty() && !ranges.is_object() {
             for t in ix.chunks_exact(3) {
                 let base = [0, 1, 2].map(|k| row(&pos[t[k]]));
                 let layer = [0, 1, 2].map(|k| {
@@ -261,7 +331,6 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
                 count(base, layer);
             }
         }
-        let ranges = &mesh["extras"]["shellbake_layers"];
         if ranges.is_object() {
             let list = |k: &str| -> Vec<usize> {
                 ranges[k]
@@ -279,8 +348,8 @@ pub fn inverted_layer_triangles(glb: &[u8]) -> (usize, usize) {
             assert_eq!(fv[0], 0, "the base layer's vertices come first");
             for j in 1..fi.len() {
                 for t in ix[fi[j]..fi[j] + ic[j]].chunks_exact(3) {
-                    let base = [0, 1, 2].map(|k| row(&pos[t[k] - fv[j]]));
-                    let layer = [0, 1, 2].map(|k| row(&pos[t[k]]));
+                    let base = [0, 1, 2].map(|k| morphed(t[k] - fv[j]));
+                    let layer = [0, 1, 2].map(|k| morphed(t[k]));
                     count(base, layer);
                 }
             }

@@ -1,0 +1,245 @@
+//! The effects `occlusion`, `sheen` and `wind`: each bakes into standard glTF (a colour morph,
+//! a material extension, an animation), `verify` passes against a reference drawn with the effect
+//! and fails against one drawn without it (so the check can fail), the wind's sampled frames
+//! invert no layer triangle on the hard cases, and a bake that asks for none runs none of their
+//! stages and builds no BVH.
+
+#![cfg(feature = "view")]
+
+mod common;
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use common::{inverted_layer_triangles_at, Glb};
+use shellbake::params::{BakeParams, Layout, Preset};
+use shellbake::scene::Effect;
+use shellbake::view::verify::{self, Verification};
+use shellbake::view::{Gpu, ReferenceInput};
+
+fn gpu() -> &'static Gpu {
+    static GPU: OnceLock<Gpu> = OnceLock::new();
+    GPU.get_or_init(|| Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)"))
+}
+
+fn load(fixture: &str) -> shellbake::mesh::Scene {
+    shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap()
+}
+
+fn params(layout: Layout) -> BakeParams {
+    let mut p = BakeParams::preset(Preset::Fur);
+    p.pack.layout = layout;
+    p.shells.layers = 16;
+    // strong enough that leaving an effect out shows
+    p.occlusion.strength = 1.0;
+    p.occlusion.radius = 0.5;
+    p.wind.strength = 0.4;
+    p
+}
+
+fn verify_glb(glb: &[u8], reference: &shellbake::Baked, params: &BakeParams) -> Verification {
+    verify::verify(
+        gpu(),
+        glb,
+        ReferenceInput::from_baked(reference, params),
+        256,
+        (&params.lod).into(),
+        &[],
+    )
+    .unwrap()
+}
+
+/// Verify passes with the effect and fails when the file lacks it (the reference has it).
+fn passes_and_control_fails(fixture: &str, effect: Effect) {
+    let scene = load(fixture);
+    for layout in [Layout::Compact, Layout::SingleDraw] {
+        let p = params(layout);
+        let with = shellbake::bake_with(&scene, &p, &[effect]);
+        let name = format!("{fixture} {} {layout:?}", effect.name());
+        let v = verify_glb(&with.glb, &with, &p);
+        for line in v.failures() {
+            println!("{name}: {line}");
+        }
+        assert!(v.passed(), "{name}: verify fails with the effect");
+        let without = shellbake::bake_with(&scene, &p, &[]);
+        let v = verify_glb(&without.glb, &with, &p);
+        println!(
+            "{name}: control {}",
+            v.views
+                .iter()
+                .map(|v| v.line())
+                .collect::<Vec<_>>()
+                .join("\n  ")
+        );
+        assert!(
+            !v.passed(),
+            "{name}: verify did not notice a file without the effect"
+        );
+    }
+}
+
+#[test]
+fn occlusion_darkens_folds_and_verify_checks_it() {
+    passes_and_control_fails("torus", Effect::Occlusion);
+    // the compact file: COLOR_0 holds the root's shade, the extrusion target its delta
+    let p = params(Layout::Compact);
+    let baked = shellbake::bake_with(&load("torus"), &p, &[Effect::Occlusion]);
+    let g = Glb::parse(&baked.glb);
+    let layer = &g.json["meshes"][1]["primitives"][0];
+    let root = g.accessor(layer["attributes"]["COLOR_0"].as_u64().unwrap() as usize);
+    let delta = g.accessor(layer["targets"][0]["COLOR_0"].as_u64().unwrap() as usize);
+    let darkest = root.iter().map(|c| c[0]).fold(1.0, f64::min);
+    assert!(darkest < 0.7, "no fold is darkened: {darkest}");
+    for (r, d) in root.iter().zip(&delta) {
+        assert!(
+            (r[0] + d[0] - 1.0).abs() <= 1.0 / 127.0,
+            "tip shade {}",
+            r[0] + d[0]
+        );
+        assert_eq!(d[3], 0.0, "the delta leaves the density alone");
+    }
+}
+
+#[test]
+fn sheen_is_a_material_extension_stronger_toward_the_tips() {
+    passes_and_control_fails("bunny", Effect::Sheen);
+    let p = params(Layout::Compact);
+    let baked = shellbake::bake_with(&load("bunny"), &p, &[Effect::Sheen]);
+    let g = Glb::parse(&baked.glb);
+    assert!(g.json["extensionsUsed"]
+        .as_array()
+        .unwrap()
+        .contains(&"KHR_materials_sheen".into()));
+    let reds: Vec<f64> = g.json["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|m| m["name"].as_str().unwrap().starts_with("layer_"))
+        .map(|m| {
+            m["extensions"]["KHR_materials_sheen"]["sheenColorFactor"][0]
+                .as_f64()
+                .unwrap_or(0.0)
+        })
+        .collect();
+    assert_eq!(reds[0], 0.0, "the base layer has no sheen");
+    assert!(reds.windows(2).all(|w| w[0] < w[1]), "{reds:?}");
+    let path = common::scratch("effects_sheen").join("sheen.glb");
+    std::fs::write(&path, &baked.glb).unwrap();
+    common::assert_valid(&[path]);
+}
+
+#[test]
+fn wind_sways_in_a_looping_animation_that_verify_checks() {
+    passes_and_control_fails("bunny", Effect::Wind);
+    for layout in [Layout::Compact, Layout::SingleDraw] {
+        let p = params(layout);
+        let baked = shellbake::bake_with(&load("bunny"), &p, &[Effect::Wind]);
+        let g = Glb::parse(&baked.glb);
+        let anims = g.json["animations"].as_array().unwrap();
+        assert_eq!(anims[0]["name"], "wind");
+        let channels = anims[0]["channels"].as_array().unwrap().len();
+        let expected = match layout {
+            Layout::Compact => baked.packed.layer_nodes.len() - 1,
+            Layout::SingleDraw => 1,
+        };
+        assert_eq!(
+            channels, expected,
+            "{layout:?}: one channel per swaying layer node"
+        );
+        let times = g.accessor(anims[0]["samplers"][0]["input"].as_u64().unwrap() as usize);
+        assert_eq!(times.last().unwrap()[0], p.wind.period as f64);
+        // the loop is seamless: the last key repeats the first
+        let m = g.json["nodes"]
+            [anims[0]["channels"][0]["target"]["node"].as_u64().unwrap() as usize]["mesh"]
+            .as_u64()
+            .unwrap() as usize;
+        let (a, b) = (
+            g.weights_at(m, 0.0),
+            g.weights_at(m, p.wind.period as f64 - 1e-6),
+        );
+        assert!(
+            a.iter().zip(&b).all(|(a, b)| (a - b).abs() < 1e-4),
+            "{a:?} {b:?}"
+        );
+        let path = common::scratch(&format!("effects_wind_{layout:?}")).join("wind.glb");
+        std::fs::write(&path, &baked.glb).unwrap();
+        common::assert_valid(&[path]);
+    }
+}
+
+#[test]
+fn swaying_layers_never_invert_on_the_hard_cases() {
+    let mut shapes: Vec<(String, shellbake::mesh::Scene)> =
+        ["sphere", "torus", "cube", "plane", "teapot", "bunny"]
+            .iter()
+            .map(|f| (f.to_string(), load(f)))
+            .collect();
+    shapes.push((
+        "split cube".into(),
+        shellbake::mesh::Scene {
+            meshes: vec![shellbake::procedural::split_cube(1.0)],
+            ..Default::default()
+        },
+    ));
+    for (name, scene) in &shapes {
+        for layout in [Layout::Compact, Layout::SingleDraw] {
+            let p = params(layout);
+            let baked = shellbake::bake_with(scene, &p, &[Effect::Wind, Effect::Gravity]);
+            for k in 0..8 {
+                let time = p.wind.period as f64 * k as f64 / 8.0;
+                let (inverted, checked) = inverted_layer_triangles_at(&baked.glb, time);
+                assert!(checked > 0);
+                assert_eq!(
+                    inverted, 0,
+                    "{name} {layout:?} at {time} s: {inverted} of {checked}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_bake_asking_for_no_effect_runs_none_and_builds_no_bvh() {
+    let scene = load("torus");
+    let p = params(Layout::Compact);
+    // BVHs a bake built, by its report (the process-wide count races with other tests)
+    let bvhs = |b: &shellbake::Baked| -> f64 {
+        b.report
+            .stages
+            .iter()
+            .filter_map(|s| s.counts.get("bvh_builds"))
+            .sum()
+    };
+    let baked = shellbake::bake_with(&scene, &p, &Effect::DEFAULT);
+    assert_eq!(bvhs(&baked), 0.0, "a BVH without a ray-casting effect");
+    for effect in [
+        Effect::Collision,
+        Effect::Occlusion,
+        Effect::Gravity,
+        Effect::Wind,
+        Effect::Sheen,
+    ] {
+        let st = baked.report.stage(effect.name()).unwrap();
+        assert!(!st.ran, "{st:?}");
+        assert!(st.skipped.as_deref().unwrap().contains("nothing asked"));
+    }
+    let g = Glb::parse(&baked.glb);
+    assert!(g.json["animations"].is_null());
+    assert!(g.json["extensionsUsed"]
+        .as_array()
+        .is_none_or(|e| !e.contains(&"KHR_materials_sheen".into())));
+    assert!(baked.shells.wind.is_none() && baked.shells.occlusion.is_none());
+
+    // occlusion and collision share one BVH
+    let baked = shellbake::bake_with(&scene, &p, &[Effect::Collision, Effect::Occlusion]);
+    assert_eq!(bvhs(&baked), 1.0);
+    let occ = baked.report.stage("occlusion").unwrap();
+    assert!(occ.ran && occ.counts["bvh_builds"] == 0.0, "{occ:?}");
+    // occlusion alone builds its own
+    let baked = shellbake::bake_with(&scene, &p, &[Effect::Occlusion]);
+    assert_eq!(bvhs(&baked), 1.0);
+    assert_eq!(
+        baked.report.stage("occlusion").unwrap().counts["bvh_builds"],
+        1.0
+    );
+}
