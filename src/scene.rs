@@ -871,7 +871,8 @@ mod tests {
         assert!(msg.contains("1..=239"), "{msg}");
         let (line, key, _) = scene_error("[[surface]]\nmesh = \"a.obj\"\ncolour = 1\n");
         assert_eq!((line, key.as_str()), (Some(3), "surface[0].colour"));
-        let (line, key, msg) = scene_error("[[surface]]\nmesh = \"a.obj\"\neffects = [\"wind\"]\n");
+        let (line, key, msg) =
+            scene_error("[[surface]]\nmesh = \"a.obj\"\neffects = [\"sparkle\"]\n");
         assert_eq!((line, key.as_str()), (Some(3), "surface[0].effects[0]"));
         assert!(msg.contains("collision"), "{msg}");
         let (line, key, _) = scene_error("[[surface]]\nmesh = \"../a.obj\"\n");

@@ -243,3 +243,87 @@ fn a_bake_asking_for_no_effect_runs_none_and_builds_no_bvh() {
         1.0
     );
 }
+
+#[test]
+fn a_scene_with_every_effect_bakes_one_valid_file_that_three_js_animates() {
+    let dir = common::scratch("effects_scene");
+    let glb = dir.join("effects.glb");
+    let report = dir.join("report.json");
+    let (code, _, err) = common::shellbake(&[
+        "bake",
+        "fixtures/effects.toml",
+        "-o",
+        &common::path_str(&glb),
+        "--report",
+        &common::path_str(&report),
+        "-q",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    common::assert_valid(std::slice::from_ref(&glb));
+    // every effect ran, for the surface that asked
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    for (surface, effects) in [
+        (0, &["wind"][..]),
+        (1, &["gravity", "sheen"]),
+        (2, &["occlusion", "collision"]),
+    ] {
+        let stages = r["surfaces"][surface]["stages"].as_array().unwrap();
+        for s in stages {
+            let name = s["name"].as_str().unwrap();
+            if ["wind", "gravity", "sheen", "occlusion", "collision"].contains(&name) {
+                assert_eq!(
+                    s["ran"].as_bool().unwrap(),
+                    effects.contains(&name),
+                    "surface {surface}: {name}"
+                );
+            }
+        }
+    }
+    // three.js plays the wind: two times differ, and both show the scene
+    let pngs = [dir.join("t0.png"), dir.join("t1.png")];
+    let jobs: Vec<serde_json::Value> = pngs
+        .iter()
+        .zip([0.75, 2.25])
+        .map(|(png, time)| {
+            serde_json::json!({
+                "glb": glb, "png": png, "width": 320, "height": 240,
+                "camera": { "auto": true, "yaw": 25, "pitch": 25, "distance": 0.7, "fovy_deg": 40 },
+                "light": { "direction": [1, 2, 3], "intensity": 3.0 }, "ambient": 0.5,
+                "background": [0.05, 0.05, 0.06], "time": time,
+            })
+        })
+        .collect();
+    let spec = dir.join("jobs.json");
+    std::fs::write(&spec, serde_json::to_vec(&jobs).unwrap()).unwrap();
+    let done = common::node("three_render.mjs", &[spec]);
+    assert_eq!(done.len(), 2);
+    let [a, b] = pngs.map(|p| image::open(p).unwrap().to_rgba8());
+    // pixels of the background colour (the top-left corner's)
+    let background = |img: &image::RgbaImage| {
+        let bg = img.get_pixel(0, 0).0;
+        img.pixels()
+            .filter(|p| p.0[..3].iter().zip(&bg).all(|(x, y)| x.abs_diff(*y) <= 3))
+            .count() as f64
+            / img.pixels().len() as f64
+    };
+    assert!(background(&a) < 0.7, "three.js drew little of the scene");
+    let moved = a
+        .pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| {
+            p.0[..3]
+                .iter()
+                .zip(&q.0[..3])
+                .any(|(x, y)| x.abs_diff(*y) > 24)
+        })
+        .count() as f64
+        / a.pixels().len() as f64;
+    println!(
+        "moved {:.2}% of the pixels between the two times",
+        moved * 100.0
+    );
+    assert!(
+        moved > 0.01,
+        "the wind does not move the grass in three.js: {moved}"
+    );
+}

@@ -7,7 +7,8 @@
 #    sheet (the plane fixture with every face listed twice, once per side), each with the
 #    default preset, overall and close up (the sheet from above and from below, lit from below);
 #  - the scene example (fixtures/meadow.toml), in three.js and in the wgpu viewer;
-#  - the verify triptych (wgpu viewer): runtime reference, baked file, FLIP difference.
+#  - the verify triptych (wgpu viewer): runtime reference, baked file, FLIP difference;
+#  - the effects (tests/gallery_effects.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tests/setup.sh
@@ -68,3 +69,4 @@ cp out/gallery/verify/bunny-close-baked.png out/gallery/bunny-close-baked.png
 # (not "-difference.png": that suffix is kept for failing tests' pictures and is git-ignored)
 cp out/gallery/verify/bunny-close-difference.png out/gallery/bunny-close-flip.png
 rm -rf out/gallery/verify "$inputs"
+bash tests/gallery_effects.sh

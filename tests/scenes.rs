@@ -327,7 +327,7 @@ fn bad_scene_files_name_the_file_the_line_and_the_key() {
             &["line 2", "surface[0].mesh", "leaves"],
         ),
         (
-            "[[surface]]\nmesh = \"cube.obj\"\neffects = [\"wind\"]\n",
+            "[[surface]]\nmesh = \"cube.obj\"\neffects = [\"sparkle\"]\n",
             "effect",
             &["line 3", "surface[0].effects[0]", "collision"],
         ),

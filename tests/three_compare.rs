@@ -51,14 +51,7 @@ fn bake(
     layout: Layout,
     seed: u32,
 ) -> (PathBuf, Vec<u8>) {
-    bake_compressed(
-        dir,
-        fixture,
-        (preset, layout),
-        seed,
-        Compression::None,
-        false,
-    )
+    bake_compressed(dir, fixture, (preset, layout), seed, Compression::None, &[])
 }
 
 /// [`bake`] with the buffers compressed as `compress` says (meshopt: `EXT_meshopt_compression`,
@@ -69,16 +62,14 @@ fn bake_compressed(
     (preset, layout): (Preset, Layout),
     seed: u32,
     compress: Compression,
-    gravity: bool,
+    extra: &[Effect],
 ) -> (PathBuf, Vec<u8>) {
     let path = common::fixture(fixture);
     let mut p = BakeParams::preset(preset);
     p.pack.layout = layout;
     p.strands.seed = seed;
     let mut effects = Effect::DEFAULT.to_vec();
-    if gravity {
-        effects.push(Effect::Gravity);
-    }
+    effects.extend_from_slice(extra);
     let mut file = shellbake::scene::SceneFile::single(&path, preset, p, &effects);
     file.output.compress = compress;
     let loaded = shellbake::load_surfaces(&file).unwrap();
@@ -88,13 +79,23 @@ fn bake_compressed(
         fixture.trim_end_matches(".obj"),
         preset.name(),
         compress.name(),
-        if gravity { "-gravity" } else { "" }
+        effect_names(extra)
     ));
     std::fs::write(&path, &baked.glb).unwrap();
     (path, baked.glb)
 }
 
-fn three_job(glb: &Path, png: &Path, camera: &view::Camera) -> serde_json::Value {
+/// `-gravity-wind` for the effects `extra` (empty: none).
+fn effect_names(extra: &[Effect]) -> String {
+    extra.iter().map(|e| format!("-{}", e.name())).collect()
+}
+
+fn three_job(
+    glb: &Path,
+    png: &Path,
+    camera: &view::Camera,
+    time: Option<f32>,
+) -> serde_json::Value {
     let light = view::gpu::Light::default();
     let bg = view::gpu::CLEAR;
     json!({
@@ -108,6 +109,8 @@ fn three_job(glb: &Path, png: &Path, camera: &view::Camera) -> serde_json::Value
         "background": [bg.r, bg.g, bg.b],
         // both sides pick each chunk's level by distance, as the file says
         "msft_lod": true,
+        // the file's animations played to this time (three.js: AnimationMixer)
+        "time": time,
     })
 }
 
@@ -116,42 +119,126 @@ fn three_js_in_chromium_renders_what_the_viewer_renders() {
     let dir = scratch("three_compare");
     let (none, meshopt) = (Compression::None, Compression::Meshopt);
     let cases = [
-        ("bunny.obj", Preset::Fur, Layout::Compact, none, false),
-        ("bunny.obj", Preset::Fur, Layout::SingleDraw, none, false),
-        ("torus.obj", Preset::Grass, Layout::Compact, none, false),
-        ("teapot.obj", Preset::Carpet, Layout::Compact, none, false),
-        ("sphere.obj", Preset::Moss, Layout::SingleDraw, none, false),
+        (
+            "bunny.obj",
+            Preset::Fur,
+            Layout::Compact,
+            none,
+            &[][..],
+            None,
+        ),
+        (
+            "bunny.obj",
+            Preset::Fur,
+            Layout::SingleDraw,
+            none,
+            &[],
+            None,
+        ),
+        ("torus.obj", Preset::Grass, Layout::Compact, none, &[], None),
+        (
+            "teapot.obj",
+            Preset::Carpet,
+            Layout::Compact,
+            none,
+            &[],
+            None,
+        ),
+        (
+            "sphere.obj",
+            Preset::Moss,
+            Layout::SingleDraw,
+            none,
+            &[],
+            None,
+        ),
         // compressed files: three.js decodes them (MeshoptDecoder), the viewer reads them too
-        ("bunny.obj", Preset::Fur, Layout::Compact, meshopt, false),
+        (
+            "bunny.obj",
+            Preset::Fur,
+            Layout::Compact,
+            meshopt,
+            &[],
+            None,
+        ),
         (
             "sphere.obj",
             Preset::Moss,
             Layout::SingleDraw,
             meshopt,
-            false,
+            &[],
+            None,
         ),
         // the gravity effect: a second morph target with its own weight
-        ("sphere.obj", Preset::Fur, Layout::Compact, none, true),
+        (
+            "sphere.obj",
+            Preset::Fur,
+            Layout::Compact,
+            none,
+            &[Effect::Gravity],
+            None,
+        ),
+        // occlusion (COLOR_0 with a colour morph target), sheen (KHR_materials_sheen), and
+        // the wind played to a time by three.js's AnimationMixer and by the viewer
+        (
+            "torus.obj",
+            Preset::Fur,
+            Layout::Compact,
+            none,
+            &[Effect::Occlusion],
+            None,
+        ),
+        (
+            "torus.obj",
+            Preset::Fur,
+            Layout::SingleDraw,
+            none,
+            &[Effect::Occlusion],
+            None,
+        ),
+        (
+            "bunny.obj",
+            Preset::Fur,
+            Layout::Compact,
+            none,
+            &[Effect::Sheen],
+            None,
+        ),
+        (
+            "bunny.obj",
+            Preset::Fur,
+            Layout::Compact,
+            none,
+            &[Effect::Wind],
+            Some(0.7),
+        ),
+        (
+            "bunny.obj",
+            Preset::Fur,
+            Layout::SingleDraw,
+            none,
+            &[Effect::Wind],
+            Some(1.3),
+        ),
     ];
     let mut jobs = Vec::new();
     let mut specs = Vec::new();
-    for (fixture, preset, layout, compress, gravity) in cases {
-        let (glb_path, glb) =
-            bake_compressed(&dir, fixture, (preset, layout), 1, compress, gravity);
+    for (fixture, preset, layout, compress, extra, time) in cases {
+        let (glb_path, glb) = bake_compressed(&dir, fixture, (preset, layout), 1, compress, extra);
         for v in [NamedView::Front, NamedView::Close] {
             let camera = view::camera_for_glb(&glb, v.orbit(), SIZE).unwrap();
             let wgpu =
-                view::render_glb_to_png_with(&glb, v.orbit(), SIZE, view::MaskMips::Box).unwrap();
+                view::render_glb_at(&glb, v.orbit(), SIZE, view::MaskMips::Box, time).unwrap();
             let name = format!(
                 "{}-{}-{layout:?}-{}{}-{}",
                 fixture.trim_end_matches(".obj"),
                 preset.name(),
                 compress.name(),
-                if gravity { "-gravity" } else { "" },
+                effect_names(extra),
                 v.name()
             );
             let png = dir.join(format!("{name}-three.png"));
-            specs.push(three_job(&glb_path, &png, &camera));
+            specs.push(three_job(&glb_path, &png, &camera, time));
             jobs.push(Job {
                 name,
                 glb: glb_path.clone(),
@@ -166,7 +253,7 @@ fn three_js_in_chromium_renders_what_the_viewer_renders() {
     let (_, glb1) = bake(&dir, "bunny.obj", Preset::Fur, Layout::Compact, 1);
     let control_camera = view::camera_for_glb(&glb1, NamedView::Close.orbit(), SIZE).unwrap();
     let control_png = dir.join("control-three.png");
-    specs.push(three_job(&other, &control_png, &control_camera));
+    specs.push(three_job(&other, &control_png, &control_camera, None));
 
     let spec_file = dir.join("jobs.json");
     std::fs::write(&spec_file, serde_json::to_vec(&specs).unwrap()).unwrap();

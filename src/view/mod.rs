@@ -64,8 +64,22 @@ pub fn render_glb_to_png_with(
     size: (u32, u32),
     mask_mips: MaskMips,
 ) -> Result<RgbaImage> {
+    render_glb_at(glb, orbit, size, mask_mips, None)
+}
+
+/// [`render_glb_to_png_with`] with the file's animations at `time` seconds.
+pub fn render_glb_at(
+    glb: &[u8],
+    orbit: Orbit,
+    size: (u32, u32),
+    mask_mips: MaskMips,
+    time: Option<f32>,
+) -> Result<RgbaImage> {
     let gpu = Gpu::new()?;
     let mut r = GltfRenderer::with_mask_mips(&gpu, glb::Asset::from_glb(glb)?, mask_mips)?;
+    if time.is_some() {
+        r.set_time(&gpu, time)?;
+    }
     let camera = Camera::frame(r.bounds, orbit, size.0 as f64 / size.1 as f64);
     Ok(render_gltf(&gpu, &mut r, &camera, &Light::default(), size))
 }

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Regenerates the effect pictures the README shows (out/gallery/effect-*.png), rendered by stock
+# three.js (GLTFLoader, AnimationMixer for the wind) in headless Chromium: each effect beside the
+# same bake without it, and the every-effect scene (fixtures/effects.toml) at two times.
+# Run by tests/gallery.sh; runs alone too (after tests/setup.sh and a release build).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bin=target/release/shellbake
+out=out/gallery
+work=$(mktemp -d)
+mkdir -p "$out"
+
+jobs="["
+sep=""
+# job GLB PNG YAW PITCH DISTANCE FOVY TIME  (TIME "null": the file's static weights)
+job() {
+  jobs+="$sep{\"glb\":\"$1\",\"png\":\"$2\",\"width\":384,\"height\":384,"
+  jobs+="\"camera\":{\"auto\":true,\"yaw\":$3,\"pitch\":$4,\"distance\":$5,\"fovy_deg\":$6},"
+  jobs+="\"light\":{\"direction\":[1,2,3],\"intensity\":3.0},\"ambient\":0.5,"
+  jobs+="\"background\":[0.05,0.05,0.06],\"time\":$7}"
+  sep=","
+}
+"$bin" bake fixtures/bunny.obj -o "$work/bunny.glb" -q
+"$bin" bake fixtures/bunny.obj --gravity -o "$work/bunny-gravity.glb" -q
+"$bin" bake fixtures/bunny.obj --sheen -o "$work/bunny-sheen.glb" -q
+"$bin" bake fixtures/bunny.obj --wind -o "$work/bunny-wind.glb" -q
+"$bin" bake fixtures/torus.obj -o "$work/torus.glb" -q
+"$bin" bake fixtures/torus.obj --occlusion -o "$work/torus-occlusion.glb" -q
+"$bin" bake fixtures/effects.toml -o "$work/effects.glb" -q
+job "$work/bunny.glb" "$out/effect-none.png" 90 10 1.5 30 null
+job "$work/bunny-gravity.glb" "$out/effect-gravity.png" 90 10 1.5 30 null
+job "$work/bunny-sheen.glb" "$out/effect-sheen.png" 90 10 1.5 30 null
+job "$work/bunny-wind.glb" "$out/effect-wind-0.png" 90 10 1.5 30 0.5
+job "$work/bunny-wind.glb" "$out/effect-wind-1.png" 90 10 1.5 30 1.5
+job "$work/torus.glb" "$out/effect-torus-none.png" 0 55 1.7 40 null
+job "$work/torus-occlusion.glb" "$out/effect-occlusion.png" 0 55 1.7 40 null
+job "$work/effects.glb" "$out/effect-scene-0.png" 25 18 1.3 40 0.75
+job "$work/effects.glb" "$out/effect-scene-1.png" 25 18 1.3 40 2.25
+jobs+="]"
+echo "$jobs" > "$work/jobs.json"
+node tests/js/three_render.mjs "$work/jobs.json"
+rm -rf "$work"
