@@ -464,13 +464,24 @@ fn bake_surface(
     });
     report.count("layers", shells.t.len() as f64);
     let mut shells = shells;
-    // the law only: each vertex's bend follows from its (guarded) delta where it is drawn
+    // the law and the lean axes (made by the first of gravity and wind): each vertex's bend
+    // and sway follow from its (guarded) delta where they are drawn
+    let shells_height = shells.height;
+    let mut lean: Option<Vec<glam::Vec3>> = None;
+    let lean_axes = |lean: &mut Option<Vec<glam::Vec3>>| {
+        lean.get_or_insert_with(|| {
+            gravity::lean_axes(&welded, &clamp.welded_direction, shells_height)
+        });
+    };
     shells.bend = report.gate(plan, Stage::Gravity, i, || {
+        lean_axes(&mut lean);
         gravity::Bend::of(&params.gravity)
     });
     shells.wind = report.gate(plan, Stage::Wind, i, || {
+        lean_axes(&mut lean);
         wind::Wind::new(&params.wind, &mesh.positions, diagonal, params.strands.seed)
     });
+    shells.lean = lean;
     shells.sheen = report.gate(plan, Stage::Sheen, i, || params.sheen.clone());
     shells.occlusion = occlusion;
 
@@ -603,6 +614,7 @@ fn bake_surface(
         density: density_map.as_deref(),
         fur_weight: fur_weight.as_deref(),
         bend: shells.bend,
+        lean: shells.lean.as_deref(),
         wind: shells.wind.as_ref(),
         occlusion: shells.occlusion.as_deref(),
         sheen: shells.sheen.as_ref(),

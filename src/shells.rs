@@ -145,6 +145,9 @@ pub struct ShellStack {
     /// The `gravity` effect's law: layer `j` adds `bend_of(delta) · t_j^k` (see
     /// [`crate::gravity::bend_of`]).
     pub bend: Option<crate::gravity::Bend>,
+    /// Lean axis per render vertex, what the `gravity` and `wind` effects bend across
+    /// ([`crate::gravity::lean_axes`]; `None` when neither runs).
+    pub lean: Option<Vec<Vec3>>,
     /// The `wind` effect's sway law and per-vertex phases (see [`crate::wind`]).
     pub wind: Option<crate::wind::Wind>,
     /// The `occlusion` effect's darkening `a` per render vertex: layer `t` is shaded by
@@ -186,6 +189,7 @@ pub fn build_shells(
         t,
         delta,
         bend: None,
+        lean: None,
         wind: None,
         occlusion: None,
         sheen: None,

@@ -2,8 +2,9 @@
 //! layer weights — no custom shader; three.js plays it with its `AnimationMixer`.
 //!
 //! Per render vertex the sway at the tip is the wind direction projected across the vertex's
-//! extrusion, times `strength` and the extrusion's length (the gravity effect's law,
-//! [`crate::gravity::bend_of`], so the sway never changes a layer's height above the base), and
+//! lean axis and extrusion, times `strength` and the extrusion's length (the gravity effect's
+//! law, [`crate::gravity::bend_of`], so the sway never changes a layer's height above the base,
+//! and neighbouring strands sway alike), and
 //! each vertex has a phase `φ` from a low-frequency value noise of its position (wavelength
 //! `scale` × the mesh's diagonal): neighbouring strands move together, distant regions out of
 //! step. A layer `t` vertex at time `τ` is displaced by
@@ -130,9 +131,10 @@ impl Wind {
         }
     }
 
-    /// The two morph targets of a vertex extruded by `d` with phase `phase`: `s cos φ`, `s sin φ`.
-    pub fn targets(&self, d: Vec3, phase: f32) -> [Vec3; 2] {
-        let s = crate::gravity::bend_of(d, &self.law);
+    /// The two morph targets of a vertex extruded by `d` with lean axis `axis` and phase
+    /// `phase`: `s cos φ`, `s sin φ`.
+    pub fn targets(&self, d: Vec3, axis: Vec3, phase: f32) -> [Vec3; 2] {
+        let s = crate::gravity::bend_of(d, axis, &self.law);
         [s * phase.cos(), s * phase.sin()]
     }
 
@@ -151,8 +153,8 @@ impl Wind {
     }
 
     /// The displacement of a layer-`t` vertex at `time` (the exact sine, as the reference draws).
-    pub fn displacement(&self, d: Vec3, phase: f32, time: f32, t: f32) -> Vec3 {
-        let [a, b] = self.targets(d, phase);
+    pub fn displacement(&self, d: Vec3, axis: Vec3, phase: f32, time: f32, t: f32) -> Vec3 {
+        let [a, b] = self.targets(d, axis, phase);
         let [wa, wb] = self.weights(time, t);
         a * wa + b * wb
     }
@@ -191,8 +193,8 @@ mod tests {
         let w = Wind::new(&WindParams::default(), &[Vec3::ZERO], 1.0, 7);
         let d = Vec3::new(0.0, 0.1, 0.0);
         for (phase, time, t) in [(0.3, 0.25, 1.0), (2.0, 1.7, 0.5), (5.0, 0.0, 0.8)] {
-            let got = w.displacement(d, phase, time, t);
-            let s = crate::gravity::bend_of(d, &w.law);
+            let got = w.displacement(d, Vec3::Y, phase, time, t);
+            let s = crate::gravity::bend_of(d, Vec3::Y, &w.law);
             let want = s * t.powf(2.0) * (std::f32::consts::TAU * time / 2.0 + phase).sin();
             assert!((got - want).length() < 1e-6, "{got} {want}");
         }

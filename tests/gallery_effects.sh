@@ -24,16 +24,22 @@ job() {
 "$bin" bake fixtures/bunny.obj --gravity -o "$work/bunny-gravity.glb" -q
 "$bin" bake fixtures/bunny.obj --sheen -o "$work/bunny-sheen.glb" -q
 "$bin" bake fixtures/bunny.obj --wind -o "$work/bunny-wind.glb" -q
-"$bin" bake fixtures/torus.obj -o "$work/torus.glb" -q
-"$bin" bake fixtures/torus.obj --occlusion -o "$work/torus-occlusion.glb" -q
+# occlusion reaching a quarter of the diagonal, at full strength, on the teapot's folds
+cp fixtures/teapot.obj "$work/"
+printf '[[surface]]\nmesh = "teapot.obj"\neffects = [%s]\n[surface.occlusion]\nradius = 0.25\nstrength = 1.0\n' \
+  '' > "$work/teapot.toml"
+printf '[[surface]]\nmesh = "teapot.obj"\neffects = [%s]\n[surface.occlusion]\nradius = 0.25\nstrength = 1.0\n' \
+  '"occlusion"' > "$work/teapot-occlusion.toml"
+"$bin" bake "$work/teapot.toml" -o "$work/teapot.glb" -q
+"$bin" bake "$work/teapot-occlusion.toml" -o "$work/teapot-occlusion.glb" -q
 "$bin" bake fixtures/effects.toml -o "$work/effects.glb" -q
 job "$work/bunny.glb" "$out/effect-none.png" 90 10 1.5 30 null
 job "$work/bunny-gravity.glb" "$out/effect-gravity.png" 90 10 1.5 30 null
 job "$work/bunny-sheen.glb" "$out/effect-sheen.png" 90 10 1.5 30 null
 job "$work/bunny-wind.glb" "$out/effect-wind-0.png" 90 10 1.5 30 0.5
 job "$work/bunny-wind.glb" "$out/effect-wind-1.png" 90 10 1.5 30 1.5
-job "$work/torus.glb" "$out/effect-torus-none.png" 0 55 1.7 40 null
-job "$work/torus-occlusion.glb" "$out/effect-occlusion.png" 0 55 1.7 40 null
+job "$work/teapot.glb" "$out/effect-teapot-none.png" 120 25 1.5 35 null
+job "$work/teapot-occlusion.glb" "$out/effect-occlusion.png" 120 25 1.5 35 null
 job "$work/effects.glb" "$out/effect-scene-0.png" 25 18 1.3 40 0.75
 job "$work/effects.glb" "$out/effect-scene-1.png" 25 18 1.3 40 2.25
 jobs+="]"

@@ -113,6 +113,8 @@ pub struct MorphPath<'a> {
     /// and the layer heights to check: a bent stack is not a straight path, so each stored layer
     /// is compared with the base.
     pub bend: Option<(Bend, crate::compress::DeltaGrid, &'a [f32])>,
+    /// Lean axis per vertex (what the bend is across).
+    pub lean: &'a [Vec3],
 }
 
 impl Check for MorphPath<'_> {
@@ -123,8 +125,8 @@ impl Check for MorphPath<'_> {
         if let Some((bend, bend_grid, heights)) = &self.bend {
             let d = c.map(|v| stored(deltas[v as usize]).as_dvec3());
             let b = c.map(|v| {
-                (bend_grid.round(crate::gravity::bend_of(deltas[v as usize], bend) / unit) * unit)
-                    .as_dvec3()
+                let (d, m) = (deltas[v as usize], self.lean[v as usize]);
+                (bend_grid.round(crate::gravity::bend_of(d, m, bend) / unit) * unit).as_dvec3()
             });
             let p = p.map(|p| p.as_dvec3());
             // edges at a layer: e(t) = a + t·b + w·c (w = t^k); the layer's normal along the
@@ -163,9 +165,14 @@ fn inverts(base: [DVec3; 3], mut layers: impl Iterator<Item = [DVec3; 3]>) -> bo
 }
 
 /// Where a layer at height `t` moves a vertex of extrusion `d`: `t·d`, plus the bend's
-/// `t^k · bend_of(d)` under the `gravity` effect.
-pub fn displacement(d: Vec3, t: f32, bend: Option<&Bend>) -> Vec3 {
-    d * t + bend.map_or(Vec3::ZERO, |b| crate::gravity::bend_of(d, b) * b.weight(t))
+/// `t^k · bend_of(d, axis)` under the `gravity` effect (`axis`: the vertex's lean axis, present
+/// with a bend).
+pub fn displacement(d: Vec3, axis: Option<Vec3>, t: f32, bend: Option<&Bend>) -> Vec3 {
+    d * t
+        + bend.map_or(Vec3::ZERO, |b| {
+            let axis = axis.expect("a bend has lean axes");
+            crate::gravity::bend_of(d, axis, b) * b.weight(t)
+        })
 }
 
 /// Single-draw layout: every layer's corners are rounded to the grid on their own, so each
@@ -176,6 +183,8 @@ pub struct RoundedLayers<'a> {
     pub t: &'a [f32],
     pub top_level: f32,
     pub bend: Option<Bend>,
+    /// Lean axis per vertex (empty without a bend).
+    pub lean: &'a [Vec3],
 }
 
 /// A single-draw layer vertex in grid units, as stored: `base + displacement` rounded to the
@@ -190,7 +199,8 @@ impl Check for RoundedLayers<'_> {
     fn check(&self, c: [u32; 3], deltas: &[Vec3], _round: usize) -> Option<f32> {
         let layer = |t: f32| {
             c.map(|v| {
-                let d = displacement(deltas[v as usize], t, self.bend.as_ref());
+                let axis = self.lean.get(v as usize).copied();
+                let d = displacement(deltas[v as usize], axis, t, self.bend.as_ref());
                 layer_point(self.base[v as usize], d, self.top_level).as_dvec3()
             })
         };
@@ -216,6 +226,7 @@ mod tests {
                 top: 1.0,
                 grid: None,
                 bend: None,
+                lean: &[],
             },
         );
         assert_eq!(n, 3);
@@ -233,6 +244,7 @@ mod tests {
                     top: 1.0,
                     grid: None,
                     bend: None,
+                    lean: &[],
                 }
             ),
             0
@@ -254,6 +266,7 @@ mod tests {
             t: &[0.0, 0.5, 1.0],
             top_level: 16383.0,
             bend: None,
+            lean: &[],
         };
         assert!(check.check([0, 1, 2], &d, 0).is_some());
         guard(&base, &mut d, &[0, 1, 2], &check);
@@ -281,6 +294,7 @@ mod tests {
                 top: 1.0,
                 grid: None,
                 bend: None,
+                lean: &[],
             },
         );
         assert_eq!(d[1], d[3]);
@@ -298,6 +312,8 @@ pub struct Swaying<'a, C: Check> {
     pub wind: &'a crate::wind::Wind,
     pub heights: &'a [f32],
     pub bend: Option<Bend>,
+    /// Lean axis per vertex.
+    pub lean: &'a [Vec3],
     /// Single-draw: layers are rounded to the grid (top level) before the sway is added.
     pub rounded: Option<f32>,
 }
@@ -310,27 +326,57 @@ impl<C: Check> Check for Swaying<'_, C> {
         let at = |t: f32| {
             c.map(|v| {
                 let p = self.base[v as usize];
-                let d = displacement(deltas[v as usize], t, self.bend.as_ref());
+                let axis = self.lean.get(v as usize).copied();
+                let d = displacement(deltas[v as usize], axis, t, self.bend.as_ref());
                 match self.rounded {
                     Some(top) => layer_point(p, d, top),
                     None => p + d,
                 }
+                .as_dvec3()
             })
         };
-        let base = at(0.0).map(|p| p.as_dvec3());
-        let times = self.wind.times();
-        let swayed = self.heights.iter().filter(|&&t| t > 0.0).flat_map(|&t| {
-            let layer = at(t);
-            times.iter().map(move |&time| {
-                [0, 1, 2].map(|k| {
-                    let v = c[k] as usize;
-                    let s = self
-                        .wind
-                        .displacement(deltas[v], self.wind.phase[v], time, t);
-                    (layer[k] + s).as_dvec3()
-                })
+        let base = at(0.0);
+        let n0 = (base[1] - base[0]).cross(base[2] - base[0]);
+        if n0 == DVec3::ZERO {
+            return None;
+        }
+        // the two targets per corner (the sway at t = 1), as edges from corner 0
+        let [a, b] = [0, 1].map(|k| {
+            let s = c.map(|v| {
+                let v = v as usize;
+                self.wind
+                    .targets(deltas[v], self.lean[v], self.wind.phase[v])[k]
+                    .as_dvec3()
+            });
+            (s[1] - s[0], s[2] - s[0])
+        });
+        let ((p1, p2), (q1, q2)) = (a, b);
+        // keys (sin ωτ, cos ωτ) of the animation
+        let keys: Vec<(f64, f64)> = self
+            .wind
+            .times()
+            .iter()
+            .map(|&time| {
+                let [s, c] = self.wind.weights(time, 1.0);
+                (s as f64, c as f64)
+            })
+            .collect();
+        // per layer, the layer normal along n0 is a quadratic in (g·sin, g·cos), g = t^k
+        let f_pp = n0.dot(p1.cross(p2));
+        let f_pq = n0.dot(p1.cross(q2) + q1.cross(p2));
+        let f_qq = n0.dot(q1.cross(q2));
+        let inverted = self.heights.iter().filter(|&&t| t > 0.0).any(|&t| {
+            let l = at(t);
+            let (a1, a2) = (l[1] - l[0], l[2] - l[0]);
+            let g = self.wind.weights(0.0, t)[1] as f64;
+            let f0 = n0.dot(a1.cross(a2));
+            let f_s = g * n0.dot(a1.cross(p2) + p1.cross(a2));
+            let f_c = g * n0.dot(a1.cross(q2) + q1.cross(a2));
+            let g2 = g * g;
+            keys.iter().any(|&(s, c)| {
+                f0 + f_s * s + f_c * c + g2 * (f_pp * s * s + f_pq * s * c + f_qq * c * c) <= 0.0
             })
         });
-        inverts(base, swayed).then_some(0.5)
+        inverted.then_some(0.5)
     }
 }

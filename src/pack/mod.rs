@@ -233,6 +233,9 @@ pub struct PackInput<'a> {
     pub prefix: &'a str,
     /// The `gravity` effect's bend law (`None`: straight strands).
     pub bend: Option<crate::gravity::Bend>,
+    /// Lean axis per vertex of `mesh`, across which `bend` and `wind` displace (present when
+    /// either is).
+    pub lean: Option<&'a [Vec3]>,
     /// The `wind` effect's sway and phases (`None`: still).
     pub wind: Option<&'a crate::wind::Wind>,
     /// The `occlusion` effect's darkening per vertex of `mesh`.
@@ -259,6 +262,8 @@ struct Geometry<'a> {
     /// The `wind` effect's two targets per vertex (`s cos φ`, `s sin φ`), stored unit (compact:
     /// on the exponent filter's grids).
     winds: Option<[Vec<Vec3>; 2]>,
+    /// Lean axes (empty without bend and wind).
+    lean: &'a [Vec3],
     wind: Option<&'a crate::wind::Wind>,
     occlusion: Option<&'a [f32]>,
     sheen: Option<&'a crate::sheen::SheenParams>,
@@ -379,15 +384,24 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     let nv = mesh.vertex_count();
 
     let positions = &mesh.positions;
+    let lean: &[Vec3] = input.lean.unwrap_or(&[]);
+    assert!(
+        (input.bend.is_none() && input.wind.is_none()) || lean.len() == nv,
+        "bend and wind need a lean axis per vertex"
+    );
     let grid = PositionGrid::fit(
         // the base and the fully extruded surface (bent: every layer lies within the box of
         // `p + a·d + c·b`, a and c in [0, 1])
-        positions.iter().zip(input.delta).flat_map(|(&p, &d)| {
-            let b = input
-                .bend
-                .map_or(Vec3::ZERO, |b| crate::gravity::bend_of(d, &b));
-            [p, p + d, p + b, p + d + b]
-        }),
+        positions
+            .iter()
+            .zip(input.delta)
+            .enumerate()
+            .flat_map(|(v, (&p, &d))| {
+                let b = input
+                    .bend
+                    .map_or(Vec3::ZERO, |b| crate::gravity::bend_of(d, lean[v], &b));
+                [p, p + d, p + b, p + d + b]
+            }),
         params.position_bits.min(15),
     );
     // Deltas in grid units, shortened where the stored geometry would invert at any layer
@@ -429,16 +443,21 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             let stored: Vec<Vec3> = deltas.iter().map(|&d| d / unit).collect();
             let delta_grid = crate::compress::DeltaGrid::fit(&stored);
             // the bend target, derived from each (guarded) delta, on a grid of its own
-            let bend_of = |d: Vec3, b: &crate::gravity::Bend| crate::gravity::bend_of(d, b) / unit;
-            let bend_grid = input.bend.map(|b| {
-                let v: Vec<Vec3> = deltas.iter().map(|&d| bend_of(d, &b)).collect();
-                (b, crate::compress::DeltaGrid::fit(&v))
-            });
+            let bend_of = |d: &[Vec3], b: &crate::gravity::Bend| -> Vec<Vec3> {
+                d.iter()
+                    .zip(lean)
+                    .map(|(&d, &m)| crate::gravity::bend_of(d, m, b) / unit)
+                    .collect()
+            };
+            let bend_grid = input
+                .bend
+                .map(|b| (b, crate::compress::DeltaGrid::fit(&bend_of(&deltas, &b))));
             let check = guard::MorphPath {
                 base: &base,
                 top,
                 grid: Some((delta_grid, unit)),
                 bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
+                lean,
             };
             let n = match input.wind {
                 Some(wind) => {
@@ -448,14 +467,19 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                         wind,
                         heights: &heights,
                         bend: input.bend,
+                        lean,
                         rounded: None,
                     };
                     guard::guard(&base, &mut deltas, &guarded_indices, &swaying)
                 }
                 None => guard::guard(&base, &mut deltas, &guarded_indices, &check),
             };
-            bends =
-                bend_grid.map(|(b, g)| deltas.iter().map(|&d| g.round(bend_of(d, &b))).collect());
+            bends = bend_grid.map(|(b, g)| {
+                bend_of(&deltas, &b)
+                    .into_iter()
+                    .map(|x| g.round(x))
+                    .collect()
+            });
             // from here on, compact deltas are in the stored unit
             for d in &mut deltas {
                 *d = delta_grid.round(*d / unit);
@@ -472,6 +496,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 t: &heights,
                 top_level: grid.max_level() as f32,
                 bend: input.bend,
+                lean,
             };
             match input.wind {
                 Some(wind) => {
@@ -481,6 +506,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                         wind,
                         heights: &heights,
                         bend: input.bend,
+                        lean,
                         rounded: Some(grid.max_level() as f32),
                     };
                     guard::guard(&base, &mut deltas, &guarded_indices, &swaying)
@@ -499,7 +525,8 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             deltas
                 .iter()
                 .zip(&w.phase)
-                .map(|(&d, &phase)| w.targets(d * to_grid, phase)[k] / unit)
+                .zip(lean)
+                .map(|((&d, &phase), &m)| w.targets(d * to_grid, m, phase)[k] / unit)
                 .collect()
         });
         match params.layout {
@@ -528,6 +555,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         bends,
         bend: input.bend,
         winds,
+        lean,
         wind: input.wind,
         occlusion: input.occlusion,
         sheen: input.sheen,
@@ -1420,7 +1448,7 @@ fn single_draw(
             let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
             let r = guard::layer_point(
                 (p - grid.min) / grid.step,
-                guard::displacement(d, l.t, g.bend.as_ref()),
+                guard::displacement(d, g.lean.get(o as usize).copied(), l.t, g.bend.as_ref()),
                 top_level,
             );
             [r.x as u16, r.y as u16, r.z as u16]

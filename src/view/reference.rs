@@ -270,13 +270,19 @@ impl ReferenceRenderer {
             })
         };
         let flat3 = |v: &[Vec3]| v.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>();
+        let lean = || {
+            shells
+                .lean
+                .as_deref()
+                .expect("gravity and wind make lean axes")
+        };
         // the `gravity` effect's bend at the tip per vertex (zero: straight strands)
         let bends = match &shells.bend {
-            Some(b) => crate::gravity::bend(&shells.delta, b),
+            Some(b) => crate::gravity::bend(&shells.delta, lean(), b),
             None => vec![Vec3::ZERO; mesh.vertex_count()],
         };
         let sways = match &shells.wind {
-            Some(w) => crate::gravity::bend(&shells.delta, &w.law),
+            Some(w) => crate::gravity::bend(&shells.delta, lean(), &w.law),
             None => vec![Vec3::ZERO; mesh.vertex_count()],
         };
         let vertices = [
