@@ -2,14 +2,15 @@
 //! baked as one more morph target whose per-layer weight follows `t^k`.
 //!
 //! Per render vertex the bend at the tip is the direction `g` projected across the vertex's
-//! **lean axis** `m` (`u = g − (g·m)·m`), then across its extrusion `d` (`u − (u·d̂)·d̂`), times
-//! `strength` and the extrusion's length: `b = strength · |d| · (u − (u·d̂)·d̂)` ([`bend_of`]). So
-//! a layer `j` vertex is `p + t_j·d + t_j^k·b`: its height above the base along the extrusion
-//! stays `t_j·|d|` (the bend is across it, so no layer dips below the base), strands on a
-//! vertical side bend fully, strands along the direction hardly, and a shell the clamp shortened
-//! bends proportionally less. The bend scales with `|d|`: when the inversion guard
-//! (`pack/guard.rs`) shortens a vertex's extrusion it shortens its bend by the same factor, and
-//! the guard checks every stored layer of the bent stack.
+//! **lean axis** `m`, times `strength` and the strand's smoothed length `L̄`:
+//! `b = strength · L̄ · (g − (g·m)·m)` ([`bend_of`]; `L̄ = stretch · |d|`, see [`lean_axes`]). So a
+//! layer `j` vertex is `p + t_j·d + t_j^k·b`. Strands on a vertical side bend fully, strands along
+//! the direction hardly. The bend is across the smooth axis, not quite across the vertex's own
+//! extrusion; where it would pull the tip back toward the base by more than half the strand's
+//! length, that part is removed, so every layer stays above the base (at least half its height
+//! for `k ≥ 1`). The bend scales with `|d|`: when the inversion guard (`pack/guard.rs`) shortens
+//! a vertex's extrusion it shortens its bend by the same factor, and the guard checks every
+//! stored layer of the bent stack.
 //!
 //! The lean axis is the extrusion direction smoothed over the surface at the scale of the strand
 //! length ([`lean_axes`]): Jacobi averaging over the welded neighbours, `(height / mean edge)²`
@@ -109,15 +110,24 @@ impl Bend {
 }
 
 /// The bend at the tip of a strand extruded by `d` (in `d`'s unit; zero when `d` is) with lean
-/// axis `axis` (unit).
-pub fn bend_of(d: Vec3, axis: Vec3, b: &Bend) -> Vec3 {
+/// `lean` (see [`lean_axes`]: the unit axis times the stretch).
+pub fn bend_of(d: Vec3, lean: Vec3, b: &Bend) -> Vec3 {
     let len = d.length();
     if len <= 0.0 || !len.is_finite() {
         return Vec3::ZERO;
     }
+    let stretch = lean.length();
+    let axis = lean.normalize_or_zero();
     let n = d / len;
-    let u = b.g - axis * b.g.dot(axis);
-    (u - n * u.dot(n)) * (b.strength * len)
+    let bend = (b.g - axis * b.g.dot(axis)) * (b.strength * len * stretch);
+    // never more than half the strand's length back toward the base (the axis is smooth, the
+    // extrusion is not quite), so a layer stays above it
+    let back = bend.dot(n) + 0.5 * len;
+    if back < 0.0 {
+        bend - n * back
+    } else {
+        bend
+    }
 }
 
 /// The bend of every vertex.
@@ -132,10 +142,20 @@ pub fn bend(delta: &[Vec3], axes: &[Vec3], b: &Bend) -> Vec<Vec3> {
 /// Smoothing rounds of the lean axes at most.
 pub const LEAN_ROUNDS: usize = 128;
 
-/// The lean axis of every render vertex: the welded directions `welded_dirs` (unit) averaged
-/// with their neighbours' over `(height / mean edge)²` Jacobi rounds (at most [`LEAN_ROUNDS`]),
-/// normalised; a vertex whose average vanishes keeps its own direction.
-pub fn lean_axes(welded: &crate::weld::Welded, welded_dirs: &[Vec3], height: f32) -> Vec<Vec3> {
+/// The lean of every render vertex, a unit axis times a stretch: the welded directions
+/// `welded_dirs` (unit) averaged with their neighbours' over `(height / mean edge)²` Jacobi rounds
+/// (at most [`LEAN_ROUNDS`]) and normalised (a vertex whose average vanishes keeps its own
+/// direction); the stretch is the strand length averaged the same way over the vertex's own
+/// (`delta`, per render vertex), so that the bend's size follows the smoothed length while it
+/// still scales with the vertex's delta when the inversion guard shortens it. (The clamp leaves
+/// neighbouring strands of a scanned mesh very different lengths; bends proportional to each
+/// length sheared the layers over.)
+pub fn lean_axes(
+    welded: &crate::weld::Welded,
+    welded_dirs: &[Vec3],
+    delta: &[Vec3],
+    height: f32,
+) -> Vec<Vec3> {
     let n = welded.positions.len();
     let mut pairs = Vec::with_capacity(welded.indices.len() * 2);
     let mut edge_sum = 0.0f64;
@@ -155,7 +175,13 @@ pub fn lean_axes(welded: &crate::weld::Welded, welded_dirs: &[Vec3], height: f32
         0
     };
     let around = crate::mesh::Adjacency::build(n, pairs.into_iter());
-    let mut axes = welded_dirs.to_vec();
+    // strand length per welded vertex: the longest of its render vertices'
+    let mut lengths = vec![0.0f32; n];
+    for (&w, d) in welded.remap.iter().zip(delta) {
+        lengths[w as usize] = lengths[w as usize].max(d.length());
+    }
+    let mut axes: Vec<Vec3> = welded_dirs.to_vec();
+    let mut smooth_lengths = lengths.clone();
     for _ in 0..rounds {
         use rayon::prelude::*;
         axes = (0..n)
@@ -168,8 +194,29 @@ pub fn lean_axes(welded: &crate::weld::Welded, welded_dirs: &[Vec3], height: f32
                 sum.try_normalize().unwrap_or(welded_dirs[v])
             })
             .collect();
+        smooth_lengths = (0..n)
+            .into_par_iter()
+            .map(|v| {
+                let near = around.of(v as u32);
+                let sum: f32 = near.iter().map(|&w| smooth_lengths[w as usize]).sum();
+                (smooth_lengths[v] + sum) / (near.len() + 1) as f32
+            })
+            .collect();
     }
-    welded.remap.iter().map(|&w| axes[w as usize]).collect()
+    welded
+        .remap
+        .iter()
+        .zip(delta)
+        .map(|(&w, d)| {
+            let len = d.length();
+            let stretch = if len > 0.0 {
+                smooth_lengths[w as usize] / len
+            } else {
+                0.0
+            };
+            axes[w as usize] * stretch
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -177,12 +224,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn bend_is_across_the_extrusion_and_scales_with_it() {
+    fn bend_is_across_the_lean_axis_and_scales_with_the_delta() {
         let b = Bend::of(&GravityParams::default());
         let d = Vec3::new(1.0, 0.3, 0.2) * 0.1;
         let axis = Vec3::new(1.0, 0.25, 0.2).normalize();
         let v = bend_of(d, axis, &b);
-        assert!(v.dot(d).abs() < 1e-7, "across the extrusion");
+        assert!(v.dot(axis).abs() < 1e-7, "across the lean axis");
+        // a tip never pulled back toward the base by more than half the strand
+        let back = bend_of(Vec3::new(0.1, 0.1, 0.0), Vec3::X * 3.0, &b);
+        let n = Vec3::new(1.0, 1.0, 0.0).normalize();
+        assert!(back.dot(n) >= -0.5 * 0.1f32.hypot(0.1) - 1e-6, "{back}");
+        // the stretch (the lean's length) scales the bend
+        assert!((bend_of(d, axis * 2.0, &b) - v * 2.0).length() < 1e-6);
         assert!(v.y < 0.0, "toward gravity");
         let v2 = bend_of(d * 0.5, axis, &b);
         assert!((v2 - v * 0.5).length() < 1e-7, "linear in d");

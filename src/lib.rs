@@ -466,11 +466,16 @@ fn bake_surface(
     let mut shells = shells;
     // the law and the lean axes (made by the first of gravity and wind): each vertex's bend
     // and sway follow from its (guarded) delta where they are drawn
-    let shells_height = shells.height;
+    let (shells_height, shells_delta) = (shells.height, shells.delta.clone());
     let mut lean: Option<Vec<glam::Vec3>> = None;
     let lean_axes = |lean: &mut Option<Vec<glam::Vec3>>| {
         lean.get_or_insert_with(|| {
-            gravity::lean_axes(&welded, &clamp.welded_direction, shells_height)
+            gravity::lean_axes(
+                &welded,
+                &clamp.welded_direction,
+                &shells_delta,
+                shells_height,
+            )
         });
     };
     shells.bend = report.gate(plan, Stage::Gravity, i, || {
