@@ -11,12 +11,15 @@
 //! | weld | [`weld`] | [`weld::weld_on`] |
 //! | frames | [`frames`] | [`frames::extrusion_frames`] |
 //! | smooth | [`clamp`] | [`clamp::smooth`] |
-//! | collision (effect `collision`) | [`clamp`] | [`clamp::collision_bound`] |
+//! | collision (effect `collision`) | [`clamp`] | [`clamp::collision_bound`] (on a [`clamp::MeshBvh`]) |
 //! | clamp (the inversion bound; always) | [`clamp`] | [`clamp::clamp_heights`] |
+//! | occlusion (effect `occlusion`) | [`occlusion`] | [`occlusion::occlusion`] (on the same BVH) |
 //! | strands | [`strands`] | [`strands::bake_mask`] |
 //! | tiling | [`tiling`] | [`tiling::mask_tiling`] |
 //! | shells | [`shells`] | [`shells::build_shells`] |
-//! | gravity (effect `gravity`) | [`gravity`] | [`gravity::Bend::of`] (per vertex [`gravity::bend_of`], in pack and the reference) |
+//! | gravity (effect `gravity`) | [`gravity`] | [`gravity::Bend::of`], [`gravity::lean_axes`] (per vertex [`gravity::bend_of`], in pack and the reference) |
+//! | wind (effect `wind`) | [`wind`] | [`wind::Wind::new`] (targets and the animation in pack) |
+//! | sheen (effect `sheen`) | [`sheen`] | layer materials' [`sheen::Sheen::of`] in pack |
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
 //! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
 //! | pack | [`pack`] | [`pack::pack`] |

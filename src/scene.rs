@@ -29,7 +29,8 @@
 //!
 //! **The plan.** [`plan`] derives from the scene which stages run for which surface: the core
 //! stages for every surface, an effect's stage only for the surfaces that ask for it. A stage
-//! no surface asks for runs nothing and builds nothing (no BVH without `collision`). The report
+//! no surface asks for runs nothing and builds nothing (no BVH without `collision` or
+//! `occlusion`). The report
 //! lists every stage as run or skipped with the reason. Adding an effect is one [`Effect`]
 //! variant with its stage; `lod` and `cull` are listed as stages already (skipped: nothing can
 //! ask for them yet).

@@ -208,6 +208,86 @@ impl Check for RoundedLayers<'_> {
     }
 }
 
+/// The `wind` effect on top of another check: the sway moves every layer with the animation, so
+/// each stored layer is compared with the base at each keyframe of the period (the animation
+/// interpolates linearly between them). The sway is linear in the delta (see [`crate::wind`]), so
+/// shortening a delta shortens its sway.
+pub struct Swaying<'a, C: Check> {
+    pub inner: C,
+    /// Base positions in the deltas' unit, as `inner` reads them.
+    pub base: &'a [Vec3],
+    pub wind: &'a crate::wind::Wind,
+    pub heights: &'a [f32],
+    pub bend: Option<Bend>,
+    /// Lean axis per vertex.
+    pub lean: &'a [Vec3],
+    /// Single-draw: layers are rounded to the grid (top level) before the sway is added.
+    pub rounded: Option<f32>,
+}
+
+impl<C: Check> Check for Swaying<'_, C> {
+    fn check(&self, c: [u32; 3], deltas: &[Vec3], round: usize) -> Option<f32> {
+        if let Some(f) = self.inner.check(c, deltas, round) {
+            return Some(f);
+        }
+        let at = |t: f32| {
+            c.map(|v| {
+                let p = self.base[v as usize];
+                let axis = self.lean.get(v as usize).copied();
+                let d = displacement(deltas[v as usize], axis, t, self.bend.as_ref());
+                match self.rounded {
+                    Some(top) => layer_point(p, d, top),
+                    None => p + d,
+                }
+                .as_dvec3()
+            })
+        };
+        let base = at(0.0);
+        let n0 = (base[1] - base[0]).cross(base[2] - base[0]);
+        if n0 == DVec3::ZERO {
+            return None;
+        }
+        // the two targets per corner (the sway at t = 1), as edges from corner 0
+        let [a, b] = [0, 1].map(|k| {
+            let s = c.map(|v| {
+                let v = v as usize;
+                self.wind
+                    .targets(deltas[v], self.lean[v], self.wind.phase[v])[k]
+                    .as_dvec3()
+            });
+            (s[1] - s[0], s[2] - s[0])
+        });
+        let ((p1, p2), (q1, q2)) = (a, b);
+        // keys (sin ωτ, cos ωτ) of the animation
+        let keys: Vec<(f64, f64)> = self
+            .wind
+            .times()
+            .iter()
+            .map(|&time| {
+                let [s, c] = self.wind.weights(time, 1.0);
+                (s as f64, c as f64)
+            })
+            .collect();
+        // per layer, the layer normal along n0 is a quadratic in (g·sin, g·cos), g = t^k
+        let f_pp = n0.dot(p1.cross(p2));
+        let f_pq = n0.dot(p1.cross(q2) + q1.cross(p2));
+        let f_qq = n0.dot(q1.cross(q2));
+        let inverted = self.heights.iter().filter(|&&t| t > 0.0).any(|&t| {
+            let l = at(t);
+            let (a1, a2) = (l[1] - l[0], l[2] - l[0]);
+            let g = self.wind.weights(0.0, t)[1] as f64;
+            let f0 = n0.dot(a1.cross(a2));
+            let f_s = g * n0.dot(a1.cross(p2) + p1.cross(a2));
+            let f_c = g * n0.dot(a1.cross(q2) + q1.cross(a2));
+            let g2 = g * g;
+            keys.iter().any(|&(s, c)| {
+                f0 + f_s * s + f_c * c + g2 * (f_pp * s * s + f_pq * s * c + f_qq * c * c) <= 0.0
+            })
+        });
+        inverted.then_some(0.5)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -298,85 +378,5 @@ mod tests {
             },
         );
         assert_eq!(d[1], d[3]);
-    }
-}
-
-/// The `wind` effect on top of another check: the sway moves every layer with the animation, so
-/// each stored layer is compared with the base at each keyframe of the period (the animation
-/// interpolates linearly between them). The sway is linear in the delta (see [`crate::wind`]), so
-/// shortening a delta shortens its sway.
-pub struct Swaying<'a, C: Check> {
-    pub inner: C,
-    /// Base positions in the deltas' unit, as `inner` reads them.
-    pub base: &'a [Vec3],
-    pub wind: &'a crate::wind::Wind,
-    pub heights: &'a [f32],
-    pub bend: Option<Bend>,
-    /// Lean axis per vertex.
-    pub lean: &'a [Vec3],
-    /// Single-draw: layers are rounded to the grid (top level) before the sway is added.
-    pub rounded: Option<f32>,
-}
-
-impl<C: Check> Check for Swaying<'_, C> {
-    fn check(&self, c: [u32; 3], deltas: &[Vec3], round: usize) -> Option<f32> {
-        if let Some(f) = self.inner.check(c, deltas, round) {
-            return Some(f);
-        }
-        let at = |t: f32| {
-            c.map(|v| {
-                let p = self.base[v as usize];
-                let axis = self.lean.get(v as usize).copied();
-                let d = displacement(deltas[v as usize], axis, t, self.bend.as_ref());
-                match self.rounded {
-                    Some(top) => layer_point(p, d, top),
-                    None => p + d,
-                }
-                .as_dvec3()
-            })
-        };
-        let base = at(0.0);
-        let n0 = (base[1] - base[0]).cross(base[2] - base[0]);
-        if n0 == DVec3::ZERO {
-            return None;
-        }
-        // the two targets per corner (the sway at t = 1), as edges from corner 0
-        let [a, b] = [0, 1].map(|k| {
-            let s = c.map(|v| {
-                let v = v as usize;
-                self.wind
-                    .targets(deltas[v], self.lean[v], self.wind.phase[v])[k]
-                    .as_dvec3()
-            });
-            (s[1] - s[0], s[2] - s[0])
-        });
-        let ((p1, p2), (q1, q2)) = (a, b);
-        // keys (sin ωτ, cos ωτ) of the animation
-        let keys: Vec<(f64, f64)> = self
-            .wind
-            .times()
-            .iter()
-            .map(|&time| {
-                let [s, c] = self.wind.weights(time, 1.0);
-                (s as f64, c as f64)
-            })
-            .collect();
-        // per layer, the layer normal along n0 is a quadratic in (g·sin, g·cos), g = t^k
-        let f_pp = n0.dot(p1.cross(p2));
-        let f_pq = n0.dot(p1.cross(q2) + q1.cross(p2));
-        let f_qq = n0.dot(q1.cross(q2));
-        let inverted = self.heights.iter().filter(|&&t| t > 0.0).any(|&t| {
-            let l = at(t);
-            let (a1, a2) = (l[1] - l[0], l[2] - l[0]);
-            let g = self.wind.weights(0.0, t)[1] as f64;
-            let f0 = n0.dot(a1.cross(a2));
-            let f_s = g * n0.dot(a1.cross(p2) + p1.cross(a2));
-            let f_c = g * n0.dot(a1.cross(q2) + q1.cross(a2));
-            let g2 = g * g;
-            keys.iter().any(|&(s, c)| {
-                f0 + f_s * s + f_c * c + g2 * (f_pp * s * s + f_pq * s * c + f_qq * c * c) <= 0.0
-            })
-        });
-        inverted.then_some(0.5)
     }
 }
