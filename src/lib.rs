@@ -633,6 +633,7 @@ fn bake_surface(
         if surface_packed.float_uvs { 1.0 } else { 0.0 },
     );
     report.count("guarded_vertices", surface_packed.guarded as f64);
+    report.count("bent_less_vertices", surface_packed.bent_less as f64);
     report.lods = levels
         .iter()
         .zip(&surface_packed.lod_triangles)

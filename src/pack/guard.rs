@@ -24,19 +24,48 @@ use rayon::prelude::*;
 /// Rounds of proportional shortening before offenders are flattened.
 const ROUNDS: usize = 24;
 
-/// How an inverted triangle should be shortened: `Some(f)` scales its corners' deltas by `f`
-/// (in [0, 1)), `None` when it does not invert.
+/// How an inverted triangle should be shortened: `Some(f)` scales its corners' deltas — or
+/// their leans, see [`Vary`] — by `f` (in [0, 1)), `None` when it does not invert. `leans` are
+/// the lean axes of the `gravity` and `wind` effects (empty without them).
 pub trait Check: Sync {
-    fn check(&self, corners: [u32; 3], deltas: &[Vec3], round: usize) -> Option<f32>;
+    fn check(
+        &self,
+        corners: [u32; 3],
+        deltas: &[Vec3],
+        leans: &[Vec3],
+        round: usize,
+    ) -> Option<f32>;
 }
 
-/// Shortens `deltas` (per vertex) until `check` passes for every triangle of `indices`.
-/// `base` groups vertices that must keep equal deltas. Returns the number of vertices shortened.
-pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl Check) -> usize {
+/// What the guard shortens: the extrusion (`Deltas`), or — for a bent or swaying stack whose
+/// straight form already passes — the bend and sway (`Leans`: a lean's length scales them), so
+/// that strands bend less over tight features instead of getting shorter.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Vary {
+    Deltas,
+    Leans,
+}
+
+/// Shortens `deltas` or `leans` (per vertex, as `vary` says) until `check` passes for every
+/// triangle of `indices`. `base` groups vertices that must keep equal values. Returns the number
+/// of vertices shortened. With [`Vary::Leans`], a triangle that still fails once its leans are
+/// zero has its deltas flattened (it cannot invert then).
+pub fn guard(
+    base: &[Vec3],
+    (deltas, leans): (&mut [Vec3], &mut [Vec3]),
+    vary: Vary,
+    indices: &[u32],
+    check: &impl Check,
+) -> usize {
+    let varied = |d: &[Vec3], l: &[Vec3], v: usize| match vary {
+        Vary::Deltas => d[v],
+        Vary::Leans => l[v],
+    };
     let mut group_of: crate::weld::IdMap<([u32; 3], [u32; 3]), u32> = Default::default();
     let group: Vec<u32> = base
         .iter()
-        .zip(deltas.iter())
+        .enumerate()
+        .map(|(v, p)| (p, varied(deltas, leans, v)))
         .map(|(p, d)| {
             let key = (
                 p.to_array().map(f32::to_bits),
@@ -67,7 +96,7 @@ pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl C
         let bad: Vec<(u32, f32)> = check_list
             .par_iter()
             .filter_map(|&t| {
-                let f = check.check(tri(t), deltas, round)?;
+                let f = check.check(tri(t), deltas, leans, round)?;
                 Some((
                     t,
                     if round < ROUNDS {
@@ -90,7 +119,14 @@ pub fn guard(base: &[Vec3], deltas: &mut [Vec3], indices: &[u32], check: &impl C
         check_list.clear();
         for &(g, f) in &factor {
             for &v in members.of(g) {
-                deltas[v as usize] *= f;
+                match vary {
+                    Vary::Deltas => deltas[v as usize] *= f,
+                    // flattened leans that still fail (the straight stack passed a check that
+                    // reads the deltas a hair differently): flatten the strands, which always
+                    // passes, so the loop ends
+                    Vary::Leans if round > ROUNDS => deltas[v as usize] *= f,
+                    Vary::Leans => leans[v as usize] *= f,
+                }
                 shortened[v as usize] = true;
             }
             check_list.extend(around.of(g));
@@ -113,19 +149,17 @@ pub struct MorphPath<'a> {
     /// and the layer heights to check: a bent stack is not a straight path, so each stored layer
     /// is compared with the base.
     pub bend: Option<(Bend, crate::compress::DeltaGrid, &'a [f32])>,
-    /// Lean axis per vertex (what the bend is across).
-    pub lean: &'a [Vec3],
 }
 
 impl Check for MorphPath<'_> {
-    fn check(&self, c: [u32; 3], deltas: &[Vec3], _round: usize) -> Option<f32> {
+    fn check(&self, c: [u32; 3], deltas: &[Vec3], leans: &[Vec3], _round: usize) -> Option<f32> {
         let p = c.map(|v| self.base[v as usize]);
         let unit = self.grid.map_or(1.0, |(_, u)| u);
         let stored = |d: Vec3| self.grid.map_or(d, |(g, unit)| g.round(d / unit) * unit);
         if let Some((bend, bend_grid, heights)) = &self.bend {
             let d = c.map(|v| stored(deltas[v as usize]).as_dvec3());
             let b = c.map(|v| {
-                let (d, m) = (deltas[v as usize], self.lean[v as usize]);
+                let (d, m) = (deltas[v as usize], leans[v as usize]);
                 (bend_grid.round(crate::gravity::bend_of(d, m, bend) / unit) * unit).as_dvec3()
             });
             let p = p.map(|p| p.as_dvec3());
@@ -183,8 +217,6 @@ pub struct RoundedLayers<'a> {
     pub t: &'a [f32],
     pub top_level: f32,
     pub bend: Option<Bend>,
-    /// Lean axis per vertex (empty without a bend).
-    pub lean: &'a [Vec3],
 }
 
 /// A single-draw layer vertex in grid units, as stored: `base + displacement` rounded to the
@@ -196,10 +228,10 @@ pub fn layer_point(p: Vec3, displacement: Vec3, top_level: f32) -> Vec3 {
 }
 
 impl Check for RoundedLayers<'_> {
-    fn check(&self, c: [u32; 3], deltas: &[Vec3], _round: usize) -> Option<f32> {
+    fn check(&self, c: [u32; 3], deltas: &[Vec3], leans: &[Vec3], _round: usize) -> Option<f32> {
         let layer = |t: f32| {
             c.map(|v| {
-                let axis = self.lean.get(v as usize).copied();
+                let axis = leans.get(v as usize).copied();
                 let d = displacement(deltas[v as usize], axis, t, self.bend.as_ref());
                 layer_point(self.base[v as usize], d, self.top_level).as_dvec3()
             })
@@ -219,21 +251,19 @@ pub struct Swaying<'a, C: Check> {
     pub wind: &'a crate::wind::Wind,
     pub heights: &'a [f32],
     pub bend: Option<Bend>,
-    /// Lean axis per vertex.
-    pub lean: &'a [Vec3],
     /// Single-draw: layers are rounded to the grid (top level) before the sway is added.
     pub rounded: Option<f32>,
 }
 
 impl<C: Check> Check for Swaying<'_, C> {
-    fn check(&self, c: [u32; 3], deltas: &[Vec3], round: usize) -> Option<f32> {
-        if let Some(f) = self.inner.check(c, deltas, round) {
+    fn check(&self, c: [u32; 3], deltas: &[Vec3], leans: &[Vec3], round: usize) -> Option<f32> {
+        if let Some(f) = self.inner.check(c, deltas, leans, round) {
             return Some(f);
         }
         let at = |t: f32| {
             c.map(|v| {
                 let p = self.base[v as usize];
-                let axis = self.lean.get(v as usize).copied();
+                let axis = leans.get(v as usize).copied();
                 let d = displacement(deltas[v as usize], axis, t, self.bend.as_ref());
                 match self.rounded {
                     Some(top) => layer_point(p, d, top),
@@ -251,9 +281,7 @@ impl<C: Check> Check for Swaying<'_, C> {
         let [a, b] = [0, 1].map(|k| {
             let s = c.map(|v| {
                 let v = v as usize;
-                self.wind
-                    .targets(deltas[v], self.lean[v], self.wind.phase[v])[k]
-                    .as_dvec3()
+                self.wind.targets(deltas[v], leans[v], self.wind.phase[v])[k].as_dvec3()
             });
             (s[1] - s[0], s[2] - s[0])
         });
@@ -292,12 +320,49 @@ impl<C: Check> Check for Swaying<'_, C> {
 mod tests {
     use super::*;
 
+    /// The guard shortening deltas, without leans.
+    fn shorten(base: &[Vec3], d: &mut [Vec3], ix: &[u32], check: &impl Check) -> usize {
+        guard(base, (d, &mut []), Vary::Deltas, ix, check)
+    }
+
+    #[test]
+    fn a_bend_that_tips_a_triangle_is_made_smaller_not_the_strands() {
+        // corner 1 leans eight times as far as the others: its bend crosses the triangle
+        let base = [
+            Vec3::ZERO,
+            Vec3::new(10.0, 0.0, 0.0),
+            Vec3::new(0.0, 10.0, 0.0),
+        ];
+        let mut d = vec![Vec3::new(0.0, 0.0, 50.0); 3];
+        let mut leans = vec![Vec3::Z, Vec3::Z * 8.0, Vec3::Z];
+        let check = RoundedLayers {
+            base: &base,
+            t: &[0.0, 0.5, 1.0],
+            top_level: 16383.0,
+            bend: Some(Bend {
+                g: -Vec3::X,
+                strength: 1.0,
+                k: 1.0,
+            }),
+        };
+        assert!(check.check([0, 1, 2], &d, &leans, 0).is_some());
+        let n = guard(&base, (&mut d, &mut leans), Vary::Leans, &[0, 1, 2], &check);
+        assert!(n > 0);
+        assert!(check.check([0, 1, 2], &d, &leans, 0).is_none());
+        assert_eq!(
+            d,
+            vec![Vec3::new(0.0, 0.0, 50.0); 3],
+            "the strands keep their length"
+        );
+        assert!(leans[1].length() < 8.0);
+    }
+
     #[test]
     fn converging_corners_are_shortened_until_nothing_inverts() {
         // corner 1 moves by -x faster than the triangle is wide: inverts at t = 0.5
         let base = [Vec3::ZERO, Vec3::X, Vec3::Y];
         let mut d = vec![Vec3::Z, Vec3::new(-2.0, 0.0, 1.0), Vec3::Z];
-        let n = guard(
+        let n = shorten(
             &base,
             &mut d,
             &[0, 1, 2],
@@ -306,7 +371,6 @@ mod tests {
                 top: 1.0,
                 grid: None,
                 bend: None,
-                lean: &[],
             },
         );
         assert_eq!(n, 3);
@@ -315,7 +379,7 @@ mod tests {
         // a triangle that does not invert is left alone
         let mut d = vec![Vec3::Z; 3];
         assert_eq!(
-            guard(
+            shorten(
                 &base,
                 &mut d,
                 &[0, 1, 2],
@@ -324,7 +388,6 @@ mod tests {
                     top: 1.0,
                     grid: None,
                     bend: None,
-                    lean: &[],
                 }
             ),
             0
@@ -346,11 +409,10 @@ mod tests {
             t: &[0.0, 0.5, 1.0],
             top_level: 16383.0,
             bend: None,
-            lean: &[],
         };
-        assert!(check.check([0, 1, 2], &d, 0).is_some());
-        guard(&base, &mut d, &[0, 1, 2], &check);
-        assert!(check.check([0, 1, 2], &d, 0).is_none());
+        assert!(check.check([0, 1, 2], &d, &[], 0).is_some());
+        shorten(&base, &mut d, &[0, 1, 2], &check);
+        assert!(check.check([0, 1, 2], &d, &[], 0).is_none());
     }
 
     #[test]
@@ -365,7 +427,7 @@ mod tests {
         ];
         let bad = Vec3::new(-2.0, 0.0, 1.0);
         let mut d = vec![Vec3::Z, bad, Vec3::Z, bad, Vec3::Z];
-        guard(
+        shorten(
             &base,
             &mut d,
             &[0, 1, 2, 3, 4, 2],
@@ -374,7 +436,6 @@ mod tests {
                 top: 1.0,
                 grid: None,
                 bend: None,
-                lean: &[],
             },
         );
         assert_eq!(d[1], d[3]);

@@ -58,6 +58,7 @@ use crate::error::ParamError;
 use crate::lod::Level;
 use crate::mesh::{color_byte, Mesh};
 use crate::strands::{Mask, BASE_CODE};
+use guard::Vary;
 use quantize::Bytes;
 
 /// Which glTF layout `pack` writes (DESIGN §4).
@@ -432,7 +433,11 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         Quantize::None => (1.0, 0),
     };
     let mut bends = None;
-    let guarded = match params.layout {
+    // Two passes: the straight stack shortens the extrusion where it would invert; then a bent
+    // or swaying stack bends (and sways) less where it would, keeping the strands' length.
+    let mut leans: Vec<Vec3> = lean.to_vec();
+    let bent = input.bend.is_some() || input.wind.is_some();
+    let (guarded, bent_less) = match params.layout {
         Layout::Compact => {
             let base: Vec<Vec3> = positions
                 .iter()
@@ -442,40 +447,49 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             // compressed file's twin is the plain file), and checked as stored
             let stored: Vec<Vec3> = deltas.iter().map(|&d| d / unit).collect();
             let delta_grid = crate::compress::DeltaGrid::fit(&stored);
-            // the bend target, derived from each (guarded) delta, on a grid of its own
-            let bend_of = |d: &[Vec3], b: &crate::gravity::Bend| -> Vec<Vec3> {
-                d.iter()
-                    .zip(lean)
-                    .map(|(&d, &m)| crate::gravity::bend_of(d, m, b) / unit)
-                    .collect()
-            };
-            let bend_grid = input
-                .bend
-                .map(|b| (b, crate::compress::DeltaGrid::fit(&bend_of(&deltas, &b))));
-            let check = guard::MorphPath {
+            let straight = guard::MorphPath {
                 base: &base,
                 top,
                 grid: Some((delta_grid, unit)),
-                bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
-                lean,
+                bend: None,
             };
-            let n = match input.wind {
-                Some(wind) => {
+            let both = (&mut deltas[..], &mut leans[..]);
+            let shortened = guard::guard(&base, both, Vary::Deltas, &guarded_indices, &straight);
+            // the bend target, derived from each (guarded) delta and lean, on a grid of its own
+            let bend_of = |d: &[Vec3], leans: &[Vec3], b: &crate::gravity::Bend| -> Vec<Vec3> {
+                d.iter()
+                    .zip(leans)
+                    .map(|(&d, &m)| crate::gravity::bend_of(d, m, b) / unit)
+                    .collect()
+            };
+            let bend_grid = input.bend.map(|b| {
+                (
+                    b,
+                    crate::compress::DeltaGrid::fit(&bend_of(&deltas, &leans, &b)),
+                )
+            });
+            let full = guard::MorphPath {
+                bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
+                ..straight
+            };
+            let both = (&mut deltas[..], &mut leans[..]);
+            let bent_less = match (bent, input.wind) {
+                (false, _) => 0,
+                (true, None) => guard::guard(&base, both, Vary::Leans, &guarded_indices, &full),
+                (true, Some(wind)) => {
                     let swaying = guard::Swaying {
-                        inner: check,
+                        inner: full,
                         base: &base,
                         wind,
                         heights: &heights,
                         bend: input.bend,
-                        lean,
                         rounded: None,
                     };
-                    guard::guard(&base, &mut deltas, &guarded_indices, &swaying)
+                    guard::guard(&base, both, Vary::Leans, &guarded_indices, &swaying)
                 }
-                None => guard::guard(&base, &mut deltas, &guarded_indices, &check),
             };
             bends = bend_grid.map(|(b, g)| {
-                bend_of(&deltas, &b)
+                bend_of(&deltas, &leans, &b)
                     .into_iter()
                     .map(|x| g.round(x))
                     .collect()
@@ -484,37 +498,45 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             for d in &mut deltas {
                 *d = delta_grid.round(*d / unit);
             }
-            n
+            (shortened, bent_less)
         }
         Layout::SingleDraw => {
             let base: Vec<Vec3> = positions
                 .iter()
                 .map(|&p| (p - grid.min) / grid.step)
                 .collect();
-            let check = guard::RoundedLayers {
+            let straight = guard::RoundedLayers {
                 base: &base,
                 t: &heights,
                 top_level: grid.max_level() as f32,
-                bend: input.bend,
-                lean,
+                bend: None,
             };
-            match input.wind {
-                Some(wind) => {
+            let both = (&mut deltas[..], &mut leans[..]);
+            let shortened = guard::guard(&base, both, Vary::Deltas, &guarded_indices, &straight);
+            let full = guard::RoundedLayers {
+                bend: input.bend,
+                ..straight
+            };
+            let both = (&mut deltas[..], &mut leans[..]);
+            let bent_less = match (bent, input.wind) {
+                (false, _) => 0,
+                (true, None) => guard::guard(&base, both, Vary::Leans, &guarded_indices, &full),
+                (true, Some(wind)) => {
                     let swaying = guard::Swaying {
-                        inner: check,
+                        inner: full,
                         base: &base,
                         wind,
                         heights: &heights,
                         bend: input.bend,
-                        lean,
                         rounded: Some(grid.max_level() as f32),
                     };
-                    guard::guard(&base, &mut deltas, &guarded_indices, &swaying)
+                    guard::guard(&base, both, Vary::Leans, &guarded_indices, &swaying)
                 }
-                None => guard::guard(&base, &mut deltas, &guarded_indices, &check),
-            }
+            };
+            (shortened, bent_less)
         }
     };
+    let lean = leans.as_slice();
     // the wind's targets, from the guarded deltas (compact: `deltas` are stored already)
     let winds = input.wind.map(|w| {
         let to_grid = match params.layout {
@@ -820,6 +842,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         base_vertices,
         vertex_order,
         guarded,
+        bent_less,
     };
     out.surfaces.push(surface.clone());
     surface

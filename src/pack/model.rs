@@ -272,6 +272,8 @@ pub struct PackedSurface {
     pub vertex_order: Vec<u32>,
     /// Vertices whose extrusion the inversion guard shortened.
     pub guarded: usize,
+    /// Vertices whose bend and sway the guard made smaller (the `gravity` and `wind` effects).
+    pub bent_less: usize,
 }
 
 impl PackedSurface {
