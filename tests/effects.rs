@@ -174,6 +174,7 @@ fn swaying_layers_never_invert_on_the_hard_cases() {
             .iter()
             .map(|f| (f.to_string(), load(f)))
             .collect();
+    shapes.push(("spiky sphere".into(), common::spiky_sphere()));
     shapes.push((
         "split cube".into(),
         shellbake::mesh::Scene {

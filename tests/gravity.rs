@@ -97,8 +97,8 @@ fn bent_layers_stay_outside_and_never_invert() {
                 println!(
                     "{what}: lowest height {lowest:.6} of t·|d|², pull along gravity {pull:.3}"
                 );
-                // the bend is across the extrusion: a layer's height is t·|d| (up to the
-                // rounding of the stored targets)
+                // the bend never pulls a tip back by more than half its strand: no layer
+                // below its base (up to the rounding of the stored targets)
                 assert!(
                     lowest >= -1e-3,
                     "{what}: a layer dips below its base ({lowest})"
@@ -110,18 +110,21 @@ fn bent_layers_stay_outside_and_never_invert() {
             }
         }
     }
-    // a procedural concave shape: the split cube's inside corners
+    // procedural hard cases: the split cube's inside corners, and spikes
     let cube = shellbake::mesh::Scene {
         meshes: vec![shellbake::procedural::split_cube(1.0)],
         ..Default::default()
     };
-    for layout in [Layout::Compact, Layout::SingleDraw] {
-        let (baked, _) = bake_mesh(&cube, layout, true);
-        assert_eq!(
-            inverted_layer_triangles(&baked.glb).0,
-            0,
-            "split cube {layout:?}"
-        );
+    for (name, scene) in [
+        ("split cube", cube),
+        ("spiky sphere", common::spiky_sphere()),
+    ] {
+        for layout in [Layout::Compact, Layout::SingleDraw] {
+            let (baked, _) = bake_mesh(&scene, layout, true);
+            let (inverted, checked) = inverted_layer_triangles(&baked.glb);
+            assert!(checked > 0);
+            assert_eq!(inverted, 0, "{name} {layout:?}");
+        }
     }
 }
 
