@@ -423,7 +423,8 @@ fn vertex_ray(welded: &Welded, dirs: &[Vec3], v: u32, reach: f32) -> Ray {
     Ray::new(Vec3A::from(p), Vec3A::from(d), 0.0, reach)
 }
 
-fn incident(welded: &Welded, tri: usize, v: u32) -> bool {
+/// Whether welded triangle `tri` has corner `v` (rays from a vertex skip its own triangles).
+pub(crate) fn incident(welded: &Welded, tri: usize, v: u32) -> bool {
     welded.indices[3 * tri..3 * tri + 3].contains(&v)
 }
 

@@ -62,6 +62,29 @@ impl ParamError {
         }
     }
 
+    /// `Ok` when `value` lies in `lo..=hi`, else an error naming `key` and the range.
+    pub fn in_range(key: &str, value: f32, lo: f32, hi: f32) -> Result<(), ParamError> {
+        if (lo..=hi).contains(&value) {
+            return Ok(());
+        }
+        Err(ParamError::new(
+            key,
+            format!("{key} must be in {lo}..={hi}, got {value}"),
+        ))
+    }
+
+    /// `Ok` when `v` is a direction (finite, non-zero), else an error naming `key`.
+    pub fn direction(key: &str, v: [f32; 3]) -> Result<(), ParamError> {
+        let d = glam::Vec3::from_array(v);
+        if d.is_finite() && d.length() > 1e-6 {
+            return Ok(());
+        }
+        Err(ParamError::new(
+            key,
+            format!("{key} must be a non-zero vector, got {v:?}"),
+        ))
+    }
+
     /// The same error with its key inside `section`.
     pub fn within(self, section: &str) -> ParamError {
         ParamError {

@@ -53,29 +53,9 @@ impl Default for GravityParams {
 impl GravityParams {
     /// Checks ranges; the error names the parameter.
     pub fn check(&self) -> Result<(), ParamError> {
-        let d = Vec3::from_array(self.direction);
-        if !(d.is_finite() && d.length() > 1e-6) {
-            return Err(ParamError::new(
-                "direction",
-                format!(
-                    "direction must be a non-zero vector, got {:?}",
-                    self.direction
-                ),
-            ));
-        }
-        if !(0.0..=2.0).contains(&self.strength) {
-            return Err(ParamError::new(
-                "strength",
-                format!("strength must be in 0..=2, got {}", self.strength),
-            ));
-        }
-        if !(1.0..=8.0).contains(&self.exponent) {
-            return Err(ParamError::new(
-                "exponent",
-                format!("exponent must be in 1..=8, got {}", self.exponent),
-            ));
-        }
-        Ok(())
+        ParamError::direction("direction", self.direction)?;
+        ParamError::in_range("strength", self.strength, 0.0, 2.0)?;
+        ParamError::in_range("exponent", self.exponent, 1.0, 8.0)
     }
 
     /// The unit direction.

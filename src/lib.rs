@@ -469,27 +469,26 @@ fn bake_surface(
     let mut shells = shells;
     // the law and the lean axes (made by the first of gravity and wind): each vertex's bend
     // and sway follow from its (guarded) delta where they are drawn
-    let (shells_height, shells_delta) = (shells.height, shells.delta.clone());
     let mut lean: Option<Vec<glam::Vec3>> = None;
     let lean_axes = |lean: &mut Option<Vec<glam::Vec3>>| {
         lean.get_or_insert_with(|| {
             gravity::lean_axes(
                 &welded,
                 &clamp.welded_direction,
-                &shells_delta,
-                shells_height,
+                &shells.delta,
+                shells.height,
             )
         });
     };
-    shells.bend = report.gate(plan, Stage::Gravity, i, || {
+    let bend = report.gate(plan, Stage::Gravity, i, || {
         lean_axes(&mut lean);
         gravity::Bend::of(&params.gravity)
     });
-    shells.wind = report.gate(plan, Stage::Wind, i, || {
+    let wind = report.gate(plan, Stage::Wind, i, || {
         lean_axes(&mut lean);
         wind::Wind::new(&params.wind, &mesh.positions, diagonal, params.strands.seed)
     });
-    shells.lean = lean;
+    (shells.bend, shells.wind, shells.lean) = (bend, wind, lean);
     shells.sheen = report.gate(plan, Stage::Sheen, i, || params.sheen.clone());
     shells.occlusion = occlusion;
 

@@ -72,13 +72,7 @@ impl OcclusionParams {
                 format!("radius must be in (0, 1], got {}", self.radius),
             ));
         }
-        if !(0.0..=1.0).contains(&self.strength) {
-            return Err(ParamError::new(
-                "strength",
-                format!("strength must be in 0..=1, got {}", self.strength),
-            ));
-        }
-        Ok(())
+        ParamError::in_range("strength", self.strength, 0.0, 1.0)
     }
 }
 
@@ -108,9 +102,10 @@ fn hemisphere(i: u32, n: u32, turn: f32) -> Vec3 {
     Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - r2).max(0.0).sqrt())
 }
 
-/// The darkening `a = strength · occlusion` per welded vertex, rays around `directions` (unit,
-/// one per welded vertex) against `bvh`, up to `radius · diagonal`.
-pub fn welded_occlusion(
+/// The darkening `a = strength · occlusion` per render vertex: per welded vertex, rays around
+/// `directions` (unit, one per welded vertex) against `bvh`, up to `radius · diagonal`, then
+/// through `welded.remap`.
+pub fn occlusion(
     welded: &Welded,
     bvh: &MeshBvh,
     directions: &[Vec3],
@@ -119,7 +114,7 @@ pub fn welded_occlusion(
 ) -> Vec<f32> {
     let reach = params.radius * diagonal;
     let n = params.samples;
-    (0..welded.positions.len() as u32)
+    let per_welded: Vec<f32> = (0..welded.positions.len() as u32)
         .into_par_iter()
         .map(|v| {
             let axis = directions[v as usize];
@@ -136,24 +131,12 @@ pub fn welded_occlusion(
                     let h = hemisphere(i, n, turn);
                     let dir = u * h.x + w * h.y + axis * h.z;
                     let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, reach);
-                    let incident = |t: usize| welded.indices[3 * t..3 * t + 3].contains(&v);
-                    bvh.nearest(ray, incident) <= reach
+                    bvh.nearest(ray, |t| crate::clamp::incident(welded, t, v)) <= reach
                 })
                 .count();
             params.strength * hits as f32 / n as f32
         })
-        .collect()
-}
-
-/// [`welded_occlusion`] per render vertex (through `welded.remap`).
-pub fn occlusion(
-    welded: &Welded,
-    bvh: &MeshBvh,
-    directions: &[Vec3],
-    diagonal: f32,
-    params: &OcclusionParams,
-) -> Vec<f32> {
-    let per_welded = welded_occlusion(welded, bvh, directions, diagonal, params);
+        .collect();
     welded
         .remap
         .iter()

@@ -48,19 +48,8 @@ impl SheenParams {
                 format!("color components must be in 0..=1, got {:?}", self.color),
             ));
         }
-        if !(0.0..=1.0).contains(&self.roughness) {
-            return Err(ParamError::new(
-                "roughness",
-                format!("roughness must be in 0..=1, got {}", self.roughness),
-            ));
-        }
-        if !(0.0..=8.0).contains(&self.exponent) {
-            return Err(ParamError::new(
-                "exponent",
-                format!("exponent must be in 0..=8, got {}", self.exponent),
-            ));
-        }
-        Ok(())
+        ParamError::in_range("roughness", self.roughness, 0.0, 1.0)?;
+        ParamError::in_range("exponent", self.exponent, 0.0, 8.0)
     }
 
     /// The sheen colour of a layer at height `t`.

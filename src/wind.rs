@@ -66,30 +66,11 @@ impl Default for WindParams {
 impl WindParams {
     /// Checks ranges; the error names the parameter.
     pub fn check(&self) -> Result<(), ParamError> {
-        let d = Vec3::from_array(self.direction);
-        if !(d.is_finite() && d.length() > 1e-6) {
-            return Err(ParamError::new(
-                "direction",
-                format!(
-                    "direction must be a non-zero vector, got {:?}",
-                    self.direction
-                ),
-            ));
-        }
-        let ranges: [(&str, f32, f32, f32); 4] = [
-            ("strength", self.strength, 0.0, 1.0),
-            ("exponent", self.exponent, 1.0, 8.0),
-            ("period", self.period, 0.1, 60.0),
-            ("scale", self.scale, 0.01, 10.0),
-        ];
-        for (key, v, lo, hi) in ranges {
-            if !(lo..=hi).contains(&v) {
-                return Err(ParamError::new(
-                    key,
-                    format!("{key} must be in {lo}..={hi}, got {v}"),
-                ));
-            }
-        }
+        ParamError::direction("direction", self.direction)?;
+        ParamError::in_range("strength", self.strength, 0.0, 1.0)?;
+        ParamError::in_range("exponent", self.exponent, 1.0, 8.0)?;
+        ParamError::in_range("period", self.period, 0.1, 60.0)?;
+        ParamError::in_range("scale", self.scale, 0.01, 10.0)?;
         if !(4..=256).contains(&self.keyframes) {
             return Err(ParamError::new(
                 "keyframes",

@@ -9,18 +9,10 @@
 mod common;
 
 use std::path::Path;
-use std::sync::OnceLock;
 
-use common::{inverted_layer_triangles_at, Glb};
+use common::{inverted_layer_triangles_at, verify_glb, Glb};
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
-use shellbake::view::verify::{self, Verification};
-use shellbake::view::{Gpu, ReferenceInput};
-
-fn gpu() -> &'static Gpu {
-    static GPU: OnceLock<Gpu> = OnceLock::new();
-    GPU.get_or_init(|| Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)"))
-}
 
 fn load(fixture: &str) -> shellbake::mesh::Scene {
     shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap()
@@ -35,18 +27,6 @@ fn params(layout: Layout) -> BakeParams {
     p.occlusion.radius = 0.5;
     p.wind.strength = 0.4;
     p
-}
-
-fn verify_glb(glb: &[u8], reference: &shellbake::Baked, params: &BakeParams) -> Verification {
-    verify::verify(
-        gpu(),
-        glb,
-        ReferenceInput::from_baked(reference, params),
-        256,
-        (&params.lod).into(),
-        &[],
-    )
-    .unwrap()
 }
 
 /// Verify passes with the effect and fails when the file lacks it (the reference has it).

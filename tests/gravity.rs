@@ -8,18 +8,10 @@
 mod common;
 
 use std::path::Path;
-use std::sync::OnceLock;
 
-use common::{inverted_layer_triangles, Glb};
+use common::{inverted_layer_triangles, verify_glb, Glb};
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
-use shellbake::view::verify::{self, Verification};
-use shellbake::view::{Gpu, ReferenceInput};
-
-fn gpu() -> &'static Gpu {
-    static GPU: OnceLock<Gpu> = OnceLock::new();
-    GPU.get_or_init(|| Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)"))
-}
 
 fn bake_mesh(
     scene: &shellbake::mesh::Scene,
@@ -36,18 +28,6 @@ fn bake_mesh(
 fn bake(fixture: &str, layout: Layout, gravity: bool) -> (shellbake::Baked, BakeParams) {
     let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap();
     bake_mesh(&scene, layout, gravity)
-}
-
-fn verify_glb(glb: &[u8], reference: &shellbake::Baked, params: &BakeParams) -> Verification {
-    verify::verify(
-        gpu(),
-        glb,
-        ReferenceInput::from_baked(reference, params),
-        256,
-        (&params.lod).into(),
-        &[],
-    )
-    .unwrap()
 }
 
 /// Per compact layer vertex: its height above the base along the extrusion (as stored) over

@@ -10,18 +10,10 @@
 mod common;
 
 use std::path::Path;
-use std::sync::OnceLock;
 
+use common::verify_glb;
 use shellbake::params::{BakeParams, Layout, Preset};
-use shellbake::view::verify::{self, Verification};
-use shellbake::view::{Gpu, ReferenceInput};
-
-const SIZE: u32 = 256;
-
-fn gpu() -> &'static Gpu {
-    static GPU: OnceLock<Gpu> = OnceLock::new();
-    GPU.get_or_init(|| Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)"))
-}
+use shellbake::view::verify::Verification;
 
 /// One level, nothing culled: the controls below change LOD 0's layers in place.
 fn bake(fixture: &str, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
@@ -43,19 +35,6 @@ fn layout_name(l: Layout) -> &'static str {
         Layout::Compact => "compact",
         Layout::SingleDraw => "single-draw",
     }
-}
-
-/// `verify` of `glb` against the reference of `baked` with `params`.
-fn verify_glb(glb: &[u8], baked: &shellbake::Baked, params: &BakeParams) -> Verification {
-    verify::verify(
-        gpu(),
-        glb,
-        ReferenceInput::from_baked(baked, params),
-        SIZE,
-        (&params.lod).into(),
-        &[],
-    )
-    .unwrap()
 }
 
 fn lines(v: &Verification) -> Vec<String> {

@@ -37,6 +37,12 @@ pub trait Check: Sync {
     ) -> Option<f32>;
 }
 
+impl<C: Check + ?Sized> Check for &C {
+    fn check(&self, c: [u32; 3], deltas: &[Vec3], leans: &[Vec3], round: usize) -> Option<f32> {
+        (**self).check(c, deltas, leans, round)
+    }
+}
+
 /// What the guard shortens: the extrusion (`Deltas`), or — for a bent or swaying stack whose
 /// straight form already passes — the bend and sway (`Leans`: a lean's length scales them), so
 /// that strands bend less over tight features instead of getting shorter.
@@ -253,6 +259,37 @@ pub struct Swaying<'a, C: Check> {
     pub bend: Option<Bend>,
     /// Single-draw: layers are rounded to the grid (top level) before the sway is added.
     pub rounded: Option<f32>,
+    /// The animation's keys as `(sin ωτ, cos ωτ)`, made once.
+    keys: Vec<(f64, f64)>,
+}
+
+impl<'a, C: Check> Swaying<'a, C> {
+    /// The wind on top of `inner`; see the fields.
+    pub fn new(
+        inner: C,
+        base: &'a [Vec3],
+        wind: &'a crate::wind::Wind,
+        (heights, bend): (&'a [f32], Option<Bend>),
+        rounded: Option<f32>,
+    ) -> Self {
+        let keys = wind
+            .times()
+            .iter()
+            .map(|&time| {
+                let [s, c] = wind.weights(time, 1.0);
+                (s as f64, c as f64)
+            })
+            .collect();
+        Swaying {
+            inner,
+            base,
+            wind,
+            heights,
+            bend,
+            rounded,
+            keys,
+        }
+    }
 }
 
 impl<C: Check> Check for Swaying<'_, C> {
@@ -286,16 +323,7 @@ impl<C: Check> Check for Swaying<'_, C> {
             (s[1] - s[0], s[2] - s[0])
         });
         let ((p1, p2), (q1, q2)) = (a, b);
-        // keys (sin ωτ, cos ωτ) of the animation
-        let keys: Vec<(f64, f64)> = self
-            .wind
-            .times()
-            .iter()
-            .map(|&time| {
-                let [s, c] = self.wind.weights(time, 1.0);
-                (s as f64, c as f64)
-            })
-            .collect();
+        let keys = &self.keys;
         // per layer, the layer normal along n0 is a quadratic in (g·sin, g·cos), g = t^k
         let f_pp = n0.dot(p1.cross(p2));
         let f_pq = n0.dot(p1.cross(q2) + q1.cross(p2));

@@ -436,7 +436,23 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     // Two passes: the straight stack shortens the extrusion where it would invert; then a bent
     // or swaying stack bends (and sways) less where it would, keeping the strands' length.
     let mut leans: Vec<Vec3> = lean.to_vec();
-    let bent = input.bend.is_some() || input.wind.is_some();
+    // the second pass: `full` checks the bent stack, swaying under the wind at every keyframe
+    // (`rounded`: single-draw layers are rounded to the grid first)
+    let bent_less = |base: &[Vec3],
+                     both: (&mut [Vec3], &mut [Vec3]),
+                     indices: &[u32],
+                     full: &dyn guard::Check,
+                     rounded: Option<f32>| {
+        match (input.bend.is_some(), input.wind) {
+            (_, Some(wind)) => {
+                let swaying =
+                    guard::Swaying::new(full, base, wind, (&heights, input.bend), rounded);
+                guard::guard(base, both, Vary::Leans, indices, &swaying)
+            }
+            (true, None) => guard::guard(base, both, Vary::Leans, indices, &full),
+            (false, None) => 0,
+        }
+    };
     let (guarded, bent_less) = match params.layout {
         Layout::Compact => {
             let base: Vec<Vec3> = positions
@@ -473,21 +489,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 ..straight
             };
             let both = (&mut deltas[..], &mut leans[..]);
-            let bent_less = match (bent, input.wind) {
-                (false, _) => 0,
-                (true, None) => guard::guard(&base, both, Vary::Leans, &guarded_indices, &full),
-                (true, Some(wind)) => {
-                    let swaying = guard::Swaying {
-                        inner: full,
-                        base: &base,
-                        wind,
-                        heights: &heights,
-                        bend: input.bend,
-                        rounded: None,
-                    };
-                    guard::guard(&base, both, Vary::Leans, &guarded_indices, &swaying)
-                }
-            };
+            let bent_less = bent_less(&base, both, &guarded_indices, &full, None);
             bends = bend_grid.map(|(b, g)| {
                 bend_of(&deltas, &leans, &b)
                     .into_iter()
@@ -518,21 +520,8 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 ..straight
             };
             let both = (&mut deltas[..], &mut leans[..]);
-            let bent_less = match (bent, input.wind) {
-                (false, _) => 0,
-                (true, None) => guard::guard(&base, both, Vary::Leans, &guarded_indices, &full),
-                (true, Some(wind)) => {
-                    let swaying = guard::Swaying {
-                        inner: full,
-                        base: &base,
-                        wind,
-                        heights: &heights,
-                        bend: input.bend,
-                        rounded: Some(grid.max_level() as f32),
-                    };
-                    guard::guard(&base, both, Vary::Leans, &guarded_indices, &swaying)
-                }
-            };
+            let top = Some(grid.max_level() as f32);
+            let bent_less = bent_less(&base, both, &guarded_indices, &full, top);
             (shortened, bent_less)
         }
     };

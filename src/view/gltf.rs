@@ -441,12 +441,8 @@ impl GltfRenderer {
                 for a in accessors {
                     if !self.buffers.contains_key(&a) {
                         let f = self.asset.floats(a)?;
-                        let data = if a == prim.color.unwrap_or(usize::MAX) && f.components == 3 {
-                            // COLOR_0 VEC3: alpha 1
-                            f.data
-                                .chunks_exact(3)
-                                .flat_map(|c| [c[0], c[1], c[2], 1.0])
-                                .collect()
+                        let data = if Some(a) == prim.color {
+                            rgba(f, 1.0)
                         } else {
                             f.data
                         };
@@ -455,27 +451,11 @@ impl GltfRenderer {
                 }
                 if let (Some(c), Some((_, t))) = (prim.color, color_target) {
                     if !self.color_pairs.contains_key(&(c, t)) {
-                        let rgba = |a: usize| -> Result<Vec<f32>> {
-                            let f = self.asset.floats(a)?;
-                            Ok(match f.components {
-                                3 => f
-                                    .data
-                                    .chunks_exact(3)
-                                    .flat_map(|c| [c[0], c[1], c[2], 0.0])
-                                    .collect(),
-                                _ => f.data,
-                            })
-                        };
-                        let (base, delta) = (rgba(c)?, rgba(t)?);
+                        let base = rgba(self.asset.floats(c)?, 1.0);
+                        let delta = rgba(self.asset.floats(t)?, 0.0);
                         let mut data = Vec::with_capacity(base.len() * 2);
                         for (b, d) in base.chunks_exact(4).zip(delta.chunks_exact(4)) {
-                            // a VEC3 base colour has alpha 1
-                            let a = if self.asset.floats(c)?.components == 3 {
-                                1.0
-                            } else {
-                                b[3]
-                            };
-                            data.extend_from_slice(&[b[0], b[1], b[2], a]);
+                            data.extend_from_slice(b);
                             data.extend_from_slice(d);
                         }
                         self.color_pairs.insert((c, t), vertex_buffer(gpu, &data));
@@ -824,6 +804,18 @@ impl GltfRenderer {
                 None => pass.draw(0..elements, 0..1),
             }
         }
+    }
+}
+
+/// A colour accessor as RGBA: a VEC3 one gets `alpha` (1 for a colour, 0 for a colour delta).
+fn rgba(f: super::glb::Floats, alpha: f32) -> Vec<f32> {
+    match f.components {
+        3 => f
+            .data
+            .chunks_exact(3)
+            .flat_map(|c| [c[0], c[1], c[2], alpha])
+            .collect(),
+        _ => f.data,
     }
 }
 

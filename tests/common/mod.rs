@@ -376,3 +376,31 @@ pub fn spiky_sphere() -> shellbake::mesh::Scene {
         ..Default::default()
     }
 }
+
+/// The process's wgpu device (lavapipe on machines without a GPU), made once.
+#[cfg(feature = "view")]
+pub fn gpu() -> &'static shellbake::view::Gpu {
+    static GPU: std::sync::OnceLock<shellbake::view::Gpu> = std::sync::OnceLock::new();
+    GPU.get_or_init(|| {
+        shellbake::view::Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)")
+    })
+}
+
+/// `verify` of `glb` against the runtime reference of `reference` baked with `params`, at
+/// 256 × 256, the rest pose and the wind's default times.
+#[cfg(feature = "view")]
+pub fn verify_glb(
+    glb: &[u8],
+    reference: &shellbake::Baked,
+    params: &shellbake::params::BakeParams,
+) -> shellbake::view::verify::Verification {
+    shellbake::view::verify::verify(
+        gpu(),
+        glb,
+        shellbake::view::ReferenceInput::from_baked(reference, params),
+        256,
+        (&params.lod).into(),
+        &[],
+    )
+    .unwrap()
+}
