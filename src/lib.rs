@@ -52,6 +52,7 @@ pub mod report;
 pub mod scene;
 pub mod sheen;
 pub mod shells;
+pub mod skin;
 pub mod srgb;
 pub mod strands;
 pub mod tiling;
@@ -91,6 +92,8 @@ pub struct BakedSurface {
     pub culled: cull::Culled,
     /// The LOD chain (LOD 0 alone without the effect `lod`).
     pub levels: Vec<lod::Level>,
+    /// The skin `mesh.skin` indexes, placed, when the input is skinned.
+    pub skeleton: Option<skin::Skeleton>,
 }
 
 /// Everything a scene bake produced.
@@ -156,6 +159,9 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
             let mut loaded = load::load(&s.mesh)?;
             for m in &mut loaded.meshes {
                 m.place(glam::DVec3::from(s.translation), s.scale);
+            }
+            if let Some(k) = &mut loaded.skeleton {
+                k.place(glam::DVec3::from(s.translation), s.scale);
             }
             let has_colors = loaded.meshes.iter().any(|m| m.colors.is_some());
             let read = |key: &str, source: &Option<scene::MapSource>| -> Result<Option<maps::Map>> {
@@ -492,10 +498,18 @@ fn bake_surface(
     shells.sheen = report.gate(plan, Stage::Sheen, i, || params.sheen.clone());
     shells.occlusion = occlusion;
 
-    let lod_runs = plan.runs(Stage::Lod, i);
+    // a skinned mesh's node must be a root: no chunk or LOD nodes above it (see `skin`)
+    let skinned = scene.skeleton.is_some();
+    let lod_runs = plan.runs(Stage::Lod, i) && !skinned;
     let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
-    let levels = report
-        .gate(plan, Stage::Lod, i, || {
+    let levels = if skinned && plan.runs(Stage::Lod, i) {
+        report.skip(
+            Stage::Lod.name(),
+            "skinned surface: its layer nodes are scene roots, so one level and no chunks",
+        );
+        None
+    } else {
+        report.gate(plan, Stage::Lod, i, || {
             let spacing = 1.0 / density as f64;
             let texel = spacing * mask.cells_per_tile as f64 / mask.size as f64;
             let base = lod::Base {
@@ -506,7 +520,8 @@ fn bake_surface(
             };
             lod::build_lods(&shells, &mask, spacing, texel, &params.lod, Some(&base))
         })
-        .unwrap_or_else(|| vec![lod::full_level(&shells)]);
+    }
+    .unwrap_or_else(|| vec![lod::full_level(&shells)]);
     report.count("levels", levels.len() as f64);
     report.count("chunks", chunks.len() as f64);
     // One mask, and one cull bound per triangle, per distinct mip the levels use: the bound
@@ -625,6 +640,7 @@ fn bake_surface(
         wind: shells.wind.as_ref(),
         occlusion: shells.occlusion.as_deref(),
         sheen: shells.sheen.as_ref(),
+        skeleton: scene.skeleton.as_ref(),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(
@@ -671,6 +687,7 @@ fn bake_surface(
         density: density_map,
         culled: culled.into_iter().next().expect("LOD 0"),
         levels,
+        skeleton: scene.skeleton.clone(),
     }
 }
 

@@ -490,6 +490,8 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
     }
     let scene = shellbake::procedural::TERRAIN_SCENE;
     shellbake::write::write_atomic(&dir.join("terrain.toml"), scene.as_bytes())?;
+    let tube = shellbake::procedural::skinned_tube();
+    shellbake::write::write_atomic(&dir.join("tube_skinned.glb"), &tube)?;
     Ok(())
 }
 

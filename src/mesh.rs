@@ -27,6 +27,15 @@ pub struct Mesh {
     pub colors: Option<Vec<[u8; 4]>>,
     /// Triangle list.
     pub indices: Vec<u32>,
+    /// Each vertex's joints and weights, when the input is skinned ([`crate::skin`]).
+    pub skin: Option<VertexSkin>,
+}
+
+/// Per vertex, four joints of the surface's skin and their weights (summing to 1).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VertexSkin {
+    pub joints: Vec<[u16; 4]>,
+    pub weights: Vec<[f32; 4]>,
 }
 
 impl Mesh {
@@ -90,6 +99,7 @@ impl Mesh {
         assert_eq!(self.normals.is_some(), other.normals.is_some());
         assert_eq!(self.uvs.is_some(), other.uvs.is_some());
         assert_eq!(self.colors.is_some(), other.colors.is_some());
+        assert_eq!(self.skin.is_some(), other.skin.is_some());
         let base = self.positions.len() as u32;
         let shift = other.origin - self.origin;
         self.positions.extend(
@@ -106,6 +116,10 @@ impl Mesh {
         }
         if let (Some(a), Some(b)) = (&mut self.colors, &other.colors) {
             a.extend_from_slice(b);
+        }
+        if let (Some(a), Some(b)) = (&mut self.skin, &other.skin) {
+            a.joints.extend_from_slice(&b.joints);
+            a.weights.extend_from_slice(&b.weights);
         }
         self.indices.extend(other.indices.iter().map(|i| i + base));
     }
@@ -125,6 +139,10 @@ impl Mesh {
         self.normals = self.normals.as_deref().map(|n| pick(n, source));
         self.uvs = self.uvs.as_deref().map(|uv| pick(uv, source));
         self.colors = self.colors.as_deref().map(|c| pick(c, source));
+        if let Some(s) = &mut self.skin {
+            s.joints = pick(&s.joints, source);
+            s.weights = pick(&s.weights, source);
+        }
     }
 
     /// Negates the shading normal of each vertex from `first` on (copies split off for the other
@@ -179,6 +197,10 @@ impl Mesh {
         if let Some(c) = &self.colors {
             assert_eq!(c.len(), self.positions.len(), "colour count");
         }
+        if let Some(s) = &self.skin {
+            assert_eq!(s.joints.len(), self.positions.len(), "joint count");
+            assert_eq!(s.weights.len(), self.positions.len(), "weight count");
+        }
     }
 }
 
@@ -187,10 +209,14 @@ pub fn color_byte(v: f64) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
-/// What `load` returns: the meshes of one input file, world transforms applied.
+/// What `load` returns: the meshes of one input file, world transforms applied (a skinned
+/// mesh's bind pose as it is).
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
     pub meshes: Vec<Mesh>,
+    /// The skin every mesh is bound to, when the input is skinned (every mesh then has
+    /// [`Mesh::skin`]).
+    pub skeleton: Option<crate::skin::Skeleton>,
     /// Things the loader fixed up and the user should know (missing UVs, …).
     pub warnings: Vec<String>,
 }

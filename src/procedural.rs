@@ -225,6 +225,200 @@ density = 12.0       # strands per metre
 chunk_size = 20.0    # metres
 ";
 
+/// Joints of the skinned tube, spaced this far apart up +Y from the origin.
+pub const TUBE_JOINT_SPACING: f32 = 0.6;
+
+/// Length of the skinned tube's looping animation, seconds.
+pub const TUBE_PERIOD: f32 = 2.0;
+
+/// A skinned capsule as a GLB: radius 0.3, 2.4 tall along +Y from the origin, four joints in a
+/// chain every [`TUBE_JOINT_SPACING`] under an `armature` node, each vertex weighted between the
+/// two joints around its height, and a looping animation `bend` ([`TUBE_PERIOD`] long, 17
+/// `LINEAR` keys) turning joints 1–3 about Z by `30° · sin(2π t / period)` each, so the tube
+/// sways into an arc one way, then the other. The skinned-fur fixture
+/// (`fixtures/tube_skinned.glb`).
+pub fn skinned_tube() -> Vec<u8> {
+    use serde_json::json;
+    let (r, length, segments) = (0.3f32, 2.4f32, 24u32);
+    // the profile: (radius, height, normal's radial and vertical parts) from the bottom pole up
+    let mut profile: Vec<(f32, f32, f32, f32)> = Vec::new();
+    let cap = 6;
+    for i in 0..=cap {
+        let a = -PI / 2.0 + PI / 2.0 * i as f32 / cap as f32;
+        profile.push((
+            r * libm::cosf(a),
+            r + r * libm::sinf(a),
+            libm::cosf(a),
+            libm::sinf(a),
+        ));
+    }
+    let body = 18;
+    for i in 1..body {
+        let y = r + (length - 2.0 * r) * i as f32 / body as f32;
+        profile.push((r, y, 1.0, 0.0));
+    }
+    for i in 0..=cap {
+        let a = PI / 2.0 * i as f32 / cap as f32;
+        let y = length - r + r * libm::sinf(a);
+        profile.push((r * libm::cosf(a), y, libm::cosf(a), libm::sinf(a)));
+    }
+    let mut m = Mesh {
+        normals: Some(vec![]),
+        uvs: Some(vec![]),
+        ..Default::default()
+    };
+    let mut joints: Vec<u8> = Vec::new();
+    let mut weights: Vec<f32> = Vec::new();
+    let rings = profile.len() as u32 - 1;
+    for (k, &(rho, y, nr, ny)) in profile.iter().enumerate() {
+        for j in 0..=segments {
+            let a = TAU * j as f32 / segments as f32;
+            let (c, s) = (libm::cosf(a), libm::sinf(a));
+            m.positions.push(Vec3::new(rho * c, y, -rho * s));
+            m.normals
+                .as_mut()
+                .unwrap()
+                .push(Vec3::new(nr * c, ny, -nr * s).normalize());
+            let v = 1.0 - k as f32 / rings as f32;
+            m.uvs
+                .as_mut()
+                .unwrap()
+                .push(Vec2::new(j as f32 / segments as f32 * 2.0, v * 3.0));
+            let f = (y / TUBE_JOINT_SPACING).clamp(0.0, 3.0);
+            let lo = (f.floor() as u16).min(2);
+            let w = f - lo as f32;
+            let (j, w) =
+                crate::skin::normalize_influences([lo, lo + 1, 0, 0], [1.0 - w, w, 0.0, 0.0]);
+            joints.extend(j.map(|j| j as u8));
+            weights.extend(w);
+        }
+    }
+    grid_indices(&mut m, segments, rings, true);
+    // buffers: positions, normals, uvs, joints, weights, indices, inverse binds, times, rotations
+    let mut bin: Vec<u8> = Vec::new();
+    let mut views = Vec::new();
+    let mut view = |bin: &mut Vec<u8>, bytes: Vec<u8>, target: Option<u32>| {
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        let mut v = json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len() });
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
+        bin.extend(bytes);
+        views.push(v);
+        views.len() - 1
+    };
+    let f32s = |v: &mut dyn Iterator<Item = f32>| v.flat_map(f32::to_le_bytes).collect::<Vec<u8>>();
+    let (lo, hi) = m.bounds();
+    let nv = m.positions.len();
+    let vp = view(
+        &mut bin,
+        f32s(&mut m.positions.iter().flat_map(|p| p.to_array())),
+        Some(34962),
+    );
+    let vn = view(
+        &mut bin,
+        f32s(
+            &mut m
+                .normals
+                .as_ref()
+                .unwrap()
+                .iter()
+                .flat_map(|p| p.to_array()),
+        ),
+        Some(34962),
+    );
+    let vt = view(
+        &mut bin,
+        f32s(&mut m.uvs.as_ref().unwrap().iter().flat_map(|p| p.to_array())),
+        Some(34962),
+    );
+    let vj = view(&mut bin, joints, Some(34962));
+    let vw = view(&mut bin, f32s(&mut weights.into_iter()), Some(34962));
+    let vi = view(
+        &mut bin,
+        m.indices
+            .iter()
+            .flat_map(|&i| (i as u16).to_le_bytes())
+            .collect(),
+        Some(34963),
+    );
+    let ibm: Vec<f32> = (0..4)
+        .flat_map(|j| {
+            glam::Mat4::from_translation(Vec3::new(0.0, -TUBE_JOINT_SPACING * j as f32, 0.0))
+                .to_cols_array()
+        })
+        .collect();
+    let vb = view(&mut bin, f32s(&mut ibm.into_iter()), None);
+    let keys = 17;
+    let times: Vec<f32> = (0..keys)
+        .map(|k| TUBE_PERIOD * k as f32 / (keys - 1) as f32)
+        .collect();
+    let rotations: Vec<f32> = times
+        .iter()
+        .flat_map(|&t| {
+            let half = 0.5 * (30.0f32.to_radians() * libm::sinf(TAU * t / TUBE_PERIOD));
+            [0.0, 0.0, libm::sinf(half), libm::cosf(half)]
+        })
+        .collect();
+    let vk = view(&mut bin, f32s(&mut times.iter().copied()), None);
+    let vr = view(&mut bin, f32s(&mut rotations.into_iter()), None);
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let accessor = |view: usize, component: u32, count: usize, kind: &str| json!({ "bufferView": view, "componentType": component, "count": count, "type": kind });
+    let mut position = accessor(vp, 5126, nv, "VEC3");
+    position["min"] = json!(lo.to_array());
+    position["max"] = json!(hi.to_array());
+    let mut time = accessor(vk, 5126, keys, "SCALAR");
+    time["min"] = json!([0.0]);
+    time["max"] = json!([TUBE_PERIOD]);
+    let joint = |j: usize| {
+        let mut n = json!({ "name": format!("joint_{j}"), "translation": [0.0, if j == 0 { 0.0 } else { TUBE_JOINT_SPACING }, 0.0] });
+        if j < 3 {
+            n["children"] = json!([3 + j]);
+        }
+        n
+    };
+    let channels =
+        [3, 4, 5].map(|n| json!({ "sampler": 0, "target": { "node": n, "path": "rotation" } }));
+    let doc = json!({
+        "asset": { "version": "2.0", "generator": "shellbake procedural fixture" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0, 1] }],
+        "nodes": [
+            { "name": "tube", "mesh": 0, "skin": 0 },
+            { "name": "armature", "children": [2] },
+            joint(0), joint(1), joint(2), joint(3),
+        ],
+        "meshes": [{ "name": "tube", "primitives": [{
+            "attributes": { "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2, "JOINTS_0": 3, "WEIGHTS_0": 4 },
+            "indices": 5,
+        }]}],
+        "skins": [{ "inverseBindMatrices": 6, "joints": [2, 3, 4, 5] }],
+        "animations": [{
+            "name": "bend",
+            "samplers": [{ "input": 7, "output": 8, "interpolation": "LINEAR" }],
+            "channels": channels,
+        }],
+        "accessors": [
+            position,
+            accessor(vn, 5126, nv, "VEC3"),
+            accessor(vt, 5126, nv, "VEC2"),
+            accessor(vj, 5121, nv, "VEC4"),
+            accessor(vw, 5126, nv, "VEC4"),
+            accessor(vi, 5123, m.indices.len(), "SCALAR"),
+            accessor(vb, 5126, 4, "MAT4"),
+            time,
+            accessor(vr, 5126, keys, "VEC4"),
+        ],
+        "bufferViews": views,
+        "buffers": [{ "byteLength": bin.len() }],
+    });
+    crate::write::glb_bytes(&doc, &bin)
+}
+
 /// The fixtures by name, as committed in `fixtures/`.
 pub fn fixtures() -> Vec<(&'static str, Mesh)> {
     vec![

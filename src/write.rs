@@ -232,6 +232,13 @@ pub fn gltf_json_with(
     if !packed.animations.is_empty() {
         doc["animations"] = packed.animations.iter().map(animation_json).collect();
     }
+    if !packed.skins.is_empty() {
+        doc["skins"] = packed
+            .skins
+            .iter()
+            .map(|s| json!({ "name": s.name, "inverseBindMatrices": s.inverse_bind, "joints": s.joints }))
+            .collect();
+    }
     if packed.materials.iter().any(|m| m.sheen.is_some()) {
         doc["extensionsUsed"]
             .as_array_mut()
@@ -268,18 +275,23 @@ fn view_json(v: &Stream, offset: usize) -> Value {
     Value::Object(o)
 }
 
-/// An animation: one `LINEAR` sampler per channel, each channel a node's `weights`.
+/// An animation: one sampler per channel, each channel a node's `weights` or transform.
 fn animation_json(a: &crate::pack::Animation) -> Value {
     let samplers: Vec<Value> = a
         .channels
         .iter()
-        .map(|c| json!({ "input": c.input, "output": c.output, "interpolation": "LINEAR" }))
+        .map(|c| {
+            json!({ "input": c.input, "output": c.output, "interpolation": c.interpolation.name() })
+        })
         .collect();
     let channels: Vec<Value> = a
         .channels
         .iter()
         .enumerate()
-        .map(|(i, c)| json!({ "sampler": i, "target": { "node": c.node, "path": "weights" } }))
+        .map(|(i, c)| {
+            let path = c.path.map_or("weights", |p| p.name());
+            json!({ "sampler": i, "target": { "node": c.node, "path": path } })
+        })
         .collect();
     json!({ "name": a.name, "channels": channels, "samplers": samplers })
 }
@@ -409,8 +421,14 @@ fn node_json(n: &Node) -> Value {
     if let Some(t) = n.translation {
         o.insert("translation".into(), json!([t.x, t.y, t.z]));
     }
+    if let Some(r) = n.rotation {
+        o.insert("rotation".into(), json!([r.x, r.y, r.z, r.w]));
+    }
     if let Some(s) = n.scale {
-        o.insert("scale".into(), json!([s, s, s]));
+        o.insert("scale".into(), json!([s.x, s.y, s.z]));
+    }
+    if let Some(skin) = n.skin {
+        o.insert("skin".into(), json!(skin));
     }
     if let Some(l) = &n.lod {
         o.insert("extensions".into(), json!({ "MSFT_lod": { "ids": l.ids } }));

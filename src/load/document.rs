@@ -56,6 +56,7 @@ use serde_json::{Map, Value};
 
 use super::{accessor, escape, MAX_INPUT_BYTES};
 use crate::error::{Error, Result};
+use crate::skin::Trs;
 
 /// Extensions a file may list in `extensionsRequired`: quantized attributes (decoded by
 /// `accessor.rs`) and texture transforms (drawn by the viewer; UVs are read untransformed by the
@@ -226,6 +227,11 @@ pub struct Mesh {
 pub struct Node {
     /// TRS or `matrix`, in `f64`.
     pub local: DMat4,
+    /// The same as translation, rotation, scale (a `matrix` decomposed).
+    pub trs: Trs,
+    pub name: Option<String>,
+    /// The skin of the node's mesh.
+    pub skin: Option<usize>,
     pub mesh: Option<usize>,
     pub children: Vec<usize>,
     /// Morph target weights overriding the mesh's.
@@ -493,9 +499,10 @@ fn check_index(path: &Path, element: &str, what: &str, i: usize, len: usize) -> 
 }
 
 /// The local matrix of a node: `matrix` if given, else translation · rotation · scale, in `f64`.
-fn node_matrix(f: &Fields) -> Result<DMat4> {
+fn node_matrix(f: &Fields) -> Result<(DMat4, Trs)> {
     if let Some(m) = f.numbers("matrix", 16)? {
-        return Ok(DMat4::from_cols_slice(&m));
+        let m = DMat4::from_cols_slice(&m);
+        return Ok((m, Trs::from_matrix(m)));
     }
     let t = f.numbers("translation", 3)?.unwrap_or(vec![0.0; 3]);
     let r = f
@@ -506,11 +513,12 @@ fn node_matrix(f: &Fields) -> Result<DMat4> {
     if q.length() == 0.0 {
         return Err(f.err("rotation (0, 0, 0, 0) is not a unit quaternion"));
     }
-    Ok(DMat4::from_scale_rotation_translation(
-        DVec3::new(s[0], s[1], s[2]),
-        q.normalize(),
-        DVec3::new(t[0], t[1], t[2]),
-    ))
+    let trs = Trs {
+        translation: DVec3::new(t[0], t[1], t[2]),
+        rotation: q.normalize(),
+        scale: DVec3::new(s[0], s[1], s[2]),
+    };
+    Ok((trs.matrix(), trs))
 }
 
 /// The object counts every index is checked against.
@@ -714,9 +722,12 @@ impl Document {
         for f in each("nodes", "node")? {
             let f = f?;
             f.index("camera", "camera", n.cameras)?;
-            f.index("skin", "skin", n.skins)?;
+            let (local, trs) = node_matrix(&f)?;
             nodes.push(Node {
-                local: node_matrix(&f)?,
+                local,
+                trs,
+                name: f.string("name")?.map(str::to_string),
+                skin: f.index("skin", "skin", n.skins)?,
                 mesh: f.index("mesh", "mesh", n.meshes)?,
                 children: f.indices("children", "node", n.nodes)?,
                 weights: f.numbers("weights", 0)?,
@@ -753,6 +764,15 @@ impl Document {
     /// visit each node at most once; a `pick` that leads round in circles is stopped by the depth
     /// bound ([`MAX_DEPTH`]) and a bound on visits.
     pub fn walk(&self, pick: impl Fn(usize) -> usize) -> Result<Vec<Placed>> {
+        self.walk_with(pick, |n| self.nodes[n].local)
+    }
+
+    /// [`Document::walk`] with each node's local matrix given by `local` (an animated pose).
+    pub fn walk_with(
+        &self,
+        pick: impl Fn(usize) -> usize,
+        local: impl Fn(usize) -> DMat4,
+    ) -> Result<Vec<Placed>> {
         let limit = self.nodes.len() + EXTRA_VISITS;
         let mut out = Vec::new();
         let mut stack: Vec<(usize, DMat4, usize, usize)> = self
@@ -783,7 +803,7 @@ impl Document {
                 .nodes
                 .get(n)
                 .ok_or_else(|| Error::invalid(&self.path, here(), "does not exist"))?;
-            let world = parent * node.local;
+            let world = parent * local(n);
             out.push(Placed {
                 node: n,
                 world,

@@ -47,11 +47,13 @@ use crate::mesh::{Mesh, Scene};
 /// mesh worth shelling, and small enough that a hostile file is refused before it is expanded.
 pub const MAX_INSTANCED_ELEMENTS: u64 = 1 << 27;
 
-/// One primitive to read, with the world transform of its node.
+/// One primitive to read, with the world transform of its node (identity for a skinned one,
+/// whose node transform glTF ignores) and its node's skin.
 struct Job<'a> {
     prim: &'a Primitive,
     element: String,
     world: DMat4,
+    skin: Option<usize>,
 }
 
 pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
@@ -66,7 +68,6 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
     let mut total: u64 = 0;
     // Depth first in document order, so "the first instance" is the one a reader sees first.
     for placed in doc.walk(|n| n)? {
-        let world = placed.world;
         let Some(m) = doc.nodes[placed.node].mesh else {
             continue;
         };
@@ -82,6 +83,14 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             }
             let Some(pos) = prim.attribute("POSITION") else {
                 return Err(Error::invalid(path, element, "no POSITION attribute"));
+            };
+            let skinned =
+                prim.attribute("JOINTS_0").is_some() && prim.attribute("WEIGHTS_0").is_some();
+            let skin = doc.nodes[placed.node].skin.filter(|_| skinned);
+            let world = if skin.is_some() {
+                DMat4::IDENTITY
+            } else {
+                placed.world
             };
             let place = world.to_cols_array().map(f64::to_bits);
             let first = *taken.entry((pos, place)).or_insert(m);
@@ -103,8 +112,9 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             }
             jobs.push(Job {
                 prim,
-                element,
+                element: format!("node {} {element}", placed.node),
                 world,
+                skin,
             });
         }
     }
@@ -115,14 +125,34 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             path.display()
         ));
     }
+    // one skin for every mesh, or none
+    let skin = jobs.first().and_then(|j| j.skin);
+    if let Some(other) = jobs.iter().find(|j| j.skin != skin) {
+        let what = |s: Option<usize>| s.map_or("no skin".to_string(), |s| format!("skin {s}"));
+        return Err(Error::invalid(
+            path,
+            &other.element,
+            format!(
+                "is bound to {} while {} is bound to {}; a surface bakes one skin (bake the \
+                 meshes as separate surfaces)",
+                what(other.skin),
+                jobs[0].element,
+                what(skin)
+            ),
+        ));
+    }
     let buffers = doc.load_buffers()?;
+    if let Some(s) = skin {
+        scene.skeleton = Some(super::skin::read_skeleton(&doc, &buffers, s)?);
+    }
+    let joints = scene.skeleton.as_ref().map_or(0, |s| s.joints.len());
     for job in &jobs {
         scene.meshes.push(read_primitive(
             &doc,
             &job.element,
             job.prim,
             &buffers,
-            job.world,
+            (job.world, joints),
         )?);
     }
     Ok(scene)
@@ -133,7 +163,7 @@ fn read_primitive(
     element: &str,
     prim: &Primitive,
     buffers: &[Vec<u8>],
-    world: DMat4,
+    (world, joints): (DMat4, usize),
 ) -> Result<Mesh> {
     let path = doc.path.as_path();
     let attribute = |name: &str, kind: Kind| -> Result<Option<Vec<f64>>> {
@@ -228,6 +258,54 @@ fn read_primitive(
         }
         None => None,
     };
+    // JOINTS_0 / WEIGHTS_0 of a skinned primitive (`joints` > 0: the skin's joint count)
+    let skin = if joints > 0 {
+        let j = attribute_of(doc, element, prim, buffers, ("JOINTS_0", &[5121, 5123]))?;
+        let w = attribute_of(
+            doc,
+            element,
+            prim,
+            buffers,
+            ("WEIGHTS_0", &[5126, 5121, 5123]),
+        )?;
+        if j.len() != 4 * nv || w.len() != 4 * nv {
+            return Err(Error::invalid(
+                path,
+                element,
+                "JOINTS_0 / WEIGHTS_0 count differs from POSITION's",
+            ));
+        }
+        let mut skin = crate::mesh::VertexSkin::default();
+        for (v, (j, w)) in j.chunks_exact(4).zip(w.chunks_exact(4)).enumerate() {
+            if let Some(&bad) = j
+                .iter()
+                .zip(w)
+                .find(|&(&j, &w)| w != 0.0 && j as usize >= joints)
+                .map(|(j, _)| j)
+            {
+                return Err(Error::invalid(
+                    path,
+                    element,
+                    format!("vertex {v} names joint {bad}; the skin has {joints}"),
+                ));
+            }
+            let (j, w) = crate::skin::normalize_influences(
+                [0, 1, 2, 3].map(|k| {
+                    if (j[k] as usize) < joints {
+                        j[k] as u16
+                    } else {
+                        0
+                    }
+                }),
+                [0, 1, 2, 3].map(|k| w[k] as f32),
+            );
+            skin.joints.push(j);
+            skin.weights.push(w);
+        }
+        Some(skin)
+    } else {
+        None
+    };
     if DMat3::from_mat4(world).determinant() < 0.0 {
         for t in indices.chunks_exact_mut(3) {
             t.swap(1, 2);
@@ -241,9 +319,24 @@ fn read_primitive(
         uvs,
         colors,
         indices,
+        skin,
     };
     mesh.recentre();
     Ok(mesh)
+}
+
+/// A `VEC4` attribute `name` of `prim` with a component type among `types`.
+fn attribute_of(
+    doc: &Document,
+    element: &str,
+    prim: &Primitive,
+    buffers: &[Vec<u8>],
+    (name, types): (&str, &[u64]),
+) -> Result<Vec<f64>> {
+    let a = prim
+        .attribute(name)
+        .expect("the caller checked the attribute");
+    read_checked(doc, element, a, buffers, (name, Kind::Vec4, types))
 }
 
 /// Vertex attribute component types a mesh may use (float, or integers as

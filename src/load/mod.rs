@@ -26,6 +26,7 @@ pub mod accessor;
 pub mod document;
 mod gltf;
 mod obj;
+pub mod skin;
 
 use std::path::Path;
 
@@ -191,9 +192,7 @@ pub fn generate_box_uvs(mesh: &mut Mesh) {
     let n = mesh.positions.len();
     // slot[v][axis] = output vertex for (input vertex v, projection axis)
     let mut slot = vec![[u32::MAX; 3]; n];
-    let mut positions = Vec::with_capacity(n);
-    let mut normals = mesh.normals.as_ref().map(|_| Vec::with_capacity(n));
-    let mut colors = mesh.colors.as_ref().map(|_| Vec::with_capacity(n));
+    let mut source: Vec<u32> = Vec::with_capacity(n);
     let mut uvs = Vec::with_capacity(n);
     let mut indices = Vec::with_capacity(mesh.indices.len());
     for tri in mesh.indices.chunks_exact(3) {
@@ -203,15 +202,9 @@ pub fn generate_box_uvs(mesh: &mut Mesh) {
         for &v in tri {
             let s = &mut slot[v as usize][axis];
             if *s == u32::MAX {
-                *s = positions.len() as u32;
+                *s = source.len() as u32;
+                source.push(v);
                 let p = mesh.positions[v as usize];
-                positions.push(p);
-                if let (Some(out), Some(src)) = (&mut normals, &mesh.normals) {
-                    out.push(src[v as usize]);
-                }
-                if let (Some(out), Some(src)) = (&mut colors, &mesh.colors) {
-                    out.push(src[v as usize]);
-                }
                 let (u, w) = match axis {
                     0 => (p.z, p.y),
                     1 => (p.x, p.z),
@@ -222,9 +215,8 @@ pub fn generate_box_uvs(mesh: &mut Mesh) {
             indices.push(*s);
         }
     }
-    mesh.positions = positions;
-    mesh.normals = normals;
-    mesh.colors = colors;
+    mesh.uvs = None;
+    mesh.gather_vertices(&source);
     mesh.uvs = Some(uvs);
     mesh.indices = indices;
 }

@@ -119,6 +119,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             uvs,
             colors,
             indices: triangulate(&world, &m.indices, &m.face_arities, &mut fanned),
+            skin: None,
         };
         if mesh
             .uvs

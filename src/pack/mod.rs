@@ -43,9 +43,9 @@ mod model;
 mod quantize;
 
 pub use model::{
-    Accessor, Alpha, Animation, LayerRange, Material, Mesh as PackedMesh, Node, NodeLod, Packed,
-    PackedSurface, Primitive, Semantic, ShellExtras, Stream, StreamKind, Tag, Texture, TextureRef,
-    WeightChannel,
+    Accessor, Alpha, Animation, Channel, LayerRange, Material, Mesh as PackedMesh, Node, NodeLod,
+    Packed, PackedSurface, Primitive, Semantic, ShellExtras, Skin, Stream, StreamKind, Tag,
+    Texture, TextureRef,
 };
 
 pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid, SNORM16};
@@ -243,6 +243,8 @@ pub struct PackInput<'a> {
     pub occlusion: Option<&'a [f32]>,
     /// The `sheen` effect's parameters.
     pub sheen: Option<&'a crate::sheen::SheenParams>,
+    /// The skin `mesh.skin` indexes (placed), when the input is skinned ([`crate::skin`]).
+    pub skeleton: Option<&'a crate::skin::Skeleton>,
 }
 
 /// The surface's vertices with their quantization grids, in the input's order.
@@ -270,6 +272,8 @@ struct Geometry<'a> {
     sheen: Option<&'a crate::sheen::SheenParams>,
     density: Option<&'a [u8]>,
     fur_weight: Option<&'a [f32]>,
+    /// Joints and weights per vertex, and the skin's joint count.
+    skin: Option<(&'a crate::mesh::VertexSkin, usize)>,
 }
 
 /// One chunk at one level: triangles ordered so every layer draws a prefix.
@@ -572,6 +576,10 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         sheen: input.sheen,
         density: input.density,
         fur_weight: input.fur_weight,
+        skin: mesh
+            .skin
+            .as_ref()
+            .zip(input.skeleton.map(|k| k.joints.len())),
     };
 
     let tag = Tag {
@@ -796,14 +804,29 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     let step = grid.step as f64;
     let translation = grid.min.as_dvec3() + mesh.origin + step * zero_level as f64;
     let scale = step * unit as f64;
+    let dequantize = glam::DMat4::from_scale_rotation_translation(
+        glam::DVec3::splat(scale),
+        glam::DQuat::IDENTITY,
+        translation,
+    );
+    // a skinned surface: the skeleton under the root, the dequantization in the inverse bind
+    // matrices, the layer nodes roots of their own (see `crate::skin`)
+    let skinned = input
+        .skeleton
+        .filter(|_| geometry.skin.is_some())
+        .map(|k| skeleton(&mut b, k, dequantize, &chunk_nodes, input.name));
     let out = b.out;
     let lod0 = input.levels[0].level;
+    let (children, placed) = match skinned {
+        Some(wrapper) => (vec![wrapper], None),
+        None => (chunk_nodes.clone(), Some(dequantize)),
+    };
     out.nodes[root] = Node {
         name: input.name.to_string(),
         tag,
-        children: chunk_nodes,
-        translation: Some(translation),
-        scale: Some(scale),
+        children,
+        translation: placed.map(|_| translation),
+        scale: placed.map(|_| glam::DVec3::splat(scale)),
         extras: Some(ShellExtras {
             layout: params.layout,
             height: input.height,
@@ -816,6 +839,9 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         ..Node::default()
     };
     out.roots.push(root);
+    if skinned.is_some() {
+        out.roots.extend(&chunk_nodes);
+    }
     let surface = PackedSurface {
         layout: params.layout,
         root,
@@ -837,12 +863,126 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     surface
 }
 
+/// Writes skeleton `k` for the layer nodes `layers`: its nodes (names kept, for retargeting)
+/// under a node carrying the placement, the skin (inverse bind matrices `IBM · P⁻¹ · R`, with `R`
+/// = `dequantize`), each layer node bound to it, and the clips retargeted. Returns the wrapper.
+fn skeleton(
+    b: &mut Builder,
+    k: &crate::skin::Skeleton,
+    dequantize: glam::DMat4,
+    layers: &[usize],
+    name: &str,
+) -> usize {
+    let first = b.out.nodes.len();
+    for n in &k.nodes {
+        let node = Node {
+            name: n.name.clone(),
+            tag: b.tag,
+            children: n.children.iter().map(|&c| first + c).collect(),
+            translation: Some(n.trs.translation),
+            rotation: Some(n.trs.rotation),
+            scale: Some(n.trs.scale),
+            ..Node::default()
+        };
+        b.out.nodes.push(node);
+    }
+    let (scale, rotation, translation) = k.placement.to_scale_rotation_translation();
+    let wrapper = Packed::push(
+        &mut b.out.nodes,
+        Node {
+            name: format!("{name}_skeleton"),
+            tag: b.tag,
+            children: k.roots.iter().map(|&r| first + r).collect(),
+            translation: Some(translation),
+            rotation: Some(rotation),
+            scale: Some(scale),
+            ..Node::default()
+        },
+    );
+    let unplace = k.placement.inverse() * dequantize;
+    let ibm: Vec<glam::DMat4> = k.inverse_bind.iter().map(|m| *m * unplace).collect();
+    let n = ibm.len();
+    let v = b.stream(
+        "inverse_bind",
+        Semantic::InverseBind,
+        None,
+        model::matrix_bytes(&ibm),
+        None,
+        n,
+    );
+    let inverse_bind = b.out.accessor(v, component::FLOAT, false, "MAT4", None);
+    let skin = Packed::push(
+        &mut b.out.skins,
+        Skin {
+            name: name.to_string(),
+            joints: k.joints.iter().map(|&j| first + j).collect(),
+            inverse_bind,
+        },
+    );
+    for &l in layers {
+        b.out.nodes[l].skin = Some(skin);
+    }
+    for clip in &k.clips {
+        let channels = clip
+            .channels
+            .iter()
+            .map(|c| {
+                let mut times = Bytes::default();
+                times.f32s(&c.times);
+                let t = b.stream(
+                    "skin_times",
+                    Semantic::Animation,
+                    None,
+                    times.0,
+                    None,
+                    c.times.len(),
+                );
+                let lo = c.times.first().copied().unwrap_or(0.0) as f64;
+                let hi = c.times.last().copied().unwrap_or(0.0) as f64;
+                let input = b.out.accessor(
+                    t,
+                    component::FLOAT,
+                    false,
+                    "SCALAR",
+                    Some((vec![lo], vec![hi])),
+                );
+                let mut values = Bytes::default();
+                values.f32s(&c.values);
+                let per = c.path.components();
+                let count = c.values.len() / per;
+                let v = b.stream(
+                    "skin_values",
+                    Semantic::Animation,
+                    None,
+                    values.0,
+                    None,
+                    count,
+                );
+                let kind = if per == 4 { "VEC4" } else { "VEC3" };
+                let output = b.out.accessor(v, component::FLOAT, false, kind, None);
+                Channel {
+                    node: first + c.node,
+                    input,
+                    output,
+                    path: Some(c.path),
+                    interpolation: c.interpolation,
+                }
+            })
+            .collect();
+        b.out.animations.push(Animation {
+            name: clip.name.clone(),
+            channels,
+        });
+    }
+    wrapper
+}
+
 /// A surface's wind animation as it is built: its channels (LOD 0's, then the coarser levels'),
 /// the keyframe times, and the value accessors made so far (nodes with the same weights share
 /// one).
 #[derive(Default)]
 struct WindAnimation {
-    channels: [Vec<WeightChannel>; 2],
+    channels: [Vec<Channel>; 2],
     times: Option<usize>,
     outputs: Vec<(Vec<u32>, usize)>,
 }
@@ -857,7 +997,7 @@ fn wind_channel(
     (node, m): (usize, usize),
     level: &Level,
     animation: &mut WindAnimation,
-) -> Option<WeightChannel> {
+) -> Option<Channel> {
     let mesh = &b.out.meshes[m];
     let targets = mesh.primitives.first().map_or(0, |p| p.targets.len());
     let rest = match &b.out.nodes[node].weights {
@@ -896,10 +1036,12 @@ fn wind_channel(
         b.out
             .accessor(v, component::FLOAT, false, "SCALAR", Some(bounds))
     });
-    Some(WeightChannel {
+    Some(Channel {
         node,
         input,
         output,
+        path: None,
+        interpolation: crate::skin::Interpolation::Linear,
     })
 }
 
@@ -926,6 +1068,8 @@ struct Shared {
     fetch: Vec<u32>,
     position: usize,
     normal: usize,
+    /// `JOINTS_0` and `WEIGHTS_0` of a skinned surface.
+    skin: Option<[usize; 2]>,
     /// Texture coordinates, extrusion target and density (when `shells`).
     shells: Option<ShellStreams>,
 }
@@ -958,6 +1102,7 @@ impl Shared {
             .collect();
         let position = b.positions(&q, &g.grid);
         let normal = b.normals(&pick(g.normals));
+        let skin = g.skin.map(|s| b.skin(s, &order));
         let shells = shells.then(|| {
             let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
             let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs, g.tiles);
@@ -1025,6 +1170,7 @@ impl Shared {
             fetch,
             position,
             normal,
+            skin,
             shells,
         }
     }
@@ -1126,6 +1272,40 @@ impl Builder<'_> {
         let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
         self.out
             .accessor(v, component, normalized, "VEC3", Some(bounds))
+    }
+
+    /// `JOINTS_0` (unsigned byte, or short past 256 joints) and `WEIGHTS_0` (normalized bytes
+    /// summing to 255) of the vertices `order` lists.
+    fn skin(
+        &mut self,
+        (skin, joints): (&crate::mesh::VertexSkin, usize),
+        order: &[u32],
+    ) -> [usize; 2] {
+        let wide = joints > 256;
+        let mut j = Bytes::default();
+        let mut w = Bytes::default();
+        for &o in order {
+            let (js, ws) = (skin.joints[o as usize], skin.weights[o as usize]);
+            if wide {
+                j.u16s(&js, 8);
+            } else {
+                j.0.extend(js.map(|x| x as u8));
+            }
+            w.0.extend(crate::skin::weight_bytes(ws));
+        }
+        let n = order.len();
+        let (stride, component) = if wide {
+            (8, component::UNSIGNED_SHORT)
+        } else {
+            (4, component::UNSIGNED_BYTE)
+        };
+        let jv = self.stream("joints", Semantic::Joints(0), None, j.0, Some(stride), n);
+        let ja = self.out.accessor(jv, component, false, "VEC4", None);
+        let wv = self.stream("weights", Semantic::Weights(0), None, w.0, Some(4), n);
+        let wa = self
+            .out
+            .accessor(wv, component::UNSIGNED_BYTE, true, "VEC4", None);
+        [ja, wa]
     }
 
     /// Morph target 0: the extrusion delta as float, in the stored position unit, with exact
@@ -1236,10 +1416,13 @@ fn compact(
         Some(ix) => ix,
         None => b.indices("indices", &indices, s.order.len()),
     };
-    let base = vec![
+    let mut base = vec![
         (Semantic::Position, s.position),
         (Semantic::Normal, s.normal),
     ];
+    if let Some([j, w]) = s.skin {
+        base.extend([(Semantic::Joints(0), j), (Semantic::Weights(0), w)]);
+    }
     if let Some([fur, skin]) = ctx.level.bare {
         let mut attributes = base;
         // with maps or occlusion, the colour per vertex (COLOR_0, linear) and a white material;
@@ -1510,12 +1693,19 @@ fn single_draw(
             crate::sheen::Sheen::of(s, mean)
         }),
     });
-    let attributes = vec![
+    let mut attributes = vec![
         (Semantic::Position, position),
         (Semantic::Normal, normal),
         (Semantic::TexCoord(0), texcoord),
         (Semantic::Color(0), color),
     ];
+    if let Some(skin) = g.skin {
+        let all: Vec<u32> = (0..layers.len())
+            .flat_map(|j| pick(j).map(|v| v as u32))
+            .collect();
+        let [j, w] = b.skin(skin, &all);
+        attributes.extend([(Semantic::Joints(0), j), (Semantic::Weights(0), w)]);
+    }
     let mesh = b.single_primitive_mesh(name, attributes, ix, material);
     // the wind's targets hold each layer's t^k; the animation weighs them sin ωτ and cos ωτ
     if let (Some(wind), Some(winds)) = (g.wind, &g.winds) {

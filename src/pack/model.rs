@@ -14,7 +14,7 @@
 //! node *i* is node *i*. Surfaces are appended one after another, so adding a surface never
 //! renumbers an earlier one.
 
-use glam::{DVec3, Vec2};
+use glam::{DMat4, DQuat, DVec3, Vec2};
 
 use super::{Layout, PositionGrid};
 
@@ -30,6 +30,11 @@ pub enum Semantic {
     Image,
     /// Animation keyframe times or values.
     Animation,
+    /// `JOINTS_n` and `WEIGHTS_n` of a skinned surface.
+    Joints(u32),
+    Weights(u32),
+    /// A skin's inverse bind matrices.
+    InverseBind,
 }
 
 impl Semantic {
@@ -40,7 +45,11 @@ impl Semantic {
             Semantic::Normal => Some("NORMAL".into()),
             Semantic::TexCoord(i) => Some(format!("TEXCOORD_{i}")),
             Semantic::Color(i) => Some(format!("COLOR_{i}")),
-            Semantic::Indices | Semantic::Image | Semantic::Animation => None,
+            Semantic::Joints(i) => Some(format!("JOINTS_{i}")),
+            Semantic::Weights(i) => Some(format!("WEIGHTS_{i}")),
+            Semantic::Indices | Semantic::Image | Semantic::Animation | Semantic::InverseBind => {
+                None
+            }
         }
     }
 }
@@ -64,7 +73,7 @@ pub enum StreamKind {
     Index,
     /// Image bytes (no target).
     Image,
-    /// Animation data (no target).
+    /// Animation data, or a skin's matrices (no target).
     Animation,
 }
 
@@ -205,8 +214,10 @@ pub struct Node {
     pub weights: Vec<f32>,
     pub children: Vec<usize>,
     pub translation: Option<DVec3>,
-    /// Uniform scale.
-    pub scale: Option<f64>,
+    pub rotation: Option<DQuat>,
+    pub scale: Option<DVec3>,
+    /// The skin of the node's mesh.
+    pub skin: Option<usize>,
     pub extras: Option<ShellExtras>,
     /// `MSFT_lod` alternatives and the chain's switch figures (a chunk's node).
     pub lod: Option<NodeLod>,
@@ -227,20 +238,40 @@ pub struct NodeLod {
     pub errors: Vec<f64>,
 }
 
-/// A glTF animation of morph weights: each channel sets one node's weights from keyframe times
-/// (`input`) and values (`output`, every target's weight per key), `LINEAR`.
+/// A glTF animation: each channel sets one node's morph weights (the wind: every target's
+/// weight per key, `LINEAR`) or transform (a skinned input's clips) from keyframe times (`input`)
+/// and values (`output`).
 #[derive(Clone, Debug, Default)]
 pub struct Animation {
     pub name: String,
-    pub channels: Vec<WeightChannel>,
+    pub channels: Vec<Channel>,
 }
 
-/// One node's weights over time.
+/// One node's weights or transform over time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct WeightChannel {
+pub struct Channel {
     pub node: usize,
     pub input: usize,
     pub output: usize,
+    /// `None`: the node's morph weights.
+    pub path: Option<crate::skin::Path>,
+    pub interpolation: crate::skin::Interpolation,
+}
+
+/// A skin: its joints (nodes) and inverse bind matrices (an accessor).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Skin {
+    pub name: String,
+    pub joints: Vec<usize>,
+    pub inverse_bind: usize,
+}
+
+/// Column-major `f32` bytes of matrices.
+pub fn matrix_bytes(m: &[DMat4]) -> Vec<u8> {
+    m.iter()
+        .flat_map(|m| m.as_mat4().to_cols_array())
+        .flat_map(f32::to_le_bytes)
+        .collect()
 }
 
 /// What one surface's packing decided, for the report and the tests.
@@ -292,9 +323,10 @@ pub struct Packed {
     pub materials: Vec<Material>,
     pub meshes: Vec<Mesh>,
     pub nodes: Vec<Node>,
-    /// The scene's root nodes, one per surface.
+    /// The scene's root nodes: one per surface, and a skinned surface's layer nodes.
     pub roots: Vec<usize>,
     pub animations: Vec<Animation>,
+    pub skins: Vec<Skin>,
     pub surfaces: Vec<PackedSurface>,
 }
 
@@ -310,7 +342,7 @@ impl Packed {
         let kind = match semantic {
             Semantic::Indices => StreamKind::Index,
             Semantic::Image => StreamKind::Image,
-            Semantic::Animation => StreamKind::Animation,
+            Semantic::Animation | Semantic::InverseBind => StreamKind::Animation,
             _ => StreamKind::Vertex,
         };
         self.streams.push(Stream {

@@ -188,6 +188,8 @@ pub struct Primitive {
     pub normal: Option<usize>,
     pub texcoord: Option<usize>,
     pub color: Option<usize>,
+    /// `JOINTS_0` and `WEIGHTS_0`.
+    pub skin: Option<(usize, usize)>,
     pub indices: Option<usize>,
     /// POSITION morph targets.
     pub targets: Vec<usize>,
@@ -214,6 +216,9 @@ pub struct Instance {
     pub weights: Vec<f32>,
     /// Position among the children of its parent (the layer index in shellbake files).
     pub sibling: usize,
+    /// A skinned instance's joint matrices (joint world · inverse bind); its `world` is then
+    /// the identity, as glTF ignores a skinned mesh node's transform.
+    pub joints: Option<Vec<DMat4>>,
 }
 
 /// A node whose `MSFT_lod` level is picked by distance.
@@ -252,6 +257,10 @@ pub struct Asset {
     pub shell_layers: Option<usize>,
     /// Morph weight tracks of each animation.
     pub animations: Vec<Vec<WeightTrack>>,
+    /// Node transform channels of every animation.
+    pub clips: Vec<crate::skin::Clip>,
+    /// Each skin's joints (nodes) and inverse bind matrices.
+    pub skins: Vec<(Vec<usize>, Vec<DMat4>)>,
     /// The time the weights are taken at (`None`: the file's static weights).
     pub time: Option<f32>,
 }
@@ -375,6 +384,7 @@ impl Asset {
                     normal: prim.attribute("NORMAL"),
                     texcoord: prim.attribute("TEXCOORD_0"),
                     color: prim.attribute("COLOR_0"),
+                    skin: prim.attribute("JOINTS_0").zip(prim.attribute("WEIGHTS_0")),
                     indices: prim.indices,
                     targets,
                     color_target,
@@ -426,10 +436,17 @@ impl Asset {
             materials,
             textures: Vec::new(),
             animations: Vec::new(),
+            clips: Vec::new(),
+            skins: Vec::new(),
             time: None,
         };
         asset.textures = asset.parse_textures()?;
         asset.animations = asset.parse_animations()?;
+        asset.clips = crate::load::skin::read_clips(&asset.doc, &asset.buffers)?;
+        let skins = asset.doc.json["skins"].as_array().map_or(0, Vec::len);
+        asset.skins = (0..skins)
+            .map(|s| crate::load::skin::read_skin(&asset.doc, &asset.buffers, s))
+            .collect::<crate::Result<_>>()?;
         Ok(asset)
     }
 
@@ -703,9 +720,37 @@ impl Asset {
     /// Every mesh instance of the scene, node `n` replaced by `pick(n)` (an `MSFT_lod` level).
     pub fn instances_with(&self, pick: impl Fn(usize) -> usize) -> Result<Vec<Instance>> {
         let animated = self.time.map(|t| self.weights_at(t)).unwrap_or_default();
-        Ok(self
-            .doc
-            .walk(pick)?
+        // node transforms at the time (every clip looping over its own length)
+        let mut locals: Vec<crate::skin::Trs> = self.doc.nodes.iter().map(|n| n.trs).collect();
+        if let Some(t) = self.time {
+            crate::skin::pose(&mut locals, &self.clips, t);
+        }
+        let posed = self.time.is_some() && !self.clips.is_empty();
+        let placed = self.doc.walk_with(pick, |n| match posed {
+            true => locals[n].matrix(),
+            false => self.doc.nodes[n].local,
+        })?;
+        let worlds: HashMap<usize, DMat4> = placed.iter().map(|p| (p.node, p.world)).collect();
+        let mut joint_sets: Vec<Option<Vec<DMat4>>> = Vec::with_capacity(self.skins.len());
+        for (s, (joints, ibm)) in self.skins.iter().enumerate() {
+            let m: Option<Vec<DMat4>> = joints
+                .iter()
+                .zip(ibm)
+                .map(|(j, ibm)| worlds.get(j).map(|w| *w * *ibm))
+                .collect();
+            if m.is_none()
+                && placed
+                    .iter()
+                    .any(|p| self.doc.nodes[p.node].skin == Some(s))
+            {
+                return Err(self.invalid(
+                    format!("skin {s}"),
+                    "a joint is not in the scene (its world matrix is unknown)",
+                ));
+            }
+            joint_sets.push(m);
+        }
+        Ok(placed
             .into_iter()
             .filter_map(|p| {
                 let node = &self.doc.nodes[p.node];
@@ -715,12 +760,18 @@ impl Asset {
                     (None, Some(w)) => w.iter().map(|&w| w as f32).collect(),
                     (None, None) => self.meshes[m].weights.clone(),
                 };
+                let joints = node.skin.and_then(|s| joint_sets[s].clone());
                 Some(Instance {
                     node: p.node,
                     mesh: m,
-                    world: p.world,
+                    world: if joints.is_some() {
+                        DMat4::IDENTITY
+                    } else {
+                        p.world
+                    },
                     weights,
                     sibling: p.sibling,
+                    joints,
                 })
             })
             .collect())
@@ -734,13 +785,22 @@ impl Asset {
         let mut cache: HashMap<usize, Floats> = HashMap::new();
         for inst in self.instances(0)? {
             for prim in &self.meshes[inst.mesh].primitives {
-                for a in std::iter::once(prim.position).chain(prim.targets.iter().copied()) {
+                let skin = prim.skin.filter(|_| inst.joints.is_some());
+                let skin_accessors = skin.map_or(vec![], |(j, w)| vec![j, w]);
+                for a in std::iter::once(prim.position)
+                    .chain(prim.targets.iter().copied())
+                    .chain(skin_accessors)
+                {
                     if let std::collections::hash_map::Entry::Vacant(e) = cache.entry(a) {
                         e.insert(self.floats(a)?);
                     }
                 }
                 let pos = &cache[&prim.position];
                 for i in 0..pos.count() {
+                    let world = match (skin, &inst.joints) {
+                        (Some((j, w)), Some(mats)) => skin_matrix(mats, &cache[&j], &cache[&w], i),
+                        _ => inst.world,
+                    };
                     let base = glam::Vec3::from(pos.vec3(i));
                     let mut morphed = base;
                     for (t, &a) in prim.targets.iter().enumerate() {
@@ -748,7 +808,7 @@ impl Asset {
                         morphed += glam::Vec3::from(cache[&a].vec3(i)) * w;
                     }
                     for p in [base, morphed] {
-                        let w = inst.world.transform_point3(p.as_dvec3());
+                        let w = world.transform_point3(p.as_dvec3());
                         lo = lo.min(w);
                         hi = hi.max(w);
                     }
@@ -757,6 +817,19 @@ impl Asset {
         }
         Ok(lo.is_finite().then_some((lo, hi)))
     }
+}
+
+/// Vertex `i`'s blend of the joint matrices `mats` by its `JOINTS_0` / `WEIGHTS_0` (decoded).
+pub fn skin_matrix(mats: &[DMat4], joints: &Floats, weights: &Floats, i: usize) -> DMat4 {
+    let mut m = DMat4::ZERO;
+    for k in 0..4 {
+        let w = weights.data.get(4 * i + k).copied().unwrap_or(0.0) as f64;
+        let j = joints.data.get(4 * i + k).copied().unwrap_or(0.0) as usize;
+        if w != 0.0 {
+            m += *mats.get(j).unwrap_or(&DMat4::IDENTITY) * w;
+        }
+    }
+    m
 }
 
 fn parse_material(m: &Value) -> Material {

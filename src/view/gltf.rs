@@ -74,6 +74,7 @@ struct Key {
     color: bool,
     /// The target index of a `COLOR_0` morph target.
     color_target: Option<usize>,
+    skinned: bool,
     blend: bool,
     cull: bool,
     mirrored: bool,
@@ -99,6 +100,8 @@ struct DrawCall {
     color: Option<usize>,
     targets: Vec<usize>,
     color_target: Option<(usize, usize)>,
+    /// `JOINTS_0` and `WEIGHTS_0`, and the instance's joint matrices.
+    skin: Option<((usize, usize), Vec<DMat4>)>,
     indices: Option<usize>,
     /// Indices (or vertices when unindexed) of the whole primitive.
     elements: u32,
@@ -121,12 +124,18 @@ pub struct GltfRenderer {
     frame: Frame,
     draw_layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
-    shaders: HashMap<(usize, bool, Option<usize>), wgpu::ShaderModule>,
+    shaders: HashMap<(usize, bool, Option<usize>, bool), wgpu::ShaderModule>,
     pipelines: HashMap<Key, wgpu::RenderPipeline>,
     buffers: HashMap<usize, wgpu::Buffer>,
     /// `COLOR_0` interleaved with its morph target (stride 32), by the two accessors: one vertex
     /// buffer for both keeps the most a primitive binds within wgpu's eight.
     color_pairs: HashMap<(usize, usize), wgpu::Buffer>,
+    /// `JOINTS_0` interleaved with `WEIGHTS_0` (stride 32), likewise.
+    skin_pairs: HashMap<(usize, usize), wgpu::Buffer>,
+    /// The joint matrices of every skinned draw (group 3), written by `prepare`.
+    joints_layout: wgpu::BindGroupLayout,
+    joints_buffer: wgpu::Buffer,
+    joints_group: wgpu::BindGroup,
     zeros: HashMap<(u64, usize), wgpu::Buffer>,
     index_buffers: HashMap<usize, wgpu::Buffer>,
     material_groups: Vec<wgpu::BindGroup>,
@@ -188,12 +197,26 @@ impl GltfRenderer {
                 super::gpu::fragment_sampler_entry(1),
             ],
         });
+        let joints_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("joints"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: true },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("gltf"),
             bind_group_layouts: &[
                 Some(&frame.layout),
                 Some(&draw_layout),
                 Some(&material_layout),
+                Some(&joints_layout),
             ],
             immediate_size: 0,
         });
@@ -258,6 +281,7 @@ impl GltfRenderer {
         };
         let draw_buffer = make_draw_buffer(gpu, 1);
         let draw_group = make_draw_group(gpu, &draw_layout, &draw_buffer);
+        let (joints_buffer, joints_group) = make_joints(gpu, &joints_layout, 1);
         let mut r = GltfRenderer {
             asset,
             frame,
@@ -267,6 +291,10 @@ impl GltfRenderer {
             pipelines: HashMap::new(),
             buffers: HashMap::new(),
             color_pairs: HashMap::new(),
+            skin_pairs: HashMap::new(),
+            joints_layout,
+            joints_buffer,
+            joints_group,
             zeros: HashMap::new(),
             index_buffers: HashMap::new(),
             material_groups,
@@ -325,7 +353,7 @@ impl GltfRenderer {
 
     /// Whether the file animates anything the renderer draws.
     pub fn animated(&self) -> bool {
-        self.asset.animations.iter().any(|a| !a.is_empty())
+        self.asset.animations.iter().any(|a| !a.is_empty()) || !self.asset.clips.is_empty()
     }
 
     pub fn set_lod(&mut self, gpu: &Gpu, lod: Option<usize>) -> Result<()> {
@@ -449,6 +477,19 @@ impl GltfRenderer {
                         self.buffers.insert(a, vertex_buffer(gpu, &data));
                     }
                 }
+                let skin = prim.skin.zip(inst.joints.clone());
+                if let Some(((j, w), _)) = &skin {
+                    if !self.skin_pairs.contains_key(&(*j, *w)) {
+                        let (joints, weights) = (self.asset.floats(*j)?, self.asset.floats(*w)?);
+                        let data: Vec<f32> = joints
+                            .data
+                            .chunks_exact(4)
+                            .zip(weights.data.chunks_exact(4))
+                            .flat_map(|(j, w)| j.iter().chain(w).copied())
+                            .collect();
+                        self.skin_pairs.insert((*j, *w), vertex_buffer(gpu, &data));
+                    }
+                }
                 if let (Some(c), Some((_, t))) = (prim.color, color_target) {
                     if !self.color_pairs.contains_key(&(c, t)) {
                         let base = rgba(self.asset.floats(c)?, 1.0);
@@ -525,6 +566,7 @@ impl GltfRenderer {
                     color: prim.color,
                     targets: prim.targets.clone(),
                     color_target,
+                    skin,
                     indices: prim.indices,
                     elements: elements - elements % 3,
                     layer_ends: self.asset.meshes[inst.mesh].layer_ends.clone(),
@@ -547,6 +589,7 @@ impl GltfRenderer {
             targets: d.targets.len(),
             color: d.color.is_some(),
             color_target: d.color_target.map(|c| c.0),
+            skinned: d.skin.is_some(),
             blend: d.class == Class::Blend,
             cull: !d.material.double_sided,
             mirrored: DMat3::from_mat4(d.world).determinant() < 0.0,
@@ -567,7 +610,12 @@ impl GltfRenderer {
         self.frame.write(gpu, camera, light);
         let anchor = DMat4::from_translation(-camera.anchor());
         let mut bytes = vec![0u8; self.draws.len() * DRAW_SLOT as usize];
+        let mut joints: Vec<f32> = Vec::new();
         for (i, d) in self.draws.iter().enumerate() {
+            let joint_offset = (joints.len() / 16) as f32;
+            if let Some((_, m)) = &d.skin {
+                joints.extend(m.iter().flat_map(|m| m.as_mat4().to_cols_array()));
+            }
             let model = anchor * d.world;
             let normal = DMat4::from_mat3(DMat3::from_mat4(d.world).inverse().transpose());
             let m = &d.material;
@@ -594,7 +642,7 @@ impl GltfRenderer {
                     0.0,
                 ],
                 weights: d.weights,
-                color_weight: [d.color_weight, 0.0, 0.0, 0.0],
+                color_weight: [d.color_weight, joint_offset, 0.0, 0.0],
                 sheen: m.sheen.unwrap_or([0.0; 4]),
                 material: [m.metallic, m.roughness, cutoff, mode],
                 emissive: [
@@ -611,6 +659,14 @@ impl GltfRenderer {
         if !bytes.is_empty() {
             gpu.queue.write_buffer(&self.draw_buffer, 0, &bytes);
         }
+        if !joints.is_empty() {
+            if (joints.len() * 4) as u64 > self.joints_buffer.size() {
+                (self.joints_buffer, self.joints_group) =
+                    make_joints(gpu, &self.joints_layout, joints.len() / 16);
+            }
+            gpu.queue
+                .write_buffer(&self.joints_buffer, 0, bytemuck::cast_slice(&joints));
+        }
         for i in 0..self.draws.len() {
             let key = self.key(&self.draws[i], format);
             if !self.pipelines.contains_key(&key) {
@@ -624,10 +680,23 @@ impl GltfRenderer {
     fn build_pipeline(&mut self, gpu: &Gpu, key: Key) -> wgpu::RenderPipeline {
         let module = self
             .shaders
-            .entry((key.targets, key.color, key.color_target))
+            .entry((key.targets, key.color, key.color_target, key.skinned))
             .or_insert_with(|| {
                 let mut inputs = String::new();
                 let mut morph = String::new();
+                let mut skin = String::new();
+                if key.skinned {
+                    inputs.push_str("    @location(9) joints: vec4<f32>,\n");
+                    inputs.push_str("    @location(10) weights: vec4<f32>,\n");
+                    skin.push_str(concat!(
+                        "    let first = u32(draw.color_weight.y);\n",
+                        "    let j = vec4<u32>(in.joints) + vec4<u32>(first);\n",
+                        "    let skin = joint_matrices[j.x] * in.weights.x + joint_matrices[j.y] * in.weights.y\n",
+                        "        + joint_matrices[j.z] * in.weights.z + joint_matrices[j.w] * in.weights.w;\n",
+                        "    p = (skin * vec4<f32>(p, 1.0)).xyz;\n",
+                        "    nrm = (skin * vec4<f32>(nrm, 0.0)).xyz;\n",
+                    ));
+                }
                 if key.color {
                     inputs.push_str("    @location(3) color: vec4<f32>,\n");
                 }
@@ -648,6 +717,7 @@ impl GltfRenderer {
                     gpu::COMMON_WGSL,
                     WGSL.replace("//INPUTS\n", &inputs)
                         .replace("//MORPH\n", &morph)
+                        .replace("//SKIN\n", &skin)
                         .replace("//COLOR\n", color)
                 );
                 gpu.device
@@ -730,6 +800,26 @@ impl GltfRenderer {
                 }),
             );
         }
+        // JOINTS_0 and WEIGHTS_0, interleaved in one buffer, bound last
+        let skin_pair = [
+            wgpu::VertexAttribute {
+                format: wgpu::VertexFormat::Float32x4,
+                offset: 0,
+                shader_location: 9,
+            },
+            wgpu::VertexAttribute {
+                format: wgpu::VertexFormat::Float32x4,
+                offset: 16,
+                shader_location: 10,
+            },
+        ];
+        if key.skinned {
+            layouts.push(Some(wgpu::VertexBufferLayout {
+                array_stride: 32,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &skin_pair,
+            }));
+        }
         let blend = key.blend.then_some(wgpu::BlendState::ALPHA_BLENDING);
         gpu.device
             .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -763,6 +853,7 @@ impl GltfRenderer {
     pub fn record(&self, pass: &mut wgpu::RenderPass<'_>) {
         let format = self.format.expect("prepare() before record()");
         pass.set_bind_group(0, &self.frame.bind_group, &[]);
+        pass.set_bind_group(3, &self.joints_group, &[]);
         for (i, (d, elements)) in self.draws.iter().zip(self.visible_elements()).enumerate() {
             if elements == 0 {
                 continue;
@@ -792,6 +883,9 @@ impl GltfRenderer {
             for t in &d.targets {
                 pass.set_vertex_buffer(slot, self.buffers[t].slice(..));
                 slot += 1;
+            }
+            if let Some((pair, _)) = &d.skin {
+                pass.set_vertex_buffer(slot, self.skin_pairs[pair].slice(..));
             }
             match d.indices {
                 Some(a) => {
@@ -855,6 +949,29 @@ fn make_draw_group(
             }),
         }],
     })
+}
+
+/// A storage buffer of `matrices` joint matrices (at least one) and its bind group.
+fn make_joints(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    matrices: usize,
+) -> (wgpu::Buffer, wgpu::BindGroup) {
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("joints"),
+        size: matrices.max(1) as u64 * 64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("joints"),
+        layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: buffer.as_entire_binding(),
+        }],
+    });
+    (buffer, group)
 }
 
 fn make_sampler(gpu: &Gpu, s: SamplerDesc) -> wgpu::Sampler {

@@ -1,6 +1,7 @@
 // glTF primitive: morph targets in the vertex shader, metallic-roughness shading, alpha test.
 // The renderer substitutes the two marked lines per pipeline variant (morph target count,
-// presence of COLOR_0), so a primitive binds exactly the streams it has.
+// presence of COLOR_0, skinning), so a primitive binds exactly the streams it has. Morph targets
+// apply before the skin, as glTF specifies.
 
 struct Draw {
     model: mat4x4<f32>,
@@ -15,11 +16,13 @@ struct Draw {
     emissive: vec4<f32>,
     // KHR_materials_sheen colour (rgb) and roughness (w); zero: none
     sheen: vec4<f32>,
-    // x: weight of the COLOR_0 morph target
+    // x: weight of the COLOR_0 morph target, y: a skinned draw's first joint matrix
     color_weight: vec4<f32>,
 }
 
 @group(1) @binding(0) var<uniform> draw: Draw;
+// joint world · inverse bind of every skinned draw, one after another
+@group(3) @binding(0) var<storage, read> joint_matrices: array<mat4x4<f32>>;
 @group(2) @binding(0) var base_texture: texture_2d<f32>;
 @group(2) @binding(1) var base_sampler: sampler;
 
@@ -41,12 +44,14 @@ struct VsOut {
 @vertex
 fn vs_main(in: VsIn) -> VsOut {
     var p = in.position;
+    var nrm = in.normal;
 //MORPH
+//SKIN
     var out: VsOut;
     let world = draw.model * vec4<f32>(p, 1.0);
     out.world = world.xyz;
     out.clip = frame.view_proj * world;
-    out.normal = (draw.normal_matrix * vec4<f32>(in.normal, 0.0)).xyz;
+    out.normal = (draw.normal_matrix * vec4<f32>(nrm, 0.0)).xyz;
     out.uv = in.uv;
 //COLOR
     return out;

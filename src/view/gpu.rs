@@ -108,7 +108,11 @@ impl Gpu {
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("shellbake"),
             required_features,
-            required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
+            required_limits: wgpu::Limits {
+                // a skinned compact layer with every effect binds nine streams
+                max_vertex_buffers: adapter.limits().max_vertex_buffers.clamp(8, 16),
+                ..wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits())
+            },
             ..Default::default()
         }))
         .map_err(|e| ViewError::Gpu(format!("no device: {e}")))?;
