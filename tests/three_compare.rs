@@ -23,9 +23,8 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{node, scratch};
+use common::{node, scratch, three_job};
 use image::RgbaImage;
-use serde_json::json;
 use shellbake::compress::Compression;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
@@ -88,30 +87,6 @@ fn bake_compressed(
 /// `-gravity-wind` for the effects `extra` (empty: none).
 fn effect_names(extra: &[Effect]) -> String {
     extra.iter().map(|e| format!("-{}", e.name())).collect()
-}
-
-fn three_job(
-    glb: &Path,
-    png: &Path,
-    camera: &view::Camera,
-    time: Option<f32>,
-) -> serde_json::Value {
-    let light = view::gpu::Light::default();
-    let bg = view::gpu::CLEAR;
-    json!({
-        "glb": glb, "png": png, "width": SIZE.0, "height": SIZE.1,
-        "camera": {
-            "eye": camera.eye.to_array(), "target": camera.target.to_array(), "up": camera.up.to_array(),
-            "fovy_deg": camera.fov_y_deg, "near": camera.near, "far": camera.far,
-        },
-        "light": { "direction": light.direction.to_array(), "intensity": light.color.x },
-        "ambient": light.ambient.x * std::f32::consts::PI,
-        "background": [bg.r, bg.g, bg.b],
-        // both sides pick each chunk's level by distance, as the file says
-        "msft_lod": true,
-        // the file's animations played to this time (three.js: AnimationMixer)
-        "time": time,
-    })
 }
 
 #[test]
@@ -238,7 +213,7 @@ fn three_js_in_chromium_renders_what_the_viewer_renders() {
                 v.name()
             );
             let png = dir.join(format!("{name}-three.png"));
-            specs.push(three_job(&glb_path, &png, &camera, time));
+            specs.push(three_job(&glb_path, &png, &camera, SIZE, time));
             jobs.push(Job {
                 name,
                 glb: glb_path.clone(),
@@ -253,7 +228,7 @@ fn three_js_in_chromium_renders_what_the_viewer_renders() {
     let (_, glb1) = bake(&dir, "bunny.obj", Preset::Fur, Layout::Compact, 1);
     let control_camera = view::camera_for_glb(&glb1, NamedView::Close.orbit(), SIZE).unwrap();
     let control_png = dir.join("control-three.png");
-    specs.push(three_job(&other, &control_png, &control_camera, None));
+    specs.push(three_job(&other, &control_png, &control_camera, SIZE, None));
 
     let spec_file = dir.join("jobs.json");
     std::fs::write(&spec_file, serde_json::to_vec(&specs).unwrap()).unwrap();

@@ -74,6 +74,9 @@ pub struct ReferenceInput<'a> {
     /// One sheen for every layer, that of their mean height: what the single-draw layout's one
     /// material can carry (`crate::sheen`); the technique's per-layer sheen otherwise.
     pub mean_sheen: bool,
+    /// The skin `mesh.skin` indexes (placed), when the input is skinned: the layers are skinned
+    /// after the extrusion, bend and sway, as the technique would on a skinned character.
+    pub skeleton: Option<&'a crate::skin::Skeleton>,
 }
 
 impl<'a> ReferenceInput<'a> {
@@ -90,6 +93,7 @@ impl<'a> ReferenceInput<'a> {
             roughness: params.shade.roughness,
             density: baked.density.as_deref(),
             mean_sheen: params.pack.layout == crate::params::Layout::SingleDraw,
+            skeleton: baked.skeleton.as_ref(),
         }
     }
 }
@@ -232,7 +236,10 @@ pub struct ReferenceRenderer {
     data: Box<ShellData>,
     uniform: wgpu::Buffer,
     group: wgpu::BindGroup,
-    vertices: [wgpu::Buffer; 7],
+    vertices: [wgpu::Buffer; 8],
+    /// The skin and its joint matrices at the current time (relative to `origin`).
+    skeleton: Option<crate::skin::Skeleton>,
+    joints: wgpu::Buffer,
     /// The `wind` effect's period (seconds), when the stack sways.
     wind_period: Option<f32>,
     indices: wgpu::Buffer,
@@ -240,6 +247,8 @@ pub struct ReferenceRenderer {
     layers: u32,
     layer_limit: Option<usize>,
     origin: glam::DVec3,
+    /// The time the skin is posed at (`None`: rest).
+    time: Option<f32>,
     /// Bounding sphere of the base and the outermost layer.
     pub bounds: Sphere,
 }
@@ -307,7 +316,29 @@ impl ReferenceRenderer {
             f32s(flat3(&bends), "bends"),
             // the `wind` effect's sway at the tip per vertex
             f32s(flat3(&sways), "sways"),
+            // a skinned input's joints and weights, interleaved (unskinned: joint 0, weight 1)
+            f32s(
+                (0..mesh.vertex_count())
+                    .flat_map(|v| match &mesh.skin {
+                        Some(s) => {
+                            let [a, b, c, d] = s.joints[v].map(f32::from);
+                            let [e, f, g, h] = s.weights[v];
+                            [a, b, c, d, e, f, g, h]
+                        }
+                        None => [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+                    })
+                    .collect(),
+                "skin",
+            ),
         ];
+        let skeleton = input.skeleton.filter(|_| mesh.skin.is_some()).cloned();
+        let joint_count = skeleton.as_ref().map_or(1, |k| k.joints.len());
+        let joints = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("joints"),
+            size: 64 * joint_count as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let ix = if mesh.indices.is_empty() {
             vec![0u32; 3]
         } else {
@@ -351,7 +382,8 @@ impl ReferenceRenderer {
             kind,
         ];
         data.law = [threshold, 0.0, 0.0, 0.0];
-        data.ints = [seed, shells.t.len() as u32, 0, 0];
+        // z: 1 when the layers are skinned
+        data.ints = [seed, shells.t.len() as u32, skeleton.is_some() as u32, 0];
         // z: the bend's exponent k (layer weight t^k)
         let k = shells.bend.map_or(1.0, |b| b.k);
         data.material = [0.0, input.roughness, k, 0.0];
@@ -386,6 +418,16 @@ impl ReferenceRenderer {
                 },
                 super::gpu::fragment_texture_entry(1),
                 super::gpu::fragment_sampler_entry(2),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: wgpu::ShaderStages::VERTEX,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
             ],
         });
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -403,6 +445,10 @@ impl ReferenceRenderer {
                 wgpu::BindGroupEntry {
                     binding: 2,
                     resource: wgpu::BindingResource::Sampler(&sampler),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: joints.as_entire_binding(),
                 },
             ],
         });
@@ -445,12 +491,15 @@ impl ReferenceRenderer {
             uniform,
             group,
             vertices,
+            skeleton,
+            joints,
             indices,
             index_count: mesh.indices.len() as u32,
             layers: shells.t.len() as u32,
             layer_limit: None,
             wind_period: shells.wind.as_ref().map(|w| w.period),
             origin: mesh.origin,
+            time: None,
             bounds,
         }
     }
@@ -458,6 +507,7 @@ impl ReferenceRenderer {
     /// Number of layers (instances).
     /// Sways the layers as the wind does `time` seconds into its period (`None`: at rest).
     pub fn set_time(&mut self, time: Option<f32>) {
+        self.time = time;
         self.data.wind[0] = match (time, self.wind_period) {
             (Some(t), Some(period)) => std::f32::consts::TAU * t / period,
             _ => 0.0,
@@ -498,6 +548,20 @@ impl ReferenceRenderer {
             .to_cols_array();
         gpu.queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&*self.data));
+        // the joint matrices at the time, in the frame of the positions (relative to `origin`)
+        if let Some(k) = &self.skeleton {
+            let (to, from) = (
+                DMat4::from_translation(-self.origin),
+                DMat4::from_translation(self.origin),
+            );
+            let m: Vec<f32> = k
+                .joint_matrices(self.time)
+                .iter()
+                .flat_map(|m| (to * *m * from).as_mat4().to_cols_array())
+                .collect();
+            gpu.queue
+                .write_buffer(&self.joints, 0, bytemuck::cast_slice(&m));
+        }
         if self.pipeline.as_ref().map(|p| p.0) != Some(format) {
             let attr = |loc, format| {
                 [wgpu::VertexAttribute {
@@ -515,7 +579,7 @@ impl ReferenceRenderer {
                 attr(5, wgpu::VertexFormat::Float32x3),
                 attr(6, wgpu::VertexFormat::Float32x3),
             ];
-            let layouts: Vec<Option<wgpu::VertexBufferLayout>> = a
+            let mut layouts: Vec<Option<wgpu::VertexBufferLayout>> = a
                 .iter()
                 .map(|a| {
                     Some(wgpu::VertexBufferLayout {
@@ -525,6 +589,23 @@ impl ReferenceRenderer {
                     })
                 })
                 .collect();
+            let skin = [
+                wgpu::VertexAttribute {
+                    format: wgpu::VertexFormat::Float32x4,
+                    offset: 0,
+                    shader_location: 7,
+                },
+                wgpu::VertexAttribute {
+                    format: wgpu::VertexFormat::Float32x4,
+                    offset: 16,
+                    shader_location: 8,
+                },
+            ];
+            layouts.push(Some(wgpu::VertexBufferLayout {
+                array_stride: 32,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &skin,
+            }));
             let pipeline = gpu
                 .device
                 .create_render_pipeline(&wgpu::RenderPipelineDescriptor {

@@ -1,6 +1,6 @@
 // The runtime reference: the classic shell technique, one instance per layer.
 // Vertex: extrude `position + delta * t_j` (+ `bend * t_j^k` under the gravity effect, + the
-// wind's `sway * t_j^k' * sin(angle + phase)` at a time). Fragment: sample the law texture
+// wind's `sway * t_j^k' * sin(angle + phase)` at a time), then skin a skinned input. Fragment: sample the law texture
 // (filtered, mipmapped, like the baked mask), test the strand law on the interpolated value and
 // discard; shade by the layer colour times the occlusion's lerp(1 - a, 1, t), with the layer's
 // sheen.
@@ -11,7 +11,7 @@ struct Shell {
     tiles: vec4<f32>,
     // noise: threshold
     law: vec4<f32>,
-    // seed (as bits), layers shown, unused, unused
+    // seed (as bits), layers shown, 1 when skinned, unused
     ints: vec4<u32>,
     // metallic, roughness, bend exponent k
     material: vec4<f32>,
@@ -29,6 +29,8 @@ struct Shell {
 // grey = strand shade (sRGB, decoded by the format), alpha = raw noise or survival code
 @group(1) @binding(1) var law_texture: texture_2d<f32>;
 @group(1) @binding(2) var law_sampler: sampler;
+// a skinned input's joint matrices at the time (relative to the mesh origin)
+@group(1) @binding(3) var<storage, read> joint_matrices: array<mat4x4<f32>>;
 
 struct VsIn {
     @location(0) position: vec3<f32>,
@@ -41,6 +43,9 @@ struct VsIn {
     @location(5) bend: vec3<f32>,
     // the wind effect's sway at the tip
     @location(6) sway: vec3<f32>,
+    // a skinned input's joints and weights
+    @location(7) joints: vec4<f32>,
+    @location(8) weights: vec4<f32>,
 }
 
 struct VsOut {
@@ -60,11 +65,20 @@ fn vs_main(in: VsIn, @builtin(instance_index) layer: u32) -> VsOut {
     if (shell.wind.z > 0.0) {
         p += in.sway * (pow(t, shell.wind.y) * sin(shell.wind.x + in.scalars.z));
     }
+    var n = in.normal;
+    if (shell.ints.z == 1u) {
+        // skinned after the extrusion, as glTF applies morph targets before the skin
+        let j = vec4<u32>(in.joints);
+        let skin = joint_matrices[j.x] * in.weights.x + joint_matrices[j.y] * in.weights.y
+            + joint_matrices[j.z] * in.weights.z + joint_matrices[j.w] * in.weights.w;
+        p = (skin * vec4<f32>(p, 1.0)).xyz;
+        n = (skin * vec4<f32>(n, 0.0)).xyz;
+    }
     var out: VsOut;
     let world = shell.model * vec4<f32>(p, 1.0);
     out.world = world.xyz;
     out.clip = frame.view_proj * world;
-    out.normal = in.normal;
+    out.normal = n;
     out.uv = in.uv;
     out.layer = layer;
     out.density = in.scalars.x;

@@ -241,8 +241,9 @@ impl Verification {
 
 /// Renders LOD 0 of `glb` and the reference of `input` from [`VIEWS`] at `size × size` and
 /// compares, at rest and at each of `times` (seconds: the baked file's animations played to that
-/// time, the reference swayed by the exact wind then; empty: a quarter and three quarters of the
-/// wind's period when the stack sways); then each coarser level at its switch distance (see
+/// time, the reference swayed by the exact wind and posed by the skin then; empty: a quarter and
+/// three quarters of the wind's period when the stack sways, and of the skin's longest clip when
+/// the input is skinned); then each coarser level at its switch distance (see
 /// [`LevelResult`]).
 pub fn verify(
     gpu: &Gpu,
@@ -255,8 +256,15 @@ pub fn verify(
     let mut baked = GltfRenderer::from_glb(gpu, glb)?;
     baked.set_lod(gpu, Some(0))?;
     let mut times: Vec<Option<f32>> = times.iter().map(|&t| Some(t)).collect();
-    if let (true, Some(w)) = (times.is_empty(), &input.shells.wind) {
-        times = vec![Some(0.25 * w.period), Some(0.75 * w.period)];
+    if times.is_empty() {
+        // a quarter and three quarters of the wind's period and of the skin's longest clip
+        let periods = [
+            input.shells.wind.as_ref().map(|w| w.period),
+            input.skeleton.map(|k| k.duration()).filter(|&d| d > 0.0),
+        ];
+        for p in periods.into_iter().flatten() {
+            times.extend([Some(0.25 * p), Some(0.75 * p)]);
+        }
     }
     times.insert(0, None);
     let mut reference = ReferenceRenderer::new(gpu, input);

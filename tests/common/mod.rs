@@ -404,3 +404,32 @@ pub fn verify_glb(
     )
     .unwrap()
 }
+
+/// A `three_render.mjs` job: `glb` drawn by three.js from `camera` at `size`, lit as the viewer
+/// lights (its directional radiance scale; the ambient term times π, three.js's convention),
+/// switching `MSFT_lod` levels by distance, every animation played to `time`.
+#[cfg(feature = "view")]
+pub fn three_job(
+    glb: &Path,
+    png: &Path,
+    camera: &shellbake::view::Camera,
+    size: (u32, u32),
+    time: Option<f32>,
+) -> Value {
+    let light = shellbake::view::gpu::Light::default();
+    let bg = shellbake::view::gpu::CLEAR;
+    serde_json::json!({
+        "glb": glb, "png": png, "width": size.0, "height": size.1,
+        "camera": {
+            "eye": camera.eye.to_array(), "target": camera.target.to_array(), "up": camera.up.to_array(),
+            "fovy_deg": camera.fov_y_deg, "near": camera.near, "far": camera.far,
+        },
+        "light": { "direction": light.direction.to_array(), "intensity": light.color.x },
+        "ambient": light.ambient.x * std::f32::consts::PI,
+        "background": [bg.r, bg.g, bg.b],
+        // both sides pick each chunk's level by distance, as the file says
+        "msft_lod": true,
+        // the file's animations played to this time (three.js: AnimationMixer)
+        "time": time,
+    })
+}
