@@ -27,6 +27,7 @@ fn scene(m: Mesh) -> Scene {
     Scene {
         meshes: vec![m],
         warnings: vec![],
+        skeleton: None,
     }
 }
 

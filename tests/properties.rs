@@ -46,6 +46,7 @@ fn scene_of(m: &Mesh) -> Scene {
     Scene {
         meshes: vec![m],
         warnings: vec![],
+        skeleton: None,
     }
 }
 
@@ -193,6 +194,7 @@ fn scene_with(m: &Mesh, uv: u8, sheet: bool, seed: u32) -> Scene {
     Scene {
         meshes: vec![m],
         warnings: vec![],
+        skeleton: None,
     }
 }
 
