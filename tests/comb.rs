@@ -2,7 +2,8 @@
 //! square) or a constant tangent direction combs the strands the painted way. A plane painted
 //! +u on one half and −u on the other bends its two halves apart in both layouts, and `verify`
 //! passes on it (and fails against straight strands); a PNG combs along ±v; neutral grey bends
-//! nothing; a `COLOR_0` comb map on a mesh without colours is refused, naming the mesh.
+//! nothing; the copies of a vertex split by the sphere's UV seam move together (no cracks); a
+//! `COLOR_0` comb map on a mesh without colours is refused, naming the mesh.
 
 #![cfg(feature = "view")]
 
@@ -321,4 +322,32 @@ fn a_colour_comb_map_on_a_mesh_without_colours_is_refused() {
             && err.contains("no vertex colours"),
         "{err}"
     );
+}
+
+#[test]
+fn seam_copies_of_a_combed_sphere_move_together() {
+    // the sphere's UV seam and poles split vertices; a constant comb along u must move every
+    // copy of a position alike in the file, or the layers crack open along the seam
+    let scene = shellbake::load::load(&common::fixture("sphere.obj")).unwrap();
+    for layout in [Layout::Compact, Layout::SingleDraw] {
+        let mut p = shellbake::params::BakeParams::preset(shellbake::params::Preset::Fur);
+        p.pack.layout = layout;
+        p.gravity.comb = Some([1.0, 0.0]);
+        p.gravity.strength = 1.0;
+        let baked = shellbake::bake_with(&scene, &p, &[Effect::Gravity]);
+        let m = &baked.mesh;
+        let mut at: std::collections::HashMap<[u32; 3], usize> = Default::default();
+        for q in &m.positions {
+            *at.entry(q.to_array().map(f32::to_bits)).or_default() += 1;
+        }
+        assert!(at.values().any(|&n| n > 1), "the sphere has no seam");
+        let mut shifts: std::collections::HashMap<[u64; 3], [f64; 3]> = Default::default();
+        let mut largest = 0.0f64;
+        for (base, shift) in top_layer(&baked.glb) {
+            largest = largest.max(shift[0].hypot(shift[2]));
+            let first = *shifts.entry(base.map(f64::to_bits)).or_insert(shift);
+            assert_eq!(first, shift, "{layout:?}: copies at {base:?} move apart");
+        }
+        assert!(largest > 0.0, "{layout:?}: nothing leans");
+    }
 }
