@@ -74,9 +74,9 @@ impl ParamError {
     }
 
     /// `Ok` when `v` is a direction (finite, non-zero), else an error naming `key`.
-    pub fn direction(key: &str, v: [f32; 3]) -> Result<(), ParamError> {
-        let d = glam::Vec3::from_array(v);
-        if d.is_finite() && d.length() > 1e-6 {
+    pub fn direction(key: &str, v: &[f32]) -> Result<(), ParamError> {
+        let length = v.iter().map(|c| c * c).sum::<f32>().sqrt();
+        if v.iter().all(|c| c.is_finite()) && length > 1e-6 {
             return Ok(());
         }
         Err(ParamError::new(

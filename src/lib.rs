@@ -17,7 +17,7 @@
 //! | strands | [`strands`] | [`strands::bake_mask`] |
 //! | tiling | [`tiling`] | [`tiling::mask_tiling`] |
 //! | shells | [`shells`] | [`shells::build_shells`] |
-//! | gravity (effect `gravity`) | [`gravity`] | [`gravity::Bend::of`], [`gravity::lean_axes`] (per vertex [`gravity::bend_of`], in pack and the reference) |
+//! | gravity (effect `gravity`, alias `comb`) | [`gravity`] | [`gravity::Bend::on`] (a comb field's pulls: [`gravity::comb_pulls`]), [`gravity::lean_axes`] (per vertex [`gravity::Bend::at`], in pack and the reference) |
 //! | wind (effect `wind`) | [`wind`] | [`wind::Wind::new`] (targets and the animation in pack) |
 //! | sheen (effect `sheen`) | [`sheen`] | layer materials' [`sheen::Sheen::of`] in pack |
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
@@ -141,11 +141,13 @@ pub struct Loaded {
     pub ms: f64,
 }
 
-/// The density and length maps of a surface, when its scene names them.
+/// The density, length and flow maps of a surface, when its scene names them.
 #[derive(Clone, Debug, Default)]
 pub struct SurfaceMaps {
     pub density: Option<maps::Map>,
     pub length: Option<maps::Map>,
+    /// The `gravity` effect's comb field (`comb_map`).
+    pub comb: Option<maps::Flow>,
 }
 
 /// Loads every surface's mesh and places it (scale, then translation). Fails on the first
@@ -164,29 +166,48 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
                 k.place(glam::DVec3::from(s.translation), s.scale);
             }
             let has_colors = loaded.meshes.iter().any(|m| m.colors.is_some());
-            let read = |key: &str, source: &Option<scene::MapSource>| -> Result<Option<maps::Map>> {
-                Ok(match source {
-                    None => None,
-                    Some(scene::MapSource::Image(p)) => Some(maps::Map::Image(maps::GreyMap::read(p)?)),
-                    Some(scene::MapSource::VertexColor(c)) if has_colors => {
-                        Some(maps::Map::VertexColor(*c))
-                    }
-                    Some(scene::MapSource::VertexColor(c)) => {
-                        return Err(Error::invalid(
-                            &s.mesh,
-                            "COLOR_0",
-                            format!(
-                                "surface '{}' takes its {key} from COLOR_0.{}, but the mesh has no vertex colours",
-                                s.name,
-                                ["r", "g", "b", "a"][*c]
-                            ),
-                        ))
-                    }
-                })
+            let no_colors = |what: String| {
+                Error::invalid(
+                    &s.mesh,
+                    "COLOR_0",
+                    format!(
+                        "surface '{}' takes its {what}, but the mesh has no vertex colours",
+                        s.name
+                    ),
+                )
+            };
+            let read =
+                |key: &str, source: &Option<scene::MapSource>| -> Result<Option<maps::Map>> {
+                    Ok(match source {
+                        None => None,
+                        Some(scene::MapSource::Image(p)) => {
+                            Some(maps::Map::Image(maps::GreyMap::read(p)?))
+                        }
+                        Some(scene::MapSource::VertexColor(c)) if has_colors => {
+                            Some(maps::Map::VertexColor(*c))
+                        }
+                        Some(scene::MapSource::VertexColor(c)) => {
+                            let channel = ["r", "g", "b", "a"][*c];
+                            return Err(no_colors(format!("{key} from COLOR_0.{channel}")));
+                        }
+                    })
+                };
+            let comb = match &s.comb_map {
+                None => None,
+                Some(scene::FlowSource::Image(p)) => {
+                    Some(maps::Flow::Image(maps::FlowMap::read(p)?))
+                }
+                Some(scene::FlowSource::VertexColors) if has_colors => {
+                    Some(maps::Flow::VertexColors)
+                }
+                Some(scene::FlowSource::VertexColors) => {
+                    return Err(no_colors("comb_map from COLOR_0 (red and green)".into()))
+                }
             };
             let maps = SurfaceMaps {
                 density: read("density_map", &s.density_map)?,
                 length: read("length_map", &s.length_map)?,
+                comb,
             };
             Ok(Loaded {
                 scene: loaded,
@@ -402,6 +423,7 @@ fn bake_surface(
         report.note("clamp", "extrusion scaled by the length map");
     }
     let density_map = maps.density.as_ref().map(|m| m.per_vertex(&mesh));
+    let comb_map = maps.comb.as_ref().map(|m| m.per_vertex(&mesh));
     frames.direction = clamp.directions(&welded);
     let (min_scale, mean_scale) = clamp.limited_scale();
     report.count("smoothed_directions", clamp.smoothed as f64);
@@ -486,10 +508,14 @@ fn bake_surface(
             )
         });
     };
+    let field = params.gravity.field(comb_map.as_deref());
     let bend = report.gate(plan, Stage::Gravity, i, || {
         lean_axes(&mut lean);
-        gravity::Bend::of(&params.gravity)
+        gravity::Bend::on(&params.gravity, &field, &mesh, &welded)
     });
+    if bend.is_some() {
+        report.note(Stage::Gravity.name(), &field.describe());
+    }
     let wind = report.gate(plan, Stage::Wind, i, || {
         lean_axes(&mut lean);
         wind::Wind::new(&params.wind, &mesh.positions, diagonal, params.strands.seed)
@@ -635,7 +661,7 @@ fn bake_surface(
         prefix: &prefix,
         density: density_map.as_deref(),
         fur_weight: fur_weight.as_deref(),
-        bend: shells.bend,
+        bend: shells.bend.as_ref(),
         lean: shells.lean.as_deref(),
         wind: shells.wind.as_ref(),
         occlusion: shells.occlusion.as_deref(),

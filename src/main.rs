@@ -122,7 +122,8 @@ struct BakeArgs {
     #[arg(long)]
     clamp: bool,
     /// Bend the strands down (the effect `gravity`; `[surface.gravity]` in a scene file sets
-    /// direction, strength and exponent).
+    /// direction, strength and exponent, or a `comb` direction in the UV frame; a surface's
+    /// `comb_map` combs along a flow map).
     #[arg(long)]
     gravity: bool,
     /// Darken folds by ambient occlusion of the base surface (the effect `occlusion`;

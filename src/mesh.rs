@@ -316,6 +316,41 @@ pub fn uv_area(mesh: &Mesh) -> f64 {
         .sum()
 }
 
+/// The texture-coordinate frame of every vertex: unit `[T, B]` with `T = ∂P/∂u` and
+/// `B = ∂P/∂v` (the glTF convention, `v` down the image). Each triangle's derivatives
+/// (Lengyel's per-triangle solve) are summed over the triangles around a vertex, then normalised;
+/// triangles without UV area add nothing, and a vertex none of whose triangles has any gets
+/// zero vectors. Without UVs every frame is zero.
+pub fn uv_tangents(mesh: &Mesh) -> Vec<[Vec3; 2]> {
+    let mut frames = vec![[Vec3::ZERO; 2]; mesh.vertex_count()];
+    let Some(uv) = &mesh.uvs else { return frames };
+    for t in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| t[k] as usize);
+        let (e1, e2) = (
+            mesh.positions[b] - mesh.positions[a],
+            mesh.positions[c] - mesh.positions[a],
+        );
+        let (s1, s2) = (uv[b] - uv[a], uv[c] - uv[a]);
+        let det = s1.perp_dot(s2);
+        if det == 0.0 || !det.is_finite() {
+            continue;
+        }
+        let du = (e1 * s2.y - e2 * s1.y) / det;
+        let dv = (e2 * s1.x - e1 * s2.x) / det;
+        if !(du.is_finite() && dv.is_finite()) {
+            continue;
+        }
+        for v in [a, b, c] {
+            frames[v][0] += du;
+            frames[v][1] += dv;
+        }
+    }
+    for f in &mut frames {
+        *f = f.map(Vec3::normalize_or_zero);
+    }
+    frames
+}
+
 /// Sum of the world-space areas of the triangles.
 pub fn world_area(mesh: &Mesh) -> f64 {
     mesh.indices
@@ -362,6 +397,37 @@ mod tests {
         assert_eq!(m.indices, vec![0, 1, 2, 3, 4, 5]);
         assert_eq!(m.positions[4], Vec3::new(11.0, 0.0, 0.0));
         m.validate();
+    }
+
+    #[test]
+    fn uv_tangents_follow_u_and_v() {
+        // a quad in the XZ plane, u along +x and v along −z, the UVs scaled and shifted
+        let m = Mesh {
+            positions: vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(2.0, 0.0, 0.0),
+                Vec3::new(2.0, 0.0, -2.0),
+                Vec3::new(0.0, 0.0, -2.0),
+            ],
+            uvs: Some(vec![
+                Vec2::new(0.5, 0.5),
+                Vec2::new(0.75, 0.5),
+                Vec2::new(0.75, 0.75),
+                Vec2::new(0.5, 0.75),
+            ]),
+            indices: vec![0, 1, 2, 0, 2, 3],
+            ..Default::default()
+        };
+        for [t, b] in uv_tangents(&m) {
+            assert!((t - Vec3::X).length() < 1e-6, "{t}");
+            assert!((b - Vec3::NEG_Z).length() < 1e-6, "{b}");
+        }
+        // a triangle without UV area leaves its corners without a frame
+        let flat = Mesh {
+            uvs: Some(vec![Vec2::ZERO; 4]),
+            ..m.clone()
+        };
+        assert!(uv_tangents(&flat).iter().all(|f| *f == [Vec3::ZERO; 2]));
     }
 
     #[test]

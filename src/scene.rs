@@ -12,6 +12,10 @@
 //! preset = "grass"         # default: fur
 //! translation = [0, 0, 0]  # placement in the file, world units (default: none)
 //! scale = 1.0              # uniform (default: 1)
+//! density_map = "bare.png" # fewer strands where the grey PNG is dark (or "COLOR_0.r" … ".a")
+//! length_map = "COLOR_0.g" # shorter strands where the vertex colours' green is dark
+//! comb_map = "flow.png"    # comb along a flow map: red/green = +u/+v, mid grey = none
+//!                          # (or "COLOR_0": red and green of the vertex colours)
 //!
 //! [surface.shells]          # any section of the parameters, any subset of its keys
 //! layers = 24
@@ -19,7 +23,17 @@
 //! [[surface]]
 //! mesh = "bunny.obj"
 //! effects = ["collision"]
+//!
+//! [[surface]]
+//! mesh = "rug.obj"
+//!
+//! [surface.gravity]
+//! comb = [1, 0]             # comb along +u in the UV frame instead of bending down
 //! ```
+//!
+//! A surface with `comb_map`, or with `comb` in its `[surface.gravity]`, asks for the `gravity`
+//! effect (`comb` in an effect list is the same effect) unless its list says `no-gravity`; a
+//! surface with both keys is refused, naming both (see [`crate::gravity`]).
 //!
 //! Every surface bakes into the same GLB under a root node of its own name, with its own
 //! materials, mask and report section. A plain mesh path is the one-surface shortcut
@@ -54,8 +68,9 @@ pub enum Effect {
     Cull,
     /// Distance LOD levels and chunks (on by default; `--no-lod`, `"no-lod"`).
     Lod,
-    /// Bend the strands toward a direction (world gravity or a comb), a second morph target
-    /// weighted `t^k` (`--gravity`, `[surface.gravity]`).
+    /// Bend the strands toward a direction (world gravity or a comb field), a second morph
+    /// target weighted `t^k` (`--gravity`, `[surface.gravity]`, `comb_map`; also named `comb`).
+    #[serde(alias = "comb")]
     Gravity,
     /// Ambient occlusion of the base surface folded into each layer's shade, `COLOR_0` (rays
     /// against the BVH the collision bound shares; `--occlusion`, `[surface.occlusion]`).
@@ -81,6 +96,8 @@ impl Effect {
     /// The effects every surface has unless its effect list says `no-<name>` (`--no-cull`,
     /// `--no-lod`).
     pub const DEFAULT: [Effect; 2] = [Effect::Cull, Effect::Lod];
+    /// Other names of effects: `comb` is the `gravity` effect (DESIGN §6, "gravity / comb").
+    pub const ALIASES: [(&'static str, Effect); 1] = [("comb", Effect::Gravity)];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -94,8 +111,20 @@ impl Effect {
         }
     }
 
+    /// The effect named `name`, or the effect it is another name of ([`Effect::ALIASES`]).
     pub fn from_name(name: &str) -> Option<Effect> {
+        let name = Effect::ALIASES
+            .iter()
+            .find(|(alias, _)| *alias == name)
+            .map_or(name, |(_, e)| e.name());
         Effect::ALL.into_iter().find(|e| e.name() == name)
+    }
+
+    /// The effects a surface asks for without naming them: `gravity` when it combs (a
+    /// `comb_map`, or `[surface.gravity] comb`).
+    pub fn implied(params: &BakeParams, comb_map: bool) -> Vec<Effect> {
+        let combs = comb_map || params.gravity.comb.is_some();
+        combs.then_some(Effect::Gravity).into_iter().collect()
     }
 
     /// The stage that computes the effect.
@@ -213,6 +242,17 @@ pub struct Surface {
     pub density_map: Option<MapSource>,
     /// What scales the fur's length, likewise.
     pub length_map: Option<MapSource>,
+    /// What combs the fur: a flow map (see [`crate::maps`] and [`crate::gravity`]).
+    pub comb_map: Option<FlowSource>,
+}
+
+/// Where a flow map comes from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FlowSource {
+    /// An RGB PNG over the UV square (a path beside the scene file).
+    Image(PathBuf),
+    /// The mesh's vertex colours, red and green (`"COLOR_0"`).
+    VertexColors,
 }
 
 /// Where a density or length map comes from.
@@ -261,7 +301,7 @@ pub struct SceneFile {
 pub const SINGLE_SURFACE_NAME: &str = "shellbake";
 
 /// Keys of a surface table besides the parameter sections.
-const SURFACE_KEYS: [&str; 8] = [
+const SURFACE_KEYS: [&str; 9] = [
     "name",
     "mesh",
     "preset",
@@ -270,6 +310,7 @@ const SURFACE_KEYS: [&str; 8] = [
     "scale",
     "density_map",
     "length_map",
+    "comb_map",
 ];
 
 /// Sections of [`BakeParams`] a surface may override.
@@ -377,6 +418,7 @@ impl SceneFile {
         effects: &[Effect],
     ) -> SceneFile {
         let mut effects = effects.to_vec();
+        effects.extend(Effect::implied(&params, false));
         effects.sort();
         effects.dedup();
         SceneFile {
@@ -393,6 +435,7 @@ impl SceneFile {
                 scale: 1.0,
                 density_map: None,
                 length_map: None,
+                comb_map: None,
             }],
         }
     }
@@ -519,6 +562,19 @@ impl Reader<'_> {
                 .map(|p| Some(MapSource::Image(p)))
         };
         let (density_map, length_map) = (map("density_map")?, map("length_map")?);
+        let comb_map = match string("comb_map")? {
+            None => None,
+            Some("COLOR_0") => Some(FlowSource::VertexColors),
+            Some(value) if value.starts_with("COLOR_") => {
+                return Err(self.error(
+                    &at(here, "comb_map"),
+                    format!("'{value}' is no flow source: a comb map takes red and green of all of COLOR_0 (\"COLOR_0\") or an RGB PNG"),
+                ))
+            }
+            Some(value) => Some(FlowSource::Image(
+                self.mesh_path(&at(here, "comb_map"), value)?,
+            )),
+        };
         let preset = match string("preset")? {
             None => Preset::Fur,
             Some(name) => Preset::from_name(name).ok_or_else(|| {
@@ -540,7 +596,15 @@ impl Reader<'_> {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "surface".into()),
         };
+        let (params, overrides) = self.params(here, table, preset)?;
+        if comb_map.is_some() && params.gravity.comb.is_some() {
+            return Err(self.error(
+                &at(here, "comb_map"),
+                "a surface combs by `comb_map` or by `[surface.gravity] comb`, not both: remove one",
+            ));
+        }
         let mut effects = Effect::DEFAULT.to_vec();
+        effects.extend(Effect::implied(&params, comb_map.is_some()));
         if let Some(v) = table.get("effects") {
             let key = at(here, "effects");
             let Some(list) = v.as_array() else {
@@ -549,10 +613,15 @@ impl Reader<'_> {
             for (k, e) in list.iter().enumerate() {
                 let mut p = key.clone();
                 p.push(Seg::Index(k));
-                let known: Vec<String> = Effect::ALL
-                    .iter()
-                    .map(|e| e.name().to_string())
-                    .chain(Effect::ALL.iter().map(|e| format!("no-{}", e.name())))
+                let names = || {
+                    Effect::ALL
+                        .iter()
+                        .map(|e| e.name())
+                        .chain(Effect::ALIASES.iter().map(|(a, _)| *a))
+                };
+                let known: Vec<String> = names()
+                    .map(String::from)
+                    .chain(names().map(|n| format!("no-{n}")))
                     .collect();
                 let name = e.as_str().unwrap_or_default();
                 let off = name.strip_prefix("no-").and_then(Effect::from_name);
@@ -595,7 +664,6 @@ impl Reader<'_> {
                 _ => return Err(self.error(&at(here, "scale"), "must be a positive finite number")),
             },
         };
-        let (params, overrides) = self.params(here, table, preset)?;
         Ok(Surface {
             name,
             mesh,
@@ -607,6 +675,7 @@ impl Reader<'_> {
             scale,
             density_map,
             length_map,
+            comb_map,
         })
     }
 
@@ -819,6 +888,50 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("density_map") && e.contains("COLOR_0.x"), "{e}");
+    }
+
+    #[test]
+    fn a_comb_asks_for_gravity_and_comb_names_the_same_effect() {
+        let s = parse(
+            "[[surface]]\nmesh = \"a.glb\"\ncomb_map = \"COLOR_0\"\n\
+             [[surface]]\nmesh = \"b.obj\"\ncomb_map = \"flow.png\"\neffects = [\"no-gravity\"]\n\
+             [[surface]]\nmesh = \"c.obj\"\n[surface.gravity]\ncomb = [0, -1]\n\
+             [[surface]]\nmesh = \"d.obj\"\neffects = [\"comb\", \"sheen\"]\n",
+        )
+        .unwrap();
+        let [a, b, c, d] = [0, 1, 2, 3].map(|i| &s.surfaces[i]);
+        assert_eq!(a.comb_map, Some(FlowSource::VertexColors));
+        assert!(a.asks(Effect::Gravity), "{:?}", a.effects);
+        assert_eq!(
+            b.comb_map,
+            Some(FlowSource::Image("scenes/flow.png".into()))
+        );
+        assert!(!b.asks(Effect::Gravity), "no-gravity turns a comb off");
+        assert_eq!(c.params.gravity.comb, Some([0.0, -1.0]));
+        assert!(c.asks(Effect::Gravity) && c.comb_map.is_none());
+        assert!(d.asks(Effect::Gravity) && d.asks(Effect::Sheen));
+        assert!(plan(&s).runs(Stage::Gravity, 3));
+        assert_eq!(Effect::from_name("comb"), Some(Effect::Gravity));
+
+        // both keys, a channel, a zero comb: refused, naming the key
+        let (line, key, msg) = scene_error(
+            "[[surface]]\nmesh = \"a.obj\"\ncomb_map = \"COLOR_0\"\n[surface.gravity]\ncomb = [1, 0]\n",
+        );
+        assert_eq!((line, key.as_str()), (Some(3), "surface[0].comb_map"));
+        assert!(
+            msg.contains("comb_map") && msg.contains("gravity] comb"),
+            "{msg}"
+        );
+        let (_, key, msg) =
+            scene_error("[[surface]]\nmesh = \"a.obj\"\ncomb_map = \"COLOR_0.r\"\n");
+        assert_eq!(key, "surface[0].comb_map");
+        assert!(msg.contains("COLOR_0.r"), "{msg}");
+        let (line, key, msg) =
+            scene_error("[[surface]]\nmesh = \"a.obj\"\n[surface.gravity]\ncomb = [0, 0]\n");
+        assert_eq!((line, key.as_str()), (Some(4), "surface[0].gravity.comb"));
+        assert!(msg.contains("non-zero"), "{msg}");
+        let (_, _, msg) = scene_error("[[surface]]\nmesh = \"a.obj\"\neffects = [\"combs\"]\n");
+        assert!(msg.contains("comb,") || msg.contains("comb "), "{msg}");
     }
 
     #[test]

@@ -142,8 +142,8 @@ pub struct ShellStack {
     pub color: Vec<[f32; 3]>,
     /// Extrusion delta at t = 1, per render vertex.
     pub delta: Vec<Vec3>,
-    /// The `gravity` effect's law: layer `j` adds `bend_of(delta) · t_j^k` (see
-    /// [`crate::gravity::bend_of`]).
+    /// The `gravity` effect's law: layer `j` of render vertex `v` adds
+    /// `bend.at(v, delta, lean) · t_j^k` (see [`crate::gravity::Bend::at`]).
     pub bend: Option<crate::gravity::Bend>,
     /// Lean axis per render vertex, what the `gravity` and `wind` effects bend across
     /// ([`crate::gravity::lean_axes`]; `None` when neither runs).

@@ -66,7 +66,7 @@ impl Default for WindParams {
 impl WindParams {
     /// Checks ranges; the error names the parameter.
     pub fn check(&self) -> Result<(), ParamError> {
-        ParamError::direction("direction", self.direction)?;
+        ParamError::direction("direction", &self.direction)?;
         ParamError::in_range("strength", self.strength, 0.0, 1.0)?;
         ParamError::in_range("exponent", self.exponent, 1.0, 8.0)?;
         ParamError::in_range("period", self.period, 0.1, 60.0)?;
@@ -84,8 +84,9 @@ impl WindParams {
 /// The wind of one surface: the sway law and each render vertex's phase.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Wind {
-    /// The sway at the tip per extrusion `d` is [`crate::gravity::bend_of`]`(d, &law)`; `law.k`
-    /// is the growth exponent.
+    /// The sway at the tip per extrusion `d` is [`crate::gravity::bend_of`] toward `law.g` with
+    /// `law.strength` (one direction for every vertex: `law.pulls` is `None`); `law.k` is the
+    /// growth exponent.
     pub law: Bend,
     pub period: f32,
     pub keyframes: u32,
@@ -102,6 +103,7 @@ impl Wind {
                 g: Vec3::from_array(p.direction).normalize(),
                 strength: p.strength,
                 k: p.exponent,
+                pulls: None,
             },
             period: p.period,
             keyframes: p.keyframes,
@@ -115,7 +117,7 @@ impl Wind {
     /// The two morph targets of a vertex extruded by `d` with lean axis `axis` and phase
     /// `phase`: `s cos φ`, `s sin φ`.
     pub fn targets(&self, d: Vec3, axis: Vec3, phase: f32) -> [Vec3; 2] {
-        let s = crate::gravity::bend_of(d, axis, &self.law);
+        let s = crate::gravity::bend_of(d, axis, self.law.g, self.law.strength);
         [s * phase.cos(), s * phase.sin()]
     }
 
@@ -175,7 +177,7 @@ mod tests {
         let d = Vec3::new(0.0, 0.1, 0.0);
         for (phase, time, t) in [(0.3, 0.25, 1.0), (2.0, 1.7, 0.5), (5.0, 0.0, 0.8)] {
             let got = w.displacement(d, Vec3::Y, phase, time, t);
-            let s = crate::gravity::bend_of(d, Vec3::Y, &w.law);
+            let s = crate::gravity::bend_of(d, Vec3::Y, w.law.g, w.law.strength);
             let want = s * t.powf(2.0) * (std::f32::consts::TAU * time / 2.0 + phase).sin();
             assert!((got - want).length() < 1e-6, "{got} {want}");
         }

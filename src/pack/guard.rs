@@ -154,7 +154,7 @@ pub struct MorphPath<'a> {
     /// The `gravity` effect's second target (derived from each delta, stored on its own grid)
     /// and the layer heights to check: a bent stack is not a straight path, so each stored layer
     /// is compared with the base.
-    pub bend: Option<(Bend, crate::compress::DeltaGrid, &'a [f32])>,
+    pub bend: Option<(&'a Bend, crate::compress::DeltaGrid, &'a [f32])>,
 }
 
 impl Check for MorphPath<'_> {
@@ -166,7 +166,7 @@ impl Check for MorphPath<'_> {
             let d = c.map(|v| stored(deltas[v as usize]).as_dvec3());
             let b = c.map(|v| {
                 let (d, m) = (deltas[v as usize], leans[v as usize]);
-                (bend_grid.round(crate::gravity::bend_of(d, m, bend) / unit) * unit).as_dvec3()
+                (bend_grid.round(bend.at(v as usize, d, m) / unit) * unit).as_dvec3()
             });
             let p = p.map(|p| p.as_dvec3());
             // edges at a layer: e(t) = a + t·b + w·c (w = t^k); the layer's normal along the
@@ -204,14 +204,14 @@ fn inverts(base: [DVec3; 3], mut layers: impl Iterator<Item = [DVec3; 3]>) -> bo
     n0 != DVec3::ZERO && layers.any(|l| normal(l).dot(n0) <= 0.0)
 }
 
-/// Where a layer at height `t` moves a vertex of extrusion `d`: `t·d`, plus the bend's
-/// `t^k · bend_of(d, axis)` under the `gravity` effect (`axis`: the vertex's lean axis, present
-/// with a bend).
-pub fn displacement(d: Vec3, axis: Option<Vec3>, t: f32, bend: Option<&Bend>) -> Vec3 {
+/// Where a layer at height `t` moves render vertex `v` of extrusion `d`: `t·d`, plus the bend's
+/// `t^k · bend.at(v, d, axis)` under the `gravity` effect (`axis`: the vertex's lean axis,
+/// present with a bend).
+pub fn displacement(v: usize, d: Vec3, axis: Option<Vec3>, t: f32, bend: Option<&Bend>) -> Vec3 {
     d * t
         + bend.map_or(Vec3::ZERO, |b| {
             let axis = axis.expect("a bend has lean axes");
-            crate::gravity::bend_of(d, axis, b) * b.weight(t)
+            b.at(v, d, axis) * b.weight(t)
         })
 }
 
@@ -222,7 +222,7 @@ pub struct RoundedLayers<'a> {
     pub base: &'a [Vec3],
     pub t: &'a [f32],
     pub top_level: f32,
-    pub bend: Option<Bend>,
+    pub bend: Option<&'a Bend>,
 }
 
 /// A single-draw layer vertex in grid units, as stored: `base + displacement` rounded to the
@@ -237,9 +237,9 @@ impl Check for RoundedLayers<'_> {
     fn check(&self, c: [u32; 3], deltas: &[Vec3], leans: &[Vec3], _round: usize) -> Option<f32> {
         let layer = |t: f32| {
             c.map(|v| {
-                let axis = leans.get(v as usize).copied();
-                let d = displacement(deltas[v as usize], axis, t, self.bend.as_ref());
-                layer_point(self.base[v as usize], d, self.top_level).as_dvec3()
+                let (v, axis) = (v as usize, leans.get(v as usize).copied());
+                let d = displacement(v, deltas[v], axis, t, self.bend);
+                layer_point(self.base[v], d, self.top_level).as_dvec3()
             })
         };
         inverts(layer(0.0), self.t[1..].iter().map(|&t| layer(t))).then_some(0.5)
@@ -256,7 +256,7 @@ pub struct Swaying<'a, C: Check> {
     pub base: &'a [Vec3],
     pub wind: &'a crate::wind::Wind,
     pub heights: &'a [f32],
-    pub bend: Option<Bend>,
+    pub bend: Option<&'a Bend>,
     /// Single-draw: layers are rounded to the grid (top level) before the sway is added.
     pub rounded: Option<f32>,
     /// The animation's keys as `(sin ωτ, cos ωτ)`, made once.
@@ -269,7 +269,7 @@ impl<'a, C: Check> Swaying<'a, C> {
         inner: C,
         base: &'a [Vec3],
         wind: &'a crate::wind::Wind,
-        (heights, bend): (&'a [f32], Option<Bend>),
+        (heights, bend): (&'a [f32], Option<&'a Bend>),
         rounded: Option<f32>,
     ) -> Self {
         let keys = wind
@@ -299,9 +299,9 @@ impl<C: Check> Check for Swaying<'_, C> {
         }
         let at = |t: f32| {
             c.map(|v| {
-                let p = self.base[v as usize];
-                let axis = leans.get(v as usize).copied();
-                let d = displacement(deltas[v as usize], axis, t, self.bend.as_ref());
+                let (v, axis) = (v as usize, leans.get(v as usize).copied());
+                let p = self.base[v];
+                let d = displacement(v, deltas[v], axis, t, self.bend);
                 match self.rounded {
                     Some(top) => layer_point(p, d, top),
                     None => p + d,
@@ -367,10 +367,11 @@ mod tests {
             base: &base,
             t: &[0.0, 0.5, 1.0],
             top_level: 16383.0,
-            bend: Some(Bend {
+            bend: Some(&Bend {
                 g: -Vec3::X,
                 strength: 1.0,
                 k: 1.0,
+                pulls: None,
             }),
         };
         assert!(check.check([0, 1, 2], &d, &leans, 0).is_some());
@@ -383,6 +384,42 @@ mod tests {
             "the strands keep their length"
         );
         assert!(leans[1].length() < 8.0);
+    }
+
+    #[test]
+    fn a_comb_that_pulls_corners_across_each_other_is_made_smaller() {
+        // equal leans: one direction moves the corners alike, a comb field pulls corner 1 the
+        // other way, across the triangle
+        let base = [
+            Vec3::ZERO,
+            Vec3::new(10.0, 0.0, 0.0),
+            Vec3::new(0.0, 10.0, 0.0),
+        ];
+        let mut d = vec![Vec3::new(0.0, 0.0, 50.0); 3];
+        let mut leans = vec![Vec3::Z; 3];
+        let uniform = Bend {
+            g: Vec3::X,
+            strength: 1.0,
+            k: 1.0,
+            pulls: None,
+        };
+        let combed = Bend {
+            pulls: Some(vec![Vec3::X, -Vec3::X, Vec3::X].into()),
+            ..uniform.clone()
+        };
+        let check = |bend| RoundedLayers {
+            base: &base,
+            t: &[0.0, 0.5, 1.0],
+            top_level: 16383.0,
+            bend: Some(bend),
+        };
+        assert!(check(&uniform).check([0, 1, 2], &d, &leans, 0).is_none());
+        let check = check(&combed);
+        assert!(check.check([0, 1, 2], &d, &leans, 0).is_some());
+        let n = guard(&base, (&mut d, &mut leans), Vary::Leans, &[0, 1, 2], &check);
+        assert!(n > 0);
+        assert!(check.check([0, 1, 2], &d, &leans, 0).is_none());
+        assert_eq!(d, vec![Vec3::new(0.0, 0.0, 50.0); 3]);
     }
 
     #[test]

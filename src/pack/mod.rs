@@ -233,7 +233,7 @@ pub struct PackInput<'a> {
     /// Prefix of the surface's mesh and material names (empty for a file of one surface).
     pub prefix: &'a str,
     /// The `gravity` effect's bend law (`None`: straight strands).
-    pub bend: Option<crate::gravity::Bend>,
+    pub bend: Option<&'a crate::gravity::Bend>,
     /// Lean axis per vertex of `mesh`, across which `bend` and `wind` displace (present when
     /// either is).
     pub lean: Option<&'a [Vec3]>,
@@ -261,7 +261,7 @@ struct Geometry<'a> {
     deltas: Vec<Vec3>,
     /// Compact layout under the `gravity` effect: the bend target per vertex, stored unit.
     bends: Option<Vec<Vec3>>,
-    bend: Option<crate::gravity::Bend>,
+    bend: Option<&'a crate::gravity::Bend>,
     /// The `wind` effect's two targets per vertex (`s cos φ`, `s sin φ`), stored unit (compact:
     /// on the exponent filter's grids).
     winds: Option<[Vec<Vec3>; 2]>,
@@ -402,9 +402,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             .zip(input.delta)
             .enumerate()
             .flat_map(|(v, (&p, &d))| {
-                let b = input
-                    .bend
-                    .map_or(Vec3::ZERO, |b| crate::gravity::bend_of(d, lean[v], &b));
+                let b = input.bend.map_or(Vec3::ZERO, |b| b.at(v, d, lean[v]));
                 [p, p + d, p + b, p + d + b]
             }),
         params.position_bits.min(15),
@@ -479,13 +477,14 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             let bend_of = |d: &[Vec3], leans: &[Vec3], b: &crate::gravity::Bend| -> Vec<Vec3> {
                 d.iter()
                     .zip(leans)
-                    .map(|(&d, &m)| crate::gravity::bend_of(d, m, b) / unit)
+                    .enumerate()
+                    .map(|(v, (&d, &m))| b.at(v, d, m) / unit)
                     .collect()
             };
             let bend_grid = input.bend.map(|b| {
                 (
                     b,
-                    crate::compress::DeltaGrid::fit(&bend_of(&deltas, &leans, &b)),
+                    crate::compress::DeltaGrid::fit(&bend_of(&deltas, &leans, b)),
                 )
             });
             let full = guard::MorphPath {
@@ -495,7 +494,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             let both = (&mut deltas[..], &mut leans[..]);
             let bent_less = bent_less(&base, both, &guarded_indices, &full, None);
             bends = bend_grid.map(|(b, g)| {
-                bend_of(&deltas, &leans, &b)
+                bend_of(&deltas, &leans, b)
                     .into_iter()
                     .map(|x| g.round(x))
                     .collect()
@@ -1643,7 +1642,7 @@ fn single_draw(
             let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
             let r = guard::layer_point(
                 (p - grid.min) / grid.step,
-                guard::displacement(d, g.lean.get(o as usize).copied(), l.t, g.bend.as_ref()),
+                guard::displacement(o as usize, d, g.lean.get(o as usize).copied(), l.t, g.bend),
                 top_level,
             );
             [r.x as u16, r.y as u16, r.z as u16]

@@ -385,7 +385,7 @@ impl ReferenceRenderer {
         // z: 1 when the layers are skinned
         data.ints = [seed, shells.t.len() as u32, skeleton.is_some() as u32, 0];
         // z: the bend's exponent k (layer weight t^k)
-        let k = shells.bend.map_or(1.0, |b| b.k);
+        let k = shells.bend.as_ref().map_or(1.0, |b| b.k);
         data.material = [0.0, input.roughness, k, 0.0];
         for (j, (c, &t)) in shells.color.iter().zip(&shells.t).enumerate() {
             data.layers[j] = [c[0], c[1], c[2], t];

@@ -391,7 +391,7 @@ pub fn gpu() -> &'static shellbake::view::Gpu {
 #[cfg(feature = "view")]
 pub fn verify_glb(
     glb: &[u8],
-    reference: &shellbake::Baked,
+    reference: &shellbake::BakedSurface,
     params: &shellbake::params::BakeParams,
 ) -> shellbake::view::verify::Verification {
     shellbake::view::verify::verify(
