@@ -52,7 +52,8 @@ pub struct RenderFlags {
     size: (u32, u32),
     #[command(flatten)]
     camera: CameraFlags,
-    /// Draw the file's animations (the `wind` effect) at this time, in seconds.
+    /// Draw the file's animations (the `wind` effect, a skinned input's clips) at this time,
+    /// in seconds.
     #[arg(long)]
     time: Option<f32>,
 }
@@ -108,8 +109,9 @@ pub struct VerifyFlags {
     /// Side of the square pictures.
     #[arg(long, default_value_t = shellbake::view::verify::DEFAULT_SIZE)]
     size: u32,
-    /// Also compare at these animation times, seconds (comma-separated; the `wind` effect)
-    /// [default: a quarter and three quarters of the wind's period when a surface asks for it].
+    /// Also compare at these animation times, seconds (comma-separated; the `wind` effect, a
+    /// skinned input's clips) [default: a quarter and three quarters of the wind's period when a
+    /// surface asks for it, and of a skinned input's longest clip].
     #[arg(long, value_delimiter = ',')]
     time: Vec<f32>,
 }

@@ -298,9 +298,7 @@ pub fn skinned_tube() -> Vec<u8> {
     let mut bin: Vec<u8> = Vec::new();
     let mut views = Vec::new();
     let mut view = |bin: &mut Vec<u8>, bytes: Vec<u8>, target: Option<u32>| {
-        while bin.len() % 4 != 0 {
-            bin.push(0);
-        }
+        bin.resize(bin.len().next_multiple_of(4), 0);
         let mut v = json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len() });
         if let Some(t) = target {
             v["target"] = json!(t);
@@ -364,9 +362,7 @@ pub fn skinned_tube() -> Vec<u8> {
         .collect();
     let vk = view(&mut bin, f32s(&mut times.iter().copied()), None);
     let vr = view(&mut bin, f32s(&mut rotations.into_iter()), None);
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
+    bin.resize(bin.len().next_multiple_of(4), 0);
     let accessor = |view: usize, component: u32, count: usize, kind: &str| json!({ "bufferView": view, "componentType": component, "count": count, "type": kind });
     let mut position = accessor(vp, 5126, nv, "VEC3");
     position["min"] = json!(lo.to_array());

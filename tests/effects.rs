@@ -247,6 +247,7 @@ fn a_scene_with_every_effect_bakes_one_valid_file_that_three_js_animates() {
         (0, &["wind"][..]),
         (1, &["gravity", "sheen"]),
         (2, &["occlusion", "collision"]),
+        (3, &["gravity"]),
     ] {
         let stages = r["surfaces"][surface]["stages"].as_array().unwrap();
         for s in stages {

@@ -33,6 +33,12 @@ printf '[[surface]]\nmesh = "teapot.obj"\neffects = [%s]\n[surface.occlusion]\nr
 "$bin" bake "$work/teapot.toml" -o "$work/teapot.glb" -q
 "$bin" bake "$work/teapot-occlusion.toml" -o "$work/teapot-occlusion.glb" -q
 "$bin" bake fixtures/effects.toml -o "$work/effects.glb" -q
+# skinned fur: the procedural tube as it is, and combed down its length
+"$bin" bake fixtures/tube_skinned.glb -o "$work/tube.glb" -q
+cp fixtures/tube_skinned.glb "$work/"
+printf '[[surface]]\nmesh = "tube_skinned.glb"\neffects = ["comb"]\n[surface.gravity]\ncomb = [0.0, 1.0]\nstrength = 0.6\n' \
+  > "$work/tube-comb.toml"
+"$bin" bake "$work/tube-comb.toml" -o "$work/tube-comb.glb" -q
 job "$work/bunny.glb" "$out/effect-none.png" 90 10 1.5 30 null
 job "$work/bunny-gravity.glb" "$out/effect-gravity.png" 90 10 1.5 30 null
 job "$work/bunny-sheen.glb" "$out/effect-sheen.png" 90 10 1.5 30 null
@@ -42,6 +48,9 @@ job "$work/teapot.glb" "$out/effect-teapot-none.png" 120 25 1.5 35 null
 job "$work/teapot-occlusion.glb" "$out/effect-occlusion.png" 120 25 1.5 35 null
 job "$work/effects.glb" "$out/effect-scene-0.png" 25 18 1.3 40 0.75
 job "$work/effects.glb" "$out/effect-scene-1.png" 25 18 1.3 40 2.25
+job "$work/tube.glb" "$out/effect-skin-0.png" 0 5 2.6 35 0.5
+job "$work/tube.glb" "$out/effect-skin-1.png" 0 5 2.6 35 1.5
+job "$work/tube-comb.glb" "$out/effect-comb.png" 0 5 2.6 35 0.5
 jobs+="]"
 echo "$jobs" > "$work/jobs.json"
 node tests/js/three_render.mjs "$work/jobs.json"

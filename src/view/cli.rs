@@ -109,7 +109,7 @@ pub struct VerifyArgs {
     pub out_dir: PathBuf,
     /// Side of the square pictures.
     pub size: u32,
-    /// Animation times to compare at besides the rest pose (seconds; the `wind` effect).
+    /// Animation times to compare at besides the rest pose (seconds; the `wind` effect, a skinned input's clips).
     pub times: Vec<f32>,
 }
 

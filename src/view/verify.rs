@@ -265,6 +265,8 @@ pub fn verify(
         for p in periods.into_iter().flatten() {
             times.extend([Some(0.25 * p), Some(0.75 * p)]);
         }
+        times.sort_by(|a, b| a.partial_cmp(b).expect("finite times"));
+        times.dedup();
     }
     times.insert(0, None);
     let mut reference = ReferenceRenderer::new(gpu, input);
