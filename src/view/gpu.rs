@@ -459,6 +459,20 @@ pub fn upload_rgba_texture(
     texture.create_view(&Default::default())
 }
 
+/// A read-only storage buffer the vertex stage reads (joint matrices) at `binding`.
+pub fn vertex_storage_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
 /// Bind group layout entry of a filterable 2D texture read by the fragment stage.
 pub fn fragment_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {

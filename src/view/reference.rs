@@ -418,16 +418,7 @@ impl ReferenceRenderer {
                 },
                 super::gpu::fragment_texture_entry(1),
                 super::gpu::fragment_sampler_entry(2),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 3,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                super::gpu::vertex_storage_entry(3),
             ],
         });
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
