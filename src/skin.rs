@@ -370,6 +370,17 @@ pub fn weight_bytes(w: [f32; 4]) -> [u8; 4] {
     b
 }
 
+/// A vertex's influences as written: the weights as bytes ([`weight_bytes`]) and each joint
+/// whose byte rounded to 0 replaced by joint 0 (the glTF validator warns about a joint named with
+/// a zero weight).
+pub fn influence_bytes(joints: [u16; 4], weights: [f32; 4]) -> ([u16; 4], [u8; 4]) {
+    let b = weight_bytes(weights);
+    (
+        std::array::from_fn(|k| if b[k] == 0 { 0 } else { joints[k] }),
+        b,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -424,7 +435,7 @@ mod tests {
 
     #[test]
     fn joint_matrices_follow_the_pose_and_the_placement() {
-        // two nodes: a root and a joint one unit up; the joint turns 90° about z over 1 s
+        // two nodes: a root and a joint one unit up; the joint turns 180° about z over 1 s (90° at 0.5 s)
         let mut s = Skeleton {
             nodes: vec![
                 SkelNode {
@@ -451,16 +462,7 @@ mod tests {
                     ..channel(
                         Path::Rotation,
                         Interpolation::Linear,
-                        vec![
-                            0.0,
-                            0.0,
-                            0.0,
-                            1.0,
-                            0.0,
-                            0.0,
-                            std::f32::consts::FRAC_1_SQRT_2,
-                            std::f32::consts::FRAC_1_SQRT_2,
-                        ],
+                        vec![0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0],
                     )
                 }],
             }],
@@ -471,11 +473,11 @@ mod tests {
         let rest = s.joint_matrices(None)[0];
         assert!(rest.abs_diff_eq(DMat4::IDENTITY, 1e-12));
         // a point two units up turns about the joint at y = 1: (0, 2) → (−1, 1)
-        let p = s.joint_matrices(Some(1.0))[0].transform_point3(DVec3::new(0.0, 2.0, 0.0));
+        let p = s.joint_matrices(Some(0.5))[0].transform_point3(DVec3::new(0.0, 2.0, 0.0));
         assert!(p.abs_diff_eq(DVec3::new(-1.0, 1.0, 0.0), 1e-6), "{p}");
         // placed: scaled 2, moved +x 10; the placed point (10, 4) turns to (8, 2)
         s.place(DVec3::new(10.0, 0.0, 0.0), 2.0);
-        let p = s.joint_matrices(Some(1.0))[0].transform_point3(DVec3::new(10.0, 4.0, 0.0));
+        let p = s.joint_matrices(Some(0.5))[0].transform_point3(DVec3::new(10.0, 4.0, 0.0));
         assert!(p.abs_diff_eq(DVec3::new(8.0, 2.0, 0.0), 1e-6), "{p}");
     }
 

@@ -1284,13 +1284,14 @@ impl Builder<'_> {
         let mut j = Bytes::default();
         let mut w = Bytes::default();
         for &o in order {
-            let (js, ws) = (skin.joints[o as usize], skin.weights[o as usize]);
+            let (js, ws) =
+                crate::skin::influence_bytes(skin.joints[o as usize], skin.weights[o as usize]);
             if wide {
                 j.u16s(&js, 8);
             } else {
                 j.0.extend(js.map(|x| x as u8));
             }
-            w.0.extend(crate::skin::weight_bytes(ws));
+            w.0.extend(ws);
         }
         let n = order.len();
         let (stride, component) = if wide {
