@@ -342,6 +342,16 @@ fn bake_surface(
         ..Default::default()
     };
     report.record(Stage::Load.name(), load_ms);
+    if let Some(k) = &scene.skeleton {
+        // skinned fur: no stage of its own; the load line says what the file keeps
+        report.count("skin_joints", k.joints.len() as f64);
+        report.count("skin_nodes", k.nodes.len() as f64);
+        report.count("skin_clips", k.clips.len() as f64);
+        report.note(
+            Stage::Load.name(),
+            "skinned: the skin, its skeleton and clips are kept; the fur grows on the bind pose",
+        );
+    }
 
     let mut mesh = report.run("merge", || scene.merged());
     report.count("meshes", scene.meshes.len() as f64);

@@ -46,6 +46,12 @@ fn layers_share_the_skin_and_the_file_keeps_skeleton_and_animation() {
     let mut files = Vec::new();
     for layout in [Layout::Compact, Layout::SingleDraw] {
         let baked = shellbake::bake(&tube(), &params(layout));
+        // the report's load line says what the file keeps; the lod stage says why it skipped
+        let load = baked.report.stage("load").unwrap();
+        assert_eq!(load.counts["skin_joints"], 4.0);
+        assert_eq!(load.counts["skin_clips"], 1.0);
+        let lod = baked.report.stage("lod").unwrap();
+        assert!(!lod.ran, "a skinned surface bakes one level");
         let g = Glb::parse(&baked.glb);
         let skins = g.json["skins"].as_array().expect("a skin");
         assert_eq!(skins.len(), 1);
