@@ -20,10 +20,11 @@
 //! | gravity (effect `gravity`, alias `comb`) | [`gravity`] | [`gravity::Bend::on`] (a comb field's pulls: [`gravity::comb_pulls`]), [`gravity::lean_axes`] (per vertex [`gravity::Bend::at`], in pack and the reference) |
 //! | wind (effect `wind`) | [`wind`] | [`wind::Wind::new`] (targets and the animation in pack) |
 //! | sheen (effect `sheen`) | [`sheen`] | layer materials' [`sheen::Sheen::of`] in pack |
+//! | skinned fur (a skinned glTF input; no stage: the load line counts it) | [`skin`] | [`load::skin::read_skeleton`]; the shared `JOINTS_0`/`WEIGHTS_0`, skeleton copy and skin in pack |
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
 //! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
 //! | pack | [`pack`] | [`pack::pack`] |
-//! | write (with `--compress meshopt`: [`compress`]) | [`write`] | [`write::compress_streams`], [`write::gltf_json_with`], [`write::glb_of_packed_with`] |
+//! | write (with `--compress meshopt`: [`compress`]) | [`write`](mod@write) | [`write::compress_streams`], [`write::gltf_json_with`], [`write::glb_of_packed_with`] |
 //!
 //! Modules form a tree of imports, ground floor first: `error`, `grid`, `mesh`, `srgb`, `compress`
 //! (the meshopt codecs, read by `load` and written by `write`) → the stages

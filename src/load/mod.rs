@@ -9,7 +9,7 @@
 //! Files are read only if they are regular files under [`MAX_INPUT_BYTES`] (never a FIFO or a
 //! device; see `read_regular_file` for how a file swapped between check and open is caught),
 //! meshes must span at least [`MIN_EXTENT`], and text from a file is escaped
-//! ([`escape`]) before it reaches a message.
+//! (`escape`) before it reaches a message.
 //!
 //! Missing UVs: a **per-face box projection** is generated — each triangle is projected on the
 //! axis plane most facing its normal, with coordinates in units of the bounding-box diagonal, and

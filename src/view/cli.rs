@@ -2,7 +2,7 @@
 //! functions the binary dispatches to (the binary's `cli.rs` maps its flags onto these structs;
 //! the library has no CLI types). `verify` and `bench` take the scene (a mesh is a one-surface
 //! [`SceneFile`]) and its loaded meshes plus their arguments. What they print goes through
-//! [`escape`] wherever it holds a path or text that did not come from us (a file name
+//! `load::escape` wherever it holds a path or text that did not come from us (a file name
 //! with an escape sequence must not drive the terminal), as the loader's messages do.
 
 use std::path::{Path, PathBuf};
