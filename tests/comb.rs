@@ -128,12 +128,7 @@ fn top_layer(glb: &[u8]) -> Vec<([f64; 3], [f64; 3])> {
                 .collect();
             return out;
         }
-        let targets: Vec<Vec<Vec<f64>>> = prim["targets"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .map(|t| g.accessor(t["POSITION"].as_u64().unwrap() as usize))
-            .collect();
+        let targets: Vec<Vec<Vec<f64>>> = g.position_targets(prim);
         let w = g.weights(mi);
         if targets.len() != 2 || w[0] <= top_weight {
             continue;

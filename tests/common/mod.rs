@@ -45,6 +45,16 @@ impl Glb {
         Glb { json, bin }
     }
 
+    /// The POSITION delta of each morph target of primitive `prim`, as rows.
+    pub fn position_targets(&self, prim: &Value) -> Vec<Vec<Vec<f64>>> {
+        prim["targets"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|t| self.accessor(t["POSITION"].as_u64().unwrap() as usize))
+            .collect()
+    }
+
     /// Accessor `i` as rows of f64 components, dequantized if `normalized`.
     /// Mesh `m`'s first morph weight as drawn: its node's weights (which override the mesh's),
     /// else the mesh's.
@@ -297,12 +307,7 @@ pub fn inverted_layer_triangles_with(
             .map(|v| v[0] as usize)
             .collect();
         let pos = g.accessor(prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
-        let targets: Vec<Vec<Vec<f64>>> = prim["targets"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .map(|t| g.accessor(t["POSITION"].as_u64().unwrap() as usize))
-            .collect();
+        let targets: Vec<Vec<Vec<f64>>> = g.position_targets(prim);
         let w = weights(&g, mi);
         let morphed = |v: usize| -> [f64; 3] {
             let p = &pos[v];
