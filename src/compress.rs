@@ -201,6 +201,10 @@ pub struct DeltaGrid {
 }
 
 impl DeltaGrid {
+    /// No grid: [`DeltaGrid::round`] keeps every value as it is (the plain float files of
+    /// `--quantize none`, whose deltas the filter would change and so does not get).
+    pub const EXACT: DeltaGrid = DeltaGrid { step: [0.0; 3] };
+
     /// The grid for `values` (and any shortened copy of them).
     pub fn fit(values: &[glam::Vec3]) -> DeltaGrid {
         let exp = |v: f32| ((v.to_bits() >> 23) & 0xff) as i32 - 126;
@@ -219,6 +223,9 @@ impl DeltaGrid {
     /// its magnitude kept below `2^e`.
     pub fn round(&self, v: glam::Vec3) -> glam::Vec3 {
         let max = ((1 << (DELTA_BITS - 1)) - 1) as f32;
+        if *self == DeltaGrid::EXACT {
+            return v;
+        }
         let a = v.to_array();
         glam::Vec3::from_array([0, 1, 2].map(|k| {
             let m = (a[k] / self.step[k]).round().clamp(-max, max);

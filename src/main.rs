@@ -153,8 +153,9 @@ struct BakeArgs {
     /// Coarser LOD levels draw a base simplified within their error (meshopt; `lod.simplify`).
     #[arg(long)]
     lod_simplify: bool,
-    /// Attribute storage: `khr` (KHR_mesh_quantization, smallest) or `none` (plain floats, no
-    /// required extension, for clients that read no quantized attributes) [default: khr].
+    /// Attribute storage: `khr` (KHR_mesh_quantization, smallest) or `none` (plain floats of
+    /// the exact geometry, no required extension, for clients that read no quantized
+    /// attributes; what the runtime reference draws, pixel for pixel) [default: khr].
     #[arg(long, value_parser = named(&Quantize::ALL, |q| q.name()))]
     quantize: Option<Quantize>,
     /// Where compact layers' morph weights go: `node` (node.weights; lets gltfpack keep the

@@ -1,7 +1,9 @@
 //! `--quantize none`: plain glTF 2.0 floats and no required extension, for clients that read no
 //! quantized attributes. The file is valid; the plain `gltf` crate (Bevy's loader) imports it
 //! and reads every primitive (it refuses the quantized form); and the viewer draws it as it
-//! draws the quantized file (same grid positions and normals, the tiling in the coordinates).
+//! draws the quantized file, within what verify allows between a quantized file and the
+//! runtime reference (the float file holds the exact geometry, which matches the reference
+//! pixel for pixel: `tests/study.rs`).
 
 #![cfg(feature = "view")]
 
@@ -77,10 +79,12 @@ fn float_files_read_in_the_gltf_crate_and_draw_like_quantized_ones() {
                 c.flip_mean,
                 100.0 * share
             );
+            let t = shellbake::view::verify::tolerance(v);
             assert!(
-                c.flip_mean < 0.005 && share < 0.005,
-                "{layout} {}: {c:?}",
-                v.name()
+                c.flip_mean <= t.flip_mean && share <= t.differing,
+                "{layout} {}: FLIP {} differing {share}",
+                v.name(),
+                c.flip_mean
             );
         }
     }

@@ -221,16 +221,20 @@ pub struct RoundedLayers<'a> {
     /// Unrounded base positions in grid units.
     pub base: &'a [Vec3],
     pub t: &'a [f32],
-    pub top_level: f32,
+    /// The grid's top level (`None`: plain floats, not rounded).
+    pub top_level: Option<f32>,
     pub bend: Option<&'a Bend>,
 }
 
-/// A single-draw layer vertex in grid units, as stored: `base + displacement` rounded to the
-/// grid.
-pub fn layer_point(p: Vec3, displacement: Vec3, top_level: f32) -> Vec3 {
-    (p + displacement)
-        .round()
-        .clamp(Vec3::ZERO, Vec3::splat(top_level))
+/// A single-draw layer vertex in grid units, as stored: `base + displacement`, rounded to the
+/// grid whose top level is `top_level` (`None`: as it is, in a plain float file).
+pub fn layer_point(p: Vec3, displacement: Vec3, top_level: Option<f32>) -> Vec3 {
+    match top_level {
+        Some(top) => (p + displacement)
+            .round()
+            .clamp(Vec3::ZERO, Vec3::splat(top)),
+        None => p + displacement,
+    }
 }
 
 impl Check for RoundedLayers<'_> {
@@ -302,11 +306,7 @@ impl<C: Check> Check for Swaying<'_, C> {
                 let (v, axis) = (v as usize, leans.get(v as usize).copied());
                 let p = self.base[v];
                 let d = displacement(v, deltas[v], axis, t, self.bend);
-                match self.rounded {
-                    Some(top) => layer_point(p, d, top),
-                    None => p + d,
-                }
-                .as_dvec3()
+                layer_point(p, d, self.rounded).as_dvec3()
             })
         };
         let base = at(0.0);
@@ -366,7 +366,7 @@ mod tests {
         let check = RoundedLayers {
             base: &base,
             t: &[0.0, 0.5, 1.0],
-            top_level: 16383.0,
+            top_level: Some(16383.0),
             bend: Some(&Bend {
                 g: -Vec3::X,
                 strength: 1.0,
@@ -410,7 +410,7 @@ mod tests {
         let check = |bend| RoundedLayers {
             base: &base,
             t: &[0.0, 0.5, 1.0],
-            top_level: 16383.0,
+            top_level: Some(16383.0),
             bend: Some(bend),
         };
         assert!(check(&uniform).check([0, 1, 2], &d, &leans, 0).is_none());
@@ -472,7 +472,7 @@ mod tests {
         let check = RoundedLayers {
             base: &base,
             t: &[0.0, 0.5, 1.0],
-            top_level: 16383.0,
+            top_level: Some(16383.0),
             bend: None,
         };
         assert!(check.check([0, 1, 2], &d, &[], 0).is_some());

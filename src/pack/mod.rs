@@ -99,10 +99,12 @@ pub enum Quantize {
     /// `KHR_texture_transform`). Smallest.
     #[default]
     Khr,
-    /// Plain glTF 2.0 floats and no required extension, for clients that read neither extension
-    /// (the `gltf` crate and Bevy, f3d, libGDX): the same geometry as `khr` (the grid's
-    /// positions and the quantized normals, as floats; texture coordinates with the tiling
-    /// multiplied in), so both draw alike.
+    /// Plain glTF 2.0 floats of the exact geometry and no required extension: positions as
+    /// the bake computed them (relative to the surface's origin, which the root node
+    /// translates by), the extrusion in world units, unit normals, texture coordinates with the
+    /// tiling multiplied in. For clients that read neither extension (the `gltf` crate and
+    /// Bevy, f3d, libGDX), and the accurate end of `shellbake study`: its compact layout draws
+    /// what the runtime reference draws, pixel for pixel. The largest file.
     None,
 }
 
@@ -249,7 +251,10 @@ pub struct PackInput<'a> {
 
 /// The surface's vertices with their quantization grids, in the input's order.
 struct Geometry<'a> {
+    /// The position grid (a plain float file's: step 1 at zero, see [`Geometry::stored`]).
     grid: PositionGrid,
+    /// A plain float file: positions as they are.
+    exact: bool,
     uv_grid: UvGrid,
     float_uvs: bool,
     /// Mask tiles per UV unit.
@@ -274,6 +279,18 @@ struct Geometry<'a> {
     fur_weight: Option<&'a [f32]>,
     /// Joints and weights per vertex, and the skin's joint count.
     skin: Option<(&'a crate::mesh::VertexSkin, usize)>,
+}
+
+impl Geometry<'_> {
+    /// Position `p` as the POSITION stream stores it: its grid level, or itself in a plain
+    /// float file.
+    fn stored(&self, p: Vec3) -> Vec3 {
+        if self.exact {
+            p
+        } else {
+            self.grid.quantize(p).map(f32::from).into()
+        }
+    }
 }
 
 /// One chunk at one level: triangles ordered so every layer draws a prefix.
@@ -394,7 +411,13 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         (input.bend.is_none() && input.wind.is_none()) || lean.len() == nv,
         "bend and wind need a lean axis per vertex"
     );
-    let grid = PositionGrid::fit(
+    // plain float files keep the exact geometry: positions relative to the origin, deltas in
+    // world units (a grid of step 1 at zero)
+    let exact = params.quantize == Quantize::None;
+    let grid = if exact {
+        PositionGrid::identity(params.position_bits.min(15))
+    } else {
+        PositionGrid::fit(
         // the base and the fully extruded surface (bent: every layer lies within the box of
         // `p + a·d + c·b`, a and c in [0, 1])
         positions
@@ -406,7 +429,16 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 [p, p + d, p + b, p + d + b]
             }),
         params.position_bits.min(15),
-    );
+    )
+    };
+    // on the exponent filter's grid, or as they are in a plain float file
+    let delta_grid = |v: &[Vec3]| {
+        if exact {
+            crate::compress::DeltaGrid::EXACT
+        } else {
+            crate::compress::DeltaGrid::fit(v)
+        }
+    };
     // Deltas in grid units, shortened where the stored geometry would invert at any layer
     // height of any level.
     let mut deltas: Vec<Vec3> = input.delta.iter().map(|&d| d / grid.step).collect();
@@ -457,18 +489,22 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     };
     let (guarded, bent_less) = match params.layout {
         Layout::Compact => {
-            let base: Vec<Vec3> = positions
-                .iter()
-                .map(|&p| grid.quantize(p).map(f32::from).into())
-                .collect();
+            let base: Vec<Vec3> = if exact {
+                positions.to_vec()
+            } else {
+                positions
+                    .iter()
+                    .map(|&p| grid.quantize(p).map(f32::from).into())
+                    .collect()
+            };
             // deltas are stored on the exponent filter's grid (compressed or not, so a
             // compressed file's twin is the plain file), and checked as stored
             let stored: Vec<Vec3> = deltas.iter().map(|&d| d / unit).collect();
-            let delta_grid = crate::compress::DeltaGrid::fit(&stored);
+            let stored_grid = delta_grid(&stored);
             let straight = guard::MorphPath {
                 base: &base,
                 top,
-                grid: Some((delta_grid, unit)),
+                grid: Some((stored_grid, unit)),
                 bend: None,
             };
             let both = (&mut deltas[..], &mut leans[..]);
@@ -482,10 +518,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                     .collect()
             };
             let bend_grid = input.bend.map(|b| {
-                (
-                    b,
-                    crate::compress::DeltaGrid::fit(&bend_of(&deltas, &leans, b)),
-                )
+                (b, delta_grid(&bend_of(&deltas, &leans, b)))
             });
             let full = guard::MorphPath {
                 bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
@@ -501,7 +534,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             });
             // from here on, compact deltas are in the stored unit
             for d in &mut deltas {
-                *d = delta_grid.round(*d / unit);
+                *d = stored_grid.round(*d / unit);
             }
             (shortened, bent_less)
         }
@@ -510,10 +543,11 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 .iter()
                 .map(|&p| (p - grid.min) / grid.step)
                 .collect();
+            let top = (!exact).then_some(grid.max_level() as f32);
             let straight = guard::RoundedLayers {
                 base: &base,
                 t: &heights,
-                top_level: grid.max_level() as f32,
+                top_level: top,
                 bend: None,
             };
             let both = (&mut deltas[..], &mut leans[..]);
@@ -523,7 +557,6 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 ..straight
             };
             let both = (&mut deltas[..], &mut leans[..]);
-            let top = Some(grid.max_level() as f32);
             let bent_less = bent_less(&base, both, &guarded_indices, &full, top);
             (shortened, bent_less)
         }
@@ -545,7 +578,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         });
         match params.layout {
             Layout::Compact => [a, b].map(|v| {
-                let g = crate::compress::DeltaGrid::fit(&v);
+                let g = delta_grid(&v);
                 v.iter().map(|&x| g.round(x)).collect()
             }),
             Layout::SingleDraw => [a, b],
@@ -559,6 +592,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     let float_uvs = texel_error > 0.125;
     let geometry = Geometry {
         grid,
+        exact,
         uv_grid,
         float_uvs,
         tiles,
@@ -1095,10 +1129,7 @@ impl Shared {
             fetch[old as usize] = new as u32;
         }
         let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
-        let q: Vec<[u16; 3]> = pick(g.positions)
-            .iter()
-            .map(|&p| g.grid.quantize(p))
-            .collect();
+        let q: Vec<Vec3> = pick(g.positions).iter().map(|&p| g.stored(p)).collect();
         let position = b.positions(&q, &g.grid);
         let normal = b.normals(&pick(g.normals));
         let skin = g.skin.map(|s| b.skin(s, &order));
@@ -1179,7 +1210,7 @@ impl Shared {
 struct Builder<'a> {
     out: &'a mut Packed,
     tag: Tag,
-    /// Positions and normals as floats (`Quantize::None`).
+    /// The exact geometry as plain floats (`Quantize::None`).
     float: bool,
     /// Materials by (level, layer): every chunk's layer shares one.
     materials: Vec<((usize, usize), usize)>,
@@ -1233,27 +1264,26 @@ impl Builder<'_> {
             .stream(name, semantic, target, self.tag, (bytes, stride, count))
     }
 
-    /// POSITION stream of grid levels `q`: normalized i16 centred on the grid (stride 8), or
-    /// floats of the grid levels (stride 12) without quantization, with exact bounds.
-    fn positions(&mut self, q: &[[u16; 3]], grid: &PositionGrid) -> usize {
+    /// POSITION stream of `q` ([`Geometry::stored`]: grid levels, or a plain float file's
+    /// exact positions): normalized i16 centred on the grid (stride 8), or floats (stride 12),
+    /// with exact bounds.
+    fn positions(&mut self, q: &[Vec3], grid: &PositionGrid) -> usize {
         let mut bytes = Bytes::default();
-        let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
-        for p in q {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for &p in q {
             let v = if self.float {
-                bytes.f32s(&p.map(f32::from));
-                p.map(i32::from)
+                bytes.f32s(&p.to_array());
+                p
             } else {
-                let s = grid.stored(*p);
+                let s = grid.stored(p.to_array().map(|x| x as u16));
                 bytes.i16s(&s, 8);
-                s.map(i32::from)
+                Vec3::from_array(s.map(f32::from))
             };
-            for c in 0..3 {
-                lo[c] = lo[c].min(v[c]);
-                hi[c] = hi[c].max(v[c]);
-            }
+            lo = lo.min(v);
+            hi = hi.max(v);
         }
         if q.is_empty() {
-            (lo, hi) = ([0; 3], [0; 3]);
+            (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
         }
         let (stride, component, normalized) = if self.float {
             (12, component::FLOAT, false)
@@ -1268,9 +1298,9 @@ impl Builder<'_> {
             Some(stride),
             q.len(),
         );
-        let bounds = (lo.map(|x| x as f64).to_vec(), hi.map(|x| x as f64).to_vec());
+        let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
         self.out
-            .accessor(v, component, normalized, "VEC3", Some(bounds))
+            .accessor(v, component, normalized, "VEC3", Some((bounds(lo), bounds(hi))))
     }
 
     /// `JOINTS_0` (unsigned byte, or short past 256 joints) and `WEIGHTS_0` (normalized bytes
@@ -1336,9 +1366,8 @@ impl Builder<'_> {
     fn normals(&mut self, n: &[Vec3]) -> usize {
         let mut bytes = Bytes::default();
         if self.float {
-            // the quantized normal, as floats: both forms shade alike
             for &v in n {
-                bytes.f32s(&dequantize_normal(quantize_normal(v)).to_array());
+                bytes.f32s(&v.to_array());
             }
             let v = self.stream("normal", Semantic::Normal, None, bytes.0, Some(12), n.len());
             return self.out.accessor(v, component::FLOAT, false, "VEC3", None);
@@ -1630,7 +1659,7 @@ fn single_draw(
     let mut colors = Bytes::default();
     let mut all_ix: Vec<u32> = Vec::new();
     let mut ranges = Vec::with_capacity(layers.len());
-    let top_level = grid.max_level() as f32;
+    let top_level = (!b.float).then_some(grid.max_level() as f32);
     for (j, l) in layers.iter().enumerate() {
         let (nv, first) = (layer_vertices[j], q.len() as u32);
         ranges.push(LayerRange {
@@ -1641,12 +1670,11 @@ fn single_draw(
         });
         q.extend(order[..nv].iter().map(|&o| {
             let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
-            let r = guard::layer_point(
+            guard::layer_point(
                 (p - grid.min) / grid.step,
                 guard::displacement(o as usize, d, g.lean.get(o as usize).copied(), l.t, g.bend),
                 top_level,
-            );
-            [r.x as u16, r.y as u16, r.z as u16]
+            )
         }));
         let alpha = single_draw_alpha(ctx.mask, l.step);
         for &o in &order[..nv] {

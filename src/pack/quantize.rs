@@ -66,6 +66,16 @@ impl PositionGrid {
         }
     }
 
+    /// The grid of a plain float file: step 1 at zero, so positions and deltas keep their
+    /// values.
+    pub fn identity(bits: u32) -> PositionGrid {
+        PositionGrid {
+            min: Vec3::ZERO,
+            step: 1.0,
+            bits,
+        }
+    }
+
     pub fn max_level(&self) -> u32 {
         (1 << self.bits) - 1
     }

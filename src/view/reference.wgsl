@@ -79,7 +79,8 @@ fn vs_main(in: VsIn, @builtin(instance_index) layer: u32) -> VsOut {
     out.world = world.xyz;
     out.clip = frame.view_proj * world;
     out.normal = n;
-    out.uv = in.uv;
+    // the tiling applied per vertex, as a file with the tiling in its coordinates holds it
+    out.uv = in.uv * shell.tiles.xy;
     out.layer = layer;
     out.density = in.scalars.x;
     out.occlusion = in.scalars.y;
@@ -100,7 +101,7 @@ fn survives(a: f32, j: u32, t: f32) -> bool {
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let layer = shell.layers[in.layer];
     // Implicit derivatives pick the mip level (uniform control flow: before any discard).
-    let law = textureSample(law_texture, law_sampler, in.uv * shell.tiles.xy);
+    let law = textureSample(law_texture, law_sampler, in.uv);
     // The base layer (t = 0) is the opaque skin and never discards.
     // The density map scales the law's value (the baked file: COLOR_0 alpha times the mask's).
     if (in.layer > 0u && !survives(law.a * in.density, in.layer, layer.w)) {
