@@ -13,6 +13,8 @@ use std::time::Duration;
 
 #[cfg(feature = "view")]
 mod cli;
+#[cfg(feature = "view")]
+mod cli_study;
 
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
@@ -20,14 +22,16 @@ use image::ImageEncoder as _;
 use shellbake::compress::{Compression, MeshoptExtension};
 use shellbake::orient::OrientMode;
 use shellbake::pack::{LayerWeights, Quantize};
-use shellbake::params::{BakeParams, Layout, Preset};
+use shellbake::params::{BakeParams, Layout, Preset, Quality};
 use shellbake::scene::{Effect, SceneFile};
 
 #[derive(Parser)]
 #[command(
     name = "shellbake",
     version,
-    about = "Bakes shell-textured fur, grass, carpet and moss into standard glTF"
+    about = "Bakes shell-textured fur, grass, carpet and moss into standard glTF",
+    // a flag given twice takes its last value (`study` appends a point's flags to the base's)
+    args_override_self = true
 )]
 struct Cli {
     #[command(subcommand)]
@@ -62,6 +66,16 @@ enum Command {
         bake: BakeArgs,
         #[command(flatten)]
         bench: cli::BenchFlags,
+    },
+    /// Sweep the knobs that trade accuracy for bake time, bytes and frame time around the bake
+    /// flags' setting: image error against the runtime reference, bake time, bytes, triangles,
+    /// draw calls and GPU time per point; writes study.csv, study.md and plots.
+    #[cfg(feature = "view")]
+    Study {
+        #[command(flatten)]
+        bake: BakeArgs,
+        #[command(flatten)]
+        study: cli_study::StudyFlags,
     },
     /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
     Fixtures {
@@ -119,8 +133,11 @@ struct BakeArgs {
     layout: Option<Layout>,
     /// Also shorten shells where they would pass through another part of the mesh (a BVH ray per
     /// vertex): the effect `collision` on every surface. Shells are always kept from inverting.
-    #[arg(long)]
+    #[arg(long, overrides_with = "no_clamp")]
     clamp: bool,
+    /// Do not shorten shells against other parts (turns the effect `collision` off).
+    #[arg(long)]
+    no_clamp: bool,
     /// Bend the strands down (the effect `gravity`; `[surface.gravity]` in a scene file sets
     /// direction, strength and exponent, or a `comb` direction in the UV frame; a surface's
     /// `comb_map` combs along a flow map).
@@ -179,6 +196,17 @@ struct BakeArgs {
     /// Refuse bakes whose output would exceed this size (bytes; K, M, G suffixes).
     #[arg(long, default_value = "2G", value_parser = parse_size)]
     max_output: u64,
+    /// Accuracy by intent: `draft` (fewer layers, a smaller mask, coarser positions and
+    /// texture coordinates, a looser LOD budget), `balanced` (the defaults) or `exact` (plain
+    /// floats of the exact geometry, one level of detail: what the runtime reference draws,
+    /// pixel for pixel). Applied on the preset; the other flags apply on top.
+    #[arg(long, value_parser = named(&Quality::ALL, |q| q.name()))]
+    quality: Option<Quality>,
+    /// Any parameter, as a scene file's surface section names it (`strands.mask_size=512`,
+    /// `pack.position_bits=12`, `lod.error_pixels=2`); repeatable, applied after --quality and
+    /// before the other flags.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
     /// Write the JSON report here.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -240,7 +268,11 @@ impl BakeArgs {
                 effects.sort();
             }
         }
-        for (off, effect) in [(self.no_cull, Effect::Cull), (self.no_lod, Effect::Lod)] {
+        for (off, effect) in [
+            (self.no_cull, Effect::Cull),
+            (self.no_lod, Effect::Lod),
+            (self.no_clamp, Effect::Collision),
+        ] {
             if off {
                 effects.retain(|&e| e != effect);
             }
@@ -278,15 +310,25 @@ impl BakeArgs {
             if let Some(preset) = self.preset.filter(|&p| p != s.preset) {
                 s.params = s.with_preset(preset);
             }
-            self.apply(&mut s.params, &mut s.effects);
-            s.params.check().map_err(|e| {
+            let named = |e: String| {
                 let what = if self.is_scene() {
                     format!("surface '{}': {e}", s.name)
                 } else {
-                    e.to_string()
+                    e
                 };
                 shellbake::Error::Params(what)
-            })?;
+            };
+            if let Some(q) = self.quality {
+                q.apply(&mut s.params, &mut s.effects);
+            }
+            if !self.set.is_empty() {
+                s.params = s
+                    .params
+                    .with_overrides(set_table(&self.set)?)
+                    .map_err(|e| named(format!("--set: {}", e.to_string().trim().replace('\n', " "))))?;
+            }
+            self.apply(&mut s.params, &mut s.effects);
+            s.params.check().map_err(|e| named(e.to_string()))?;
         }
         Ok(scene)
     }
@@ -302,6 +344,41 @@ impl BakeArgs {
             .clone()
             .unwrap_or_else(|| default_output(&self.input))
     }
+}
+
+/// The `--set KEY=VALUE` pairs as one table of sections (`strands.mask_size=512` →
+/// `[strands] mask_size = 512`). A value is read as TOML (numbers, booleans, arrays, quoted
+/// strings); one that does not parse is a bare string (`pack.layout=single-draw`).
+fn set_table(pairs: &[String]) -> Result<toml::Table, shellbake::Error> {
+    let bad = |pair: &str, why: &str| {
+        shellbake::Error::Params(format!("--set {pair}: {why} (expected SECTION.KEY=VALUE)"))
+    };
+    let mut table = toml::Table::new();
+    for pair in pairs {
+        let (key, value) = pair
+            .split_once('=')
+            .ok_or_else(|| bad(pair, "no '='"))?;
+        let path: Vec<&str> = key.trim().split('.').collect();
+        if path.iter().any(|k| k.is_empty()) {
+            return Err(bad(pair, "empty key"));
+        }
+        let value = toml::from_str::<toml::Table>(&format!("v = {value}"))
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(value.trim().to_string()));
+        let (last, sections) = path.split_last().expect("one key at least");
+        let mut at = &mut table;
+        for k in sections {
+            let next = at
+                .entry(k.to_string())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            at = next
+                .as_table_mut()
+                .ok_or_else(|| bad(pair, "sets a value and a section of the same name"))?;
+        }
+        at.insert(last.to_string(), value);
+    }
+    Ok(table)
 }
 
 /// `123`, `64K`, `10M`, `2G` (binary multiples).
@@ -513,6 +590,14 @@ fn main() -> ExitCode {
                 &bench.clone().into_args(),
             )?)
         }),
+        #[cfg(feature = "view")]
+        Command::Study { bake, study } => {
+            let tokens: Vec<String> = std::env::args()
+                .skip_while(|a| a != "study")
+                .skip(1)
+                .collect();
+            cli_study::run(&tokens, bake, study)
+        }
         #[cfg(feature = "view")]
         Command::Render(args) => {
             shellbake::view::cli::render(&args.clone().into_args()).map_err(Into::into)

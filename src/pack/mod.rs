@@ -153,6 +153,8 @@ pub struct PackParams {
     pub position_bits: u32,
     /// Attribute storage: quantized (`KHR_mesh_quantization`) or floats.
     pub quantize: Quantize,
+    /// Texture coordinate bits, 8–16 (see [`UvGrid`]; quantized files only).
+    pub texcoord_bits: u32,
     /// Where layer weights are written.
     pub layer_weights: LayerWeights,
 }
@@ -163,6 +165,7 @@ impl Default for PackParams {
             layout: Layout::Compact,
             position_bits: 14,
             quantize: Quantize::Khr,
+            texcoord_bits: 16,
             layer_weights: LayerWeights::Node,
         }
     }
@@ -177,6 +180,15 @@ impl PackParams {
                 format!(
                     "position_bits must be in 8..=16, got {}",
                     self.position_bits
+                ),
+            ));
+        }
+        if !(8..=16).contains(&self.texcoord_bits) {
+            return Err(ParamError::new(
+                "texcoord_bits",
+                format!(
+                    "texcoord_bits must be in 8..=16, got {}",
+                    self.texcoord_bits
                 ),
             ));
         }
@@ -585,7 +597,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         }
     });
     let uvs = mesh.uvs.as_deref().unwrap();
-    let uv_grid = UvGrid::fit(uvs);
+    let uv_grid = UvGrid::fit(uvs, params.texcoord_bits);
     let tiles = input.tiles_per_uv;
     let texel_error =
         (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();

@@ -134,28 +134,35 @@ pub fn dequantize_normal(q: [i8; 3]) -> Vec3 {
     Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) / 127.0
 }
 
-/// Normalized `u16` texture coordinates over `[lo, lo + extent]`.
+/// Normalized `u16` texture coordinates over `[lo, lo + extent]`, on a grid of `2^bits − 1`
+/// steps across it (16: every `u16`; fewer bits cost accuracy and buy nothing uncompressed,
+/// but the meshopt codec stores the coarser values in fewer bytes).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UvGrid {
     pub lo: Vec2,
     pub extent: Vec2,
+    pub bits: u32,
 }
 
 impl UvGrid {
-    pub fn fit(uvs: &[Vec2]) -> UvGrid {
+    pub fn fit(uvs: &[Vec2], bits: u32) -> UvGrid {
+        assert!((2..=16).contains(&bits));
         let (lo, hi) = crate::mesh::uv_bounds(uvs);
         let extent = (hi - lo).max(Vec2::splat(f32::MIN_POSITIVE));
         let extent = Vec2::new(
             if hi.x > lo.x { extent.x } else { 1.0 },
             if hi.y > lo.y { extent.y } else { 1.0 },
         );
-        UvGrid { lo, extent }
+        UvGrid { lo, extent, bits }
     }
 
     pub fn quantize(&self, uv: Vec2) -> [u16; 2] {
-        let q = ((uv - self.lo) / self.extent * 65535.0)
+        let levels = ((1u32 << self.bits) - 1) as f32;
+        let q = ((uv - self.lo) / self.extent * levels)
             .round()
-            .clamp(Vec2::ZERO, Vec2::splat(65535.0));
+            .clamp(Vec2::ZERO, Vec2::splat(levels));
+        // the level as a u16 fraction (exact at 16 bits)
+        let q = (q * (65535.0 / levels)).round();
         [q.x as u16, q.y as u16]
     }
 
@@ -255,9 +262,15 @@ mod tests {
     #[test]
     fn uv_round_trip_outside_unit_square() {
         let uvs = [Vec2::new(-3.0, 0.5), Vec2::new(5.0, 2.0)];
-        let g = UvGrid::fit(&uvs);
+        let g = UvGrid::fit(&uvs, 16);
         for &uv in &uvs {
             assert!((g.dequantize(g.quantize(uv)) - uv).abs().max_element() < 8.0 / 65535.0);
         }
+        // 10 bits: within half of one of 1023 steps across the extent (8 and 1.5 units)
+        let g = UvGrid::fit(&uvs, 10);
+        let mid = Vec2::new(0.123, 1.234);
+        let err = (g.dequantize(g.quantize(mid)) - mid).abs();
+        assert!(err.x <= 0.5 * 8.0 / 1023.0 + 1e-5 && err.y <= 0.5 * 1.5 / 1023.0 + 1e-5);
+        assert!(err.max_element() > 8.0 / 65535.0, "coarser than 16 bits");
     }
 }

@@ -30,6 +30,8 @@ pub struct Comparison {
     pub flip_covered: f32,
     /// FLIP error map through the magma colour map.
     pub difference: RgbaImage,
+    /// Per-pixel FLIP error in [0, 1], row by row.
+    pub flip: Vec<f32>,
 }
 
 impl Comparison {
@@ -105,6 +107,7 @@ pub fn compare(reference: &RgbaImage, test: &RgbaImage) -> Comparison {
         covered: covered_count,
         flip_covered,
         difference,
+        flip: values,
     }
 }
 

@@ -41,6 +41,7 @@ pub mod glb;
 pub mod gltf;
 pub mod gpu;
 pub mod reference;
+pub mod study;
 pub mod verify;
 pub mod window;
 
