@@ -164,16 +164,13 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
             full.to_vec()
         }
     };
-    let point = |value: String, flags: Vec<String>, base: bool| Plan {
-        value,
-        flags,
-        base,
-    };
+    let point = |value: String, flags: Vec<String>, base: bool| Plan { value, flags, base };
     let exact = "the runtime technique drawn from the exact bake".to_string();
     match knob {
         "layers" => {
             let n = p.shells.layers;
-            let at = |f: f64| ((n as f64 * f).round() as u32).clamp(2, shellbake::params::MAX_LAYERS);
+            let at =
+                |f: f64| ((n as f64 * f).round() as u32).clamp(2, shellbake::params::MAX_LAYERS);
             let mut values: Vec<u32> = pick(&[0.25, 0.5, 0.75, 1.0, 1.5, 2.0], &[0.5, 1.0])
                 .into_iter()
                 .map(at)
@@ -243,7 +240,13 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
                 points: values
                     .into_iter()
                     .map(|b| b as u32)
-                    .map(|b| point(b.to_string(), strs(&["--set", &format!("{key}={b}")]), b == base_bits))
+                    .map(|b| {
+                        point(
+                            b.to_string(),
+                            strs(&["--set", &format!("{key}={b}")]),
+                            b == base_bits,
+                        )
+                    })
                     .collect(),
                 reference: None,
                 reference_text: exact,
@@ -271,7 +274,11 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
             reference_text: exact,
         },
         "clamp" => {
-            let mut points = vec![point("off".into(), strs(&["--no-clamp"]), !has(Effect::Collision))];
+            let mut points = vec![point(
+                "off".into(),
+                strs(&["--no-clamp"]),
+                !has(Effect::Collision),
+            )];
             for k in pick(&[0.25, 0.45, 0.7], &[0.45]) {
                 let base = has(Effect::Collision) && (p.clamp.ray_keep as f64 - k).abs() < 1e-6;
                 let flags = strs(&["--clamp", "--set", &format!("clamp.ray_keep={k}")]);
@@ -308,10 +315,10 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
             }
         }
         "quality" => KnobPlan {
-            points: shellbake::params::Quality::ALL
+            points: shellbake::scene::Quality::ALL
                 .iter()
                 .map(|q| {
-                    let base = *q == shellbake::params::Quality::Balanced;
+                    let base = *q == shellbake::scene::Quality::Balanced;
                     point(q.name().into(), strs(&["--quality", q.name()]), base)
                 })
                 .collect(),
@@ -398,8 +405,10 @@ pub fn run(tokens: &[String], base: &BakeArgs, flags: &StudyFlags) -> anyhow::Re
         all.extend(extra.iter().cloned());
         shell_line(&all)
     };
-    let plans: Vec<(&'static str, KnobPlan)> =
-        knobs.iter().map(|&k| (k, plan_knob(k, &scene, quick))).collect();
+    let plans: Vec<(&'static str, KnobPlan)> = knobs
+        .iter()
+        .map(|&k| (k, plan_knob(k, &scene, quick)))
+        .collect();
     let exact_flags = strs(&["--quantize", "none", "--compress", "none", "--no-lod"]);
     let with = |a: &[String], b: &[String]| -> Vec<String> {
         base_tokens.iter().chain(a).chain(b).cloned().collect()
@@ -435,7 +444,11 @@ pub fn run(tokens: &[String], base: &BakeArgs, flags: &StudyFlags) -> anyhow::Re
         )
     };
     let exact_reference = reference_of(&exact);
-    let measure = |knob: &str, value: String, flags: &[String], b: &Baked, base: bool,
+    let measure = |knob: &str,
+                   value: String,
+                   flags: &[String],
+                   b: &Baked,
+                   base: bool,
                    reference: &[image::RgbaImage]|
      -> anyhow::Result<Point> {
         let (error, _) = study::image_error(&gpu, &b.baked.glb, reference, &cameras)?;
@@ -473,7 +486,14 @@ pub fn run(tokens: &[String], base: &BakeArgs, flags: &StudyFlags) -> anyhow::Re
         };
         for p in &k.points {
             let b = bake(&with(&p.flags, &[]), runs)?;
-            points.push(measure(knob, p.value.clone(), &p.flags, &b, p.base, reference)?);
+            points.push(measure(
+                knob,
+                p.value.clone(),
+                &p.flags,
+                &b,
+                p.base,
+                reference,
+            )?);
             tick(format!("{knob} {}", p.value));
         }
         let what = KNOBS.iter().find(|n| n.0 == *knob).map_or("", |n| n.1);
@@ -519,15 +539,33 @@ mod tests {
     #[test]
     fn study_flags_and_outputs_leave_the_bake_command() {
         let t = strs(&[
-            "fixtures/bunny.obj", "--quick", "--knobs", "layers", "--out=x", "-o", "a.glb",
-            "--layers", "16", "-q", "--size", "64",
+            "fixtures/bunny.obj",
+            "--quick",
+            "--knobs",
+            "layers",
+            "--out=x",
+            "-o",
+            "a.glb",
+            "--layers",
+            "16",
+            "-q",
+            "--size",
+            "64",
         ]);
-        assert_eq!(bake_tokens(&t), strs(&["fixtures/bunny.obj", "--layers", "16"]));
+        assert_eq!(
+            bake_tokens(&t),
+            strs(&["fixtures/bunny.obj", "--layers", "16"])
+        );
     }
 
     #[test]
     fn shell_lines_quote_what_needs_it() {
-        let t = strs(&["shellbake", "--set", "strands.model={ kind = \"cells\" }", "it's"]);
+        let t = strs(&[
+            "shellbake",
+            "--set",
+            "strands.model={ kind = \"cells\" }",
+            "it's",
+        ]);
         assert_eq!(
             shell_line(&t),
             r#"shellbake --set 'strands.model={ kind = "cells" }' 'it'\''s'"#

@@ -22,8 +22,8 @@ use image::ImageEncoder as _;
 use shellbake::compress::{Compression, MeshoptExtension};
 use shellbake::orient::OrientMode;
 use shellbake::pack::{LayerWeights, Quantize};
-use shellbake::params::{BakeParams, Layout, Preset, Quality};
-use shellbake::scene::{Effect, SceneFile};
+use shellbake::params::{BakeParams, Layout, Preset};
+use shellbake::scene::{Effect, Quality, SceneFile};
 
 #[derive(Parser)]
 #[command(
@@ -325,7 +325,12 @@ impl BakeArgs {
                 s.params = s
                     .params
                     .with_overrides(set_table(&self.set)?)
-                    .map_err(|e| named(format!("--set: {}", e.to_string().trim().replace('\n', " "))))?;
+                    .map_err(|e| {
+                        named(format!(
+                            "--set: {}",
+                            e.to_string().trim().replace('\n', " ")
+                        ))
+                    })?;
             }
             self.apply(&mut s.params, &mut s.effects);
             s.params.check().map_err(|e| named(e.to_string()))?;
@@ -355,9 +360,7 @@ fn set_table(pairs: &[String]) -> Result<toml::Table, shellbake::Error> {
     };
     let mut table = toml::Table::new();
     for pair in pairs {
-        let (key, value) = pair
-            .split_once('=')
-            .ok_or_else(|| bad(pair, "no '='"))?;
+        let (key, value) = pair.split_once('=').ok_or_else(|| bad(pair, "no '='"))?;
         let path: Vec<&str> = key.trim().split('.').collect();
         if path.iter().any(|k| k.is_empty()) {
             return Err(bad(pair, "empty key"));

@@ -111,61 +111,6 @@ fn merge(base: &mut toml::Table, over: toml::Table) {
     }
 }
 
-/// Accuracy by intent (`--quality`): three points of `shellbake study`'s Pareto front, applied
-/// on top of a preset. The README's study section gives each one's error, bytes and times.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Quality {
-    /// Half the layers (at least 8), half the mask texels per strand (the cells law), 12-bit
-    /// positions and texture coordinates, a 2-pixel LOD budget: a smaller, faster file that
-    /// still reads as the same fur.
-    Draft,
-    /// The preset as it is (14-bit positions, 16-bit texture coordinates, LOD at 1 pixel).
-    Balanced,
-    /// Plain floats of the exact geometry (`pack.quantize = "none"`) and one level of detail:
-    /// what the runtime reference draws, pixel for pixel.
-    Exact,
-}
-
-impl Quality {
-    pub const ALL: [Quality; 3] = [Quality::Draft, Quality::Balanced, Quality::Exact];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Quality::Draft => "draft",
-            Quality::Balanced => "balanced",
-            Quality::Exact => "exact",
-        }
-    }
-
-    /// Applies the setting to a surface's parameters and effects.
-    pub fn apply(self, p: &mut BakeParams, effects: &mut Vec<crate::scene::Effect>) {
-        match self {
-            Quality::Draft => {
-                p.shells.layers = (p.shells.layers / 2).max(8).min(p.shells.layers);
-                // half the texels per strand, the same strands per tile
-                if let StrandModel::Cells {
-                    texels_per_cell, ..
-                } = &mut p.strands.model
-                {
-                    if *texels_per_cell >= 4 && p.strands.mask_size >= 32 {
-                        *texels_per_cell /= 2;
-                        p.strands.mask_size /= 2;
-                    }
-                }
-                p.pack.position_bits = 12;
-                p.pack.texcoord_bits = 12;
-                p.lod.error_pixels = 2.0;
-            }
-            Quality::Balanced => {}
-            Quality::Exact => {
-                p.pack.quantize = crate::pack::Quantize::None;
-                effects.retain(|&e| e != crate::scene::Effect::Lod);
-            }
-        }
-    }
-}
-
 impl BakeParams {
     /// The named preset: the stage defaults with the preset's overrides.
     pub fn preset(preset: Preset) -> BakeParams {

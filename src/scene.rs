@@ -297,6 +297,59 @@ pub struct SceneFile {
     pub output: crate::compress::OutputParams,
 }
 
+/// Accuracy by intent (`--quality`): three points of `shellbake study`'s Pareto front, applied
+/// on top of a preset. The README's study section gives each one's error, bytes and times.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Quality {
+    /// A 4-pixel LOD budget and half the mask texels per strand (the cells law): the two knobs
+    /// on the study's GPU-time and bake-time fronts (bits save nothing in an uncompressed file,
+    /// fewer layers cost more error for the time they save). About 40 % less GPU time per frame
+    /// than `balanced` on the bunny and the dragon.
+    Draft,
+    /// The preset as it is (14-bit positions, 16-bit texture coordinates, LOD at 1 pixel).
+    Balanced,
+    /// Plain floats of the exact geometry (`pack.quantize = "none"`) and one level of detail:
+    /// what the runtime reference draws, pixel for pixel.
+    Exact,
+}
+
+impl Quality {
+    pub const ALL: [Quality; 3] = [Quality::Draft, Quality::Balanced, Quality::Exact];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Quality::Draft => "draft",
+            Quality::Balanced => "balanced",
+            Quality::Exact => "exact",
+        }
+    }
+
+    /// Applies the setting to a surface's parameters and effects.
+    pub fn apply(self, p: &mut crate::params::BakeParams, effects: &mut Vec<Effect>) {
+        match self {
+            Quality::Draft => {
+                p.lod.error_pixels = 4.0;
+                // half the texels per strand, the same strands per tile
+                if let crate::strands::StrandModel::Cells {
+                    texels_per_cell, ..
+                } = &mut p.strands.model
+                {
+                    if *texels_per_cell >= 4 && p.strands.mask_size >= 32 {
+                        *texels_per_cell /= 2;
+                        p.strands.mask_size /= 2;
+                    }
+                }
+            }
+            Quality::Balanced => {}
+            Quality::Exact => {
+                p.pack.quantize = crate::pack::Quantize::None;
+                effects.retain(|&e| e != Effect::Lod);
+            }
+        }
+    }
+}
+
 /// Name of the root node of a one-surface bake.
 pub const SINGLE_SURFACE_NAME: &str = "shellbake";
 

@@ -430,18 +430,18 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         PositionGrid::identity(params.position_bits.min(15))
     } else {
         PositionGrid::fit(
-        // the base and the fully extruded surface (bent: every layer lies within the box of
-        // `p + a·d + c·b`, a and c in [0, 1])
-        positions
-            .iter()
-            .zip(input.delta)
-            .enumerate()
-            .flat_map(|(v, (&p, &d))| {
-                let b = input.bend.map_or(Vec3::ZERO, |b| b.at(v, d, lean[v]));
-                [p, p + d, p + b, p + d + b]
-            }),
-        params.position_bits.min(15),
-    )
+            // the base and the fully extruded surface (bent: every layer lies within the box of
+            // `p + a·d + c·b`, a and c in [0, 1])
+            positions
+                .iter()
+                .zip(input.delta)
+                .enumerate()
+                .flat_map(|(v, (&p, &d))| {
+                    let b = input.bend.map_or(Vec3::ZERO, |b| b.at(v, d, lean[v]));
+                    [p, p + d, p + b, p + d + b]
+                }),
+            params.position_bits.min(15),
+        )
     };
     // on the exponent filter's grid, or as they are in a plain float file
     let delta_grid = |v: &[Vec3]| {
@@ -529,9 +529,9 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                     .map(|(v, (&d, &m))| b.at(v, d, m) / unit)
                     .collect()
             };
-            let bend_grid = input.bend.map(|b| {
-                (b, delta_grid(&bend_of(&deltas, &leans, b)))
-            });
+            let bend_grid = input
+                .bend
+                .map(|b| (b, delta_grid(&bend_of(&deltas, &leans, b))));
             let full = guard::MorphPath {
                 bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
                 ..straight
@@ -1311,8 +1311,13 @@ impl Builder<'_> {
             q.len(),
         );
         let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
-        self.out
-            .accessor(v, component, normalized, "VEC3", Some((bounds(lo), bounds(hi))))
+        self.out.accessor(
+            v,
+            component,
+            normalized,
+            "VEC3",
+            Some((bounds(lo), bounds(hi))),
+        )
     }
 
     /// `JOINTS_0` (unsigned byte, or short past 256 joints) and `WEIGHTS_0` (normalized bytes

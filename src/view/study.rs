@@ -276,8 +276,10 @@ pub fn write(dir: &Path, header: &Header, points: &[Point]) -> Result<Vec<PathBu
     let fronts: Vec<Vec<bool>> = Cost::ALL
         .iter()
         .map(|&c| {
-            let pairs: Vec<(f64, f64)> =
-                points.iter().map(|p| (c.of(p), p.error.flip_mean)).collect();
+            let pairs: Vec<(f64, f64)> = points
+                .iter()
+                .map(|p| (c.of(p), p.error.flip_mean))
+                .collect();
             pareto(&pairs)
         })
         .collect();
