@@ -174,24 +174,8 @@ impl Default for PackParams {
 impl PackParams {
     /// Checks ranges; the error names the parameter.
     pub fn check(&self) -> Result<(), ParamError> {
-        if !(8..=16).contains(&self.position_bits) {
-            return Err(ParamError::new(
-                "position_bits",
-                format!(
-                    "position_bits must be in 8..=16, got {}",
-                    self.position_bits
-                ),
-            ));
-        }
-        if !(8..=16).contains(&self.texcoord_bits) {
-            return Err(ParamError::new(
-                "texcoord_bits",
-                format!(
-                    "texcoord_bits must be in 8..=16, got {}",
-                    self.texcoord_bits
-                ),
-            ));
-        }
+        ParamError::in_range("position_bits", self.position_bits as f32, 8.0, 16.0)?;
+        ParamError::in_range("texcoord_bits", self.texcoord_bits as f32, 8.0, 16.0)?;
         Ok(())
     }
 }

@@ -10,8 +10,9 @@
 //! | `reference.rs` | the classic shell technique on the GPU from the input mesh |
 //! | `compare.rs` | FLIP and differing pixels |
 //! | `verify.rs` | bake vs reference from several cameras, with stated tolerances |
+//! | `study.rs` | `shellbake study`'s measures (image error against the reference at full accuracy, frame cost), Pareto fronts, CSV, Markdown and plots |
 //! | `window.rs` | winit window, orbit camera, layer and LOD stepping, screenshots |
-//! | `cli.rs` | the `render`, `view` and `verify` commands |
+//! | `cli.rs` | the `render`, `view`, `verify` and `bench` commands |
 //!
 //! ## Shared code between window and headless
 //! Both renderers record into a render pass on a `&TextureView` after a `prepare` call that
