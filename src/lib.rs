@@ -56,6 +56,7 @@ pub mod shells;
 pub mod skin;
 pub mod srgb;
 pub mod strands;
+pub mod tessellate;
 pub mod tiling;
 #[cfg(feature = "view")]
 pub mod view;
@@ -380,6 +381,20 @@ fn bake_surface(
     if params.orient.mode != orient::OrientMode::Auto {
         report.note("orient", &format!("--orient {}", params.orient.mode.name()));
     }
+
+    let tessellated = report.gate(plan, Stage::Tessellation, i, || {
+        tessellate::tessellate(&mut mesh, &params.tessellation)
+    });
+    let topology = match tessellated {
+        Some(t) => {
+            report.count("factor", t.factor as f64);
+            report.count("triangles_before", t.triangles_before as f64);
+            report.count("triangles_after", t.triangles_after as f64);
+            // the new vertices and triangles need their own topology
+            weld::Topology::new(&mesh.positions, &mesh.indices)
+        }
+        None => topology,
+    };
 
     let welded = report.run("weld", || weld::weld_on(&topology, &mesh.indices));
     drop(topology);

@@ -151,6 +151,10 @@ struct BakeArgs {
     /// KHR_materials_sheen; `[surface.sheen]` sets colour and roughness).
     #[arg(long)]
     sheen: bool,
+    /// Subdivide the base before shelling, Phong-smoothed (the effect `tessellation`;
+    /// `[surface.tessellation]` sets `factor`, `edge_length` and `alpha`).
+    #[arg(long)]
+    tessellate: bool,
     /// Strands sway in a looping animation (the effect `wind`; `[surface.wind]` sets direction,
     /// strength, period).
     #[arg(long)]
@@ -256,6 +260,7 @@ impl BakeArgs {
             (self.occlusion, Effect::Occlusion),
             (self.sheen, Effect::Sheen),
             (self.wind, Effect::Wind),
+            (self.tessellate, Effect::Tessellation),
         ] {
             if on && !effects.contains(&effect) {
                 effects.push(effect);

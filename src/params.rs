@@ -82,6 +82,8 @@ pub struct BakeParams {
     pub pack: PackParams,
     /// The `gravity` effect's bend (used only when a surface asks for the effect).
     pub gravity: crate::gravity::GravityParams,
+    /// The `tessellation` effect's factor and shape.
+    pub tessellation: crate::tessellate::TessellationParams,
     /// The `occlusion` effect's rays and strength.
     pub occlusion: crate::occlusion::OcclusionParams,
     /// The `sheen` effect's colour and roughness (per preset).
@@ -142,6 +144,9 @@ impl BakeParams {
         self.pack.check().map_err(|e| e.within("pack"))?;
         self.gravity.check().map_err(|e| e.within("gravity"))?;
         self.occlusion.check().map_err(|e| e.within("occlusion"))?;
+        self.tessellation
+            .check()
+            .map_err(|e| e.within("tessellation"))?;
         self.sheen.check().map_err(|e| e.within("sheen"))?;
         self.wind.check().map_err(|e| e.within("wind"))?;
         Ok(())

@@ -81,10 +81,14 @@ pub enum Effect {
     /// Strands sway: two morph targets and a looping animation of the layer weights (`--wind`,
     /// `[surface.wind]`).
     Wind,
+    /// Subdivide the base before shelling, Phong-smoothed (`--tessellate`,
+    /// `[surface.tessellation]`; also named `tessellate`).
+    #[serde(alias = "tessellate")]
+    Tessellation,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 7] = [
+    pub const ALL: [Effect; 8] = [
         Effect::Collision,
         Effect::Cull,
         Effect::Lod,
@@ -92,12 +96,16 @@ impl Effect {
         Effect::Occlusion,
         Effect::Sheen,
         Effect::Wind,
+        Effect::Tessellation,
     ];
     /// The effects every surface has unless its effect list says `no-<name>` (`--no-cull`,
     /// `--no-lod`).
     pub const DEFAULT: [Effect; 2] = [Effect::Cull, Effect::Lod];
     /// Other names of effects: `comb` is the `gravity` effect (DESIGN §6, "gravity / comb").
-    pub const ALIASES: [(&'static str, Effect); 1] = [("comb", Effect::Gravity)];
+    pub const ALIASES: [(&'static str, Effect); 2] = [
+        ("comb", Effect::Gravity),
+        ("tessellate", Effect::Tessellation),
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -108,6 +116,7 @@ impl Effect {
             Effect::Occlusion => "occlusion",
             Effect::Sheen => "sheen",
             Effect::Wind => "wind",
+            Effect::Tessellation => "tessellation",
         }
     }
 
@@ -137,6 +146,7 @@ impl Effect {
             Effect::Occlusion => Stage::Occlusion,
             Effect::Sheen => Stage::Sheen,
             Effect::Wind => Stage::Wind,
+            Effect::Tessellation => Stage::Tessellation,
         }
     }
 }
@@ -147,6 +157,7 @@ pub enum Stage {
     Load,
     Merge,
     Orient,
+    Tessellation,
     Weld,
     Frames,
     Smooth,
@@ -166,10 +177,11 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 19] = [
+    pub const ALL: [Stage; 20] = [
         Stage::Load,
         Stage::Merge,
         Stage::Orient,
+        Stage::Tessellation,
         Stage::Weld,
         Stage::Frames,
         Stage::Smooth,
@@ -194,6 +206,7 @@ impl Stage {
             Stage::Load => "load",
             Stage::Merge => "merge",
             Stage::Orient => "orient",
+            Stage::Tessellation => "tessellation",
             Stage::Weld => "weld",
             Stage::Frames => "frames",
             Stage::Smooth => "smooth",
@@ -367,8 +380,9 @@ const SURFACE_KEYS: [&str; 9] = [
 ];
 
 /// Sections of [`BakeParams`] a surface may override.
-const SECTIONS: [&str; 11] = [
+const SECTIONS: [&str; 12] = [
     "orient",
+    "tessellation",
     "clamp",
     "strands",
     "shells",

@@ -1,5 +1,5 @@
 //! DESIGN §9: one test per hard case, each named after it, generated in code. A case either bakes
-//! (with the clamp on) to output that is finite everywhere, whose layer triangles never face
+//! (with the clamp on, every preset, both layouts, and once more tessellated) to output that is finite everywhere, whose layer triangles never face
 //! against their base triangles, whose layers never cross the mesh, and that the glTF-Validator
 //! passes with no errors and no warnings — or it is refused with an error naming the file and
 //! the element, and nothing is written.
@@ -45,6 +45,24 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
             shellbake::write::write_glb(&file, &baked.glb).unwrap();
             files.push(file);
         }
+    }
+    // and tessellated first (factor 2, Phong): the same invariants on the subdivided base
+    for layout in [Layout::Compact, Layout::SingleDraw] {
+        let mut p = BakeParams::preset(Preset::Fur);
+        p.pack.layout = layout;
+        p.shells.layers = 16;
+        p.tessellation.factor = 2;
+        if let Some(f) = height_fraction {
+            p.shells.height_fraction = f;
+        }
+        let baked = shellbake::bake_with(&scene, &p, &[Effect::Collision, Effect::Tessellation]);
+        let what = format!("{case} tessellated {layout:?}");
+        all_finite(&baked.glb, &what);
+        no_layer_inverts(&baked, &what);
+        no_layer_crosses_the_mesh(&baked, &what);
+        let file = dir.join(format!("{case}-tessellated-{layout:?}.glb"));
+        shellbake::write::write_glb(&file, &baked.glb).unwrap();
+        files.push(file);
     }
     assert_valid(&files);
 }
