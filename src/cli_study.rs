@@ -20,9 +20,10 @@
 //! | `clamp` | off, ray fraction 0.25, 0.45, 0.7 [off, 0.45] | no clamp |
 //! | `occlusion` | 4, 8, 16, 32, 64 samples [8, 32] | 256 samples |
 //! | `compress` | none, meshopt | exact |
+//! | `tess` | tessellation factor 1 (off), 2, 3, 4 [1, 2] | the technique on the base tessellated at 8 |
 //! | `quality` | draft, balanced, exact | exact |
 //!
-//! Tessellation has no knob yet: the effect does not exist. "exact" is the base with
+//! "exact" is the base with
 //! `--quantize none --compress none --no-lod`; it is measured first, as the anchor.
 
 use std::path::PathBuf;
@@ -41,7 +42,7 @@ use crate::{BakeArgs, Cli, Command};
 #[derive(Args, Clone, Debug)]
 pub struct StudyFlags {
     /// Knobs to sweep, comma-separated: layers, mask, bits, uv-bits, lod, cull, clamp,
-    /// occlusion, compress, quality [default: all].
+    /// occlusion, compress, tess, quality [default: all].
     #[arg(long, value_delimiter = ',')]
     knobs: Vec<String>,
     /// Folder for study.csv, study.md and the plots.
@@ -65,7 +66,7 @@ pub struct StudyFlags {
 }
 
 /// The knobs, in the order they are swept: name and what it is.
-pub const KNOBS: [(&str, &str); 10] = [
+pub const KNOBS: [(&str, &str); 11] = [
     ("layers", "layer count"),
     ("mask", "mask resolution (texels per strand cell)"),
     ("bits", "position bits"),
@@ -75,6 +76,7 @@ pub const KNOBS: [(&str, &str); 10] = [
     ("clamp", "collision clamp and its ray fraction"),
     ("occlusion", "occlusion samples"),
     ("compress", "buffer compression"),
+    ("tess", "tessellation factor (Phong)"),
     ("quality", "--quality"),
 ];
 
@@ -312,6 +314,25 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
                     .collect(),
                 reference: None,
                 reference_text: exact,
+            }
+        }
+        "tess" => {
+            // (a base tessellated to an edge length has no factor of its own to mark)
+            let base = match (has(Effect::Tessellation), p.tessellation.edge_length) {
+                (false, _) => 1,
+                (true, None) => p.tessellation.factor,
+                (true, Some(_)) => 0,
+            };
+            let flags =
+                |n: u32| strs(&["--tessellate", "--set", &format!("tessellation.factor={n}")]);
+            KnobPlan {
+                points: pick(&[1.0, 2.0, 3.0, 4.0], &[1.0, 2.0])
+                    .into_iter()
+                    .map(|n| n as u32)
+                    .map(|n| point(n.to_string(), flags(n), n == base))
+                    .collect(),
+                reference: Some(flags(8)),
+                reference_text: "the runtime technique on the base tessellated at factor 8".into(),
             }
         }
         "quality" => KnobPlan {

@@ -22,14 +22,15 @@
 //! edges and would open cracks, the well-known failure of both Phong and PN tessellation): they
 //! are the angle-weighted face normals gathered per *position*, the same for every copy of a
 //! vertex. A new point on an edge is computed from the edge's two positions taken in a fixed
-//! order (by their bits), so the two sides of a UV seam or hard edge compute bit-identical points
+//! order (by the weld's position ids), so the two sides of a UV seam or hard edge compute bit-identical points
 //! and the weld joins them again. Interior points belong to one triangle.
 //!
 //! **Attributes.** Texture coordinates, normals (renormalised) and colours are interpolated
 //! barycentrically from the triangle's own corners; a skinned vertex takes the influences of
 //! its nearest corner (joint sets do not interpolate). A triangle with two corners at one
 //! position (a UV sphere's pole) is kept as it is: the weld drops it, and its neighbours' shared
-//! edges are cut the same way from both sides.
+//! edges are cut the same way from both sides. "One position" is the weld's: equal bits, with
+//! -0 equal to 0.
 
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
@@ -105,19 +106,11 @@ pub struct Tessellated {
     pub triangles_after: usize,
 }
 
-/// Angle-weighted face normal per distinct position (every copy of a position gets the same).
-fn position_normals(mesh: &Mesh) -> Vec<Vec3> {
-    let key = |p: Vec3| p.to_array().map(f32::to_bits);
-    let mut id = std::collections::HashMap::new();
-    let slot: Vec<usize> = mesh
-        .positions
-        .iter()
-        .map(|&p| {
-            let n = id.len();
-            *id.entry(key(p)).or_insert(n)
-        })
-        .collect();
-    let mut sum = vec![glam::DVec3::ZERO; id.len()];
+/// Angle-weighted face normal per distinct position (`ids`: the weld's position ids; every
+/// copy of a position gets the same).
+fn position_normals(mesh: &Mesh, ids: &[u32], unique: usize) -> Vec<Vec3> {
+    let slot: Vec<usize> = ids.iter().map(|&i| i as usize).collect();
+    let mut sum = vec![glam::DVec3::ZERO; unique];
     for t in mesh.indices.chunks_exact(3) {
         let p = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
         let n = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -160,7 +153,9 @@ pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
             triangles_after: before,
         };
     }
-    let normals = position_normals(mesh);
+    // positions as the weld tells them apart (-0 is 0)
+    let (ids, unique) = crate::weld::position_ids(&mesh.positions);
+    let normals = position_normals(mesh, &ids, unique.len());
     let src = mesh.clone();
     let nf = n as f32;
     // a new vertex: position, and attributes from corners `c` at barycentrics `w`
@@ -194,7 +189,7 @@ pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
         }
         id
     };
-    let key = |p: Vec3| p.to_array().map(f32::to_bits);
+    let key = |v: u32| ids[v as usize];
     // the n − 1 points inside edge (i, j), i < j, from i to j
     let mut edges: std::collections::HashMap<(u32, u32), Vec<u32>> =
         std::collections::HashMap::new();
@@ -203,7 +198,7 @@ pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
         let c = [t[0], t[1], t[2]];
         let p = c.map(|v| src.positions[v as usize]);
         let nn = c.map(|v| normals[v as usize]);
-        if (0..3).any(|k| key(p[k]) == key(p[(k + 1) % 3])) {
+        if (0..3).any(|k| key(c[k]) == key(c[(k + 1) % 3])) {
             // two corners at one position: the weld drops the triangle; cut, its points would
             // differ from its neighbours' by rounding and leave slivers
             indices.extend(c);
@@ -219,8 +214,9 @@ pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
             let k_lo = if lo == i { k } else { n - k };
             let list = edges.entry((c[lo], c[hi])).or_default();
             if list.is_empty() {
-                // positions from the corners in their bit order: both sides of a seam agree
-                let (a, b) = if key(p[lo]) <= key(p[hi]) {
+                // positions from the corners in the order of their position ids: both sides
+                // of a seam agree
+                let (a, b) = if key(c[lo]) <= key(c[hi]) {
                     (lo, hi)
                 } else {
                     (hi, lo)

@@ -199,6 +199,7 @@ fn a_bake_asking_for_no_effect_runs_none_and_builds_no_bvh() {
         Effect::Gravity,
         Effect::Wind,
         Effect::Sheen,
+        Effect::Tessellation,
     ] {
         let st = baked.report.stage(effect.name()).unwrap();
         assert!(!st.ran, "{st:?}");

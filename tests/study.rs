@@ -108,6 +108,7 @@ fn quick_study_of_the_bunny() {
         "clamp",
         "occlusion",
         "compress",
+        "tess",
         "quality",
     ] {
         assert!(md.contains(&format!("## `{knob}`")), "no table for {knob}");
@@ -138,6 +139,7 @@ fn quick_study_of_the_bunny() {
     assert!(num(at("lod", "off"), "triangles") > num(at("lod", "1 px"), "triangles"));
     assert!(num(at("cull", "off"), "triangles") > num(at("cull", "on"), "triangles"));
     assert!(num(at("quality", "draft"), "triangles") < num(at("quality", "balanced"), "triangles"));
+    assert!(num(at("tess", "2"), "triangles") > 3.0 * num(at("tess", "1"), "triangles"));
     // every point has a cost and a base is marked per knob
     for r in &rows {
         assert!(
@@ -147,7 +149,7 @@ fn quick_study_of_the_bunny() {
         assert!(num(r, "bytes") > 0.0 && num(r, "triangles") > 0.0, "{r:?}");
         assert!(r["adapter"].contains("llvmpipe") || !r["adapter"].is_empty());
     }
-    assert!(rows.iter().filter(|r| r["base"] == "true").count() >= 9);
+    assert!(rows.iter().filter(|r| r["base"] == "true").count() >= 10);
     assert!(rows.iter().any(|r| r["front_bytes"] == "true"));
 
     // the printed command makes the point's file
