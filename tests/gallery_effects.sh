@@ -39,6 +39,22 @@ cp fixtures/tube_skinned.glb "$work/"
 printf '[[surface]]\nmesh = "tube_skinned.glb"\neffects = ["comb"]\n[surface.gravity]\ncomb = [0.0, 1.0]\nstrength = 0.6\n' \
   > "$work/tube-comb.toml"
 "$bin" bake "$work/tube-comb.toml" -o "$work/tube-comb.glb" -q
+# tessellation: a coarse UV sphere (6 rings, 10 segments), as it is and cut by 4 with Phong
+node -e '
+const R = 6, S = 10, v = [], f = [];
+for (let i = 0; i <= R; i++) for (let j = 0; j <= S; j++) {
+  const t = Math.PI * i / R, p = 2 * Math.PI * j / S;
+  v.push(`v ${(Math.sin(t) * Math.cos(p)).toFixed(6)} ${Math.cos(t).toFixed(6)} ${(Math.sin(t) * Math.sin(p)).toFixed(6)}`);
+  v.push(`vt ${(j / S).toFixed(6)} ${(i / R).toFixed(6)}`);
+}
+for (let i = 0; i < R; i++) for (let j = 0; j < S; j++) {
+  const a = i * (S + 1) + j + 1, b = a + S + 1;
+  f.push(`f ${a}/${a} ${a + 1}/${a + 1} ${b + 1}/${b + 1}`, `f ${a}/${a} ${b + 1}/${b + 1} ${b}/${b}`);
+}
+console.log(v.filter((_, k) => k % 2 == 0).join("\n") + "\n" + v.filter((_, k) => k % 2 == 1).join("\n") + "\n" + f.join("\n"));
+' > "$work/coarse.obj"
+"$bin" bake "$work/coarse.obj" --preset moss -o "$work/coarse.glb" -q
+"$bin" bake "$work/coarse.obj" --preset moss --tessellate --set tessellation.factor=4 -o "$work/coarse-tess.glb" -q
 job "$work/bunny.glb" "$out/effect-none.png" 90 10 1.5 30 null
 job "$work/bunny-gravity.glb" "$out/effect-gravity.png" 90 10 1.5 30 null
 job "$work/bunny-sheen.glb" "$out/effect-sheen.png" 90 10 1.5 30 null
@@ -51,6 +67,8 @@ job "$work/effects.glb" "$out/effect-scene-1.png" 25 18 1.3 40 2.25
 job "$work/tube.glb" "$out/effect-skin-0.png" 0 5 2.6 35 0.5
 job "$work/tube.glb" "$out/effect-skin-1.png" 0 5 2.6 35 1.5
 job "$work/tube-comb.glb" "$out/effect-comb.png" 0 5 2.6 35 0.5
+job "$work/coarse.glb" "$out/effect-tess-none.png" 20 15 2.4 35 null
+job "$work/coarse-tess.glb" "$out/effect-tess.png" 20 15 2.4 35 null
 jobs+="]"
 echo "$jobs" > "$work/jobs.json"
 node tests/js/three_render.mjs "$work/jobs.json"
