@@ -447,14 +447,26 @@ fn plot(header: &Header, points: &[Point], cost: Cost, front: &[bool]) -> Result
     {
         let root = BitMapBackend::with_buffer(&mut buffer, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let xs: Vec<f64> = points.iter().map(|p| cost.of(p) * cost.scale()).collect();
+        let xs: Vec<f64> = points
+            .iter()
+            .map(|p| (cost.of(p) * cost.scale()).max(1e-6))
+            .collect();
         let ys: Vec<f64> = points.iter().map(|p| p.error.flip_mean).collect();
-        let span = |v: &[f64]| {
-            let lo = v.iter().copied().fold(f64::INFINITY, f64::min).min(0.0);
-            let hi = v.iter().copied().fold(0.0f64, f64::max).max(1e-6);
-            (lo, hi * 1.08)
+        // costs on a log axis (a knob may multiply them: tessellation, layers), error linear
+        let positive = |v: f64| if v > 0.0 { v } else { 1e-6 };
+        let x0 = xs.iter().copied().map(positive).fold(f64::INFINITY, f64::min);
+        let x1 = xs.iter().copied().map(positive).fold(0.0f64, f64::max);
+        // whole decades, so the axis has labels (plotters labels powers of ten and the steps
+        // between them)
+        let (x0, x1) = if x0.is_finite() && x1 >= x0 {
+            (
+                10f64.powf((x0 / 1.1).log10().floor()),
+                10f64.powf((x1 * 1.1).log10().ceil()),
+            )
+        } else {
+            (1e-3, 1.0)
         };
-        let ((x0, x1), (y0, y1)) = (span(&xs), span(&ys));
+        let (y0, y1) = (0.0, ys.iter().copied().fold(0.0f64, f64::max).max(1e-6) * 1.08);
         let title = format!(
             "{}: image error against {} ({})",
             header.input,
@@ -466,11 +478,16 @@ fn plot(header: &Header, points: &[Point], cost: Cost, front: &[bool]) -> Result
             .margin(16)
             .x_label_area_size(44)
             .y_label_area_size(64)
-            .build_cartesian_2d(x0..x1, y0..y1)
+            .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
             .map_err(|e| err(e.to_string()))?;
         chart
             .configure_mesh()
-            .x_desc(cost.label())
+            .x_desc(format!("{} (log scale)", cost.label()))
+            .x_label_formatter(&|v| match *v {
+                v if v >= 100.0 => format!("{v:.0}"),
+                v if v >= 1.0 => format!("{v:.1}"),
+                v => format!("{v:.2}"),
+            })
             .y_desc("FLIP mean (four views)")
             .label_style((FONT, 14))
             .axis_desc_style((FONT, 15))
