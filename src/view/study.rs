@@ -454,7 +454,11 @@ fn plot(header: &Header, points: &[Point], cost: Cost, front: &[bool]) -> Result
         let ys: Vec<f64> = points.iter().map(|p| p.error.flip_mean).collect();
         // costs on a log axis (a knob may multiply them: tessellation, layers), error linear
         let positive = |v: f64| if v > 0.0 { v } else { 1e-6 };
-        let x0 = xs.iter().copied().map(positive).fold(f64::INFINITY, f64::min);
+        let x0 = xs
+            .iter()
+            .copied()
+            .map(positive)
+            .fold(f64::INFINITY, f64::min);
         let x1 = xs.iter().copied().map(positive).fold(0.0f64, f64::max);
         // whole decades, so the axis has labels (plotters labels powers of ten and the steps
         // between them)
@@ -466,7 +470,10 @@ fn plot(header: &Header, points: &[Point], cost: Cost, front: &[bool]) -> Result
         } else {
             (1e-3, 1.0)
         };
-        let (y0, y1) = (0.0, ys.iter().copied().fold(0.0f64, f64::max).max(1e-6) * 1.08);
+        let (y0, y1) = (
+            0.0,
+            ys.iter().copied().fold(0.0f64, f64::max).max(1e-6) * 1.08,
+        );
         let title = format!(
             "{}: image error against {} ({})",
             header.input,
@@ -476,6 +483,8 @@ fn plot(header: &Header, points: &[Point], cost: Cost, front: &[bool]) -> Result
         let mut chart = ChartBuilder::on(&root)
             .caption(title, (FONT, 18))
             .margin(16)
+            // room for the last cost label, centred on the right edge
+            .margin_right(44)
             .x_label_area_size(44)
             .y_label_area_size(64)
             .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
