@@ -200,8 +200,8 @@ struct BakeArgs {
     /// Refuse bakes whose output would exceed this size (bytes; K, M, G suffixes).
     #[arg(long, default_value = "2G", value_parser = parse_size)]
     max_output: u64,
-    /// Accuracy by intent: `draft` (fewer layers, a smaller mask, coarser positions and
-    /// texture coordinates, a looser LOD budget), `balanced` (the defaults) or `exact` (plain
+    /// Accuracy by intent: `draft` (a 4-pixel LOD budget and half the mask texels per strand),
+    /// `balanced` (the defaults) or `exact` (plain
     /// floats of the exact geometry, one level of detail: what the runtime reference draws,
     /// pixel for pixel). Applied on the preset; the other flags apply on top.
     #[arg(long, value_parser = named(&Quality::ALL, |q| q.name()))]

@@ -278,14 +278,19 @@ struct Geometry<'a> {
 }
 
 impl Geometry<'_> {
-    /// Position `p` as the POSITION stream stores it: its grid level, or itself in a plain
-    /// float file.
+    /// Position `p` as the POSITION stream stores it ([`stored_position`]).
     fn stored(&self, p: Vec3) -> Vec3 {
-        if self.exact {
-            p
-        } else {
-            self.grid.quantize(p).map(f32::from).into()
-        }
+        stored_position(&self.grid, self.exact, p)
+    }
+}
+
+/// Position `p` as the POSITION stream stores it: its level on `grid`, or itself in a plain
+/// float file (`exact`).
+fn stored_position(grid: &PositionGrid, exact: bool, p: Vec3) -> Vec3 {
+    if exact {
+        p
+    } else {
+        grid.quantize(p).map(f32::from).into()
     }
 }
 
@@ -485,14 +490,10 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     };
     let (guarded, bent_less) = match params.layout {
         Layout::Compact => {
-            let base: Vec<Vec3> = if exact {
-                positions.to_vec()
-            } else {
-                positions
-                    .iter()
-                    .map(|&p| grid.quantize(p).map(f32::from).into())
-                    .collect()
-            };
+            let base: Vec<Vec3> = positions
+                .iter()
+                .map(|&p| stored_position(&grid, exact, p))
+                .collect();
             // deltas are stored on the exponent filter's grid (compressed or not, so a
             // compressed file's twin is the plain file), and checked as stored
             let stored: Vec<Vec3> = deltas.iter().map(|&d| d / unit).collect();

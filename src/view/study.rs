@@ -35,6 +35,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use image::ImageEncoder as _;
 use image::RgbaImage;
 
 use super::camera::{Camera, NamedView, Sphere};
@@ -565,8 +566,6 @@ fn plot(header: &Header, points: &[Point], cost: Cost, front: &[bool]) -> Result
         .map_err(|e| err(e.to_string()))?;
     Ok(png)
 }
-
-use image::ImageEncoder as _;
 
 #[cfg(test)]
 mod tests {
