@@ -167,6 +167,14 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
         }
     };
     let point = |value: String, flags: Vec<String>, base: bool| Plan { value, flags, base };
+    // an integer knob: a point per value (the quick mode's values alone), the base's marked
+    let sweep = |full: &[u32], fast: &[u32], base: u32, flags: &dyn Fn(u32) -> Vec<String>| {
+        let values = if quick { fast } else { full };
+        values
+            .iter()
+            .map(|&v| point(v.to_string(), flags(v), v == base))
+            .collect::<Vec<Plan>>()
+    };
     let exact = "the runtime technique drawn from the exact bake".to_string();
     match knob {
         "layers" => {
@@ -218,11 +226,7 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
                 StrandModel::Noise { .. } => " (noise law: mask side / 8)",
             };
             KnobPlan {
-                points: pick(&[2.0, 4.0, 8.0, 16.0], &[4.0, 8.0])
-                    .into_iter()
-                    .map(|t| t as u32)
-                    .map(|t| point(t.to_string(), model(t), t == base_t))
-                    .collect(),
+                points: sweep(&[2, 4, 8, 16], &[4, 8], base_t, &model),
                 reference: Some(model(32)),
                 reference_text: format!("the runtime technique at 32 texels per strand cell{unit}"),
             }
@@ -233,23 +237,10 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
             } else {
                 ("pack.texcoord_bits", p.pack.texcoord_bits)
             };
-            let values = if knob == "bits" {
-                pick(&[8.0, 10.0, 12.0, 14.0, 16.0], &[10.0, 14.0])
-            } else {
-                pick(&[8.0, 10.0, 12.0, 14.0, 16.0], &[10.0, 16.0])
-            };
+            let fast: &[u32] = if knob == "bits" { &[10, 14] } else { &[10, 16] };
+            let flags = |b: u32| strs(&["--set", &format!("{key}={b}")]);
             KnobPlan {
-                points: values
-                    .into_iter()
-                    .map(|b| b as u32)
-                    .map(|b| {
-                        point(
-                            b.to_string(),
-                            strs(&["--set", &format!("{key}={b}")]),
-                            b == base_bits,
-                        )
-                    })
-                    .collect(),
+                points: sweep(&[8, 10, 12, 14, 16], fast, base_bits, &flags),
                 reference: None,
                 reference_text: exact,
             }
@@ -293,15 +284,17 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
             }
         }
         "occlusion" => KnobPlan {
-            points: pick(&[4.0, 8.0, 16.0, 32.0, 64.0], &[8.0, 32.0])
-                .into_iter()
-                .map(|n| n as u32)
-                .map(|n| {
-                    let base = has(Effect::Occlusion) && p.occlusion.samples == n;
-                    let flags = strs(&["--occlusion", "--set", &format!("occlusion.samples={n}")]);
-                    point(n.to_string(), flags, base)
-                })
-                .collect(),
+            points: sweep(
+                &[4, 8, 16, 32, 64],
+                &[8, 32],
+                // no point is the base when the base has no occlusion
+                if has(Effect::Occlusion) {
+                    p.occlusion.samples
+                } else {
+                    0
+                },
+                &|n| strs(&["--occlusion", "--set", &format!("occlusion.samples={n}")]),
+            ),
             reference: Some(strs(&["--occlusion", "--set", "occlusion.samples=256"])),
             reference_text: "the runtime technique with occlusion of 256 samples".into(),
         },
@@ -326,11 +319,7 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
             let flags =
                 |n: u32| strs(&["--tessellate", "--set", &format!("tessellation.factor={n}")]);
             KnobPlan {
-                points: pick(&[1.0, 2.0, 3.0, 4.0], &[1.0, 2.0])
-                    .into_iter()
-                    .map(|n| n as u32)
-                    .map(|n| point(n.to_string(), flags(n), n == base))
-                    .collect(),
+                points: sweep(&[1, 2, 3, 4], &[1, 2], base, &flags),
                 reference: Some(flags(8)),
                 reference_text: "the runtime technique on the base tessellated at factor 8".into(),
             }
