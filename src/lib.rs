@@ -37,6 +37,7 @@ pub mod clamp;
 pub mod compress;
 pub mod cull;
 pub mod error;
+pub mod fins;
 pub mod frames;
 pub mod gravity;
 pub mod grid;
@@ -46,6 +47,7 @@ pub mod maps;
 pub mod mesh;
 pub mod occlusion;
 pub mod orient;
+pub mod outline;
 pub mod pack;
 pub mod params;
 pub mod procedural;
@@ -96,6 +98,10 @@ pub struct BakedSurface {
     pub levels: Vec<lod::Level>,
     /// The skin `mesh.skin` indexes, placed, when the input is skinned.
     pub skeleton: Option<skin::Skeleton>,
+    /// The `fins` effect's edges and strip.
+    pub fins: Option<fins::Fins>,
+    /// The `outline` effect's hull.
+    pub outline: Option<outline::Outline>,
 }
 
 /// Everything a scene bake produced.
@@ -552,6 +558,44 @@ fn bake_surface(
 
     // a skinned mesh's node must be a root: no chunk or LOD nodes above it (see `skin`)
     let skinned = scene.skeleton.is_some();
+    // fins and outlines are not skinned: a skinned surface skips them with the reason
+    let unskinned = |report: &mut Report, stage: Stage| {
+        let skip = skinned && plan.runs(stage, i);
+        if skip {
+            report.skip(stage.name(), "skinned surface: fins and outlines are not skinned");
+        }
+        !skip
+    };
+    let fins = unskinned(&mut report, Stage::Fins)
+        .then(|| {
+            report.gate(plan, Stage::Fins, i, || {
+                let top = shells.t.last().copied().unwrap_or(0.0);
+                let scale = (&params.shade, top, density);
+                fins::fins(&mesh, &mask, scale, &params.fins, params.strands.seed)
+            })
+        })
+        .flatten();
+    if let Some(f) = &fins {
+        report.count("fins", f.edges.len() as f64);
+        report.count("fin_candidates", f.candidates as f64);
+    }
+    let outline = unskinned(&mut report, Stage::Outline)
+        .then(|| {
+            report.gate(plan, Stage::Outline, i, || {
+                let width = params.outline.resolved_width(diagonal);
+                // with `collision`, the clamp's bound (what it lets the shells extrude) holds
+                // the hull too
+                let limit: Option<Vec<f32>> = plan
+                    .runs(Stage::Collision, i)
+                    .then(|| clamp.scale.iter().map(|s| s * height).collect());
+                outline::outline(&frames.direction, limit.as_deref(), width, &params.outline)
+            })
+        })
+        .flatten();
+    if let Some(o) = &outline {
+        report.count("outline_width", o.width as f64);
+        report.count("outline_clamped", o.clamped as f64);
+    }
     let lod_runs = plan.runs(Stage::Lod, i) && !skinned;
     let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
     let levels = if skinned && plan.runs(Stage::Lod, i) {
@@ -693,6 +737,8 @@ fn bake_surface(
         occlusion: shells.occlusion.as_deref(),
         sheen: shells.sheen.as_ref(),
         skeleton: scene.skeleton.as_ref(),
+        fins: fins.as_ref(),
+        outline: outline.as_ref(),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(
@@ -701,6 +747,12 @@ fn bake_surface(
     );
     report.count("guarded_vertices", surface_packed.guarded as f64);
     report.count("bent_less_vertices", surface_packed.bent_less as f64);
+    report.count_on(Stage::Fins.name(), "fin_bytes", surface_packed.fin_bytes as f64);
+    report.count_on(
+        Stage::Outline.name(),
+        "outline_bytes",
+        surface_packed.outline_bytes as f64,
+    );
     report.lods = levels
         .iter()
         .zip(&surface_packed.lod_triangles)
@@ -740,6 +792,8 @@ fn bake_surface(
         culled: culled.into_iter().next().expect("LOD 0"),
         levels,
         skeleton: scene.skeleton.clone(),
+        fins,
+        outline,
     }
 }
 

@@ -155,6 +155,14 @@ struct BakeArgs {
     /// `[surface.tessellation]` sets `factor`, `edge_length` and `alpha`).
     #[arg(long)]
     tessellate: bool,
+    /// Fin quads on mesh edges, textured from the strand model, so silhouettes show strands
+    /// (the effect `fins`; `[surface.fins]` sets `angle`, `density` and `rows`).
+    #[arg(long)]
+    fins: bool,
+    /// An inverted-hull outline in one unlit colour (the effect `outline`; `[surface.outline]`
+    /// sets `width` or `width_fraction`, and `color`).
+    #[arg(long)]
+    outline: bool,
     /// Strands sway in a looping animation (the effect `wind`; `[surface.wind]` sets direction,
     /// strength, period).
     #[arg(long)]
@@ -261,6 +269,8 @@ impl BakeArgs {
             (self.sheen, Effect::Sheen),
             (self.wind, Effect::Wind),
             (self.tessellate, Effect::Tessellation),
+            (self.fins, Effect::Fins),
+            (self.outline, Effect::Outline),
         ] {
             if on && !effects.contains(&effect) {
                 effects.push(effect);

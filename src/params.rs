@@ -90,6 +90,10 @@ pub struct BakeParams {
     pub sheen: crate::sheen::SheenParams,
     /// The `wind` effect's sway and period.
     pub wind: crate::wind::WindParams,
+    /// The `fins` effect's edge rule and strip.
+    pub fins: crate::fins::FinParams,
+    /// The `outline` effect's width and colour.
+    pub outline: crate::outline::OutlineParams,
 }
 
 /// Keys whose value replaces the base value whole instead of merging into it: a strand model
@@ -149,6 +153,8 @@ impl BakeParams {
             .map_err(|e| e.within("tessellation"))?;
         self.sheen.check().map_err(|e| e.within("sheen"))?;
         self.wind.check().map_err(|e| e.within("wind"))?;
+        self.fins.check().map_err(|e| e.within("fins"))?;
+        self.outline.check().map_err(|e| e.within("outline"))?;
         Ok(())
     }
 

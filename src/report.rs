@@ -142,6 +142,13 @@ impl Report {
         stage.counts.insert(key.into(), value.into());
     }
 
+    /// Adds count `key` to stage `name`, when that stage ran.
+    pub fn count_on(&mut self, name: &str, key: &str, value: impl Into<f64>) {
+        if let Some(stage) = self.stages.iter_mut().find(|s| s.name == name && s.ran) {
+            stage.counts.insert(key.into(), value.into());
+        }
+    }
+
     pub fn stage(&self, name: &str) -> Option<&Stage> {
         self.stages.iter().find(|s| s.name == name)
     }

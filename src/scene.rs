@@ -85,10 +85,14 @@ pub enum Effect {
     /// `[surface.tessellation]`; also named `tessellate`).
     #[serde(alias = "tessellate")]
     Tessellation,
+    /// Fin quads on mesh edges, textured from the strand model (`--fins`, `[surface.fins]`).
+    Fins,
+    /// An inverted hull in one unlit colour (`--outline`, `[surface.outline]`).
+    Outline,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 8] = [
+    pub const ALL: [Effect; 10] = [
         Effect::Collision,
         Effect::Cull,
         Effect::Lod,
@@ -97,6 +101,8 @@ impl Effect {
         Effect::Sheen,
         Effect::Wind,
         Effect::Tessellation,
+        Effect::Fins,
+        Effect::Outline,
     ];
     /// The effects every surface has unless its effect list says `no-<name>` (`--no-cull`,
     /// `--no-lod`).
@@ -117,6 +123,8 @@ impl Effect {
             Effect::Sheen => "sheen",
             Effect::Wind => "wind",
             Effect::Tessellation => "tessellation",
+            Effect::Fins => "fins",
+            Effect::Outline => "outline",
         }
     }
 
@@ -147,6 +155,8 @@ impl Effect {
             Effect::Sheen => Stage::Sheen,
             Effect::Wind => Stage::Wind,
             Effect::Tessellation => Stage::Tessellation,
+            Effect::Fins => Stage::Fins,
+            Effect::Outline => Stage::Outline,
         }
     }
 }
@@ -170,6 +180,8 @@ pub enum Stage {
     Gravity,
     Wind,
     Sheen,
+    Fins,
+    Outline,
     Cull,
     Lod,
     Pack,
@@ -177,7 +189,7 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 20] = [
+    pub const ALL: [Stage; 22] = [
         Stage::Load,
         Stage::Merge,
         Stage::Orient,
@@ -194,6 +206,8 @@ impl Stage {
         Stage::Gravity,
         Stage::Wind,
         Stage::Sheen,
+        Stage::Fins,
+        Stage::Outline,
         Stage::Cull,
         Stage::Lod,
         Stage::Pack,
@@ -219,6 +233,8 @@ impl Stage {
             Stage::Occlusion => "occlusion",
             Stage::Wind => "wind",
             Stage::Sheen => "sheen",
+            Stage::Fins => "fins",
+            Stage::Outline => "outline",
             Stage::Cull => "cull",
             Stage::Lod => "lod",
             Stage::Pack => "pack",
@@ -380,7 +396,7 @@ const SURFACE_KEYS: [&str; 9] = [
 ];
 
 /// Sections of [`BakeParams`] a surface may override.
-const SECTIONS: [&str; 12] = [
+const SECTIONS: [&str; 14] = [
     "orient",
     "tessellation",
     "clamp",
@@ -393,6 +409,8 @@ const SECTIONS: [&str; 12] = [
     "occlusion",
     "sheen",
     "wind",
+    "fins",
+    "outline",
 ];
 
 /// One step of a key path inside the scene file.

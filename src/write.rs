@@ -239,11 +239,13 @@ pub fn gltf_json_with(
             .map(|s| json!({ "name": s.name, "inverseBindMatrices": s.inverse_bind, "joints": s.joints }))
             .collect();
     }
-    if packed.materials.iter().any(|m| m.sheen.is_some()) {
-        doc["extensionsUsed"]
-            .as_array_mut()
-            .unwrap()
-            .push(json!("KHR_materials_sheen"));
+    for (used, name) in [
+        (packed.materials.iter().any(|m| m.sheen.is_some()), "KHR_materials_sheen"),
+        (packed.materials.iter().any(|m| m.unlit), "KHR_materials_unlit"),
+    ] {
+        if used {
+            doc["extensionsUsed"].as_array_mut().unwrap().push(json!(name));
+        }
     }
     for key in ["extensionsUsed", "extensionsRequired"] {
         if doc[key].as_array().is_some_and(|a| a.is_empty()) {
@@ -401,6 +403,9 @@ fn material_json(m: &Material) -> Value {
                 "sheenRoughnessFactor": num(s.roughness),
             }}),
         );
+    }
+    if m.unlit {
+        mat.insert("extensions".into(), json!({ "KHR_materials_unlit": {} }));
     }
     Value::Object(mat)
 }

@@ -38,6 +38,7 @@
 //! `EXPONENTIAL` filter. Then `guard.rs` checks the stored geometry (deltas as rounded onto that
 //! grid), so no layer triangle of the written file inverts.
 
+mod extras;
 mod guard;
 mod model;
 mod quantize;
@@ -243,6 +244,10 @@ pub struct PackInput<'a> {
     pub sheen: Option<&'a crate::sheen::SheenParams>,
     /// The skin `mesh.skin` indexes (placed), when the input is skinned ([`crate::skin`]).
     pub skeleton: Option<&'a crate::skin::Skeleton>,
+    /// The `fins` effect's fins (a mesh under the root; see `extras.rs`).
+    pub fins: Option<&'a crate::fins::Fins>,
+    /// The `outline` effect's hull (a mesh under the root).
+    pub outline: Option<&'a crate::outline::Outline>,
 }
 
 /// The surface's vertices with their quantization grids, in the input's order.
@@ -427,7 +432,9 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 .enumerate()
                 .flat_map(|(v, (&p, &d))| {
                     let b = input.bend.map_or(Vec3::ZERO, |b| b.at(v, d, lean[v]));
-                    [p, p + d, p + b, p + d + b]
+                    // the outline's hull is stored on the grid too
+                    let o = input.outline.map_or(Vec3::ZERO, |o| o.offset[v]);
+                    [p, p + d, p + b, p + d + b, p + o]
                 }),
             params.position_bits.min(15),
         )
@@ -830,6 +837,8 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             });
         }
     }
+    b.tag = tag;
+    let extras = extras::extras(&mut b, &geometry, input);
     // the node that dequantizes: stored value → world
     let step = grid.step as f64;
     let translation = grid.min.as_dvec3() + mesh.origin + step * zero_level as f64;
@@ -849,7 +858,10 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     let lod0 = input.levels[0].level;
     let (children, placed) = match skinned {
         Some(wrapper) => (vec![wrapper], None),
-        None => (chunk_nodes.clone(), Some(dequantize)),
+        None => {
+            let nodes = chunk_nodes.iter().chain(&extras.nodes).copied().collect();
+            (nodes, Some(dequantize))
+        }
     };
     out.nodes[root] = Node {
         name: input.name.to_string(),
@@ -888,6 +900,8 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         vertex_order,
         guarded,
         bent_less,
+        fin_bytes: extras.fin_bytes,
+        outline_bytes: extras.outline_bytes,
     };
     out.surfaces.push(surface.clone());
     surface
@@ -1127,7 +1141,7 @@ impl Shared {
         }
         let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
         let q: Vec<Vec3> = pick(g.positions).iter().map(|&p| g.stored(p)).collect();
-        let position = b.positions(&q, &g.grid);
+        let position = b.positions("position", &q, &g.grid);
         let normal = b.normals(&pick(g.normals));
         let skin = g.skin.map(|s| b.skin(s, &order));
         let shells = shells.then(|| {
@@ -1264,7 +1278,7 @@ impl Builder<'_> {
     /// POSITION stream of `q` ([`Geometry::stored`]: grid levels, or a plain float file's
     /// exact positions): normalized i16 centred on the grid (stride 8), or floats (stride 12),
     /// with exact bounds.
-    fn positions(&mut self, q: &[Vec3], grid: &PositionGrid) -> usize {
+    fn positions(&mut self, name: &'static str, q: &[Vec3], grid: &PositionGrid) -> usize {
         let mut bytes = Bytes::default();
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for &p in q {
@@ -1288,7 +1302,7 @@ impl Builder<'_> {
             (8, component::SHORT, true)
         };
         let v = self.stream(
-            "position",
+            name,
             Semantic::Position,
             None,
             bytes.0,
@@ -1487,6 +1501,7 @@ fn compact(
             texture: None,
             roughness: ctx.roughness,
             sheen: None,
+            unlit: false,
         });
         let name = format!("{}bare", ctx.prefix);
         return (
@@ -1534,6 +1549,7 @@ fn compact(
                     .geometry
                     .sheen
                     .and_then(|s| crate::sheen::Sheen::of(s, l.t)),
+                unlit: false,
             });
             let primitive = Primitive {
                 attributes: attributes.clone(),
@@ -1695,7 +1711,7 @@ fn single_draw(
         }
         all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
     }
-    let position = b.positions(&q, &g.grid);
+    let position = b.positions("position", &q, &g.grid);
     let pick = |j: usize| order[..layer_vertices[j]].iter().map(|&o| o as usize);
     let all_normals: Vec<Vec3> = (0..layers.len())
         .flat_map(|j| pick(j).map(|v| g.normals[v]))
@@ -1722,6 +1738,7 @@ fn single_draw(
             let mean = layers.iter().map(|l| l.t).sum::<f32>() / layers.len().max(1) as f32;
             crate::sheen::Sheen::of(s, mean)
         }),
+        unlit: false,
     });
     let mut attributes = vec![
         (Semantic::Position, position),

@@ -141,6 +141,8 @@ pub struct Material {
     pub roughness: f32,
     /// `KHR_materials_sheen` (the `sheen` effect).
     pub sheen: Option<crate::sheen::Sheen>,
+    /// `KHR_materials_unlit` (the `outline` effect's hull).
+    pub unlit: bool,
 }
 
 /// A texture: an image stream, sampled with the file's one sampler.
@@ -305,6 +307,10 @@ pub struct PackedSurface {
     pub guarded: usize,
     /// Vertices whose bend and sway the guard made smaller (the `gravity` and `wind` effects).
     pub bent_less: usize,
+    /// Bytes of the `fins` effect's streams (positions, normals, coordinates, indices, strip),
+    /// and of the `outline` effect's, before compression.
+    pub fin_bytes: usize,
+    pub outline_bytes: usize,
 }
 
 impl PackedSurface {

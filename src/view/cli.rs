@@ -382,9 +382,11 @@ pub fn view(args: &ViewArgs) -> Result<()> {
     )
 }
 
-/// Runs `verify`: bakes `scene` (one surface, loaded), writes the GLB to `glb_out` when given,
-/// renders baked and reference, prints one line per view and per LOD level and fails when one
-/// exceeds its tolerance.
+/// Runs `verify`: bakes `scene` (loaded), writes the GLB to `glb_out` when given, then for each
+/// surface renders its bake and its runtime reference, prints one line per view and per LOD
+/// level and fails when one exceeds its tolerance. A scene of several surfaces is verified
+/// surface by surface, each baked alone (the reference draws one surface; the scene's file is
+/// the surfaces' files side by side), its pictures named `<stem>-<surface>-…`.
 pub fn verify(
     input: &Path,
     scene: &SceneFile,
@@ -393,53 +395,80 @@ pub fn verify(
     glb_out: Option<&Path>,
     quiet: bool,
 ) -> Result<()> {
-    let [surface] = scene.surfaces.as_slice() else {
-        return Err(ViewError::Verify(format!(
-            "{}: verify takes a mesh or a scene with one surface; this scene has {}",
-            input.display(),
-            scene.surfaces.len()
-        )));
-    };
     let baked = crate::bake_scene(scene, loaded);
     if let Some(path) = glb_out {
         crate::write::write_glb(path, &baked.glb)?;
     }
     let gpu = Gpu::new()?;
-    let result = verify::verify(
-        &gpu,
-        &baked.glb,
-        ReferenceInput::from_baked(&baked.surfaces[0], &surface.params),
-        args.size,
-        (&surface.params.lod).into(),
-        &args.times,
-    )?;
     let stem = input
         .file_stem()
         .map_or("input".into(), |s| s.to_string_lossy().into_owned());
-    result.write_pictures(&args.out_dir, &stem)?;
-    if !quiet {
-        println!(
-            "verify {} on {} ({}x{})",
-            shown(input),
-            escape(&result.adapter),
+    let several = scene.surfaces.len() > 1;
+    let mut failures = Vec::new();
+    for (i, surface) in scene.surfaces.iter().enumerate() {
+        let alone;
+        let baked = if several {
+            let one = SceneFile {
+                surfaces: vec![surface.clone()],
+                ..scene.clone()
+            };
+            alone = crate::bake_scene(&one, &loaded[i..=i]);
+            &alone
+        } else {
+            &baked
+        };
+        let result = verify::verify(
+            &gpu,
+            &baked.glb,
+            ReferenceInput::from_baked(&baked.surfaces[0], &surface.params),
             args.size,
-            args.size
-        );
-        for v in &result.views {
-            println!("  {}", v.line());
+            (&surface.params.lod).into(),
+            &args.times,
+        )?;
+        let name = if several {
+            format!("{stem}-{}", surface.name)
+        } else {
+            stem.clone()
+        };
+        result.write_pictures(&args.out_dir, &name)?;
+        if !quiet {
+            let what = if several {
+                format!("{} surface {}", shown(input), escape(&surface.name))
+            } else {
+                shown(input)
+            };
+            println!(
+                "verify {what} on {} ({}x{})",
+                escape(&result.adapter),
+                args.size,
+                args.size
+            );
+            for v in &result.views {
+                println!("  {}", v.line());
+            }
+            for l in &result.levels {
+                println!("  {}", l.line());
+            }
         }
-        for l in &result.levels {
-            println!("  {}", l.line());
+        if !result.passed() {
+            let views = result.failures().join(", ");
+            failures.push(if several {
+                format!("surface {}: {views}", surface.name)
+            } else {
+                views
+            });
         }
+    }
+    if !quiet {
         println!("  pictures in {}", shown(&args.out_dir));
     }
-    if result.passed() {
+    if failures.is_empty() {
         Ok(())
     } else {
         Err(ViewError::Verify(format!(
             "{}: baked and reference differ beyond the tolerance in {}",
             input.display(),
-            result.failures().join(", ")
+            failures.join("; ")
         )))
     }
 }

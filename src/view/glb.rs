@@ -28,6 +28,7 @@
 //!   time set ([`Asset::time`]) each node's weights are its channel's value then, every
 //!   animation looping over its own length, as a player that plays them all would show.
 //! - **`KHR_materials_sheen`** factors (colour, roughness).
+//! - **`KHR_materials_unlit`**: the base colour (times texture and `COLOR_0`) is drawn unshaded.
 //!
 //! Decoding to `f32` on the CPU (rather than binding the quantized streams with integer vertex
 //! formats) was chosen because wgpu has no 3-component 8/16-bit vertex formats and strides vary
@@ -162,6 +163,8 @@ pub struct Material {
     pub double_sided: bool,
     /// `KHR_materials_sheen`: colour (rgb) and roughness (w).
     pub sheen: Option<[f32; 4]>,
+    /// `KHR_materials_unlit`: the base colour is the output, unshaded.
+    pub unlit: bool,
 }
 
 impl Default for Material {
@@ -177,6 +180,7 @@ impl Default for Material {
             alpha: AlphaMode::Opaque,
             double_sided: false,
             sheen: None,
+            unlit: false,
         }
     }
 }
@@ -876,6 +880,7 @@ fn parse_material(m: &Value) -> Material {
         uv_transform,
         alpha,
         double_sided: m["doubleSided"].as_bool().unwrap_or(false),
+        unlit: m["extensions"]["KHR_materials_unlit"].is_object(),
         sheen: {
             let s = &m["extensions"]["KHR_materials_sheen"];
             s.is_object().then(|| {

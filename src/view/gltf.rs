@@ -633,7 +633,7 @@ impl GltfRenderer {
                     0.0,
                 ],
                 weights: d.weights,
-                color_weight: [d.color_weight, joint_offset, 0.0, 0.0],
+                color_weight: [d.color_weight, joint_offset, m.unlit as u8 as f32, 0.0],
                 sheen: m.sheen.unwrap_or([0.0; 4]),
                 material: [m.metallic, m.roughness, cutoff, mode],
                 emissive: [

@@ -16,7 +16,8 @@ struct Draw {
     emissive: vec4<f32>,
     // KHR_materials_sheen colour (rgb) and roughness (w); zero: none
     sheen: vec4<f32>,
-    // x: weight of the COLOR_0 morph target, y: a skinned draw's first joint matrix
+    // x: weight of the COLOR_0 morph target, y: a skinned draw's first joint matrix, z: 1 for
+    // an unlit material (KHR_materials_unlit)
     color_weight: vec4<f32>,
 }
 
@@ -72,6 +73,9 @@ fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f
     // glTF 3.9.4: MASK renders the fragment iff alpha >= alphaCutoff.
     if (draw.material.w == 1.0 && base.a < draw.material.z) {
         discard;
+    }
+    if (draw.color_weight.z == 1.0) {
+        return vec4<f32>(base.rgb, select(1.0, base.a, draw.material.w == 2.0));
     }
     var n = normalize(in.normal);
     if (!front) {

@@ -42,6 +42,7 @@ pub mod glb;
 pub mod gltf;
 pub mod gpu;
 pub mod reference;
+pub mod reference_extras;
 pub mod study;
 pub mod verify;
 pub mod window;

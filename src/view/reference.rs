@@ -77,6 +77,11 @@ pub struct ReferenceInput<'a> {
     /// The skin `mesh.skin` indexes (placed), when the input is skinned: the layers are skinned
     /// after the extrusion, bend and sway, as the technique would on a skinned character.
     pub skeleton: Option<&'a crate::skin::Skeleton>,
+    /// The `fins` and `outline` effects' decisions (see `reference_extras.rs`).
+    pub fins: Option<&'a crate::fins::Fins>,
+    pub outline: Option<&'a crate::outline::Outline>,
+    /// The layer colours' gradient (the fins' strip carries it).
+    pub shade: &'a crate::shells::ShadeParams,
 }
 
 impl<'a> ReferenceInput<'a> {
@@ -94,6 +99,9 @@ impl<'a> ReferenceInput<'a> {
             density: baked.density.as_deref(),
             mean_sheen: params.pack.layout == crate::params::Layout::SingleDraw,
             skeleton: baked.skeleton.as_ref(),
+            fins: baked.fins.as_ref(),
+            outline: baked.outline.as_ref(),
+            shade: &params.shade,
         }
     }
 }
@@ -249,6 +257,8 @@ pub struct ReferenceRenderer {
     origin: glam::DVec3,
     /// The time the skin is posed at (`None`: rest).
     time: Option<f32>,
+    /// The fins and the outline, drawn after the shells.
+    extras: Option<super::gltf::GltfRenderer>,
     /// Bounding sphere of the base and the outermost layer.
     pub bounds: Sphere,
 }
@@ -473,7 +483,21 @@ impl ReferenceRenderer {
             }
         };
 
+        let extras = super::reference_extras::extras_asset(&super::reference_extras::ExtrasInput {
+            mesh,
+            delta: &shells.delta,
+            fins: input.fins,
+            outline: input.outline,
+            strands: input.strands,
+            shade: input.shade,
+            roughness: input.roughness,
+        })
+        .map(|asset| {
+            super::gltf::GltfRenderer::new(gpu, asset).expect("the reference's own glTF uploads")
+        });
+
         ReferenceRenderer {
+            extras,
             frame,
             pipeline_layout,
             module,
@@ -523,6 +547,7 @@ impl ReferenceRenderer {
     /// Triangles drawn per frame.
     pub fn triangles(&self) -> usize {
         self.index_count as usize / 3 * self.instances() as usize
+            + self.extras.as_ref().map_or(0, |e| e.triangles())
     }
 
     /// Writes the camera, light and shell uniforms and builds the pipeline for `format`.
@@ -552,6 +577,9 @@ impl ReferenceRenderer {
                 .collect();
             gpu.queue
                 .write_buffer(&self.joints, 0, bytemuck::cast_slice(&m));
+        }
+        if let Some(e) = &mut self.extras {
+            e.prepare(gpu, camera, light, format);
         }
         if self.pipeline.as_ref().map(|p| p.0) != Some(format) {
             let attr = |loc, format| {
@@ -642,6 +670,9 @@ impl ReferenceRenderer {
         }
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..self.index_count, 0, 0..self.instances());
+        if let Some(e) = &self.extras {
+            e.record(pass);
+        }
     }
 }
 
