@@ -431,10 +431,21 @@ fn bake_surface(
     });
     // one BVH per surface, built by the first effect that casts rays and shared by the rest
     let mut bvh: Option<clamp::MeshBvh> = None;
+    // the outline's width: with `collision`, its rays reach as far as the hull does
+    let outline_width = params.outline.resolved_width(diagonal);
+    let hull_rays = plan.runs(Stage::Outline, i) && scene.skeleton.is_none();
     let collision = report.gate(plan, Stage::Collision, i, || {
         let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
-        clamp::collision_bound(&welded, bvh, &smoothed, height, &params.clamp)
+        let hull = hull_rays.then(|| {
+            clamp::collision_bound(&welded, bvh, &smoothed, outline_width, &params.clamp)
+        });
+        let shells = clamp::collision_bound(&welded, bvh, &smoothed, height, &params.clamp);
+        (shells, hull)
     });
+    let (collision, hull_bound) = match collision {
+        Some((c, h)) => (Some(c), h),
+        None => (None, None),
+    };
     report.count("bvh_builds", bvh.is_some() as u8 as f64);
     let clamp = report.run("clamp", || {
         clamp::clamp_heights(
@@ -582,13 +593,11 @@ fn bake_surface(
     let outline = unskinned(&mut report, Stage::Outline)
         .then(|| {
             report.gate(plan, Stage::Outline, i, || {
-                let width = params.outline.resolved_width(diagonal);
-                // with `collision`, the clamp's bound (what it lets the shells extrude) holds
-                // the hull too
-                let limit: Option<Vec<f32>> = plan
-                    .runs(Stage::Collision, i)
-                    .then(|| clamp.scale.iter().map(|s| s * height).collect());
-                outline::outline(&frames.direction, limit.as_deref(), width, &params.outline)
+                // with `collision`, the free distance its rays found holds the hull
+                let limit: Option<Vec<f32>> = hull_bound.as_ref().map(|b| {
+                    welded.remap.iter().map(|&w| b[w as usize] as f32).collect()
+                });
+                outline::outline(&frames.direction, limit.as_deref(), outline_width, &params.outline)
             })
         })
         .flatten();

@@ -10,9 +10,11 @@
 //! or UV seam move together, so the hull never opens where the input's normals split (the
 //! classic failure of pushing along per-corner normals).
 //!
-//! **The clamp.** When the surface also asks for `collision`, each vertex moves at most as far
-//! as the clamp lets the shells extrude there (`scale · height`), so a hull wider than the fur
-//! stays out of nearby geometry too; without it the hull moves the full width everywhere.
+//! **The clamp.** When the surface also asks for `collision`, the collision bound's rays
+//! ([`crate::clamp::collision_bound`], on the same BVH, cast along the same welded directions)
+//! reach as far as the hull does, and each vertex moves at most `ray_keep` times the free
+//! distance they find, so the hull stays out of other parts of the mesh (a torus's hole, a
+//! finger's neighbour); without `collision` it moves the full width everywhere.
 //!
 //! The hull is one mesh per surface (no LOD, no culling): positions and indices, no normals or
 //! texture coordinates (an unlit material reads none), opaque, single-sided.
@@ -79,7 +81,7 @@ pub struct Outline {
 }
 
 /// The outline stage: `directions` are the unit extrusion directions per render vertex (welded),
-/// `limit` the clamp's extrusion bound per vertex in world units (`collision` asked for).
+/// `limit` the collision bound per vertex in world units (`collision` asked for).
 pub fn outline(
     directions: &[Vec3],
     limit: Option<&[f32]>,

@@ -200,6 +200,8 @@ fn a_bake_asking_for_no_effect_runs_none_and_builds_no_bvh() {
         Effect::Wind,
         Effect::Sheen,
         Effect::Tessellation,
+        Effect::Fins,
+        Effect::Outline,
     ] {
         let st = baked.report.stage(effect.name()).unwrap();
         assert!(!st.ran, "{st:?}");
@@ -207,9 +209,19 @@ fn a_bake_asking_for_no_effect_runs_none_and_builds_no_bvh() {
     }
     let g = Glb::parse(&baked.glb);
     assert!(g.json["animations"].is_null());
-    assert!(g.json["extensionsUsed"]
-        .as_array()
-        .is_none_or(|e| !e.contains(&"KHR_materials_sheen".into())));
+    for ext in ["KHR_materials_sheen", "KHR_materials_unlit"] {
+        assert!(g.json["extensionsUsed"]
+            .as_array()
+            .is_none_or(|e| !e.contains(&ext.into())));
+    }
+    // no fin or hull mesh, no strip texture
+    let meshes = g.json["meshes"].as_array().unwrap();
+    assert!(meshes.iter().all(|m| {
+        let name = m["name"].as_str().unwrap_or("");
+        !name.ends_with("fins") && !name.ends_with("outline")
+    }));
+    assert_eq!(g.json["textures"].as_array().map_or(0, |t| t.len()), 1);
+    assert!(baked.fins.is_none() && baked.outline.is_none());
     assert!(baked.shells.wind.is_none() && baked.shells.occlusion.is_none());
 
     // occlusion and collision share one BVH
