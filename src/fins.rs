@@ -9,7 +9,11 @@
 //!   edge (three or more) always qualify;
 //! - of the qualifying edges, a fraction `density` is kept, chosen by a stable hash of the edge
 //!   (its two positions), so the choice does not depend on the triangle order and a mesh keeps
-//!   the same fins from bake to bake.
+//!   the same fins from bake to bake;
+//! - at most `max` fins are kept (those of the smallest hashes), so a dense mesh does not pay for
+//!   fins by the hundred thousand: the dragon's 300 000 edges would add 19 MB at density 0.5,
+//!   three times the rest of its file. Fins matter only near silhouettes, which a few thousand
+//!   spread over the surface cover.
 //!
 //! Edges are the weld's: the two copies of a seam or hard edge are one edge with one fin, stood
 //! on the first triangle (in file order) that holds it. A fin away from every silhouette costs
@@ -53,6 +57,8 @@ pub struct FinParams {
     pub angle: f32,
     /// Fraction of the qualifying edges that get a fin, (0, 1].
     pub density: f32,
+    /// Most fins per surface, at least 1.
+    pub max: u32,
     /// Texels of the strip texture along a fin's height, 4–256.
     pub rows: u32,
 }
@@ -62,6 +68,7 @@ impl Default for FinParams {
         FinParams {
             angle: 0.0,
             density: 0.5,
+            max: 10_000,
             rows: 32,
         }
     }
@@ -77,6 +84,9 @@ impl FinParams {
             ));
         }
         ParamError::in_range("rows", self.rows as f32, 4.0, 256.0)?;
+        if self.max == 0 {
+            return Err(ParamError::new("max", "max must be at least 1 fin"));
+        }
         Ok(())
     }
 }
@@ -135,7 +145,12 @@ fn unit(h: u32) -> f32 {
 
 /// The fins of `mesh` (a render mesh; `position_ids` gives each vertex's welded position):
 /// the edges the rule keeps, in the order their first triangle comes.
-pub fn select_edges(mesh: &Mesh, position_ids: &[u32], params: &FinParams, seed: u32) -> (Vec<FinEdge>, usize) {
+pub fn select_edges(
+    mesh: &Mesh,
+    position_ids: &[u32],
+    params: &FinParams,
+    seed: u32,
+) -> (Vec<FinEdge>, usize) {
     assert_eq!(position_ids.len(), mesh.vertex_count());
     struct Seen {
         a: u32,
@@ -182,21 +197,37 @@ pub fn select_edges(mesh: &Mesh, position_ids: &[u32], params: &FinParams, seed:
     let every = params.angle <= 0.0;
     let keep = (params.density as f64 * 4_294_967_296.0).min(u32::MAX as f64) as u32;
     let mut candidates = 0;
-    let fins = edges
+    let mut fins: Vec<(u32, FinEdge)> = edges
         .iter()
         .filter(|e| every || e.faces != 2 || e.bent)
         .filter_map(|e| {
             candidates += 1;
             let (pa, pb) = (position_ids[e.a as usize], position_ids[e.b as usize]);
             let h = edge_hash(pa, pb, seed);
-            (params.density >= 1.0 || h < keep).then(|| FinEdge {
+            let fin = FinEdge {
                 a: e.a,
                 b: e.b,
                 offset: unit(mix32(h ^ OFFSET_SALT)),
-            })
+            };
+            (params.density >= 1.0 || h < keep).then_some((h, fin))
         })
         .collect();
-    (fins, candidates)
+    let max = params.max as usize;
+    if fins.len() > max {
+        // the smallest hashes (ties: the first edge), back in the order of their triangles
+        let mut by_hash: Vec<usize> = (0..fins.len()).collect();
+        by_hash.sort_by_key(|&k| (fins[k].0, k));
+        let mut keep = vec![false; fins.len()];
+        for &k in &by_hash[..max] {
+            keep[k] = true;
+        }
+        let mut k = 0;
+        fins.retain(|_| {
+            k += 1;
+            keep[k - 1]
+        });
+    }
+    (fins.into_iter().map(|(_, f)| f).collect(), candidates)
 }
 
 /// The strip texture of `mask` (see the module notes): `mask.size` texels wide, `rows` high.
@@ -210,7 +241,9 @@ pub fn strip(mask: &Mask, shade: &ShadeParams, rows: u32) -> Strip {
         let colour = crate::shells::layer_color(shade, t);
         for x in 0..size {
             // the band's texel that lives longest (its shade colours the column)
-            let best = (0..band).max_by_key(|&y| (mask.at(x, y), std::cmp::Reverse(y))).unwrap();
+            let best = (0..band)
+                .max_by_key(|&y| (mask.at(x, y), std::cmp::Reverse(y)))
+                .unwrap();
             let shows = mask.shows(x, best, k);
             let grey = crate::srgb::decode8(mask.shade[(best * size + x) as usize]);
             let c = colour.map(|c| crate::srgb::encode8(c as f64 * grey));
@@ -252,8 +285,10 @@ impl Fins {
             let (a, b) = (e.a as usize, e.b as usize);
             let (pa, pb) = (mesh.positions[a], mesh.positions[b]);
             let u1 = e.offset + (pb - pa).length() * self.tiles_per_unit;
-            out.positions.extend([pa, pb, pb + delta[b] * self.top, pa + delta[a] * self.top]);
-            out.normals.extend([normals[a], normals[b], normals[b], normals[a]]);
+            out.positions
+                .extend([pa, pb, pb + delta[b] * self.top, pa + delta[a] * self.top]);
+            out.normals
+                .extend([normals[a], normals[b], normals[b], normals[a]]);
             out.uvs.extend([
                 Vec2::new(e.offset, 0.0),
                 Vec2::new(u1, 0.0),
@@ -261,8 +296,20 @@ impl Fins {
                 Vec2::new(e.offset, self.top),
             ]);
             let v = 4 * i as u32;
-            out.indices
-                .extend([v, v + 1, v + 2, v, v + 2, v + 3, v, v + 2, v + 1, v, v + 3, v + 2]);
+            out.indices.extend([
+                v,
+                v + 1,
+                v + 2,
+                v,
+                v + 2,
+                v + 3,
+                v,
+                v + 2,
+                v + 1,
+                v,
+                v + 3,
+                v + 2,
+            ]);
         }
         out
     }
@@ -277,8 +324,13 @@ pub fn encode_strip_png(strip: &Strip) -> Vec<u8> {
         image::codecs::png::CompressionType::Best,
         image::codecs::png::FilterType::Adaptive,
     );
-    enc.write_image(&strip.rgba, strip.width, strip.height, image::ExtendedColorType::Rgba8)
-        .expect("encoding a PNG into memory cannot fail");
+    enc.write_image(
+        &strip.rgba,
+        strip.width,
+        strip.height,
+        image::ExtendedColorType::Rgba8,
+    )
+    .expect("encoding a PNG into memory cannot fail");
     out
 }
 
@@ -315,7 +367,11 @@ mod tests {
             let m = hinge(fold);
             let (ids, _) = crate::weld::position_ids(&m.positions);
             let (edges, candidates) = select_edges(&m, &ids, &p(angle), 1);
-            assert_eq!((edges.len(), candidates), (expect, expect), "fold {fold}, angle {angle}");
+            assert_eq!(
+                (edges.len(), candidates),
+                (expect, expect),
+                "fold {fold}, angle {angle}"
+            );
         }
     }
 
@@ -335,12 +391,25 @@ mod tests {
         };
         let (kept, _) = select_edges(&m, &ids, &half, 7);
         let f = kept.len() as f64 / n as f64;
+        // a cap keeps that many, all of them among the uncapped
+        let capped = FinParams {
+            max: 100,
+            ..half.clone()
+        };
+        let (few, _) = select_edges(&m, &ids, &capped, 7);
+        assert_eq!(few.len(), 100);
+        assert!(few.iter().all(|k| kept.contains(k)));
         assert!((f - 0.5).abs() < 0.05, "kept {f}");
         // every kept fin is one of all the fins, with the same offset
         assert!(kept.iter().all(|k| every.contains(k)));
         // the choice does not depend on the triangle order
         let mut r = m.clone();
-        let tris: Vec<[u32; 3]> = r.indices.chunks(3).map(|t| [t[0], t[1], t[2]]).rev().collect();
+        let tris: Vec<[u32; 3]> = r
+            .indices
+            .chunks(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .rev()
+            .collect();
         r.indices = tris.concat();
         let (again, _) = select_edges(&r, &ids, &half, 7);
         let key = |e: &FinEdge| {
@@ -366,12 +435,16 @@ mod tests {
         };
         // coverage shrinks with height, and the root row shows strands
         let rows: Vec<usize> = (0..32).map(opaque).collect();
-        assert!(rows[0] > 0 && rows.windows(2).all(|w| w[1] <= w[0]), "{rows:?}");
+        assert!(
+            rows[0] > 0 && rows.windows(2).all(|w| w[1] <= w[0]),
+            "{rows:?}"
+        );
         assert!(rows[31] < rows[0]);
         // a column is opaque up to a height, then clear (no holes: strands are solid)
         for x in 0..s.width {
-            let col: Vec<bool> =
-                (0..32).map(|r| s.rgba[((r * s.width + x) * 4 + 3) as usize] == 255).collect();
+            let col: Vec<bool> = (0..32)
+                .map(|r| s.rgba[((r * s.width + x) * 4 + 3) as usize] == 255)
+                .collect();
             assert!(col.windows(2).all(|w| w[0] || !w[1]), "column {x}: {col:?}");
         }
     }
@@ -398,7 +471,10 @@ mod tests {
         assert_eq!(fm.positions.len(), 4 * 5);
         assert_eq!(fm.indices.len(), 12 * 5);
         // the first fin is edge 0 → 1: base on it, top at half the extrusion
-        assert_eq!(&fm.positions[..4], &[Vec3::ZERO, Vec3::X, Vec3::X + Vec3::Z * 0.1, Vec3::Z * 0.1]);
+        assert_eq!(
+            &fm.positions[..4],
+            &[Vec3::ZERO, Vec3::X, Vec3::X + Vec3::Z * 0.1, Vec3::Z * 0.1]
+        );
         let du = fm.uvs[1].x - fm.uvs[0].x;
         assert!((du - 2.0).abs() < 1e-6 && fm.uvs[2].y == 0.5);
     }

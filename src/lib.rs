@@ -436,9 +436,8 @@ fn bake_surface(
     let hull_rays = plan.runs(Stage::Outline, i) && scene.skeleton.is_none();
     let collision = report.gate(plan, Stage::Collision, i, || {
         let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
-        let hull = hull_rays.then(|| {
-            clamp::collision_bound(&welded, bvh, &smoothed, outline_width, &params.clamp)
-        });
+        let hull = hull_rays
+            .then(|| clamp::collision_bound(&welded, bvh, &smoothed, outline_width, &params.clamp));
         let shells = clamp::collision_bound(&welded, bvh, &smoothed, height, &params.clamp);
         (shells, hull)
     });
@@ -573,7 +572,10 @@ fn bake_surface(
     let unskinned = |report: &mut Report, stage: Stage| {
         let skip = skinned && plan.runs(stage, i);
         if skip {
-            report.skip(stage.name(), "skinned surface: fins and outlines are not skinned");
+            report.skip(
+                stage.name(),
+                "skinned surface: fins and outlines are not skinned",
+            );
         }
         !skip
     };
@@ -594,10 +596,15 @@ fn bake_surface(
         .then(|| {
             report.gate(plan, Stage::Outline, i, || {
                 // with `collision`, the free distance its rays found holds the hull
-                let limit: Option<Vec<f32>> = hull_bound.as_ref().map(|b| {
-                    welded.remap.iter().map(|&w| b[w as usize] as f32).collect()
-                });
-                outline::outline(&frames.direction, limit.as_deref(), outline_width, &params.outline)
+                let limit: Option<Vec<f32>> = hull_bound
+                    .as_ref()
+                    .map(|b| welded.remap.iter().map(|&w| b[w as usize] as f32).collect());
+                outline::outline(
+                    &frames.direction,
+                    limit.as_deref(),
+                    outline_width,
+                    &params.outline,
+                )
             })
         })
         .flatten();
@@ -756,7 +763,11 @@ fn bake_surface(
     );
     report.count("guarded_vertices", surface_packed.guarded as f64);
     report.count("bent_less_vertices", surface_packed.bent_less as f64);
-    report.count_on(Stage::Fins.name(), "fin_bytes", surface_packed.fin_bytes as f64);
+    report.count_on(
+        Stage::Fins.name(),
+        "fin_bytes",
+        surface_packed.fin_bytes as f64,
+    );
     report.count_on(
         Stage::Outline.name(),
         "outline_bytes",

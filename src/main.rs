@@ -434,6 +434,11 @@ fn load_checked(
     for (surface, l) in scene.surfaces.iter().zip(&loaded) {
         shellbake::check_bakeable(&l.scene, &surface.mesh)?;
         estimate += surface.params.estimate_bytes(&l.scene);
+        estimate += surface.params.estimate_extra_bytes(
+            &l.scene,
+            surface.asks(Effect::Fins),
+            surface.asks(Effect::Outline),
+        );
     }
     if estimate > args.max_output {
         anyhow::bail!(

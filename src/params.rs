@@ -158,6 +158,33 @@ impl BakeParams {
         Ok(())
     }
 
+    /// What the `fins` and `outline` effects add to [`BakeParams::estimate_bytes`], when asked:
+    /// an upper bound (three fin edges per triangle up to `fins.max`, each fin four float
+    /// vertices and twelve 32-bit indices, and the strip; the hull three float vertices and
+    /// three 32-bit indices per triangle).
+    pub fn estimate_extra_bytes(
+        &self,
+        scene: &crate::mesh::Scene,
+        fins: bool,
+        outline: bool,
+    ) -> u64 {
+        let triangles = scene
+            .meshes
+            .iter()
+            .map(|m| m.triangle_count() as u64)
+            .sum::<u64>();
+        let mut bytes = 0;
+        if fins {
+            let n = (3 * triangles).min(self.fins.max as u64);
+            let strip = self.fins.rows as u64 * (4 * self.strands.mask_size as u64 + 1);
+            bytes += n * (4 * (12 + 12 + 8) + 12 * 4) + strip * 4 / 3 + 8192;
+        }
+        if outline {
+            bytes += 3 * triangles * (12 + 4) + 4096;
+        }
+        bytes
+    }
+
     /// [`crate::pack::estimate_bytes`] for a loaded scene baked with these parameters: an upper
     /// bound of the written file (`tests/properties.rs` checks it against real bakes of random
     /// meshes).

@@ -240,11 +240,20 @@ pub fn gltf_json_with(
             .collect();
     }
     for (used, name) in [
-        (packed.materials.iter().any(|m| m.sheen.is_some()), "KHR_materials_sheen"),
-        (packed.materials.iter().any(|m| m.unlit), "KHR_materials_unlit"),
+        (
+            packed.materials.iter().any(|m| m.sheen.is_some()),
+            "KHR_materials_sheen",
+        ),
+        (
+            packed.materials.iter().any(|m| m.unlit),
+            "KHR_materials_unlit",
+        ),
     ] {
         if used {
-            doc["extensionsUsed"].as_array_mut().unwrap().push(json!(name));
+            doc["extensionsUsed"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!(name));
         }
     }
     for key in ["extensionsUsed", "extensionsRequired"] {

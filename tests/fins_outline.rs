@@ -45,7 +45,10 @@ fn fins_stand_on_half_the_edges_and_verify() {
         let (fins, candidates) = (st.counts["fins"], st.counts["fin_candidates"]);
         // every edge qualifies (angle 0); density 0.5 keeps about half, by a stable hash
         let ratio = fins / candidates;
-        println!("{layout:?}: {fins} fins of {candidates} edges, {} bytes", st.counts["fin_bytes"]);
+        println!(
+            "{layout:?}: {fins} fins of {candidates} edges, {} bytes",
+            st.counts["fin_bytes"]
+        );
         assert!((0.45..0.55).contains(&ratio), "{ratio}");
         let g = Glb::parse(&b.glb);
         let (m, position) = named_mesh(&g, "fins").expect("a fins mesh");
@@ -66,6 +69,10 @@ fn fins_stand_on_half_the_edges_and_verify() {
             .sum();
         assert!(fin_views as f64 <= st.counts["fin_bytes"] && fin_views > 0);
 
+        // the size estimate (what `--max-output` refuses by) still bounds the file
+        let bound = p.estimate_bytes(&scene) + p.estimate_extra_bytes(&scene, true, false);
+        assert!(b.glb.len() as u64 <= bound, "{} > {bound}", b.glb.len());
+
         let v = verify_glb(&b.glb, &b.surface, &p);
         for view in &v.views {
             println!("{layout:?} {}", view.line());
@@ -75,7 +82,10 @@ fn fins_stand_on_half_the_edges_and_verify() {
             // control: the file with fins against the technique without them
             let plain = shellbake::bake_with(&scene, &p, &with[..2]);
             let v = verify_glb(&b.glb, &plain.surface, &p);
-            assert!(!v.passed(), "fins must show against a reference without them");
+            assert!(
+                !v.passed(),
+                "fins must show against a reference without them"
+            );
             // same input, same bytes
             assert!(shellbake::bake_with(&scene, &p, &with).glb == b.glb);
         }
@@ -100,9 +110,13 @@ fn the_outline_is_crack_free_unlit_and_held_by_the_clamp() {
         .unwrap()
         .contains(&"KHR_materials_unlit".into()));
     assert!(prim["attributes"]["NORMAL"].is_null());
+    let bound = p.estimate_bytes(&cube) + p.estimate_extra_bytes(&cube, false, true);
+    assert!(b.glb.len() as u64 <= bound, "{} > {bound}", b.glb.len());
     // the hull in world units: the root dequantizes
     let root = &g.json["nodes"][0];
-    let t: Vec<f64> = (0..3).map(|k| root["translation"][k].as_f64().unwrap()).collect();
+    let t: Vec<f64> = (0..3)
+        .map(|k| root["translation"][k].as_f64().unwrap())
+        .collect();
     let s = root["scale"][0].as_f64().unwrap();
     let hull: Vec<glam::DVec3> = g
         .accessor(position)
@@ -129,7 +143,10 @@ fn the_outline_is_crack_free_unlit_and_held_by_the_clamp() {
     // reversed winding
     let ix = g.accessor(prim["indices"].as_u64().unwrap() as usize);
     let first: Vec<u32> = ix[..3].iter().map(|r| r[0] as u32).collect();
-    assert_eq!(first, vec![mesh.indices[0], mesh.indices[2], mesh.indices[1]]);
+    assert_eq!(
+        first,
+        vec![mesh.indices[0], mesh.indices[2], mesh.indices[1]]
+    );
 
     let v = verify_glb(&b.glb, &b.surface, &p);
     for view in &v.views {
@@ -150,7 +167,8 @@ fn the_outline_is_crack_free_unlit_and_held_by_the_clamp() {
     p.outline.width = Some(0.8);
     let free = shellbake::bake_with(&torus, &p, &[Effect::Outline]);
     let held = shellbake::bake_with(&torus, &p, &[Effect::Outline, Effect::Collision]);
-    let clamped = |b: &shellbake::Baked| b.report.stage("outline").unwrap().counts["outline_clamped"];
+    let clamped =
+        |b: &shellbake::Baked| b.report.stage("outline").unwrap().counts["outline_clamped"];
     println!("clamped: free {}, held {}", clamped(&free), clamped(&held));
     assert_eq!(clamped(&free), 0.0);
     assert!(clamped(&held) > 0.0);
@@ -159,8 +177,7 @@ fn the_outline_is_crack_free_unlit_and_held_by_the_clamp() {
 }
 
 #[test]
-fn a_scene_with_fins_outline_and_tessellation_bakes_one_file_that_verifies_and_three_js_renders()
-{
+fn a_scene_with_fins_outline_and_tessellation_bakes_one_file_that_verifies_and_three_js_renders() {
     let dir = common::scratch("silhouettes_scene");
     let glb = dir.join("silhouettes.glb");
     let report = dir.join("report.json");
@@ -180,7 +197,11 @@ fn a_scene_with_fins_outline_and_tessellation_bakes_one_file_that_verifies_and_t
         let stages = r["surfaces"][surface]["stages"].as_array().unwrap();
         for name in ["fins", "outline", "tessellation"] {
             let s = stages.iter().find(|s| s["name"] == name).unwrap();
-            assert_eq!(s["ran"].as_bool().unwrap(), name == effect, "surface {surface}: {name}");
+            assert_eq!(
+                s["ran"].as_bool().unwrap(),
+                name == effect,
+                "surface {surface}: {name}"
+            );
         }
     }
     // verify: each surface against the runtime technique
@@ -217,7 +238,10 @@ fn a_scene_with_fins_outline_and_tessellation_bakes_one_file_that_verifies_and_t
         .pixels()
         .filter(|p| p.0[0] > 180 && p.0[1] < 120 && p.0[2] < 50)
         .count();
-    println!("three.js: {:.1}% drawn, {orange} outline pixels", drawn * 100.0);
+    println!(
+        "three.js: {:.1}% drawn, {orange} outline pixels",
+        drawn * 100.0
+    );
     assert!(drawn > 0.2, "three.js drew little of the scene");
     assert!(orange > 20, "no outline in three.js");
 }

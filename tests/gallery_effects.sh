@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates the effect pictures the README shows (out/gallery/effect-*.png), rendered by stock
 # three.js (GLTFLoader, AnimationMixer for the wind) in headless Chromium: each effect beside the
-# same bake without it, and the every-effect scene (fixtures/effects.toml) at two times.
+# same bake without it, the every-effect scene (fixtures/effects.toml) at two times, and the
+# silhouettes scene (fixtures/silhouettes.toml: fins, outline, tessellation).
 # Run by tests/gallery.sh; runs alone too (after tests/setup.sh and a release build).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,6 +19,14 @@ job() {
   jobs+="\"camera\":{\"auto\":true,\"yaw\":$3,\"pitch\":$4,\"distance\":$5,\"fovy_deg\":$6},"
   jobs+="\"light\":{\"direction\":[1,2,3],\"intensity\":3.0},\"ambient\":0.5,"
   jobs+="\"background\":[0.05,0.05,0.06],\"time\":$7}"
+  sep=","
+}
+# job_at GLB PNG EYE TARGET FOVY: a fixed camera (world units)
+job_at() {
+  jobs+="$sep{\"glb\":\"$1\",\"png\":\"$2\",\"width\":384,\"height\":384,"
+  jobs+="\"camera\":{\"eye\":$3,\"target\":$4,\"up\":[0,1,0],\"fovy_deg\":$5,\"near\":0.5,\"far\":100},"
+  jobs+="\"light\":{\"direction\":[1,2,3],\"intensity\":3.0},\"ambient\":0.5,"
+  jobs+="\"background\":[0.05,0.05,0.06]}"
   sep=","
 }
 "$bin" bake fixtures/bunny.obj -o "$work/bunny.glb" -q
@@ -69,6 +78,17 @@ job "$work/tube.glb" "$out/effect-skin-1.png" 0 5 2.6 35 1.5
 job "$work/tube-comb.glb" "$out/effect-comb.png" 0 5 2.6 35 0.5
 job "$work/coarse.glb" "$out/effect-tess-none.png" 20 15 2.4 35 null
 job "$work/coarse-tess.glb" "$out/effect-tess.png" 20 15 2.4 35 null
+# fins: the bunny's back and ears against the sky, close, with and without (the shells alone
+# look hollow where they are seen edge-on)
+"$bin" bake fixtures/bunny.obj --fins -o "$work/bunny-fins.glb" -q
+job_at "$work/bunny.glb" "$out/effect-fins-none.png" "[18,5,2]" "[0,5.5,-2]" 22
+job_at "$work/bunny-fins.glb" "$out/effect-fins.png" "[18,5,2]" "[0,5.5,-2]" 22
+# outline: the bunny with a pale hull (the dark default hides on the dark background) of a
+# twenty-fifth of its diagonal (past the fur, which hides a thinner hull); the silhouettes scene
+"$bin" bake fixtures/bunny.obj --outline --set outline.width_fraction=0.04 --set "outline.color=[0.85,0.8,0.6]" --clamp -o "$work/bunny-outline.glb" -q
+job "$work/bunny-outline.glb" "$out/effect-outline.png" 90 10 1.5 30 null
+"$bin" bake fixtures/silhouettes.toml -o "$work/silhouettes.glb" -q
+job "$work/silhouettes.glb" "$out/effect-silhouettes.png" 0 15 2.9 40 null
 jobs+="]"
 echo "$jobs" > "$work/jobs.json"
 node tests/js/three_render.mjs "$work/jobs.json"

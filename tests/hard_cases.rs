@@ -46,7 +46,8 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
             files.push(file);
         }
     }
-    // and tessellated first (factor 2, Phong): the same invariants on the subdivided base
+    // and tessellated first (factor 2, Phong), with fins and an outline: the same invariants on
+    // the subdivided base, every fin and hull coordinate finite, the file valid
     for layout in [Layout::Compact, Layout::SingleDraw] {
         let mut p = BakeParams::preset(Preset::Fur);
         p.pack.layout = layout;
@@ -55,7 +56,13 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
         if let Some(f) = height_fraction {
             p.shells.height_fraction = f;
         }
-        let baked = shellbake::bake_with(&scene, &p, &[Effect::Collision, Effect::Tessellation]);
+        let effects = [
+            Effect::Collision,
+            Effect::Tessellation,
+            Effect::Fins,
+            Effect::Outline,
+        ];
+        let baked = shellbake::bake_with(&scene, &p, &effects);
         let what = format!("{case} tessellated {layout:?}");
         all_finite(&baked.glb, &what);
         no_layer_inverts(&baked, &what);

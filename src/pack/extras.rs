@@ -4,13 +4,14 @@
 //!
 //! Positions go on the surface's position grid like the layers' (normalized `i16`, or the exact
 //! floats of `--quantize none`); the grid is fitted over the hull too, so a hull wider than the
-//! fur stays on it. Fin normals are `i8` like the layers'; fin texture coordinates are floats in
-//! strip tiles (`u` grows along an edge past any fixed range), with the strip bound without a
-//! transform. The hull has positions and indices only: its material is unlit.
+//! fur stays on it. Fin normals are `i8` like the layers'; fin texture coordinates are
+//! normalized `u16` over `[0, u_max] × [0, 1]` in strip tiles, the strip bound with a
+//! `KHR_texture_transform` scale of `(u_max, 1)`. The hull has positions and indices only: its
+//! material is unlit.
 
 use glam::{Vec2, Vec3};
 
-use super::model::{Alpha, Material, Node, Packed, Semantic, TextureRef, Texture};
+use super::model::{Alpha, Material, Node, Packed, Semantic, Texture, TextureRef};
 use super::quantize::Bytes;
 use super::{component, Builder, Geometry, PackInput};
 
@@ -36,12 +37,44 @@ pub(super) fn extras(b: &mut Builder, g: &Geometry, input: &PackInput) -> Extras
         let m = f.mesh(input.mesh, input.delta);
         let position = b.positions("fin_position", &stored(&m.positions), &g.grid);
         let normal = b.normals(&m.normals);
+        // normalized u16 over [0, u_max] × [0, 1], the scale in the texture transform (exact
+        // floats under `--quantize none`)
+        let u_max = m.uvs.iter().fold(f32::MIN_POSITIVE, |a, p| a.max(p.x));
         let mut uv = Bytes::default();
-        for p in &m.uvs {
-            uv.f32s(&p.to_array());
-        }
-        let uv = b.stream("fin_texcoord", Semantic::TexCoord(0), None, uv.0, Some(8), m.uvs.len());
-        let uv = b.out.accessor(uv, component::FLOAT, false, "VEC2", None);
+        let (uv, scale) = if b.float {
+            for p in &m.uvs {
+                uv.f32s(&p.to_array());
+            }
+            let n = m.uvs.len();
+            let v = b.stream(
+                "fin_texcoord",
+                Semantic::TexCoord(0),
+                None,
+                uv.0,
+                Some(8),
+                n,
+            );
+            let a = b.out.accessor(v, component::FLOAT, false, "VEC2", None);
+            (a, Vec2::ONE)
+        } else {
+            for p in &m.uvs {
+                let q = (*p / Vec2::new(u_max, 1.0) * 65535.0).round();
+                uv.u16s(&[q.x as u16, q.y as u16], 4);
+            }
+            let n = m.uvs.len();
+            let v = b.stream(
+                "fin_texcoord",
+                Semantic::TexCoord(0),
+                None,
+                uv.0,
+                Some(4),
+                n,
+            );
+            let a = b
+                .out
+                .accessor(v, component::UNSIGNED_SHORT, true, "VEC2", None);
+            (a, Vec2::new(u_max, 1.0))
+        };
         let indices = b.indices("fin_indices", &m.indices, m.positions.len());
         let png = crate::fins::encode_strip_png(&f.strip);
         let image = b.stream("fin_strip", Semantic::Image, None, png, None, 0);
@@ -55,7 +88,7 @@ pub(super) fn extras(b: &mut Builder, g: &Geometry, input: &PackInput) -> Extras
                 texture: Some(TextureRef {
                     texture,
                     offset: Vec2::ZERO,
-                    scale: Vec2::ONE,
+                    scale,
                 }),
                 roughness: input.roughness,
                 sheen: None,

@@ -79,14 +79,17 @@ impl Buffer {
         while self.bin.len() % 4 != 0 {
             self.bin.push(0);
         }
-        self.views.push(json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len() }));
+        self.views
+            .push(json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len() }));
         self.bin.extend_from_slice(bytes);
         self.views.len() - 1
     }
 
     fn floats(&mut self, values: &[f32], kind: &str, count: usize) -> usize {
         let view = self.view(bytemuck::cast_slice(values));
-        self.accessors.push(json!({ "bufferView": view, "componentType": 5126, "count": count, "type": kind }));
+        self.accessors.push(
+            json!({ "bufferView": view, "componentType": 5126, "count": count, "type": kind }),
+        );
         self.accessors.len() - 1
     }
 
@@ -120,13 +123,21 @@ pub fn extras_asset(input: &ExtrasInput) -> Option<Asset> {
     let mut materials = Vec::new();
     let mut images = Vec::new();
     if let Some(f) = input.fins {
-        let normals = mesh.normals.as_deref().expect("the reference needs normals");
+        let normals = mesh
+            .normals
+            .as_deref()
+            .expect("the reference needs normals");
         let (mut p, mut n, mut uv, mut ix) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for e in &f.edges {
             let (a, b) = (e.a as usize, e.b as usize);
             let (pa, pb) = (mesh.positions[a], mesh.positions[b]);
             let base = p.len() as u32;
-            p.extend([pa, pb, pb + input.delta[b] * f.top, pa + input.delta[a] * f.top]);
+            p.extend([
+                pa,
+                pb,
+                pb + input.delta[b] * f.top,
+                pa + input.delta[a] * f.top,
+            ]);
             n.extend([normals[a], normals[b], normals[b], normals[a]]);
             let u = e.offset + pa.distance(pb) * f.tiles_per_unit;
             uv.extend([
@@ -160,7 +171,12 @@ pub fn extras_asset(input: &ExtrasInput) -> Option<Asset> {
         meshes.push(json!({ "primitives": [{ "attributes": attributes, "indices": indices, "material": materials.len() - 1 }] }));
     }
     if let Some(o) = input.outline {
-        let hull: Vec<Vec3> = mesh.positions.iter().zip(&o.offset).map(|(&p, &d)| p + d).collect();
+        let hull: Vec<Vec3> = mesh
+            .positions
+            .iter()
+            .zip(&o.offset)
+            .map(|(&p, &d)| p + d)
+            .collect();
         let reversed: Vec<u32> = mesh
             .indices
             .chunks_exact(3)
@@ -242,7 +258,11 @@ mod tests {
                 .filter(|(a, b)| a != b)
                 .count();
             // the noise law's two forms of one test may round apart exactly at a threshold
-            assert!(differ <= baked.rgba.len() / 1000, "{}: {differ} bytes differ", preset.name());
+            assert!(
+                differ <= baked.rgba.len() / 1000,
+                "{}: {differ} bytes differ",
+                preset.name()
+            );
         }
     }
 }
