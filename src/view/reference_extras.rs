@@ -76,7 +76,7 @@ struct Buffer {
 
 impl Buffer {
     fn view(&mut self, bytes: &[u8]) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         self.views
@@ -211,31 +211,9 @@ pub fn extras_asset(input: &ExtrasInput) -> Option<Asset> {
         doc["textures"] = json!([{ "sampler": 0, "source": 0 }]);
         doc["samplers"] = json!([{ "magFilter": 9729, "minFilter": 9987 }]);
     }
-    let glb = glb_bytes(&doc, buf.bin);
+    // the GLB container only (header and chunks): nothing of the pack stage
+    let glb = crate::write::glb_bytes(&doc, &buf.bin);
     Some(Asset::from_glb(&glb).expect("the reference's own glTF reads back"))
-}
-
-/// A GLB container of `doc` and `bin`.
-fn glb_bytes(doc: &serde_json::Value, mut bin: Vec<u8>) -> Vec<u8> {
-    let mut json = serde_json::to_vec(doc).expect("JSON serializes");
-    while json.len() % 4 != 0 {
-        json.push(b' ');
-    }
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
 }
 
 #[cfg(test)]
