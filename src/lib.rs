@@ -33,6 +33,7 @@
 //! (wgpu), draws the runtime shell technique from the same input as a reference, and compares
 //! the two (`shellbake verify`).
 
+pub mod batch;
 pub mod clamp;
 pub mod compress;
 pub mod cull;

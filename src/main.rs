@@ -13,6 +13,7 @@ use std::time::Duration;
 
 #[cfg(feature = "view")]
 mod cli;
+mod cli_batch;
 #[cfg(feature = "view")]
 mod cli_study;
 
@@ -45,6 +46,10 @@ enum Command {
     /// Print the plan (the stages each surface runs, and why) and the estimated output size,
     /// without baking.
     Plan(BakeArgs),
+    /// Bake the assets of a manifest that fall to one shard (`--shard I/N`, or a Kubernetes
+    /// Indexed Job's or Slurm array's index), skipping those whose content key is unchanged;
+    /// `--merge` joins the shards' results.
+    Batch(cli_batch::BatchArgs),
     /// Draw a baked GLB to a PNG (headless).
     #[cfg(feature = "view")]
     Render(cli::RenderFlags),
@@ -84,6 +89,10 @@ enum Command {
         /// 131 072 triangles), for timing at scale.
         #[arg(long)]
         dense: bool,
+        /// Write a library of N small procedural meshes and its batch manifest (`manifest.toml`)
+        /// into DIR instead (`shellbake batch DIR/manifest.toml`).
+        #[arg(long, value_name = "N")]
+        library: Option<u32>,
     },
 }
 
@@ -561,6 +570,17 @@ fn message(e: &anyhow::Error) -> String {
     printable(&out, false)
 }
 
+/// `shellbake fixtures DIR --library N`: the meshes and the manifest.
+fn library_fixtures(dir: &Path, n: u32) -> anyhow::Result<()> {
+    let (meshes, manifest) = shellbake::procedural::library(n);
+    for (name, mesh) in meshes {
+        let text = shellbake::procedural::to_obj(&mesh, "shellbake procedural library mesh");
+        shellbake::write::write_atomic(&dir.join(name), text.as_bytes())?;
+    }
+    shellbake::write::write_atomic(&dir.join("manifest.toml"), manifest.as_bytes())?;
+    Ok(())
+}
+
 fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
     let mut all = shellbake::procedural::fixtures();
     if dense {
@@ -602,7 +622,24 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Bake(args) => bake(args),
         Command::Plan(args) => plan(args),
-        Command::Fixtures { dir, dense } => fixtures(dir, *dense),
+        Command::Batch(args) => cli_batch::run(args).and_then(|ok| {
+            if ok {
+                Ok(())
+            } else {
+                anyhow::bail!(
+                    "{}: not every asset was baked (see above)",
+                    args.manifest.display()
+                )
+            }
+        }),
+        Command::Fixtures {
+            dir,
+            dense,
+            library,
+        } => match library {
+            Some(n) => library_fixtures(dir, *n),
+            None => fixtures(dir, *dense),
+        },
         #[cfg(feature = "view")]
         Command::Bench { bake, bench } => bake.scene().and_then(|scene| {
             let (loaded, _) = load_checked(bake, &scene)?;

@@ -425,6 +425,34 @@ pub fn fixtures() -> Vec<(&'static str, Mesh)> {
     ]
 }
 
+/// A library of `n` small procedural meshes for `shellbake batch` (its test and its
+/// throughput figures): spheres, tori, planes and cubes of varied sizes and resolutions, named
+/// `asset_000` …, and the manifest naming them with the four presets in turn (8 layers).
+/// Returns `(file name, mesh)` pairs and the manifest's text.
+pub fn library(n: u32) -> (Vec<(String, Mesh)>, String) {
+    let mut meshes = Vec::new();
+    let mut manifest = String::from(
+        "# A generated library: `shellbake fixtures DIR --library N`.\n[defaults]\nargs = [\"--layers\", \"8\"]\n",
+    );
+    let presets = ["fur", "carpet", "grass", "moss"];
+    for i in 0..n {
+        let size = 0.5 + (i % 5) as f32 * 0.4;
+        let mesh = match i % 4 {
+            0 => sphere(size, 6 + i % 7, 8 + i % 9),
+            1 => torus(size, size * 0.3, 6 + i % 5, 10 + i % 7),
+            2 => plane(size * 2.0, 3 + i % 6),
+            _ => split_cube(size),
+        };
+        let name = format!("asset_{i:03}");
+        manifest += &format!(
+            "\n[[asset]]\nname = \"{name}\"\ninput = \"{name}.obj\"\npreset = \"{}\"\n",
+            presets[(i / 4 % 4) as usize]
+        );
+        meshes.push((format!("{name}.obj"), mesh));
+    }
+    (meshes, manifest)
+}
+
 /// Wavefront OBJ text of `m` (v, vt, vn, f; OBJ's v axis points up, so v is flipped).
 pub fn to_obj(m: &Mesh, comment: &str) -> String {
     let mut s = String::new();
