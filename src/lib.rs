@@ -20,6 +20,8 @@
 //! | gravity (effect `gravity`, alias `comb`) | [`gravity`] | [`gravity::Bend::on`] (a comb field's pulls: [`gravity::comb_pulls`]), [`gravity::lean_axes`] (per vertex [`gravity::Bend::at`], in pack and the reference) |
 //! | wind (effect `wind`) | [`wind`] | [`wind::Wind::new`] (targets and the animation in pack) |
 //! | sheen (effect `sheen`) | [`sheen`] | layer materials' [`sheen::Sheen::of`] in pack |
+//! | fins (effect `fins`) | [`fins`] | [`fins::fins`] (edges and strip; the quads [`fins::Fins::mesh`] in pack) |
+//! | outline (effect `outline`) | [`outline`] | [`outline::outline`] (with `collision`, hull rays in the collision stage) |
 //! | skinned fur (a skinned glTF input; no stage: the load line counts it) | [`skin`] | [`load::skin::read_skeleton`]; the shared `JOINTS_0`/`WEIGHTS_0`, skeleton copy and skin in pack |
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
 //! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
