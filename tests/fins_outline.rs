@@ -92,6 +92,26 @@ fn fins_stand_on_half_the_edges_and_verify() {
     }
 }
 
+/// The exact anchor: plain floats, one level, no compression — fins and hull drawn by the file
+/// are what the reference draws, pixel for pixel.
+#[test]
+fn exact_fins_and_outline_match_the_reference_pixel_for_pixel() {
+    let scene = load("bunny");
+    let mut p = params(Preset::Fur, Layout::Compact);
+    p.pack.quantize = shellbake::pack::Quantize::None;
+    p.outline.width_fraction = 0.04;
+    let b = shellbake::bake_with(&scene, &p, &[Effect::Fins, Effect::Outline]);
+    let v = verify_glb(&b.glb, &b.surface, &p);
+    for view in &v.views {
+        println!("{}", view.line());
+    }
+    assert!(v.passed(), "{:?}", v.failures());
+    assert!(
+        v.views.iter().all(|view| view.comparison.differing_any == 0),
+        "an exact bake differs from the reference"
+    );
+}
+
 #[test]
 fn the_outline_is_crack_free_unlit_and_held_by_the_clamp() {
     let cube = load("cube");
