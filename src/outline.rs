@@ -133,6 +133,6 @@ mod tests {
         assert_eq!(held.offset, vec![Vec3::X * 0.2, Vec3::Y * 0.5]);
         assert_eq!(held.clamped, 1);
         assert_eq!(reversed(&[0, 1, 2, 3, 4, 5]), vec![0, 2, 1, 3, 5, 4]);
-        assert_eq!(p.resolved_width(10.0), 0.04);
+        assert!((p.resolved_width(10.0) - 0.04).abs() < 1e-6);
     }
 }

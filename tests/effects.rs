@@ -244,21 +244,8 @@ fn a_bake_asking_for_no_effect_runs_none_and_builds_no_bvh() {
 #[test]
 fn a_scene_with_every_effect_bakes_one_valid_file_that_three_js_animates() {
     let dir = common::scratch("effects_scene");
-    let glb = dir.join("effects.glb");
-    let report = dir.join("report.json");
-    let (code, _, err) = common::shellbake(&[
-        "bake",
-        "fixtures/effects.toml",
-        "-o",
-        &common::path_str(&glb),
-        "--report",
-        &common::path_str(&report),
-        "-q",
-    ]);
-    assert_eq!(code, Some(0), "{err}");
-    common::assert_valid(std::slice::from_ref(&glb));
+    let (glb, r) = common::bake_scene_file("fixtures/effects.toml", &dir);
     // every effect ran, for the surface that asked
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     for (surface, effects) in [
         (0, &["wind"][..]),
         (1, &["gravity", "sheen"]),

@@ -107,7 +107,9 @@ fn exact_fins_and_outline_match_the_reference_pixel_for_pixel() {
     }
     assert!(v.passed(), "{:?}", v.failures());
     assert!(
-        v.views.iter().all(|view| view.comparison.differing_any == 0),
+        v.views
+            .iter()
+            .all(|view| view.comparison.differing_any == 0),
         "an exact bake differs from the reference"
     );
 }
@@ -199,20 +201,7 @@ fn the_outline_is_crack_free_unlit_and_held_by_the_clamp() {
 #[test]
 fn a_scene_with_fins_outline_and_tessellation_bakes_one_file_that_verifies_and_three_js_renders() {
     let dir = common::scratch("silhouettes_scene");
-    let glb = dir.join("silhouettes.glb");
-    let report = dir.join("report.json");
-    let (code, _, err) = common::shellbake(&[
-        "bake",
-        "fixtures/silhouettes.toml",
-        "-o",
-        &common::path_str(&glb),
-        "--report",
-        &common::path_str(&report),
-        "-q",
-    ]);
-    assert_eq!(code, Some(0), "{err}");
-    common::assert_valid(std::slice::from_ref(&glb));
-    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    let (glb, r) = common::bake_scene_file("fixtures/silhouettes.toml", &dir);
     for (surface, effect) in [(0, "fins"), (1, "outline"), (2, "tessellation")] {
         let stages = r["surfaces"][surface]["stages"].as_array().unwrap();
         for name in ["fins", "outline", "tessellation"] {

@@ -41,40 +41,29 @@ pub(super) fn extras(b: &mut Builder, g: &Geometry, input: &PackInput) -> Extras
         // floats under `--quantize none`)
         let u_max = m.uvs.iter().fold(f32::MIN_POSITIVE, |a, p| a.max(p.x));
         let mut uv = Bytes::default();
-        let (uv, scale) = if b.float {
+        let (stride, kind, scale) = if b.float {
             for p in &m.uvs {
                 uv.f32s(&p.to_array());
             }
-            let n = m.uvs.len();
-            let v = b.stream(
-                "fin_texcoord",
-                Semantic::TexCoord(0),
-                None,
-                uv.0,
-                Some(8),
-                n,
-            );
-            let a = b.out.accessor(v, component::FLOAT, false, "VEC2", None);
-            (a, Vec2::ONE)
+            (8, component::FLOAT, Vec2::ONE)
         } else {
+            let scale = Vec2::new(u_max, 1.0);
             for p in &m.uvs {
-                let q = (*p / Vec2::new(u_max, 1.0) * 65535.0).round();
+                let q = (*p / scale * 65535.0).round();
                 uv.u16s(&[q.x as u16, q.y as u16], 4);
             }
-            let n = m.uvs.len();
-            let v = b.stream(
-                "fin_texcoord",
-                Semantic::TexCoord(0),
-                None,
-                uv.0,
-                Some(4),
-                n,
-            );
-            let a = b
-                .out
-                .accessor(v, component::UNSIGNED_SHORT, true, "VEC2", None);
-            (a, Vec2::new(u_max, 1.0))
+            (4, component::UNSIGNED_SHORT, scale)
         };
+        let n = m.uvs.len();
+        let v = b.stream(
+            "fin_texcoord",
+            Semantic::TexCoord(0),
+            None,
+            uv.0,
+            Some(stride),
+            n,
+        );
+        let uv = b.out.accessor(v, kind, !b.float, "VEC2", None);
         let indices = b.indices("fin_indices", &m.indices, m.positions.len());
         let png = crate::fins::encode_strip_png(&f.strip);
         let image = b.stream("fin_strip", Semantic::Image, None, png, None, 0);

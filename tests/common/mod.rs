@@ -184,6 +184,27 @@ pub fn shellbake(args: &[&str]) -> (Option<i32>, String, String) {
     )
 }
 
+/// Bakes the scene file `scene` with `shellbake bake` into `dir/<stem>.glb` with a report,
+/// checks it succeeded and the file is validator-clean; returns the file and the report.
+pub fn bake_scene_file(scene: &str, dir: &Path) -> (PathBuf, Value) {
+    let stem = Path::new(scene).file_stem().unwrap().to_string_lossy();
+    let glb = dir.join(format!("{stem}.glb"));
+    let report = dir.join("report.json");
+    let (code, _, err) = shellbake(&[
+        "bake",
+        scene,
+        "-o",
+        &path_str(&glb),
+        "--report",
+        &path_str(&report),
+        "-q",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_valid(std::slice::from_ref(&glb));
+    let r = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    (glb, r)
+}
+
 /// Runs a Node script from tests/js on `files`, one JSON line per file.
 pub fn node(script: &str, files: &[PathBuf]) -> Vec<Value> {
     let js = repo().join("tests/js");
