@@ -111,8 +111,11 @@ impl Manifest {
                     "name must be letters, digits, '_', '-' and '.', not starting with '.'".into(),
                 ));
             }
-            if !seen.insert(a.name.as_str()) {
-                return Err(at("name appears twice (each asset is one output)".into()));
+            // case-folded: `Rock` and `rock` would be one file on a case-insensitive disk
+            if !seen.insert(a.name.to_ascii_lowercase()) {
+                return Err(at(
+                    "name appears twice, ignoring case (each asset is one output)".into(),
+                ));
             }
             for flag in a.args.iter().chain(&m.defaults.args) {
                 let bare = flag.split('=').next().unwrap_or("");
@@ -347,12 +350,17 @@ impl Merged {
 /// Joins shard results against the manifest.
 pub fn merge(manifest: &Manifest, results: &[ShardResult]) -> Merged {
     let mut seen: BTreeMap<&str, usize> = BTreeMap::new();
-    for r in results {
-        for a in &r.assets {
-            *seen.entry(a.name.as_str()).or_default() += 1;
-        }
+    for a in results.iter().flat_map(|r| &r.assets) {
+        *seen.entry(a.name.as_str()).or_default() += 1;
     }
-    let all: Vec<&AssetResult> = results.iter().flat_map(|r| &r.assets).collect();
+    // lines of assets the manifest no longer names (an older run's) are left out
+    let named: std::collections::HashSet<&str> =
+        manifest.assets.iter().map(|a| a.name.as_str()).collect();
+    let all: Vec<&AssetResult> = results
+        .iter()
+        .flat_map(|r| &r.assets)
+        .filter(|a| named.contains(a.name.as_str()))
+        .collect();
     let count = |s: Status| all.iter().filter(|a| a.status == s).count();
     let mut slowest: Vec<AssetResult> = all.iter().map(|&a| a.clone()).collect();
     slowest.sort_by(|a, b| b.ms.total_cmp(&a.ms).then(a.name.cmp(&b.name)));
@@ -374,7 +382,7 @@ pub fn merge(manifest: &Manifest, results: &[ShardResult]) -> Merged {
             .collect(),
         duplicated: seen
             .iter()
-            .filter(|&(_, &n)| n > 1)
+            .filter(|&(k, &n)| n > 1 && named.contains(k))
             .map(|(&k, _)| k.to_string())
             .collect(),
         failures: all
@@ -482,6 +490,7 @@ mod tests {
         for (text, says) in [
             ("[[asset]]\nname = \"a\"\ninput = \"a.obj\"\n[[asset]]\nname = \"a\"\ninput = \"b.obj\"\n", "twice"),
             ("[[asset]]\nname = \"../a\"\ninput = \"a.obj\"\n", "letters"),
+            ("[[asset]]\nname = \"Rock\"\ninput = \"a.obj\"\n[[asset]]\nname = \"rock\"\ninput = \"b.obj\"\n", "ignoring case"),
             ("[[asset]]\nname = \"a\"\ninput = \"a.obj\"\nargs = [\"-o\", \"x.glb\"]\n", "names outputs"),
             ("[[asset]]\nname = \"a\"\ninput = \"a.obj\"\ncolour = 1\n", "colour"),
         ] {
@@ -527,11 +536,15 @@ mod tests {
             &m,
             &[
                 r(vec![line("a", Status::Baked), line("b", Status::Failed)]),
-                r(vec![line("b", Status::Skipped)]),
+                r(vec![
+                    line("b", Status::Skipped),
+                    line("gone", Status::Baked),
+                ]),
             ],
         );
         assert_eq!(merged.missing, vec!["c"]);
         assert_eq!(merged.duplicated, vec!["b"]);
+        // `gone` is not in the manifest: an older run's line, not counted
         assert_eq!((merged.baked, merged.skipped, merged.failed), (1, 1, 1));
         assert!(!merged.ok());
     }

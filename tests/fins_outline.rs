@@ -254,3 +254,23 @@ fn a_scene_with_fins_outline_and_tessellation_bakes_one_file_that_verifies_and_t
     assert!(drawn > 0.2, "three.js drew little of the scene");
     assert!(orange > 20, "no outline in three.js");
 }
+
+/// A skinned surface skips both effects, saying why, and still bakes a valid file.
+#[test]
+fn a_skinned_surface_skips_fins_and_outline_saying_why() {
+    let tube = shellbake::load::load(&common::fixture("tube_skinned.glb")).unwrap();
+    let p = params(Preset::Fur, Layout::Compact);
+    let b = shellbake::bake_with(&tube, &p, &[Effect::Fins, Effect::Outline]);
+    for stage in ["fins", "outline"] {
+        let st = b.report.stage(stage).unwrap();
+        assert!(!st.ran, "{st:?}");
+        assert!(st.skipped.as_deref().unwrap().contains("skinned"), "{st:?}");
+    }
+    assert!(b.fins.is_none() && b.outline.is_none());
+    let g = Glb::parse(&b.glb);
+    assert!(named_mesh(&g, "fins").is_none() && named_mesh(&g, "outline").is_none());
+    let dir = common::scratch("fins_skinned");
+    let f = dir.join("tube.glb");
+    shellbake::write::write_glb(&f, &b.glb).unwrap();
+    common::assert_valid(&[f]);
+}
