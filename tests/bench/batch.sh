@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Throughput of `shellbake batch` with 1, 2 and 4 shard processes side by side on this machine,
+# Throughput of `shellbake batch` with 1, 2 and 4 shard processes side by side on this machine
+# (and one process with --jobs 2 and 4),
 # over the generated library of 200 procedural meshes (`shellbake fixtures DIR --library 200`),
 # each count from an empty output folder, three runs each (the median is printed). Then checks
 # that every count wrote the same bytes. Run after a release build:
@@ -29,6 +30,20 @@ for shards in 1 2 4; do
   median=$(printf '%s\n' "${times[@]}" | sort -g | sed -n 2p)
   base=${base:-$median}
   printf '| %d | %.2f s | %.1f | %.2f× |\n' "$shards" "$median" \
+    "$(echo "$n / $median" | bc -l)" "$(echo "$base / $median" | bc -l)"
+done
+# one process baking K assets at once instead
+for jobs in 2 4; do
+  times=()
+  for run in 1 2 3; do
+    out="$work/jobs-$jobs-$run"
+    start=$(date +%s.%N)
+    "$bin" batch "$work/lib/manifest.toml" --jobs "$jobs" --out "$out" -q
+    end=$(date +%s.%N)
+    times+=("$(echo "$end - $start" | bc -l)")
+  done
+  median=$(printf '%s\n' "${times[@]}" | sort -g | sed -n 2p)
+  printf '| 1, --jobs %d | %.2f s | %.1f | %.2f× |\n' "$jobs" "$median" \
     "$(echo "$n / $median" | bc -l)" "$(echo "$base / $median" | bc -l)"
 done
 # every shard count wrote the same files
