@@ -14,7 +14,7 @@
 //! The record holds the asset's **content key**: the SHA-256 of the shellbake version, the
 //! resolved parameters of every surface (preset, overrides, flags and effects applied), and the
 //! bytes of every file the bake reads (the mesh or scene, each surface's mesh, its maps, a
-//! `.gltf`'s external buffers and images). An asset whose record holds the same key, beside an
+//! `.gltf`'s external buffers). An asset whose record holds the same key, beside an
 //! output of the recorded size, is skipped. A shard killed mid-way leaves finished assets with
 //! their records and no partial file (temporaries of a dead process are removed by the next
 //! write in the folder), so running it again bakes only the rest.

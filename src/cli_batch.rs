@@ -221,10 +221,8 @@ fn resolved(scene: &shellbake::scene::SceneFile) -> String {
                 "effects": s.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
                 "translation": s.translation,
                 "scale": s.scale,
-                "maps": format!("{:?}", [
-                    s.density_map.as_ref().map(map_kind),
-                    s.length_map.as_ref().map(map_kind),
-                ]),
+                "density_map": s.density_map.as_ref().map(map_kind),
+                "length_map": s.length_map.as_ref().map(map_kind),
                 "comb_map": s.comb_map.as_ref().map(|c| match c {
                     shellbake::scene::FlowSource::Image(_) => "image",
                     shellbake::scene::FlowSource::VertexColors => "COLOR_0",
@@ -243,7 +241,7 @@ fn map_kind(m: &shellbake::scene::MapSource) -> String {
 }
 
 /// Every file a bake of `scene` (read from `input`) reads, in a fixed order: the scene file,
-/// then per surface its mesh (and a `.gltf`'s external buffers and images) and its map images.
+/// then per surface its mesh (and a `.gltf`'s external buffers) and its map images.
 fn inputs_of(input: &Path, scene: &shellbake::scene::SceneFile) -> Vec<PathBuf> {
     let mut files = Vec::new();
     if scene.path.is_some() {
@@ -264,7 +262,9 @@ fn inputs_of(input: &Path, scene: &shellbake::scene::SceneFile) -> Vec<PathBuf> 
     files
 }
 
-/// The external files (`uri`s that are not `data:`) of buffers and images of a `.gltf`.
+/// The external buffer files of a `.gltf`, resolved as the loader resolves them
+/// ([`shellbake::load::document::confined_path`]; a `uri` it refuses fails the load itself).
+/// Images are left out: the loader reads none.
 fn gltf_externals(mesh: &Path) -> Vec<PathBuf> {
     if !mesh
         .extension()
@@ -278,13 +278,13 @@ fn gltf_externals(mesh: &Path) -> Vec<PathBuf> {
     let Ok(doc) = serde_json::from_slice::<serde_json::Value>(&text) else {
         return Vec::new();
     };
-    let dir = mesh.parent().unwrap_or(Path::new("."));
-    ["buffers", "images"]
-        .iter()
-        .flat_map(|k| doc[k].as_array().cloned().unwrap_or_default())
-        .filter_map(|b| b["uri"].as_str().map(str::to_string))
+    doc["buffers"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|b| b["uri"].as_str())
         .filter(|u| !u.starts_with("data:"))
-        .map(|u| dir.join(u))
+        .filter_map(|u| shellbake::load::document::confined_path(mesh, u))
         .collect()
 }
 

@@ -436,7 +436,9 @@ fn bake_surface(
     let mut bvh: Option<clamp::MeshBvh> = None;
     // the outline's width: with `collision`, its rays reach as far as the hull does
     let outline_width = params.outline.resolved_width(diagonal);
-    let hull_rays = plan.runs(Stage::Outline, i) && scene.skeleton.is_none();
+    // a skinned surface takes no fins or outline, and no chunk or LOD nodes (see `skin`)
+    let skinned = scene.skeleton.is_some();
+    let hull_rays = plan.runs(Stage::Outline, i) && !skinned;
     let collision = report.gate(plan, Stage::Collision, i, || {
         let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
         let hull = hull_rays
@@ -569,62 +571,38 @@ fn bake_surface(
     shells.sheen = report.gate(plan, Stage::Sheen, i, || params.sheen.clone());
     shells.occlusion = occlusion;
 
-    // a skinned mesh's node must be a root: no chunk or LOD nodes above it (see `skin`)
-    let skinned = scene.skeleton.is_some();
-    // fins and outlines are not skinned: a skinned surface skips them with the reason
-    let unskinned = |report: &mut Report, stage: Stage| {
-        let skip = skinned && plan.runs(stage, i);
-        if skip {
-            report.skip(
-                stage.name(),
-                "skinned surface: fins and outlines are not skinned",
-            );
-        }
-        !skip
-    };
-    let fins = unskinned(&mut report, Stage::Fins)
-        .then(|| {
-            report.gate(plan, Stage::Fins, i, || {
-                let top = shells.t.last().copied().unwrap_or(0.0);
-                let scale = (&params.shade, top, density);
-                fins::fins(&mesh, &mask, scale, &params.fins, params.strands.seed)
-            })
-        })
-        .flatten();
+    let no_extras = skinned.then_some("skinned surface: fins and outlines are not skinned");
+    let fins = report.gate_unless(plan, Stage::Fins, i, no_extras, || {
+        let top = shells.t.last().copied().unwrap_or(0.0);
+        let scale = (&params.shade, top, density);
+        fins::fins(&mesh, &mask, scale, &params.fins, params.strands.seed)
+    });
     if let Some(f) = &fins {
         report.count("fins", f.edges.len() as f64);
         report.count("fin_candidates", f.candidates as f64);
     }
-    let outline = unskinned(&mut report, Stage::Outline)
-        .then(|| {
-            report.gate(plan, Stage::Outline, i, || {
-                // with `collision`, the free distance its rays found holds the hull
-                let limit: Option<Vec<f32>> = hull_bound
-                    .as_ref()
-                    .map(|b| welded.remap.iter().map(|&w| b[w as usize] as f32).collect());
-                outline::outline(
-                    &frames.direction,
-                    limit.as_deref(),
-                    outline_width,
-                    &params.outline,
-                )
-            })
-        })
-        .flatten();
+    let outline = report.gate_unless(plan, Stage::Outline, i, no_extras, || {
+        // with `collision`, the free distance its rays found holds the hull
+        let limit: Option<Vec<f32>> = hull_bound
+            .as_ref()
+            .map(|b| welded.remap.iter().map(|&w| b[w as usize] as f32).collect());
+        outline::outline(
+            &frames.direction,
+            limit.as_deref(),
+            outline_width,
+            &params.outline,
+        )
+    });
     if let Some(o) = &outline {
         report.count("outline_width", o.width as f64);
         report.count("outline_clamped", o.clamped as f64);
     }
     let lod_runs = plan.runs(Stage::Lod, i) && !skinned;
     let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
-    let levels = if skinned && plan.runs(Stage::Lod, i) {
-        report.skip(
-            Stage::Lod.name(),
-            "skinned surface: its layer nodes are scene roots, so one level and no chunks",
-        );
-        None
-    } else {
-        report.gate(plan, Stage::Lod, i, || {
+    let one_level = skinned
+        .then_some("skinned surface: its layer nodes are scene roots, so one level and no chunks");
+    let levels = report
+        .gate_unless(plan, Stage::Lod, i, one_level, || {
             let spacing = 1.0 / density as f64;
             let texel = spacing * mask.cells_per_tile as f64 / mask.size as f64;
             let base = lod::Base {
@@ -635,8 +613,7 @@ fn bake_surface(
             };
             lod::build_lods(&shells, &mask, spacing, texel, &params.lod, Some(&base))
         })
-    }
-    .unwrap_or_else(|| vec![lod::full_level(&shells)]);
+        .unwrap_or_else(|| vec![lod::full_level(&shells)]);
     report.count("levels", levels.len() as f64);
     report.count("chunks", chunks.len() as f64);
     // One mask, and one cull bound per triangle, per distinct mip the levels use: the bound

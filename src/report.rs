@@ -108,7 +108,21 @@ impl Report {
         surface: usize,
         f: impl FnOnce() -> T,
     ) -> Option<T> {
-        match plan.skipped(stage, surface) {
+        self.gate_unless(plan, stage, surface, None, f)
+    }
+
+    /// [`Report::gate`], except that a stage the plan runs is skipped with the reason `blocked`
+    /// when there is one (a skinned surface takes no LOD, fins or outline).
+    pub fn gate_unless<T>(
+        &mut self,
+        plan: &Plan,
+        stage: PlanStage,
+        surface: usize,
+        blocked: Option<&str>,
+        f: impl FnOnce() -> T,
+    ) -> Option<T> {
+        let why = plan.skipped(stage, surface).or(blocked.map(str::to_string));
+        match why {
             None => Some(self.run(stage.name(), f)),
             Some(why) => {
                 self.skip(stage.name(), &why);

@@ -395,27 +395,29 @@ pub fn verify(
     glb_out: Option<&Path>,
     quiet: bool,
 ) -> Result<()> {
-    let baked = crate::bake_scene(scene, loaded);
-    if let Some(path) = glb_out {
+    let several = scene.surfaces.len() > 1;
+    // the whole scene's file: what `-o` writes, and the one surface's bake to verify
+    let whole = (glb_out.is_some() || !several).then(|| crate::bake_scene(scene, loaded));
+    if let (Some(path), Some(baked)) = (glb_out, &whole) {
         crate::write::write_glb(path, &baked.glb)?;
     }
     let gpu = Gpu::new()?;
     let stem = input
         .file_stem()
         .map_or("input".into(), |s| s.to_string_lossy().into_owned());
-    let several = scene.surfaces.len() > 1;
     let mut failures = Vec::new();
     for (i, surface) in scene.surfaces.iter().enumerate() {
         let alone;
-        let baked = if several {
-            let one = SceneFile {
-                surfaces: vec![surface.clone()],
-                ..scene.clone()
-            };
-            alone = crate::bake_scene(&one, &loaded[i..=i]);
-            &alone
-        } else {
-            &baked
+        let baked = match &whole {
+            Some(baked) if !several => baked,
+            _ => {
+                let one = SceneFile {
+                    surfaces: vec![surface.clone()],
+                    ..scene.clone()
+                };
+                alone = crate::bake_scene(&one, &loaded[i..=i]);
+                &alone
+            }
         };
         let result = verify::verify(
             &gpu,
