@@ -38,10 +38,12 @@
 pub mod batch;
 pub mod clamp;
 pub mod compress;
+pub mod critter;
 pub mod cull;
 pub mod error;
 pub mod fins;
 pub mod frames;
+pub mod graft;
 pub mod gravity;
 pub mod grid;
 pub mod load;
@@ -72,7 +74,7 @@ pub mod write;
 use std::path::Path;
 use std::time::Instant;
 
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 
 pub use error::{Error, Result};
 use mesh::{Mesh, Scene};
@@ -150,6 +152,67 @@ pub struct Loaded {
     pub scene: Scene,
     pub maps: SurfaceMaps,
     pub ms: f64,
+    /// Set when the surface is one part of an asset kept whole ([`asset_scene`]).
+    pub part: Option<PartOf>,
+}
+
+/// What a surface that is one part of an asset kept whole (DESIGN §10) does differently: it
+/// draws no base layer (the asset's primitive is the base), a skinned one stores its positions
+/// in the asset's bind space (the graft binds it to the asset's skin), and its fur takes the
+/// asset's colours.
+#[derive(Clone, Debug, Default)]
+pub struct PartOf {
+    /// Where the fur takes its colour (`None`: the preset's colours).
+    pub paint: Option<load::asset::Paint>,
+}
+
+/// The scene that furs the chosen parts of `asset` (from [`load::asset::Asset::select`]): one
+/// surface per part, each with `template`'s surface settings (its preset, parameters, effects
+/// and maps), named after the part's node. A skinned part stores float positions (its bind
+/// space, so that clients compute true bounds).
+pub fn asset_scene(
+    template: &SceneFile,
+    asset: &load::asset::Asset,
+    chosen: &[usize],
+) -> Result<(SceneFile, Vec<Loaded>)> {
+    let surface = &template.surfaces[0];
+    let mut names: Vec<String> = Vec::new();
+    let mut scene = SceneFile {
+        path: template.path.clone(),
+        output: template.output.clone(),
+        surfaces: Vec::new(),
+    };
+    let mut loaded = Vec::new();
+    for &i in chosen {
+        let start = Instant::now();
+        let part = &asset.parts[i];
+        let mut name = part.label(asset.primitives(i));
+        let stem = name.clone();
+        let mut k = 1;
+        while names.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
+            k += 1;
+            name = format!("{stem}_{k}");
+        }
+        names.push(name.clone());
+        let mut s = surface.clone();
+        s.name = name;
+        if part.skin.is_some() {
+            s.params.pack.quantize = pack::Quantize::None;
+        }
+        let mut geometry = part.scene.clone();
+        geometry.warnings.clear();
+        let maps = surface_maps(&s, &geometry)?;
+        scene.surfaces.push(s);
+        loaded.push(Loaded {
+            scene: geometry,
+            maps,
+            ms: start.elapsed().as_secs_f64() * 1e3,
+            part: Some(PartOf {
+                paint: part.paint.clone(),
+            }),
+        });
+    }
+    Ok((scene, loaded))
 }
 
 /// The density, length and flow maps of a surface, when its scene names them.
@@ -159,6 +222,77 @@ pub struct SurfaceMaps {
     pub length: Option<maps::Map>,
     /// The `gravity` effect's comb field (`comb_map`).
     pub comb: Option<maps::Flow>,
+}
+
+/// An asset baked whole: the fur-only bake of its parts, and the asset with the fur grafted on.
+pub struct AssetBake {
+    /// The fur alone (one surface per furred part, no base layers): what `verify` checks.
+    pub fur: BakedScene,
+    /// The asset with its fur (see [`graft`]).
+    pub glb: Vec<u8>,
+    pub json: serde_json::Value,
+    /// The parts furred, surface by surface.
+    pub parts: Vec<usize>,
+}
+
+/// Bakes the parts `chosen` of `asset` (from [`load::asset::Asset::select`]; not empty) with
+/// the settings of `template`'s one surface, and grafts the fur onto the asset. The report
+/// (`fur.report.asset`) says what was kept, furred and passed through. Fails where the scene
+/// does ([`asset_scene`]) or an image file of the asset cannot be read.
+pub fn bake_asset(
+    template: &SceneFile,
+    asset: &load::asset::Asset,
+    chosen: &[usize],
+) -> Result<AssetBake> {
+    let (scene, loaded) = asset_scene(template, asset, chosen)?;
+    let mut fur = bake_scene(&scene, &loaded);
+    let (_, bin) = load::document::split_glb(&fur.glb).expect("our own GLB splits");
+    let grafted = graft::graft(asset, chosen, (&fur.json, bin.unwrap_or(&[])), &fur.packed)?;
+    let mut report = report::AssetReport {
+        warnings: asset.warnings.clone(),
+        ..Default::default()
+    };
+    report.warnings.extend(grafted.warnings);
+    for kind in [
+        "scenes", "nodes", "meshes", "materials", "textures", "images", "samplers", "skins",
+        "animations", "cameras",
+    ] {
+        let n = asset.doc.json[kind].as_array().map_or(0, Vec::len);
+        report.kept.insert(kind.into(), n);
+    }
+    let lights = asset.doc.json["extensions"]["KHR_lights_punctual"]["lights"]
+        .as_array()
+        .map_or(0, Vec::len);
+    report.kept.insert("lights".into(), lights);
+    let describe = |i: usize| {
+        let p = &asset.parts[i];
+        format!(
+            "node '{}' (mesh '{}' primitive {}, material '{}')",
+            load::escape(&p.names.node),
+            load::escape(&p.names.mesh),
+            p.primitive,
+            load::escape(&p.names.material)
+        )
+    };
+    for (s, &i) in chosen.iter().enumerate() {
+        report.furred.push(format!("{} as '{}'", describe(i), scene.surfaces[s].name));
+    }
+    for i in (0..asset.parts.len()).filter(|i| !chosen.contains(i)) {
+        let why = if asset.parts[i].furred {
+            "carries shellbake fur already"
+        } else {
+            "not selected by --only"
+        };
+        report.skipped.push(format!("{}: {why}", describe(i)));
+    }
+    fur.report.total_bytes = grafted.glb.len();
+    fur.report.asset = Some(report);
+    Ok(AssetBake {
+        fur,
+        glb: grafted.glb,
+        json: grafted.json,
+        parts: chosen.to_vec(),
+    })
 }
 
 /// Loads every surface's mesh and places it (scale, then translation). Fails on the first
@@ -176,6 +310,22 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
             if let Some(k) = &mut loaded.skeleton {
                 k.place(glam::DVec3::from(s.translation), s.scale);
             }
+            let maps = surface_maps(s, &loaded)?;
+            Ok(Loaded {
+                scene: loaded,
+                maps,
+                ms: start.elapsed().as_secs_f64() * 1e3,
+                part: None,
+            })
+        })
+        .collect()
+}
+
+/// The density, length and comb maps surface `s` names, read (images) or checked against the
+/// loaded meshes (vertex colours).
+fn surface_maps(s: &Surface, loaded: &Scene) -> Result<SurfaceMaps> {
+    {
+        {
             let has_colors = loaded.meshes.iter().any(|m| m.colors.is_some());
             let no_colors = |what: String| {
                 Error::invalid(
@@ -215,18 +365,13 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
                     return Err(no_colors("comb_map from COLOR_0 (red and green)".into()))
                 }
             };
-            let maps = SurfaceMaps {
+            Ok(SurfaceMaps {
                 density: read("density_map", &s.density_map)?,
                 length: read("length_map", &s.length_map)?,
                 comb,
-            };
-            Ok(Loaded {
-                scene: loaded,
-                maps,
-                ms: start.elapsed().as_secs_f64() * 1e3,
             })
-        })
-        .collect()
+        }
+    }
 }
 
 /// Bakes a loaded mesh with `params` and no effects: the one-surface shortcut. Never fails:
@@ -248,7 +393,7 @@ pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
 pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Baked {
     let file = SceneFile::single(Path::new(""), Preset::Fur, params.clone(), effects);
     let maps = SurfaceMaps::default();
-    let mut baked = run_plan(&file, &[(scene, &maps, 0.0)]);
+    let mut baked = run_plan(&file, &[(scene, &maps, 0.0, None)]);
     let surface = baked.surfaces.pop().expect("one surface");
     Baked {
         glb: baked.glb,
@@ -262,13 +407,18 @@ pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Bake
 /// GLB, running the scene's plan. Never fails; every surface's parameters must pass
 /// [`BakeParams::check`] (asserted).
 pub fn bake_scene(scene: &SceneFile, loaded: &[Loaded]) -> BakedScene {
-    let meshes: Vec<(&Scene, &SurfaceMaps, f64)> =
-        loaded.iter().map(|l| (&l.scene, &l.maps, l.ms)).collect();
+    let meshes: Vec<(&Scene, &SurfaceMaps, f64, Option<&PartOf>)> = loaded
+        .iter()
+        .map(|l| (&l.scene, &l.maps, l.ms, l.part.as_ref()))
+        .collect();
     run_plan(scene, &meshes)
 }
 
 /// [`bake_scene`] on borrowed meshes, each with its maps and load time.
-fn run_plan(scene: &SceneFile, loaded: &[(&Scene, &SurfaceMaps, f64)]) -> BakedScene {
+fn run_plan(
+    scene: &SceneFile,
+    loaded: &[(&Scene, &SurfaceMaps, f64, Option<&PartOf>)],
+) -> BakedScene {
     assert_eq!(scene.surfaces.len(), loaded.len(), "one load per surface");
     let start = Instant::now();
     let plan = scene::plan(scene);
@@ -279,8 +429,8 @@ fn run_plan(scene: &SceneFile, loaded: &[(&Scene, &SurfaceMaps, f64)]) -> BakedS
         .iter()
         .zip(loaded)
         .enumerate()
-        .map(|(i, (surface, &(meshes, maps, ms)))| {
-            bake_surface(&plan, i, surface, (meshes, maps), ms, several, &mut packed)
+        .map(|(i, (surface, &(meshes, maps, ms, part)))| {
+            bake_surface(&plan, i, surface, (meshes, maps, part), ms, several, &mut packed)
         })
         .collect();
     let write_start = Instant::now();
@@ -336,7 +486,7 @@ fn bake_surface(
     plan: &Plan,
     i: usize,
     surface: &Surface,
-    (scene, maps): (&Scene, &SurfaceMaps),
+    (scene, maps, part): (&Scene, &SurfaceMaps, Option<&PartOf>),
     load_ms: f64,
     several: bool,
     packed: &mut Packed,
@@ -417,6 +567,15 @@ fn bake_surface(
     mesh.gather_vertices(&welded.vertex_source);
     mesh.indices = welded.render_indices.clone();
     mesh.face_split_normals(input_vertices);
+    // the asset's colour at each strand root (a `color` in the shade overrides it)
+    let albedo: Option<Vec<Vec3>> = part.and_then(|p| match params.shade.color {
+        Some(c) => Some(vec![Vec3::from(c); mesh.vertex_count()]),
+        None => p.paint.as_ref().map(|paint| paint.albedo(&mesh)),
+    });
+    let shade = match &albedo {
+        Some(_) => shells::asset_shade(&params.shade),
+        None => params.shade.clone(),
+    };
 
     let mut frames = report.run("frames", || {
         frames::extrusion_frames(&welded, mesh.normals.as_deref())
@@ -537,11 +696,12 @@ fn bake_surface(
             Some(clamp.scale.as_slice()),
             height,
             &params.shells,
-            &params.shade,
+            &shade,
         )
     });
     report.count("layers", shells.t.len() as f64);
     let mut shells = shells;
+    shells.albedo = albedo;
     // the law and the lean axes (made by the first of gravity and wind): each vertex's bend
     // and sway follow from its (guarded) delta where they are drawn
     let mut lean: Option<Vec<glam::Vec3>> = None;
@@ -713,8 +873,17 @@ fn bake_surface(
             })
             .collect()
     });
+    // an asset's skinned part: positions in the skin's bind space as they are
+    let bind_space = (part.is_some() && scene.skeleton.is_some()).then(|| {
+        let mut m = mesh.clone();
+        for p in &mut m.positions {
+            *p = (p.as_dvec3() + m.origin).as_vec3();
+        }
+        m.origin = glam::DVec3::ZERO;
+        m
+    });
     let input = pack::PackInput {
-        mesh: &mesh,
+        mesh: bind_space.as_ref().unwrap_or(&mesh),
         delta: &shells.delta,
         height: shells.height,
         levels: &pack_levels,
@@ -735,6 +904,8 @@ fn bake_surface(
         skeleton: scene.skeleton.as_ref(),
         fins: fins.as_ref(),
         outline: outline.as_ref(),
+        base: part.is_none(),
+        albedo: shells.albedo.as_deref(),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(

@@ -228,6 +228,11 @@ struct BakeArgs {
     /// before the other flags.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    /// Fur only the parts of a glTF asset whose node, mesh or material name matches
+    /// (`material=fox_*`; KIND is node, mesh or material; `*` and `?` globs; repeatable); the
+    /// rest passes through untouched [default: every triangle primitive].
+    #[arg(long = "only", value_name = "KIND=GLOB")]
+    only: Vec<shellbake::load::asset::Selector>,
     /// Write the JSON report here.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -301,6 +306,13 @@ impl BakeArgs {
                 effects.retain(|&e| e != effect);
             }
         }
+    }
+
+    /// Whether the input is a glTF asset, kept whole with fur added (DESIGN §10).
+    fn is_asset(&self) -> bool {
+        self.input.extension().is_some_and(|e| {
+            e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb")
+        })
     }
 
     /// Whether the input is a scene file.
@@ -439,8 +451,19 @@ fn load_checked(
     scene: &SceneFile,
 ) -> anyhow::Result<(Vec<shellbake::Loaded>, u64)> {
     let loaded = shellbake::load_surfaces(scene)?;
+    let estimate = check_loaded(args, scene, &loaded)?;
+    Ok((loaded, estimate))
+}
+
+/// Checks that every surface has something to bake and that the output stays under
+/// `--max-output`; returns the size estimate.
+fn check_loaded(
+    args: &BakeArgs,
+    scene: &SceneFile,
+    loaded: &[shellbake::Loaded],
+) -> anyhow::Result<u64> {
     let mut estimate = 0u64;
-    for (surface, l) in scene.surfaces.iter().zip(&loaded) {
+    for (surface, l) in scene.surfaces.iter().zip(loaded) {
         shellbake::check_bakeable(&l.scene, &surface.mesh)?;
         estimate += surface.params.estimate_bytes(&l.scene);
         estimate += surface.params.estimate_extra_bytes(
@@ -458,7 +481,25 @@ fn load_checked(
             args.max_output
         );
     }
-    Ok((loaded, estimate))
+    Ok(estimate)
+}
+
+/// The asset, the parts `--only` chooses, and the scene and meshes that fur them.
+fn load_asset(
+    args: &BakeArgs,
+    template: &SceneFile,
+) -> anyhow::Result<(shellbake::load::asset::Asset, Vec<usize>, u64)> {
+    let asset = shellbake::load::asset::Asset::read(&args.input)?;
+    let chosen = asset.select(&args.only)?;
+    if chosen.is_empty() {
+        anyhow::bail!(
+            "{}: nothing to fur: every triangle primitive carries shellbake fur already",
+            args.input.display()
+        );
+    }
+    let (scene, loaded) = shellbake::asset_scene(template, &asset, &chosen)?;
+    let estimate = check_loaded(args, &scene, &loaded)? + asset.buffers.iter().map(|b| b.len() as u64).sum::<u64>();
+    Ok((asset, chosen, estimate))
 }
 
 fn bake(args: &BakeArgs) -> anyhow::Result<()> {
@@ -483,23 +524,35 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         pb.enable_steady_tick(Duration::from_millis(120));
         pb
     });
-    let (loaded, _) = load_checked(args, &scene)?;
-    let mut baked = shellbake::bake_scene(&scene, &loaded);
-    drop(loaded);
+    if !args.only.is_empty() && !args.is_asset() {
+        anyhow::bail!(
+            "{}: --only chooses parts of a glTF asset (.gltf, .glb)",
+            args.input.display()
+        );
+    }
+    let (mut report, glb) = if args.is_asset() {
+        let (asset, chosen, _) = load_asset(args, &scene)?;
+        let baked = shellbake::bake_asset(&scene, &asset, &chosen)?;
+        (baked.fur.report, baked.glb)
+    } else {
+        let (loaded, _) = load_checked(args, &scene)?;
+        let baked = shellbake::bake_scene(&scene, &loaded);
+        (baked.report, baked.glb)
+    };
     if let Some(pb) = spinner {
         pb.finish_and_clear();
     }
-    baked.report.input = args.input.display().to_string();
-    baked.report.output = out.display().to_string();
-    let json = args.report.as_ref().map(|_| baked.report.to_json());
-    let mut files = vec![(out.as_path(), baked.glb.as_slice())];
+    report.input = args.input.display().to_string();
+    report.output = out.display().to_string();
+    let json = args.report.as_ref().map(|_| report.to_json());
+    let mut files = vec![(out.as_path(), glb.as_slice())];
     if let (Some(path), Some(json)) = (&args.report, &json) {
         files.push((path.as_path(), json.as_bytes()));
     }
     // both complete before either replaces what was there
     shellbake::write::write_all_atomic(&files)?;
     if !args.quiet {
-        print!("{}", printable(&baked.report.summary(), true));
+        print!("{}", printable(&report.summary(), true));
     }
     Ok(())
 }
@@ -614,6 +667,16 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
     shellbake::write::write_atomic(&dir.join("terrain.toml"), scene.as_bytes())?;
     let tube = shellbake::procedural::skinned_tube();
     shellbake::write::write_atomic(&dir.join("tube_skinned.glb"), &tube)?;
+    // the creature assets (DESIGN §10): one critter; two on a ground with a camera and a light
+    use shellbake::critter::{critter_glb, Critters};
+    let one = critter_glb(Critters::default());
+    shellbake::write::write_atomic(&dir.join("critter.glb"), &one)?;
+    let scene = critter_glb(Critters {
+        count: 2,
+        ground: true,
+        camera_and_light: true,
+    });
+    shellbake::write::write_atomic(&dir.join("critters.glb"), &scene)?;
     Ok(())
 }
 

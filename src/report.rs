@@ -257,6 +257,49 @@ pub struct SceneReport {
     pub streams: BTreeMap<String, usize>,
     pub surfaces: Vec<Report>,
     pub total_ms: f64,
+    /// For an asset kept whole: what was kept, furred and passed through.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub asset: Option<AssetReport>,
+}
+
+/// What a bake of an asset kept whole did with the asset (DESIGN §10).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct AssetReport {
+    /// Objects of the input written back, by kind (`nodes`, `meshes`, `materials`, …).
+    pub kept: BTreeMap<String, usize>,
+    /// Parts furred: `node 'name' (mesh 'm', primitive k, material 'x') → surface`.
+    pub furred: Vec<String>,
+    /// Parts passed through without fur, with the reason.
+    pub skipped: Vec<String>,
+    /// What the graft had to warn about.
+    pub warnings: Vec<String>,
+}
+
+impl AssetReport {
+    fn lines(&self) -> String {
+        let kept: Vec<String> = self
+            .kept
+            .iter()
+            .filter(|(_, &n)| n > 0)
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        let mut s = format!("  kept: {}
+", kept.join(", "));
+        s += &format!("  furred ({}): {}
+", self.furred.len(), self.furred.join("; "));
+        if !self.skipped.is_empty() {
+            s += &format!(
+                "  not furred ({}): {}
+",
+                self.skipped.len(),
+                self.skipped.join("; ")
+            );
+        }
+        for w in &self.warnings {
+            s += &format!("  warning: {w}\n");
+        }
+        s
+    }
 }
 
 impl SceneReport {
@@ -292,8 +335,10 @@ impl SceneReport {
     /// The one-screen summary printed after a bake: one surface reads as it always has; several
     /// get a block each and the file's totals.
     pub fn summary(&self) -> String {
+        let asset = self.asset.as_ref().map_or(String::new(), AssetReport::lines);
         if let [one] = self.surfaces.as_slice() {
             return format!("{} -> {}\n", self.input, self.output)
+                + &asset
                 + &one.section()
                 + &self.plan_line();
         }
@@ -306,6 +351,7 @@ impl SceneReport {
             self.triangles_drawn,
             self.draw_calls
         );
+        s += &asset;
         for r in &self.surfaces {
             s += &format!(" surface {} ({})\n", r.name, r.input);
             s += &r.section();

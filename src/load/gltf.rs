@@ -30,8 +30,9 @@
 //!
 //! Every primitive with mode TRIANGLES of every node of the default scene (or, with no scene,
 //! every root node) becomes one [`Mesh`] with its world transform applied in `f64`; normals go
-//! through the inverse transpose; mirrored transforms flip the winding. Other primitive modes
-//! are skipped with a warning.
+//! through the inverse transpose; mirrored transforms flip the winding. Triangle strips and fans
+//! are read as the triangle lists they draw ([`triangle_list`]); points and lines are skipped
+//! with a warning.
 
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
@@ -73,7 +74,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
         };
         for (k, prim) in doc.meshes[m].primitives.iter().enumerate() {
             let element = format!("mesh {m} primitive {k}");
-            if prim.mode != 4 {
+            if !is_triangles(prim.mode) {
                 scene.warnings.push(format!(
                     "{}: {element}: mode {} skipped",
                     path.display(),
@@ -158,7 +159,35 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
     Ok(scene)
 }
 
-fn read_primitive(
+/// Whether a primitive mode is made of triangles (a list, a strip or a fan).
+pub(super) fn is_triangles(mode: u64) -> bool {
+    matches!(mode, 4..=6)
+}
+
+/// The triangle list of a primitive of `mode` (a list, a strip or a fan) over `indices` (the
+/// index accessor, or every vertex in order). A strip alternates its winding so that every
+/// triangle faces the first's way; a fan turns around its first vertex.
+pub(super) fn triangle_list(mode: u64, indices: &[u32]) -> Vec<u32> {
+    let n = indices.len();
+    match mode {
+        5 => (0..n.saturating_sub(2))
+            .flat_map(|i| {
+                let [a, b, c] = [indices[i], indices[i + 1], indices[i + 2]];
+                if i % 2 == 0 {
+                    [a, b, c]
+                } else {
+                    [b, a, c]
+                }
+            })
+            .collect(),
+        6 => (1..n.saturating_sub(1))
+            .flat_map(|i| [indices[0], indices[i], indices[i + 1]])
+            .collect(),
+        _ => indices[..n / 3 * 3].to_vec(),
+    }
+}
+
+pub(super) fn read_primitive(
     doc: &Document,
     element: &str,
     prim: &Primitive,
@@ -208,7 +237,7 @@ fn read_primitive(
             format!("index {k} = {i} is out of range ({nv} vertices)"),
         ));
     }
-    let mut indices: Vec<u32> = indices[..indices.len() / 3 * 3].to_vec();
+    let mut indices = triangle_list(prim.mode, &indices);
     let normal_matrix: DMat3 = DMat3::from_mat4(world).inverse().transpose();
     let normals = attribute("NORMAL", Kind::Vec3)?.map(|n| {
         n.chunks_exact(3)

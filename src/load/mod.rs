@@ -23,6 +23,7 @@
 //! Missing normals are left `None`; the bake then shades with the extrusion directions.
 
 pub mod accessor;
+pub mod asset;
 pub mod document;
 mod gltf;
 mod obj;

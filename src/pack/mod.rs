@@ -248,6 +248,14 @@ pub struct PackInput<'a> {
     pub fins: Option<&'a crate::fins::Fins>,
     /// The `outline` effect's hull (a mesh under the root).
     pub outline: Option<&'a crate::outline::Outline>,
+    /// Whether the surface draws its own base layer. `false` for a part of an asset kept whole
+    /// (DESIGN §10): the asset's primitive is the base, so no base layer and no bare level are
+    /// written, and a skinned surface writes no skeleton of its own (its layer nodes share the
+    /// asset's skin, bound when the fur is grafted into the asset).
+    pub base: bool,
+    /// The base colour at each vertex's root (linear RGB), when the fur takes the asset's
+    /// colours: it multiplies every layer (`COLOR_0`), whose materials then carry the shade only.
+    pub albedo: Option<&'a [Vec3]>,
 }
 
 /// The surface's vertices with their quantization grids, in the input's order.
@@ -278,6 +286,8 @@ struct Geometry<'a> {
     sheen: Option<&'a crate::sheen::SheenParams>,
     density: Option<&'a [u8]>,
     fur_weight: Option<&'a [f32]>,
+    /// The asset's base colour per vertex (see [`PackInput::albedo`]).
+    albedo: Option<&'a [Vec3]>,
     /// Joints and weights per vertex, and the skin's joint count.
     skin: Option<(&'a crate::mesh::VertexSkin, usize)>,
 }
@@ -613,6 +623,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         sheen: input.sheen,
         density: input.density,
         fur_weight: input.fur_weight,
+        albedo: input.albedo,
         skin: mesh
             .skin
             .as_ref()
@@ -727,6 +738,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
                 texture: texture_of(pl.level),
                 roughness: input.roughness,
                 prefix: &name,
+                base: input.base,
             };
             let meshes = match (params.layout, pl.level.bare) {
                 (Layout::Compact, _) => {
@@ -850,15 +862,22 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     );
     // a skinned surface: the skeleton under the root, the dequantization in the inverse bind
     // matrices, the layer nodes roots of their own (see `crate::skin`)
-    let skinned = input
-        .skeleton
-        .filter(|_| geometry.skin.is_some())
+    // (part of an asset: no skeleton of its own; the graft binds the layer nodes to the asset's
+    // skin, which needs positions in its bind space: no dequantization)
+    let skinned = input.skeleton.filter(|_| geometry.skin.is_some());
+    assert!(
+        skinned.is_none() || input.base || dequantize == glam::DMat4::IDENTITY,
+        "an asset's skinned part stores its bind-space positions as they are"
+    );
+    let wrapper = skinned
+        .filter(|_| input.base)
         .map(|k| skeleton(&mut b, k, dequantize, &chunk_nodes, input.name));
     let out = b.out;
     let lod0 = input.levels[0].level;
-    let (children, placed) = match skinned {
-        Some(wrapper) => (vec![wrapper], None),
-        None => {
+    let (children, placed) = match (skinned, wrapper) {
+        (_, Some(wrapper)) => (vec![wrapper], None),
+        (Some(_), None) => (extras.nodes.clone(), None),
+        (None, _) => {
             let nodes = chunk_nodes.iter().chain(&extras.nodes).copied().collect();
             (nodes, Some(dequantize))
         }
@@ -1101,6 +1120,9 @@ struct LevelCtx<'a> {
     /// The level's index and the prefix of its material names (surface, level).
     index: usize,
     material_prefix: &'a str,
+    /// Whether the level draws the base layer (and a bare level its mesh): see
+    /// [`PackInput::base`].
+    base: bool,
 }
 
 /// A chunk's vertex streams in the compact layout, shared by every level: fetch order from
@@ -1163,29 +1185,51 @@ impl Shared {
                 g.occlusion
                     .map_or(255, |a| color_byte(1.0 - a[o as usize] as f64))
             };
-            let color = (g.density.is_some() || g.occlusion.is_some()).then(|| {
-                let mut bytes = Bytes::default();
-                for &o in &order {
-                    let c = root(o);
-                    let d = g.density.map_or(255, |d| d[o as usize]);
-                    bytes.0.extend_from_slice(&[c, c, c, d]);
+            let color = match g.albedo {
+                // the asset's colour at the root, darkened by the occlusion: u16, so that dark
+                // albedos keep their hue
+                Some(albedo) => {
+                    let mut bytes = Bytes::default();
+                    for &o in &order {
+                        let shade = g.occlusion.map_or(1.0, |a| 1.0 - a[o as usize]);
+                        let c = (albedo[o as usize] * shade).clamp(Vec3::ZERO, Vec3::ONE);
+                        let d = g.density.map_or(u16::MAX, |d| d[o as usize] as u16 * 257);
+                        let q = |v: f32| (v * 65535.0).round() as u16;
+                        bytes.u16s(&[q(c.x), q(c.y), q(c.z), d], 8);
+                    }
+                    let v = b.stream("albedo", Semantic::Color(0), None, bytes.0, Some(8), n);
+                    Some(
+                        b.out
+                            .accessor(v, component::UNSIGNED_SHORT, true, "VEC4", None),
+                    )
                 }
-                let name = if g.occlusion.is_some() {
-                    "color"
-                } else {
-                    "density"
-                };
-                let v = b.stream(name, Semantic::Color(0), None, bytes.0, Some(4), n);
-                b.out
-                    .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
-            });
-            let color_delta = g.occlusion.map(|_| {
+                None => (g.density.is_some() || g.occlusion.is_some()).then(|| {
+                    let mut bytes = Bytes::default();
+                    for &o in &order {
+                        let c = root(o);
+                        let d = g.density.map_or(255, |d| d[o as usize]);
+                        bytes.0.extend_from_slice(&[c, c, c, d]);
+                    }
+                    let name = if g.occlusion.is_some() {
+                        "color"
+                    } else {
+                        "density"
+                    };
+                    let v = b.stream(name, Semantic::Color(0), None, bytes.0, Some(4), n);
+                    b.out
+                        .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
+                }),
+            };
+            let color_delta = g.occlusion.map(|a| {
                 let mut bytes = Bytes::default();
                 for &o in &order {
-                    // what brings the stored root byte to 1 at t = 1
-                    let rest = 1.0 - root(o) as f32 / 255.0;
-                    let c = (rest * 127.0).round() as i8 as u8;
-                    bytes.0.extend_from_slice(&[c, c, c, 0]);
+                    // what brings the stored root colour to the full colour at t = 1
+                    let rgb = match g.albedo {
+                        Some(albedo) => albedo[o as usize] * a[o as usize],
+                        None => Vec3::splat(1.0 - root(o) as f32 / 255.0),
+                    };
+                    let [r, gr, bl] = rgb.to_array().map(|v| (v.clamp(0.0, 1.0) * 127.0).round() as i8 as u8);
+                    bytes.0.extend_from_slice(&[r, gr, bl, 0]);
                 }
                 let v = b.stream(
                     "color_delta",
@@ -1469,6 +1513,10 @@ fn compact(
         base.extend([(Semantic::Joints(0), j), (Semantic::Weights(0), w)]);
     }
     if let Some([fur, skin]) = ctx.level.bare {
+        if !ctx.base {
+            // the asset's own primitive is the bare level
+            return (vec![], ix);
+        }
         let mut attributes = base;
         // with maps or occlusion, the colour per vertex (COLOR_0, linear) and a white material;
         // occlusion darkens by the layers' mean shade, 1 − a/2
@@ -1520,7 +1568,7 @@ fn compact(
     let mut prefixes: Vec<(usize, usize)> = vec![(indices.len() / 3, ix)];
     let layers = &ctx.level.layers;
     let meshes = (0..layers.len())
-        .filter(|&j| j == 0 || ordering.kept[j] > 0)
+        .filter(|&j| if j == 0 { ctx.base } else { ordering.kept[j] > 0 })
         .map(|j| {
             let ix = match prefixes.iter().find(|&&(n, _)| n == ordering.kept[j]) {
                 Some(&(_, a)) => a,
@@ -1668,6 +1716,11 @@ fn single_draw(
     let g = ctx.geometry;
     let grid = &g.grid;
     let layers = &ctx.level.layers;
+    // without its own base, layer 0 holds nothing (the asset's primitive is the base)
+    let mut kept = kept.to_vec();
+    if !ctx.base {
+        kept[0] = 0;
+    }
     let layer_vertices: Vec<usize> = kept
         .iter()
         .map(|&n| indices[..3 * n].iter().max().map_or(0, |&m| m as usize + 1))
@@ -1704,9 +1757,10 @@ fn single_draw(
             let shade = g
                 .occlusion
                 .map_or(1.0, |a| crate::occlusion::shade(a[o as usize], l.t));
-            let c = l
-                .color
-                .map(|c| ((c * shade).clamp(0.0, 1.0) * 65535.0).round() as u16);
+            let albedo = g.albedo.map_or(Vec3::ONE, |a| a[o as usize]);
+            let c = [0, 1, 2].map(|k| {
+                ((l.color[k] * shade * albedo[k]).clamp(0.0, 1.0) * 65535.0).round() as u16
+            });
             colors.u16s(&[c[0], c[1], c[2], a as u16], 8);
         }
         all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
