@@ -79,7 +79,10 @@ impl Prim {
         skin: &dyn Fn(Vec3) -> ([u8; 4], [f32; 4]),
     ) {
         let at = |i: u32, j: u32| {
-            let (theta, phi) = (i as f32 / segments as f32 * TAU, j as f32 / rings as f32 * PI);
+            let (theta, phi) = (
+                i as f32 / segments as f32 * TAU,
+                j as f32 / rings as f32 * PI,
+            );
             // poles on y (v = 0 at the top), u around
             let d = Vec3::new(
                 libm::sinf(phi) * libm::cosf(theta),
@@ -131,7 +134,12 @@ trait WriteChecked {
 impl<W: std::io::Write> WriteChecked for image::codecs::png::PngEncoder<W> {
     fn write_image_checked(self, img: &image::RgbImage) -> image::ImageResult<()> {
         use image::ImageEncoder as _;
-        self.write_image(img, img.width(), img.height(), image::ExtendedColorType::Rgb8)
+        self.write_image(
+            img,
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
     }
 }
 
@@ -145,9 +153,7 @@ struct File {
 
 impl File {
     fn view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
-        while self.bin.len() % 4 != 0 {
-            self.bin.push(0);
-        }
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         let mut v = json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len() });
         if let Some(t) = target {
             v["target"] = json!(t);
@@ -187,7 +193,13 @@ impl File {
     }
 
     /// A primitive's attributes and indices (as a list, or as the strip `strip` when given).
-    fn primitive(&mut self, p: &Prim, material: usize, skinned: bool, strip: Option<&[u16]>) -> Value {
+    fn primitive(
+        &mut self,
+        p: &Prim,
+        material: usize,
+        skinned: bool,
+        strip: Option<&[u16]>,
+    ) -> Value {
         let position = self.vec3s(&p.positions, true);
         let normal = self.vec3s(&p.normals, false);
         let uv: Vec<f32> = p.uvs.iter().flat_map(|u| u.to_array()).collect();
@@ -199,7 +211,8 @@ impl File {
             Some(34963),
             json!({ "componentType": 5123, "count": indices.len(), "type": "SCALAR" }),
         );
-        let mut attributes = json!({ "POSITION": position, "NORMAL": normal, "TEXCOORD_0": texcoord });
+        let mut attributes =
+            json!({ "POSITION": position, "NORMAL": normal, "TEXCOORD_0": texcoord });
         if skinned {
             let j: Vec<u8> = p.joints.iter().flatten().copied().collect();
             let joints = self.accessor(
@@ -245,7 +258,10 @@ fn tail(start: Vec3) -> (Prim, Vec<u16>) {
             let d = Vec3::new(0.0, libm::cosf(a), libm::sinf(a));
             p.positions.push(centre + d * radius);
             p.normals.push(d);
-            p.uvs.push(Vec2::new(0.1 + 0.3 * t, 0.2 + 0.2 * s as f32 / sides as f32));
+            p.uvs.push(Vec2::new(
+                0.1 + 0.3 * t,
+                0.2 + 0.2 * s as f32 / sides as f32,
+            ));
             let (j, w) = critter_skin(centre);
             p.joints.push(j);
             p.weights.push(w);
@@ -291,15 +307,35 @@ pub fn critter_glb(what: Critters) -> Vec<u8> {
 
     // one critter's primitives, in its body frame (the root joint at the origin)
     let mut body = Prim::default();
-    body.ellipsoid(Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.55, 0.3, 0.3), (6, 10), &critter_skin);
-    body.ellipsoid(Vec3::new(0.62, 0.2, 0.0), Vec3::new(0.22, 0.2, 0.2), (5, 8), &critter_skin);
+    body.ellipsoid(
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(0.55, 0.3, 0.3),
+        (6, 10),
+        &critter_skin,
+    );
+    body.ellipsoid(
+        Vec3::new(0.62, 0.2, 0.0),
+        Vec3::new(0.22, 0.2, 0.2),
+        (5, 8),
+        &critter_skin,
+    );
     let mut eyes = Prim::default();
     for z in [-0.09f32, 0.09] {
-        eyes.ellipsoid(Vec3::new(0.8, 0.28, z), Vec3::splat(0.045), (4, 6), &critter_skin);
+        eyes.ellipsoid(
+            Vec3::new(0.8, 0.28, z),
+            Vec3::splat(0.045),
+            (4, 6),
+            &critter_skin,
+        );
     }
     let mut legs = Prim::default();
     for (x, z) in [(0.3f32, 0.15f32), (0.3, -0.15), (-0.3, 0.15), (-0.3, -0.15)] {
-        legs.ellipsoid(Vec3::new(x, -0.35, z), Vec3::new(0.08, 0.22, 0.08), (4, 6), &critter_skin);
+        legs.ellipsoid(
+            Vec3::new(x, -0.35, z),
+            Vec3::new(0.08, 0.22, 0.08),
+            (4, 6),
+            &critter_skin,
+        );
     }
     let (tail_prim, strip) = tail(Vec3::new(-0.5, 0.05, 0.0));
 
@@ -323,15 +359,20 @@ pub fn critter_glb(what: Critters) -> Vec<u8> {
         }
         // inverse bind matrices: the mesh is in the body frame (the root joint at its origin),
         // so each joint's bind matrix is the translation to its place in that frame
-        let ibm: Vec<f32> = [Vec3::ZERO, Vec3::new(0.45, 0.0, 0.0), Vec3::new(-0.45, 0.0, 0.0)]
-            .iter()
-            .flat_map(|&t| glam::Mat4::from_translation(-t).to_cols_array())
-            .collect();
+        let ibm: Vec<f32> = [
+            Vec3::ZERO,
+            Vec3::new(0.45, 0.0, 0.0),
+            Vec3::new(-0.45, 0.0, 0.0),
+        ]
+        .iter()
+        .flat_map(|&t| glam::Mat4::from_translation(-t).to_cols_array())
+        .collect();
         let ibm = file.floats(&ibm, "MAT4", 3, None);
         skins.push(json!({ "name": format!("critter_{c}_skin"), "joints": [j0, j0 + 1, j0 + 2], "inverseBindMatrices": ibm, "skeleton": j0 }));
         // the skinned mesh node; its transform is ignored (joints place it)
         let node = nodes.len();
-        nodes.push(json!({ "name": format!("critter_{c}"), "mesh": mesh, "skin": skins.len() - 1 }));
+        nodes
+            .push(json!({ "name": format!("critter_{c}"), "mesh": mesh, "skin": skins.len() - 1 }));
         roots.extend([j0, node]);
         // clips: wag (tail about y) and nod (head about z), one second, looping
         let times: Vec<f32> = (0..=4).map(|k| k as f32 * 0.25).collect();
@@ -361,8 +402,16 @@ pub fn critter_glb(what: Critters) -> Vec<u8> {
         let corner = |x: f32, z: f32| Vec3::new(c + x * s, 0.0, z * s * 0.6);
         let uv = |x: f32, z: f32| Vec2::new(x * 0.5 + 0.5, z * 0.5 + 0.5);
         let none = |_: Vec3| ([0u8; 4], [1.0, 0.0, 0.0, 0.0]);
-        g.flat([corner(-1.0, -1.0), corner(-1.0, 1.0), corner(1.0, 1.0)], [uv(-1.0, -1.0), uv(-1.0, 1.0), uv(1.0, 1.0)], &none);
-        g.flat([corner(-1.0, -1.0), corner(1.0, 1.0), corner(1.0, -1.0)], [uv(-1.0, -1.0), uv(1.0, 1.0), uv(1.0, -1.0)], &none);
+        g.flat(
+            [corner(-1.0, -1.0), corner(-1.0, 1.0), corner(1.0, 1.0)],
+            [uv(-1.0, -1.0), uv(-1.0, 1.0), uv(1.0, 1.0)],
+            &none,
+        );
+        g.flat(
+            [corner(-1.0, -1.0), corner(1.0, 1.0), corner(1.0, -1.0)],
+            [uv(-1.0, -1.0), uv(1.0, 1.0), uv(1.0, -1.0)],
+            &none,
+        );
         let prim = file.primitive(&g, 4, false, None);
         meshes.push(json!({ "name": "ground", "primitives": [prim] }));
         nodes.push(json!({ "name": "ground", "mesh": meshes.len() - 1 }));
@@ -377,9 +426,7 @@ pub fn critter_glb(what: Critters) -> Vec<u8> {
         nodes.push(json!({ "name": "sun", "rotation": Quat::from_euler(glam::EulerRot::YXZ, 0.6, -0.9, 0.0).to_array(), "extensions": { "KHR_lights_punctual": { "light": 0 } } }));
         roots.push(nodes.len() - 1);
     }
-    while file.bin.len() % 4 != 0 {
-        file.bin.push(0);
-    }
+    file.bin.resize(file.bin.len().next_multiple_of(4), 0);
     let mut doc = json!({
         "asset": { "version": "2.0", "generator": "shellbake critter" },
         "scene": 0,

@@ -24,8 +24,9 @@
 //!   skinned part's layer nodes are scene roots bound to the part's own skin (the same joints,
 //!   the same inverse bind matrices: their positions are stored unquantized in the
 //!   primitive's bind space), so the asset's clips animate the fur and every client computes
-//!   true bounds from the positions. Each fur root's `extras.shellbake_fur` names the node,
-//!   mesh and primitive it grows on; a file read again skips those parts (no fur on fur).
+//!   true bounds from the positions. Each fur root's (and each skinned layer node's)
+//!   `extras.shellbake_fur` names the node, mesh and primitive it grows on; a file read again
+//!   skips those parts (no fur on fur).
 //! - **Extensions**: `extensionsUsed` and `extensionsRequired` are the union of both files'
 //!   (less meshopt's, as above), in first-seen order.
 
@@ -67,7 +68,11 @@ pub fn graft(
     (fur_json, fur_bin): (&Value, &[u8]),
     packed: &Packed,
 ) -> Result<Grafted> {
-    assert_eq!(parts.len(), packed.surfaces.len(), "one part per fur surface");
+    assert_eq!(
+        parts.len(),
+        packed.surfaces.len(),
+        "one part per fur surface"
+    );
     let mut out = asset.doc.json.clone();
     let mut bin: Vec<u8> = Vec::new();
     let mut warnings = Vec::new();
@@ -92,7 +97,12 @@ pub fn graft(
     let mut buffers = vec![json!({})];
     // the fur's fallback buffers (compressed views decode into them) follow the input's
     let mut fur_buffers = Vec::new();
-    for (b, declared) in fur_json["buffers"].as_array().into_iter().flatten().enumerate() {
+    for (b, declared) in fur_json["buffers"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .enumerate()
+    {
         if b == 0 {
             fur_buffers.push(0);
         } else {
@@ -113,7 +123,7 @@ pub fn graft(
             "mesh": part.mesh,
             "primitive": part.primitive,
         });
-        out["nodes"][root]["extras"]["shellbake_fur"] = marker;
+        out["nodes"][root]["extras"]["shellbake_fur"] = marker.clone();
         if let Some(skin) = part.skin {
             // the layer nodes: roots of the fur file with a mesh, of this surface
             let layers: Vec<usize> = packed
@@ -123,7 +133,9 @@ pub fn graft(
                 .filter(|&n| packed.nodes[n].tag.surface == s && n != surface.root)
                 .collect();
             for &n in &layers {
-                out["nodes"][base.nodes + n]["skin"] = json!(skin);
+                let node = &mut out["nodes"][base.nodes + n];
+                node["skin"] = json!(skin);
+                node["extras"]["shellbake_fur"] = marker.clone();
             }
             let roots = std::iter::once(root).chain(layers.iter().map(|&n| base.nodes + n));
             add_to_scene(&mut out, default_scene, roots);
@@ -143,9 +155,7 @@ pub fn graft(
                     node.insert("rotation".into(), json!([r.x, r.y, r.z, r.w]));
                 }
                 node.insert("scale".into(), json!([sc.x, sc.y, sc.z]));
-                let parent = out["nodes"][part.node]
-                    .as_object_mut()
-                    .expect("a node");
+                let parent = out["nodes"][part.node].as_object_mut().expect("a node");
                 let children = parent
                     .entry("children")
                     .or_insert_with(|| json!([]))
@@ -213,7 +223,11 @@ fn carry_buffers(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) {
         if let Some(l) = out.get_mut(list).and_then(Value::as_array_mut) {
             l.retain(|e| !MESHOPT.contains(&e.as_str().unwrap_or("")));
         }
-        if out.get(list).and_then(Value::as_array).is_some_and(Vec::is_empty) {
+        if out
+            .get(list)
+            .and_then(Value::as_array)
+            .is_some_and(Vec::is_empty)
+        {
             out.as_object_mut().map(|o| o.remove(list));
         }
     }
@@ -241,7 +255,9 @@ fn embed_images(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) -> Result<()>
         } else if bytes.len() > 12 && &bytes[8..12] == b"WEBP" {
             "image/webp"
         } else {
-            image["mimeType"].as_str().unwrap_or("application/octet-stream")
+            image["mimeType"]
+                .as_str()
+                .unwrap_or("application/octet-stream")
         };
         align(bin);
         let view = out["bufferViews"].as_array().map_or(0, Vec::len);
@@ -271,7 +287,12 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
         }
     };
     let shift_all = |v: &mut Value, pointer: &str, by: usize| {
-        for x in v.pointer_mut(pointer).and_then(Value::as_array_mut).into_iter().flatten() {
+        for x in v
+            .pointer_mut(pointer)
+            .and_then(Value::as_array_mut)
+            .into_iter()
+            .flatten()
+        {
             if let Some(i) = x.as_u64() {
                 *x = json!(i as usize + by);
             }
@@ -420,7 +441,11 @@ fn add_to_scene(out: &mut Value, scene: usize, nodes: impl Iterator<Item = usize
 fn trs_of(m: DMat4) -> Option<(DVec3, DQuat, DVec3)> {
     let (s, r, t) = m.to_scale_rotation_translation();
     let back = DMat4::from_scale_rotation_translation(s, r, t);
-    let size = m.to_cols_array().iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1.0);
+    let size = m
+        .to_cols_array()
+        .iter()
+        .fold(0.0f64, |a, v| a.max(v.abs()))
+        .max(1.0);
     let err = (back - m)
         .to_cols_array()
         .iter()
@@ -471,6 +496,9 @@ mod tests {
         });
         shift_texture_indices(&mut m, 5);
         assert_eq!(m["pbrMetallicRoughness"]["baseColorTexture"]["index"], 5);
-        assert_eq!(m["extensions"]["KHR_materials_sheen"]["sheenColorTexture"]["index"], 7);
+        assert_eq!(
+            m["extensions"]["KHR_materials_sheen"]["sheenColorTexture"]["index"],
+            7
+        );
     }
 }

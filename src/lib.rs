@@ -156,24 +156,29 @@ pub struct Loaded {
     pub part: Option<PartOf>,
 }
 
-/// What a surface that is one part of an asset kept whole (DESIGN §10) does differently: it
-/// draws no base layer (the asset's primitive is the base), a skinned one stores its positions
-/// in the asset's bind space (the graft binds it to the asset's skin), and its fur takes the
-/// asset's colours.
+/// What a surface that is one part of an asset (DESIGN §10) does differently: its fur takes the
+/// asset's colours, and when it is grafted into the asset it draws no base layer (the asset's
+/// primitive is the base) and a skinned one stores its positions in the asset's bind space
+/// (the graft binds it to the asset's skin).
 #[derive(Clone, Debug, Default)]
 pub struct PartOf {
     /// Where the fur takes its colour (`None`: the preset's colours).
     pub paint: Option<load::asset::Paint>,
+    /// Grafted into the asset ([`bake_asset`]); `false`: baked alone with a base layer in the
+    /// fur's colours, as `verify` compares it with the runtime technique.
+    pub graft: bool,
 }
 
 /// The scene that furs the chosen parts of `asset` (from [`load::asset::Asset::select`]): one
 /// surface per part, each with `template`'s surface settings (its preset, parameters, effects
-/// and maps), named after the part's node. A skinned part stores float positions (its bind
-/// space, so that clients compute true bounds).
+/// and maps), named after the part's node. `graft`: the surfaces are to be grafted into the
+/// asset ([`PartOf::graft`]); a skinned part then stores float positions (its bind space, so
+/// that clients compute true bounds).
 pub fn asset_scene(
     template: &SceneFile,
     asset: &load::asset::Asset,
     chosen: &[usize],
+    graft: bool,
 ) -> Result<(SceneFile, Vec<Loaded>)> {
     let surface = &template.surfaces[0];
     let mut names: Vec<String> = Vec::new();
@@ -196,7 +201,7 @@ pub fn asset_scene(
         names.push(name.clone());
         let mut s = surface.clone();
         s.name = name;
-        if part.skin.is_some() {
+        if part.skin.is_some() && graft {
             s.params.pack.quantize = pack::Quantize::None;
         }
         let mut geometry = part.scene.clone();
@@ -209,6 +214,7 @@ pub fn asset_scene(
             ms: start.elapsed().as_secs_f64() * 1e3,
             part: Some(PartOf {
                 paint: part.paint.clone(),
+                graft,
             }),
         });
     }
@@ -244,7 +250,7 @@ pub fn bake_asset(
     asset: &load::asset::Asset,
     chosen: &[usize],
 ) -> Result<AssetBake> {
-    let (scene, loaded) = asset_scene(template, asset, chosen)?;
+    let (scene, loaded) = asset_scene(template, asset, chosen, true)?;
     let mut fur = bake_scene(&scene, &loaded);
     let (_, bin) = load::document::split_glb(&fur.glb).expect("our own GLB splits");
     let grafted = graft::graft(asset, chosen, (&fur.json, bin.unwrap_or(&[])), &fur.packed)?;
@@ -254,8 +260,16 @@ pub fn bake_asset(
     };
     report.warnings.extend(grafted.warnings);
     for kind in [
-        "scenes", "nodes", "meshes", "materials", "textures", "images", "samplers", "skins",
-        "animations", "cameras",
+        "scenes",
+        "nodes",
+        "meshes",
+        "materials",
+        "textures",
+        "images",
+        "samplers",
+        "skins",
+        "animations",
+        "cameras",
     ] {
         let n = asset.doc.json[kind].as_array().map_or(0, Vec::len);
         report.kept.insert(kind.into(), n);
@@ -275,7 +289,9 @@ pub fn bake_asset(
         )
     };
     for (s, &i) in chosen.iter().enumerate() {
-        report.furred.push(format!("{} as '{}'", describe(i), scene.surfaces[s].name));
+        report
+            .furred
+            .push(format!("{} as '{}'", describe(i), scene.surfaces[s].name));
     }
     for i in (0..asset.parts.len()).filter(|i| !chosen.contains(i)) {
         let why = if asset.parts[i].furred {
@@ -430,7 +446,15 @@ fn run_plan(
         .zip(loaded)
         .enumerate()
         .map(|(i, (surface, &(meshes, maps, ms, part)))| {
-            bake_surface(&plan, i, surface, (meshes, maps, part), ms, several, &mut packed)
+            bake_surface(
+                &plan,
+                i,
+                surface,
+                (meshes, maps, part),
+                ms,
+                several,
+                &mut packed,
+            )
         })
         .collect();
     let write_start = Instant::now();
@@ -874,7 +898,8 @@ fn bake_surface(
             .collect()
     });
     // an asset's skinned part: positions in the skin's bind space as they are
-    let bind_space = (part.is_some() && scene.skeleton.is_some()).then(|| {
+    let grafted = part.is_some_and(|p| p.graft);
+    let bind_space = (grafted && scene.skeleton.is_some()).then(|| {
         let mut m = mesh.clone();
         for p in &mut m.positions {
             *p = (p.as_dvec3() + m.origin).as_vec3();
@@ -904,7 +929,7 @@ fn bake_surface(
         skeleton: scene.skeleton.as_ref(),
         fins: fins.as_ref(),
         outline: outline.as_ref(),
-        base: part.is_none(),
+        base: !grafted,
         albedo: shells.albedo.as_deref(),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));

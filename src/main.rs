@@ -308,10 +308,15 @@ impl BakeArgs {
         }
     }
 
-    /// Whether the input is a glTF asset, kept whole with fur added (DESIGN §10).
-    fn is_asset(&self) -> bool {
-        self.input.extension().is_some_and(|e| {
-            e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb")
+    /// The input as an asset kept whole with fur added (DESIGN §10): a glTF file, or an OBJ
+    /// that names a readable `.mtl`; `None` for a plain mesh or a scene file.
+    fn asset(&self) -> anyhow::Result<Option<shellbake::load::asset::Asset>> {
+        use shellbake::load::asset::Asset;
+        let ext = self.input.extension().map(|e| e.to_ascii_lowercase());
+        Ok(match ext.as_ref().and_then(|e| e.to_str()) {
+            Some("gltf" | "glb") => Some(Asset::read(&self.input)?),
+            Some("obj") => Asset::read_obj(&self.input)?,
+            _ => None,
         })
     }
 
@@ -488,8 +493,8 @@ fn check_loaded(
 fn load_asset(
     args: &BakeArgs,
     template: &SceneFile,
-) -> anyhow::Result<(shellbake::load::asset::Asset, Vec<usize>, u64)> {
-    let asset = shellbake::load::asset::Asset::read(&args.input)?;
+    asset: &shellbake::load::asset::Asset,
+) -> anyhow::Result<(Vec<usize>, u64)> {
     let chosen = asset.select(&args.only)?;
     if chosen.is_empty() {
         anyhow::bail!(
@@ -497,9 +502,10 @@ fn load_asset(
             args.input.display()
         );
     }
-    let (scene, loaded) = shellbake::asset_scene(template, &asset, &chosen)?;
-    let estimate = check_loaded(args, &scene, &loaded)? + asset.buffers.iter().map(|b| b.len() as u64).sum::<u64>();
-    Ok((asset, chosen, estimate))
+    let (scene, loaded) = shellbake::asset_scene(template, asset, &chosen, true)?;
+    let kept: u64 = asset.buffers.iter().map(|b| b.len() as u64).sum();
+    let estimate = check_loaded(args, &scene, &loaded)? + kept;
+    Ok((chosen, estimate))
 }
 
 fn bake(args: &BakeArgs) -> anyhow::Result<()> {
@@ -524,15 +530,16 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         pb.enable_steady_tick(Duration::from_millis(120));
         pb
     });
-    if !args.only.is_empty() && !args.is_asset() {
+    let asset = if args.is_scene() { None } else { args.asset()? };
+    if !args.only.is_empty() && asset.is_none() {
         anyhow::bail!(
-            "{}: --only chooses parts of a glTF asset (.gltf, .glb)",
+            "{}: --only chooses parts of an asset (.gltf, .glb, or .obj with a .mtl)",
             args.input.display()
         );
     }
-    let (mut report, glb) = if args.is_asset() {
-        let (asset, chosen, _) = load_asset(args, &scene)?;
-        let baked = shellbake::bake_asset(&scene, &asset, &chosen)?;
+    let (mut report, glb) = if let Some(asset) = &asset {
+        let (chosen, _) = load_asset(args, &scene, asset)?;
+        let baked = shellbake::bake_asset(&scene, asset, &chosen)?;
         (baked.fur.report, baked.glb)
     } else {
         let (loaded, _) = load_checked(args, &scene)?;
@@ -559,9 +566,19 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
 
 /// `shellbake plan`: the stages per surface and the estimated size; loads, does not bake.
 fn plan(args: &BakeArgs) -> anyhow::Result<()> {
-    let scene = args.scene()?;
+    let mut scene = args.scene()?;
+    let asset = if args.is_scene() { None } else { args.asset()? };
+    let (loaded, estimate) = match &asset {
+        // an asset's plan: one surface per part to fur
+        Some(asset) => {
+            let (chosen, estimate) = load_asset(args, &scene, asset)?;
+            let (parts, loaded) = shellbake::asset_scene(&scene, asset, &chosen, true)?;
+            scene = parts;
+            (loaded, estimate)
+        }
+        None => load_checked(args, &scene)?,
+    };
     let plan = shellbake::scene::plan(&scene);
-    let (loaded, estimate) = load_checked(args, &scene)?;
     let mut text = format!(
         "{}: {} surface(s)\n",
         args.input.display(),
@@ -737,6 +754,25 @@ fn main() -> ExitCode {
                     shellbake::write::check_outputs(&s.mesh, &[("output", out)])?;
                 }
                 shellbake::write::check_outputs(&bake.input, &[("output", out)])?;
+            }
+            let asset = if bake.is_scene() { None } else { bake.asset()? };
+            if let Some(asset) = asset {
+                // the fur of each part, baked alone with a base layer, against the technique;
+                // `-o` writes the asset with its fur
+                let (chosen, _) = load_asset(bake, &scene, &asset)?;
+                if let Some(out) = out {
+                    let baked = shellbake::bake_asset(&scene, &asset, &chosen)?;
+                    shellbake::write::write_glb(out, &baked.glb)?;
+                }
+                let (parts, loaded) = shellbake::asset_scene(&scene, &asset, &chosen, false)?;
+                return Ok(shellbake::view::cli::verify(
+                    &bake.input,
+                    &parts,
+                    &loaded,
+                    &verify.clone().into_args(),
+                    None,
+                    bake.quiet,
+                )?);
             }
             let (loaded, _) = load_checked(bake, &scene)?;
             Ok(shellbake::view::cli::verify(

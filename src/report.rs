@@ -283,10 +283,17 @@ impl AssetReport {
             .filter(|(_, &n)| n > 0)
             .map(|(k, n)| format!("{n} {k}"))
             .collect();
-        let mut s = format!("  kept: {}
-", kept.join(", "));
-        s += &format!("  furred ({}): {}
-", self.furred.len(), self.furred.join("; "));
+        let mut s = format!(
+            "  kept: {}
+",
+            kept.join(", ")
+        );
+        s += &format!(
+            "  furred ({}): {}
+",
+            self.furred.len(),
+            self.furred.join("; ")
+        );
         if !self.skipped.is_empty() {
             s += &format!(
                 "  not furred ({}): {}
@@ -335,7 +342,10 @@ impl SceneReport {
     /// The one-screen summary printed after a bake: one surface reads as it always has; several
     /// get a block each and the file's totals.
     pub fn summary(&self) -> String {
-        let asset = self.asset.as_ref().map_or(String::new(), AssetReport::lines);
+        let asset = self
+            .asset
+            .as_ref()
+            .map_or(String::new(), AssetReport::lines);
         if let [one] = self.surfaces.as_slice() {
             return format!("{} -> {}\n", self.input, self.output)
                 + &asset

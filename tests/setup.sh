@@ -6,6 +6,8 @@
 #    public meshes the tests bake (bunny, teapot, the Stanford dragon); in tests/bench: the
 #    general optimizers (gltfpack, glTF-Transform) that tests/optimizers.rs runs over our files
 #    and the compression benchmark compares with.
+#  - Blender as a Python module (PyPI `bpy`), which tests/asset.rs imports a furred asset into
+#    and renders with Cycles.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -36,4 +38,9 @@ if [ ! -d tests/bench/node_modules/gltfpack ] || [ ! -d tests/bench/node_modules
   echo "setup: installing npm packages in tests/bench"
   (cd tests/bench && npm ci --no-audit --no-fund --loglevel=error)
   touch tests/bench/node_modules
+fi
+
+if ! python3 -c "import bpy" >/dev/null 2>&1; then
+  echo "setup: installing Blender as a Python module (bpy)"
+  python3 -m pip install --quiet --disable-pip-version-check bpy==5.0.1
 fi

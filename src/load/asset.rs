@@ -5,9 +5,10 @@
 //!
 //! - **Parts.** A primitive drawn by two nodes is two parts (each node gets its own fur). A part
 //!   is placed in world space like the loader's meshes (`gltf.rs`); a skinned one stays in its
-//!   bind space, with the skin's skeleton. Triangle strips and fans are parts too. A primitive
-//!   whose node already carries shellbake fur (a child with `extras.shellbake`, or layer nodes of
-//!   a skinned surface naming it) is *furred already*: it passes through and is not furred twice.
+//!   bind space, with the skin's skeleton. Triangle strips and fans are parts too. The nodes
+//!   shellbake added (`extras.shellbake` or `extras.shellbake_fur`) are no parts, and a primitive
+//!   that a fur node's `extras.shellbake_fur` names (node and primitive) is *furred already*: it
+//!   passes through and is not furred twice.
 //! - **Selection.** `--only KIND=GLOB` (KIND `node`, `mesh` or `material`; `*` and `?` as in a
 //!   shell, on the whole name, case-sensitive) keeps the parts any selector matches. A selector
 //!   matching no part is an error listing the names the file has of that kind. Without
@@ -174,9 +175,21 @@ pub struct Asset {
 impl Asset {
     /// Reads a `.gltf` or `.glb` file and finds its parts. Fails like [`super::load`].
     pub fn read(path: &Path) -> Result<Asset> {
-        let bytes =
-            super::read_regular_file(path, super::MAX_INPUT_BYTES).map_err(|e| Error::io(path, e))?;
+        let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES)
+            .map_err(|e| Error::io(path, e))?;
         Asset::from_bytes(path, &bytes)
+    }
+
+    /// Reads an `.obj` file with materials as an asset (its objects as nodes and meshes, its
+    /// `.mtl` materials and `map_Kd` textures as glTF's; see `obj.rs`), or `None` when it names
+    /// no readable `.mtl` (a plain mesh, baked as such).
+    pub fn read_obj(path: &Path) -> Result<Option<Asset>> {
+        let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES)
+            .map_err(|e| Error::io(path, e))?;
+        match super::obj::asset_glb(path, &bytes)? {
+            Some(glb) => Asset::from_bytes(path, &glb).map(Some),
+            None => Ok(None),
+        }
     }
 
     /// [`Asset::read`] on bytes in memory; `path` names the file and resolves relative URIs.
@@ -184,7 +197,7 @@ impl Asset {
         let doc = Document::parse(path, bytes)?;
         let buffers = doc.load_buffers()?;
         let mut warnings = Vec::new();
-        let furred = furred_nodes(&doc);
+        let furred = furred_parts(&doc);
         let mut parts = Vec::new();
         let mut total: u64 = 0;
         for placed in doc.walk(|n| n)? {
@@ -252,7 +265,7 @@ impl Asset {
                     skin,
                     scene,
                     paint,
-                    furred: furred.contains(&placed.node),
+                    furred: furred.contains(&(placed.node, k)),
                 });
             }
         }
@@ -268,7 +281,11 @@ impl Asset {
     /// already. A selector that matches no part is an error naming the names the file has.
     pub fn select(&self, only: &[Selector]) -> Result<Vec<usize>> {
         for s in only {
-            if !self.parts.iter().any(|p| glob_matches(&s.glob, p.names.of(s.kind))) {
+            if !self
+                .parts
+                .iter()
+                .any(|p| glob_matches(&s.glob, p.names.of(s.kind)))
+            {
                 let mut names: Vec<&str> = self.parts.iter().map(|p| p.names.of(s.kind)).collect();
                 names.sort_unstable();
                 names.dedup();
@@ -289,7 +306,9 @@ impl Asset {
                 let p = &self.parts[i];
                 !p.furred
                     && (only.is_empty()
-                        || only.iter().any(|s| glob_matches(&s.glob, p.names.of(s.kind))))
+                        || only
+                            .iter()
+                            .any(|s| glob_matches(&s.glob, p.names.of(s.kind))))
             })
             .collect())
     }
@@ -306,19 +325,18 @@ pub fn is_fur_node(json: &Value, n: usize) -> bool {
         || json["nodes"][n]["extras"].get("shellbake_fur").is_some()
 }
 
-/// Nodes that carry shellbake fur: parents of a fur root, and the nodes a fur root names as the
-/// one it grows on (`extras.shellbake_fur.node`, for a skinned part's fur).
-fn furred_nodes(doc: &Document) -> std::collections::HashSet<usize> {
-    let mut out = std::collections::HashSet::new();
-    for (n, node) in doc.nodes.iter().enumerate() {
-        if node.children.iter().any(|&c| is_fur_node(&doc.json, c)) {
-            out.insert(n);
-        }
-        if let Some(on) = doc.json["nodes"][n]["extras"]["shellbake_fur"]["node"].as_u64() {
-            out.insert(on as usize);
-        }
-    }
-    out
+/// The (node, primitive) pairs that carry shellbake fur: those a fur node's
+/// `extras.shellbake_fur` names.
+fn furred_parts(doc: &Document) -> std::collections::HashSet<(usize, usize)> {
+    (0..doc.nodes.len())
+        .filter_map(|n| {
+            let marker = &doc.json["nodes"][n]["extras"]["shellbake_fur"];
+            Some((
+                marker["node"].as_u64()? as usize,
+                marker["primitive"].as_u64()? as usize,
+            ))
+        })
+        .collect()
 }
 
 fn names_of(doc: &Document, node: usize, mesh: usize, material: Option<usize>) -> PartNames {
@@ -474,11 +492,7 @@ impl ColorTexture {
         let sampler = texture["sampler"]
             .as_u64()
             .map(|s| &doc.json["samplers"][s as usize]);
-        let wrap = ["wrapS", "wrapT"].map(|k| {
-            sampler
-                .and_then(|s| s[k].as_u64())
-                .unwrap_or(10497)
-        });
+        let wrap = ["wrapS", "wrapT"].map(|k| sampler.and_then(|s| s[k].as_u64()).unwrap_or(10497));
         Ok(ColorTexture {
             width,
             height,

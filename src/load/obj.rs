@@ -362,6 +362,133 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
     Ok(lines)
 }
 
+/// An OBJ with materials as a glTF asset (DESIGN §10): one node and mesh per OBJ object (its
+/// name kept; positions relative to the object's origin, which the node's translation holds in
+/// `f64`), the triangles as loaded here, and one glTF material per `.mtl` material — `Kd` as the
+/// base colour factor (taken as linear, as obj2gltf does), `map_Kd` as the base colour texture
+/// (an image naming the file beside the OBJ, embedded when the asset is written). `None` when
+/// the file names no `.mtl` or none can be read (a plain mesh). The `.mtl` is read only inside the
+/// OBJ's folder, as a glTF's buffers are.
+pub(super) fn asset_glb(path: &Path, bytes: &[u8]) -> Result<Option<Vec<u8>>> {
+    use serde_json::{json, Value};
+    let scene = load(path, bytes)?;
+    let bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
+    let options = tobj::LoadOptions {
+        triangulate: false,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, materials) =
+        tobj::load_obj_buf(&mut std::io::BufReader::new(bytes), &options, |name| {
+            let name = name.to_string_lossy();
+            let target = super::document::confined_path(path, &name)
+                .ok_or(tobj::LoadError::OpenFileFailed)?;
+            let text = super::read_regular_file(&target, super::MAX_INPUT_BYTES)
+                .map_err(|_| tobj::LoadError::OpenFileFailed)?;
+            tobj::load_mtl_buf(&mut std::io::BufReader::new(text.as_slice()))
+        })
+        .map_err(|e| Error::invalid(path, "obj", e.to_string()))?;
+    let materials = match materials {
+        Ok(m) if !m.is_empty() => m,
+        _ => return Ok(None),
+    };
+    if models.len() != scene.meshes.len() {
+        return Ok(None);
+    }
+    let mut bin: Vec<u8> = Vec::new();
+    let (mut views, mut accessors) = (Vec::<Value>::new(), Vec::<Value>::new());
+    let mut push = |bytes: &[u8], fields: Value, target: u32| {
+        bin.resize(bin.len().next_multiple_of(4), 0);
+        views.push(json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len(), "target": target }));
+        bin.extend_from_slice(bytes);
+        let mut a = fields;
+        a["bufferView"] = json!(views.len() - 1);
+        accessors.push(a);
+        accessors.len() - 1
+    };
+    let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
+    let (mut nodes, mut meshes) = (Vec::new(), Vec::new());
+    for (model, mesh) in models.iter().zip(&scene.meshes) {
+        let n = mesh.vertex_count();
+        let p: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
+        let (lo, hi) = mesh.bounds();
+        let position = push(
+            &floats(&p),
+            json!({ "componentType": 5126, "count": n, "type": "VEC3", "min": lo.to_array(), "max": hi.to_array() }),
+            34962,
+        );
+        let mut attributes = json!({ "POSITION": position });
+        if let Some(normals) = &mesh.normals {
+            let v: Vec<f32> = normals.iter().flat_map(|p| p.to_array()).collect();
+            attributes["NORMAL"] = json!(push(
+                &floats(&v),
+                json!({ "componentType": 5126, "count": n, "type": "VEC3" }),
+                34962
+            ));
+        }
+        if let Some(uvs) = &mesh.uvs {
+            let v: Vec<f32> = uvs.iter().flat_map(|p| p.to_array()).collect();
+            attributes["TEXCOORD_0"] = json!(push(
+                &floats(&v),
+                json!({ "componentType": 5126, "count": n, "type": "VEC2" }),
+                34962
+            ));
+        }
+        let ix: Vec<u8> = mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+        let indices = push(
+            &ix,
+            json!({ "componentType": 5125, "count": mesh.indices.len(), "type": "SCALAR" }),
+            34963,
+        );
+        let mut primitive = json!({ "attributes": attributes, "indices": indices });
+        if let Some(m) = model.mesh.material_id.filter(|&m| m < materials.len()) {
+            primitive["material"] = json!(m);
+        }
+        meshes.push(json!({ "name": model.name, "primitives": [primitive] }));
+        nodes.push(json!({ "name": model.name, "mesh": meshes.len() - 1, "translation": mesh.origin.to_array() }));
+    }
+    let (mut images, mut textures) = (Vec::<Value>::new(), Vec::<Value>::new());
+    let materials: Vec<Value> = materials
+        .iter()
+        .map(|m| {
+            let kd = m.diffuse.unwrap_or([1.0; 3]);
+            let alpha = m.dissolve.unwrap_or(1.0).clamp(0.0, 1.0);
+            let mut pbr = json!({
+                "baseColorFactor": [kd[0].clamp(0.0, 1.0), kd[1].clamp(0.0, 1.0), kd[2].clamp(0.0, 1.0), alpha],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 1.0,
+            });
+            if let Some(map) = m.diffuse_texture.as_deref().filter(|t| !t.is_empty()) {
+                // the map's file name, which may follow options (`-s 1 1 1 name.png`)
+                let file = map.split_whitespace().last().unwrap_or(map).replace('\\', "/");
+                images.push(json!({ "uri": file }));
+                textures.push(json!({ "sampler": 0, "source": images.len() - 1 }));
+                pbr["baseColorTexture"] = json!({ "index": textures.len() - 1 });
+            }
+            json!({ "name": m.name, "pbrMetallicRoughness": pbr })
+        })
+        .collect();
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let mut doc = json!({
+        "asset": { "version": "2.0", "generator": "shellbake (from OBJ)" },
+        "scene": 0,
+        "scenes": [{ "nodes": (0..nodes.len()).collect::<Vec<_>>() }],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{ "byteLength": bin.len() }],
+    });
+    if !images.is_empty() {
+        doc["images"] = json!(images);
+        doc["textures"] = json!(textures);
+        doc["samplers"] = json!([{ "wrapS": 10497, "wrapT": 10497 }]);
+    }
+    Ok(Some(crate::write::glb_bytes(&doc, &bin)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1228,7 +1228,9 @@ impl Shared {
                         Some(albedo) => albedo[o as usize] * a[o as usize],
                         None => Vec3::splat(1.0 - root(o) as f32 / 255.0),
                     };
-                    let [r, gr, bl] = rgb.to_array().map(|v| (v.clamp(0.0, 1.0) * 127.0).round() as i8 as u8);
+                    let [r, gr, bl] = rgb
+                        .to_array()
+                        .map(|v| (v.clamp(0.0, 1.0) * 127.0).round() as i8 as u8);
                     bytes.0.extend_from_slice(&[r, gr, bl, 0]);
                 }
                 let v = b.stream(
@@ -1568,7 +1570,13 @@ fn compact(
     let mut prefixes: Vec<(usize, usize)> = vec![(indices.len() / 3, ix)];
     let layers = &ctx.level.layers;
     let meshes = (0..layers.len())
-        .filter(|&j| if j == 0 { ctx.base } else { ordering.kept[j] > 0 })
+        .filter(|&j| {
+            if j == 0 {
+                ctx.base
+            } else {
+                ordering.kept[j] > 0
+            }
+        })
         .map(|j| {
             let ix = match prefixes.iter().find(|&&(n, _)| n == ordering.kept[j]) {
                 Some(&(_, a)) => a,

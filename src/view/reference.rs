@@ -326,16 +326,21 @@ impl ReferenceRenderer {
             f32s(flat3(&bends), "bends"),
             // the `wind` effect's sway at the tip per vertex
             f32s(flat3(&sways), "sways"),
-            // a skinned input's joints and weights, interleaved (unskinned: joint 0, weight 1)
+            // a skinned input's joints and weights (unskinned: joint 0, weight 1), and the
+            // asset's base colour at the root (white: none), interleaved
             f32s(
                 (0..mesh.vertex_count())
-                    .flat_map(|v| match &mesh.skin {
-                        Some(s) => {
-                            let [a, b, c, d] = s.joints[v].map(f32::from);
-                            let [e, f, g, h] = s.weights[v];
-                            [a, b, c, d, e, f, g, h]
+                    .flat_map(|v| {
+                        let [i, j, k] =
+                            shells.albedo.as_ref().map_or([1.0; 3], |a| a[v].to_array());
+                        match &mesh.skin {
+                            Some(s) => {
+                                let [a, b, c, d] = s.joints[v].map(f32::from);
+                                let [e, f, g, h] = s.weights[v];
+                                [a, b, c, d, e, f, g, h, i, j, k]
+                            }
+                            None => [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, i, j, k],
                         }
-                        None => [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
                     })
                     .collect(),
                 "skin",
@@ -619,9 +624,14 @@ impl ReferenceRenderer {
                     offset: 16,
                     shader_location: 8,
                 },
+                wgpu::VertexAttribute {
+                    format: wgpu::VertexFormat::Float32x3,
+                    offset: 32,
+                    shader_location: 9,
+                },
             ];
             layouts.push(Some(wgpu::VertexBufferLayout {
-                array_stride: 32,
+                array_stride: 44,
                 step_mode: wgpu::VertexStepMode::Vertex,
                 attributes: &skin,
             }));

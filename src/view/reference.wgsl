@@ -46,6 +46,8 @@ struct VsIn {
     // a skinned input's joints and weights
     @location(7) joints: vec4<f32>,
     @location(8) weights: vec4<f32>,
+    // the asset's base colour at the strand root (white: none)
+    @location(9) albedo: vec3<f32>,
 }
 
 struct VsOut {
@@ -56,6 +58,7 @@ struct VsOut {
     @location(3) @interpolate(flat) layer: u32,
     @location(4) density: f32,
     @location(5) occlusion: f32,
+    @location(6) albedo: vec3<f32>,
 }
 
 @vertex
@@ -84,6 +87,7 @@ fn vs_main(in: VsIn, @builtin(instance_index) layer: u32) -> VsOut {
     out.layer = layer;
     out.density = in.scalars.x;
     out.occlusion = in.scalars.y;
+    out.albedo = in.albedo;
     return out;
 }
 
@@ -108,6 +112,6 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         discard;
     }
     let occlusion = 1.0 - in.occlusion + in.occlusion * layer.w;
-    let rgb = shade_sheen(layer.rgb * occlusion * law.rgb, shell.material.x, shell.material.y, shell.sheen[in.layer], normalize(in.normal), in.world);
+    let rgb = shade_sheen(layer.rgb * occlusion * in.albedo * law.rgb, shell.material.x, shell.material.y, shell.sheen[in.layer], normalize(in.normal), in.world);
     return vec4<f32>(rgb, 1.0);
 }

@@ -8,7 +8,9 @@
 //               "ambient": a, "background": [r,g,b] (linear),
 //               "msft_lod": true (optional: switch MSFT_lod levels by distance),
 //               "time": seconds (optional: every animation of the file played to that time by
-//                       three.js's AnimationMixer, looping) }, ...]
+//                       three.js's AnimationMixer, looping),
+//               "hide_fur": true (optional: hide the nodes shellbake added to an asset, those
+//                       whose extras carry `shellbake` or `shellbake_fur`) }, ...]
 // Prints one JSON line per job: { png, ok, triangles (drawn in the frame) }.
 // Files are served from a loopback HTTP server; Chromium is Debian's, driven by playwright-core.
 import { createServer } from 'node:http';
@@ -75,6 +77,11 @@ window.renderJob = async (job, url) => {
   if (job.msft_lod) loader.register((parser) => new MsftLod(parser));
   const gltf = await loader.loadAsync(url);
   scene.add(gltf.scene);
+  if (job.hide_fur) {
+    gltf.scene.traverse((o) => {
+      if (o.userData.shellbake !== undefined || o.userData.shellbake_fur !== undefined) o.visible = false;
+    });
+  }
   if (job.time !== undefined && gltf.animations.length) {
     const mixer = new THREE.AnimationMixer(gltf.scene);
     for (const clip of gltf.animations) mixer.clipAction(clip).play();

@@ -1,0 +1,593 @@
+//! Asset in, asset out (DESIGN §10): an asset as artists bring it — textured, flat-shaded,
+//! skinned, animated, several materials, two characters, a camera, a light and a ground, a
+//! triangle strip (`shellbake::critter`) — comes out whole with fur added where `--only` asks,
+//! in the asset's own colours; validator-clean, rendered by three.js, bounded right in
+//! Babylon.js, verified against the runtime technique, and not furred twice when read again.
+//!
+//! The colour metric: the mean CIELAB colour (D65, sRGB decoding) of the pixels that are not
+//! background, in three.js renders of the bare and the furred asset from the same camera;
+//! ΔE76 between the two means at most 12, and the furred chroma `√(a² + b²)` at least 70 % of
+//! the bare one.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{assert_valid, node, path_str, scratch, shellbake, Glb};
+use serde_json::{json, Value};
+use shellbake::critter::{critter_glb, Critters};
+
+/// Writes the critter asset(s) into `dir`; returns the path.
+fn critters(dir: &Path, name: &str, what: Critters) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, critter_glb(what)).unwrap();
+    path
+}
+
+/// Bakes `input` into `dir/<out>` with `args`, a report beside it; returns the file and report.
+fn bake(input: &Path, dir: &Path, out: &str, args: &[&str]) -> (PathBuf, Value) {
+    let glb = dir.join(out);
+    let report = dir.join(format!("{out}.json"));
+    let mut all = vec![
+        "bake",
+        input.to_str().unwrap(),
+        "-o",
+        glb.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "-q",
+    ];
+    all.extend_from_slice(args);
+    let (code, _, err) = shellbake(&all);
+    assert_eq!(code, Some(0), "{err}");
+    let r = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    (glb, r)
+}
+
+fn json_of(path: &Path) -> Value {
+    Glb::parse(&std::fs::read(path).unwrap()).json
+}
+
+/// The input's objects are in the output at the same indices and unchanged, but for where
+/// bytes live (buffer views) and the children the fur roots were added to.
+fn assert_kept(input: &Value, output: &Value) {
+    for kind in [
+        "scenes",
+        "nodes",
+        "meshes",
+        "materials",
+        "textures",
+        "samplers",
+        "images",
+        "skins",
+        "animations",
+        "accessors",
+        "cameras",
+    ] {
+        let (a, b) = (&input[kind], &output[kind]);
+        let Some(a) = a.as_array() else {
+            continue;
+        };
+        let b = b.as_array().unwrap_or_else(|| panic!("{kind} dropped"));
+        assert!(
+            b.len() >= a.len(),
+            "{kind}: {} of {} kept",
+            b.len(),
+            a.len()
+        );
+        for (i, (x, y)) in a.iter().zip(b).enumerate() {
+            let (mut x, mut y) = (x.clone(), y.clone());
+            if kind == "nodes" || kind == "scenes" {
+                // fur roots are appended to their node's children, and skinned layer nodes to
+                // the scene's roots
+                let key = if kind == "nodes" { "children" } else { "nodes" };
+                let old = x[key].as_array().cloned().unwrap_or_default();
+                let new = y[key].as_array().cloned().unwrap_or_default();
+                assert_eq!(&new[..old.len()], &old[..], "{kind} {i}: {key} changed");
+                x.as_object_mut().unwrap().remove(key);
+                y.as_object_mut().unwrap().remove(key);
+            }
+            assert_eq!(x, y, "{kind} {i} changed");
+        }
+    }
+    assert_eq!(
+        input["extensions"], output["extensions"],
+        "top-level extensions"
+    );
+    assert_eq!(input["asset"], output["asset"]);
+}
+
+/// A three.js job over the critter(s), from a fixed camera.
+fn job(glb: &Path, png: &Path, eye: [f32; 3], target: [f32; 3], hide_fur: bool) -> Value {
+    json!({
+        "glb": glb, "png": png, "width": 360, "height": 270,
+        "camera": { "eye": eye, "target": target, "up": [0, 1, 0], "fovy_deg": 40, "near": 0.05, "far": 50 },
+        "light": { "direction": [0.4, 1.0, 0.6], "intensity": 2.5 },
+        "ambient": 0.4, "background": [0.55, 0.6, 0.7],
+        "hide_fur": hide_fur,
+    })
+}
+
+fn render(jobs: &[Value], dir: &Path) {
+    let spec = dir.join("jobs.json");
+    std::fs::write(&spec, serde_json::to_vec(jobs).unwrap()).unwrap();
+    let done = node("three_render.mjs", &[spec]);
+    assert_eq!(done.len(), jobs.len());
+    assert!(done.iter().all(|d| d["ok"] == true), "{done:?}");
+}
+
+fn rgb(png: &Path) -> image::RgbImage {
+    image::open(png).unwrap().to_rgb8()
+}
+
+/// Mean CIELAB of the pixels that differ from the background's sRGB value, and their count.
+fn mean_lab(img: &image::RgbImage) -> ([f64; 3], usize) {
+    let bg = img.get_pixel(0, 0).0;
+    let mut sum = [0.0f64; 3];
+    let mut n = 0;
+    for p in img.pixels() {
+        let far: i32 = (0..3).map(|k| (p.0[k] as i32 - bg[k] as i32).abs()).sum();
+        if far <= 6 {
+            continue;
+        }
+        let lin = p.0.map(shellbake::srgb::decode8);
+        let x = (0.4124 * lin[0] + 0.3576 * lin[1] + 0.1805 * lin[2]) / 0.95047;
+        let y = 0.2126 * lin[0] + 0.7152 * lin[1] + 0.0722 * lin[2];
+        let z = (0.0193 * lin[0] + 0.1192 * lin[1] + 0.9505 * lin[2]) / 1.08883;
+        let f = |t: f64| {
+            if t > 0.008856 {
+                t.cbrt()
+            } else {
+                7.787 * t + 16.0 / 116.0
+            }
+        };
+        let (fx, fy, fz) = (f(x), f(y), f(z));
+        sum[0] += 116.0 * fy - 16.0;
+        sum[1] += 500.0 * (fx - fy);
+        sum[2] += 200.0 * (fy - fz);
+        n += 1;
+    }
+    (sum.map(|s| s / n.max(1) as f64), n)
+}
+
+fn differing_pixels(a: &image::RgbImage, b: &image::RgbImage) -> usize {
+    a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count()
+}
+
+/// The layer nodes (nodes with a mesh) the graft added, and the skins they name.
+fn fur_layer_skins(input: &Value, output: &Value) -> Vec<Option<u64>> {
+    let first = input["nodes"].as_array().unwrap().len();
+    output["nodes"].as_array().unwrap()[first..]
+        .iter()
+        .filter(|n| n.get("mesh").is_some())
+        .map(|n| n["skin"].as_u64())
+        .collect()
+}
+
+#[test]
+fn a_textured_skinned_creature_comes_out_whole_with_fur_in_its_own_colours() {
+    let dir = scratch("asset-critter");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let (glb, report) = bake(
+        &input,
+        &dir,
+        "critter-fur.glb",
+        &["--only", "material=fur_*"],
+    );
+    assert_valid(&[input.clone(), glb.clone()]);
+    let (before, after) = (json_of(&input), json_of(&glb));
+    assert_kept(&before, &after);
+
+    // what was furred and what passed through, by name
+    let asset = &report["asset"];
+    let furred: Vec<&str> = asset["furred"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert_eq!(furred.len(), 2, "{furred:?}");
+    assert!(furred[0].contains("material 'fur_body'") && furred[1].contains("material 'fur_tail'"));
+    let skipped = asset["skipped"].to_string();
+    assert!(
+        skipped.contains("'eye'") && skipped.contains("'paws'"),
+        "{skipped}"
+    );
+    assert_eq!(asset["kept"]["animations"], 2);
+
+    // every fur layer shares the critter's skin (the asset's skin 0), and no skin was added
+    let skins = fur_layer_skins(&before, &after);
+    assert!(
+        !skins.is_empty() && skins.iter().all(|&s| s == Some(0)),
+        "{skins:?}"
+    );
+    assert_eq!(after["skins"].as_array().unwrap().len(), 1);
+    // the strip primitive (the tail) got fur: a surface of its own with triangles
+    let tail = report["surfaces"][1].clone();
+    assert!(tail["base_triangles"].as_u64().unwrap() > 50, "{tail}");
+
+    // three.js: fur hidden renders the input pixel for pixel; with fur, the asset's colours
+    let eye = [1.2, 1.3, 2.4];
+    let target = [0.0, 0.6, 0.0];
+    let png = |n: &str| dir.join(n);
+    render(
+        &[
+            job(&input, &png("bare.png"), eye, target, false),
+            job(&glb, &png("fur.png"), eye, target, false),
+            job(&glb, &png("hidden.png"), eye, target, true),
+            job(
+                &input,
+                &png("bare-close.png"),
+                [0.9, 0.9, 0.6],
+                [0.5, 0.7, 0.0],
+                false,
+            ),
+            job(
+                &glb,
+                &png("fur-close.png"),
+                [0.9, 0.9, 0.6],
+                [0.5, 0.7, 0.0],
+                false,
+            ),
+            job(
+                &glb,
+                &png("hidden-close.png"),
+                [0.9, 0.9, 0.6],
+                [0.5, 0.7, 0.0],
+                true,
+            ),
+        ],
+        &dir,
+    );
+    for (bare, hidden) in [
+        ("bare.png", "hidden.png"),
+        ("bare-close.png", "hidden-close.png"),
+    ] {
+        let n = differing_pixels(&rgb(&png(bare)), &rgb(&png(hidden)));
+        assert_eq!(n, 0, "{hidden}: {n} pixels differ from the bare asset");
+    }
+    let (bare, n0) = mean_lab(&rgb(&png("bare.png")));
+    let (fur, n1) = mean_lab(&rgb(&png("fur.png")));
+    assert!(
+        n0 > 5000 && n1 >= n0,
+        "covered pixels {n0} bare, {n1} furred"
+    );
+    let de = ((bare[0] - fur[0]).powi(2) + (bare[1] - fur[1]).powi(2) + (bare[2] - fur[2]).powi(2))
+        .sqrt();
+    let chroma = |c: [f64; 3]| c[1].hypot(c[2]);
+    let kept = chroma(fur) / chroma(bare);
+    println!(
+        "critter: mean Lab bare {bare:.1?}, furred {fur:.1?}: ΔE76 {de:.2}, chroma kept {:.0}%",
+        kept * 100.0
+    );
+    assert!(de <= 12.0 && kept >= 0.7, "ΔE76 {de:.2}, chroma {kept:.2}");
+    // the fur shows: the furred picture is not the bare one
+    assert!(differing_pixels(&rgb(&png("bare.png")), &rgb(&png("fur.png"))) > 2000);
+}
+
+#[test]
+fn skinned_fur_has_its_true_bounds_in_babylon_and_three() {
+    let dir = scratch("asset-bounds");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let (glb, _) = bake(&input, &dir, "critter-fur.glb", &[]);
+    let b = node("babylon_bounds.mjs", std::slice::from_ref(&glb));
+    let (fur, bare) = (&b[0]["fur"], &b[0]["bare"]);
+    assert!(fur.is_object() && bare.is_object(), "{b:?}");
+    for k in 0..3 {
+        let (flo, fhi) = (
+            fur["min"][k].as_f64().unwrap(),
+            fur["max"][k].as_f64().unwrap(),
+        );
+        let (blo, bhi) = (
+            bare["min"][k].as_f64().unwrap(),
+            bare["max"][k].as_f64().unwrap(),
+        );
+        // the fur's box is the asset's, give or take the fur's height (not the quantized unit
+        // box near the origin that dequantization in the inverse bind matrices gave)
+        assert!(
+            flo >= blo - 0.1 && fhi <= bhi + 0.1,
+            "axis {k}: fur {flo}..{fhi}, asset {blo}..{bhi}"
+        );
+        assert!(
+            fhi - flo >= 0.9 * (bhi - blo),
+            "axis {k}: fur {flo}..{fhi}, asset {blo}..{bhi}"
+        );
+    }
+}
+
+#[test]
+fn two_skinned_characters_a_camera_a_light_and_an_unfurred_ground() {
+    let dir = scratch("asset-scene");
+    let what = Critters {
+        count: 2,
+        ground: true,
+        camera_and_light: true,
+    };
+    let input = critters(&dir, "critters.glb", what);
+    let (glb, report) = bake(
+        &input,
+        &dir,
+        "critters-fur.glb",
+        &["--only", "material=fur_*"],
+    );
+    assert_valid(&[input.clone(), glb.clone()]);
+    let (before, after) = (json_of(&input), json_of(&glb));
+    assert_kept(&before, &after);
+    assert_eq!(after["extensionsUsed"][0], "KHR_lights_punctual");
+    assert_eq!(report["asset"]["furred"].as_array().unwrap().len(), 4);
+    assert!(report["asset"]["skipped"]
+        .to_string()
+        .contains("node 'ground'"));
+    // each character's fur is bound to its own skin
+    let skins = fur_layer_skins(&before, &after);
+    assert!(
+        skins.contains(&Some(0)) && skins.contains(&Some(1)),
+        "{skins:?}"
+    );
+    let eye = [1.0, 1.8, 4.5];
+    let target = [1.0, 0.5, 0.0];
+    let png = |n: &str| dir.join(n);
+    render(
+        &[
+            job(&input, &png("bare.png"), eye, target, false),
+            job(&glb, &png("fur.png"), eye, target, false),
+            job(&glb, &png("hidden.png"), eye, target, true),
+        ],
+        &dir,
+    );
+    assert_eq!(
+        differing_pixels(&rgb(&png("bare.png")), &rgb(&png("hidden.png"))),
+        0
+    );
+    assert!(differing_pixels(&rgb(&png("bare.png")), &rgb(&png("fur.png"))) > 2000);
+
+    // everything furred (the default): the ground too, as a rigid part under its node
+    let (all, report) = bake(&input, &dir, "critters-all.glb", &[]);
+    assert_valid(std::slice::from_ref(&all));
+    assert_eq!(report["asset"]["furred"].as_array().unwrap().len(), 9);
+    let after = json_of(&all);
+    let ground = before["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|n| n["name"] == "ground")
+        .unwrap();
+    let children = after["nodes"][ground]["children"].as_array().unwrap();
+    assert_eq!(children.len(), 1, "the ground's fur hangs under it");
+    let root = &after["nodes"][children[0].as_u64().unwrap() as usize];
+    assert_eq!(root["extras"]["shellbake_fur"]["node"], ground);
+}
+
+#[test]
+fn only_names_what_the_file_has_when_nothing_matches_and_writes_nothing() {
+    let dir = scratch("asset-only");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let out = dir.join("never.glb");
+    let (code, _, err) = shellbake(&[
+        "bake",
+        &path_str(&input),
+        "-o",
+        &path_str(&out),
+        "--only",
+        "material=fur",
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("--only material=fur") && err.contains("eye, fur_body, fur_tail, paws"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    let (code, _, err) = shellbake(&["bake", &path_str(&input), "--only", "colour=x"]);
+    assert_eq!(code, Some(2), "{err}");
+    // --only on a mesh that is no asset
+    let (code, _, err) = shellbake(&[
+        "bake",
+        "fixtures/cube.obj",
+        "-o",
+        &path_str(&out),
+        "--only",
+        "node=x",
+    ]);
+    assert_ne!(code, Some(0));
+    assert!(err.contains("chooses parts of an asset"), "{err}");
+    // node and mesh globs
+    let (_, report) = bake(&input, &dir, "by-node.glb", &["--only", "node=critter_?"]);
+    assert_eq!(report["asset"]["furred"].as_array().unwrap().len(), 4);
+    let (_, report) = bake(
+        &input,
+        &dir,
+        "by-mesh.glb",
+        &["--only", "mesh=crit*", "--only", "material=eye"],
+    );
+    assert_eq!(report["asset"]["furred"].as_array().unwrap().len(), 4);
+}
+
+#[test]
+fn a_furred_asset_read_again_is_not_furred_twice() {
+    let dir = scratch("asset-rebake");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let (once, _) = bake(&input, &dir, "once.glb", &["--only", "material=fur_*"]);
+    // the rest is furred on the second pass; the fur and the parts furred before are kept
+    let (twice, report) = bake(&once, &dir, "twice.glb", &[]);
+    assert_valid(std::slice::from_ref(&twice));
+    let furred = report["asset"]["furred"].to_string();
+    assert!(
+        furred.contains("'eye'") && furred.contains("'paws'") && !furred.contains("fur_body"),
+        "{furred}"
+    );
+    assert!(report["asset"]["skipped"]
+        .to_string()
+        .contains("carries shellbake fur already"));
+    assert_kept(&json_of(&once), &json_of(&twice));
+    // a third pass has nothing left to fur
+    let out = dir.join("thrice.glb");
+    let (code, _, err) = shellbake(&["bake", &path_str(&twice), "-o", &path_str(&out)]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("carries shellbake fur already"), "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
+    // the cube fixture as a glTF mesh under a node turned, scaled and moved, in a parent
+    let dir = scratch("asset-rigid");
+    let scene = shellbake::load::load(Path::new("fixtures/cube.obj")).unwrap();
+    let mesh = &scene.meshes[0];
+    let positions: Vec<f32> = mesh
+        .positions
+        .iter()
+        .flat_map(|p| (p.as_dvec3() + mesh.origin).as_vec3().to_array())
+        .collect();
+    let indices: Vec<u8> = mesh
+        .indices
+        .iter()
+        .flat_map(|&i| (i as u16).to_le_bytes())
+        .collect();
+    let mut bin: Vec<u8> = positions.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let pos_len = bin.len();
+    bin.extend_from_slice(&indices);
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let lo: Vec<f32> = (0..3)
+        .map(|k| {
+            positions
+                .iter()
+                .skip(k)
+                .step_by(3)
+                .fold(f32::MAX, |a, &b| a.min(b))
+        })
+        .collect();
+    let hi: Vec<f32> = (0..3)
+        .map(|k| {
+            positions
+                .iter()
+                .skip(k)
+                .step_by(3)
+                .fold(f32::MIN, |a, &b| a.max(b))
+        })
+        .collect();
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [
+            { "name": "parent", "translation": [2.0, 0.5, -1.0], "children": [1] },
+            { "name": "box", "mesh": 0, "rotation": [0.0, 0.38268343, 0.0, 0.92387953], "scale": [1.5, 1.5, 1.5] }
+        ],
+        "meshes": [{ "name": "box", "primitives": [{ "attributes": { "POSITION": 0 }, "indices": 1, "material": 0 }] }],
+        "materials": [{ "name": "fur_box", "pbrMetallicRoughness": { "baseColorFactor": [0.2, 0.4, 0.8, 1.0] } }],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": positions.len() / 3, "type": "VEC3", "min": lo, "max": hi },
+            { "bufferView": 1, "componentType": 5123, "count": mesh.indices.len(), "type": "SCALAR" }
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": pos_len },
+            { "buffer": 0, "byteOffset": pos_len, "byteLength": indices.len() }
+        ],
+        "buffers": [{ "byteLength": bin.len() }]
+    });
+    let input = dir.join("box.glb");
+    std::fs::write(&input, shellbake::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, _) = bake(&input, &dir, "box-fur.glb", &[]);
+    assert_valid(std::slice::from_ref(&glb));
+    let after = json_of(&glb);
+    assert_kept(&doc, &after);
+    // the fur root hangs under the box and its world placement is the bake's: world = parent ·
+    // box · root, and the rendered fur sits on the box (fur hidden = the box)
+    let root = after["nodes"][1]["children"][0].as_u64().unwrap() as usize;
+    assert!(after["nodes"][root]["extras"]["shellbake"].is_object());
+    let eye = [4.5, 3.0, 3.0];
+    let target = [2.0, 0.5, -1.0];
+    let png = |n: &str| dir.join(n);
+    render(
+        &[
+            job(&input, &png("bare.png"), eye, target, false),
+            job(&glb, &png("fur.png"), eye, target, false),
+            job(&glb, &png("hidden.png"), eye, target, true),
+        ],
+        &dir,
+    );
+    let (bare, fur) = (rgb(&png("bare.png")), rgb(&png("fur.png")));
+    assert_eq!(differing_pixels(&bare, &rgb(&png("hidden.png"))), 0);
+    let (_, n0) = mean_lab(&bare);
+    let (lab, n1) = mean_lab(&fur);
+    // the fur surrounds the box (a little more coverage, none far away) and is blue
+    assert!(n1 > n0 && n1 < n0 * 2, "covered {n0} bare, {n1} furred");
+    assert!(lab[2] < -10.0, "the fur is not the box's blue: {lab:?}");
+}
+
+#[test]
+fn verify_checks_each_furred_part_of_the_creature() {
+    let dir = scratch("asset-verify");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let out = dir.join("verify");
+    let glb = dir.join("critter-fur.glb");
+    let (code, stdout, err) = shellbake(&[
+        "verify",
+        &path_str(&input),
+        "--only",
+        "material=fur_*",
+        "--out-dir",
+        &path_str(&out),
+        "-o",
+        &path_str(&glb),
+    ]);
+    assert_eq!(code, Some(0), "{stdout}\n{err}");
+    assert!(
+        stdout.contains("surface critter_0_0") && stdout.contains("surface critter_0_1"),
+        "{stdout}"
+    );
+    assert_valid(std::slice::from_ref(&glb));
+}
+
+#[test]
+fn blender_imports_and_renders_the_furred_creature_with_enough_transparent_bounces() {
+    let dir = scratch("asset-blender");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let (glb, _) = bake(
+        &input,
+        &dir,
+        "critter-fur.glb",
+        &["--only", "material=fur_*"],
+    );
+    let render = |file: &Path, png: &str, bounces: u32| -> (image::RgbImage, Value) {
+        let out = std::process::Command::new("python3")
+            .arg(common::repo().join("tests/blender_render.py"))
+            .args([
+                file.to_str().unwrap(),
+                dir.join(png).to_str().unwrap(),
+                &bounces.to_string(),
+            ])
+            .output()
+            .expect("python3 runs (tests/setup.sh installs bpy)");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "Blender failed: {stdout}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let line = stdout
+            .lines()
+            .rev()
+            .find(|l| l.starts_with('{'))
+            .expect("a result line");
+        (rgb(&dir.join(png)), serde_json::from_str(line).unwrap())
+    };
+    let (bare, _) = render(&input, "bare.png", 64);
+    let (fur, counts) = render(&glb, "fur-64.png", 64);
+    let (dark, _) = render(&glb, "fur-8.png", 8);
+    // everything Blender imported is in the scene
+    assert_eq!(counts["orphans"], 0, "{counts}");
+    let (b, _) = mean_lab(&bare);
+    let (f, n) = mean_lab(&fur);
+    let (d, _) = mean_lab(&dark);
+    let chroma = |c: [f64; 3]| c[1].hypot(c[2]);
+    println!("Blender (Cycles): bare L {:.1} C {:.1}; furred, 64 bounces L {:.1} C {:.1}; 8 bounces L {:.1} C {:.1}", b[0], chroma(b), f[0], chroma(f), d[0], chroma(d));
+    assert!(n > 5000, "the furred critter covers {n} pixels");
+    // with 64 transparent bounces the fur keeps the asset's colour (Cycles shadows inside the
+    // fur, so darker than the bare skin); with Blender's default 8 it turns near black
+    assert!(
+        chroma(f) >= 0.7 * chroma(b) && f[0] > 25.0,
+        "{f:?} against {b:?}"
+    );
+    assert!(d[0] < f[0] - 10.0, "8 bounces: {d:?}, 64: {f:?}");
+}
