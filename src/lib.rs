@@ -319,7 +319,11 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
         .iter()
         .map(|s| {
             let start = Instant::now();
-            let mut loaded = load::load(&s.mesh)?;
+            let mut loaded = if s.only.is_empty() {
+                load::load(&s.mesh)?
+            } else {
+                load_parts(&s.mesh, &s.only)?
+            };
             for m in &mut loaded.meshes {
                 m.place(glam::DVec3::from(s.translation), s.scale);
             }
@@ -335,6 +339,56 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
             })
         })
         .collect()
+}
+
+/// The parts of the asset at `path` that `only` chooses, as one scene (their meshes, and the
+/// skin they share): what a scene surface with `only` furs. The asset is a glTF file or an OBJ
+/// with a `.mtl`; parts bound to different skins are refused, as the loader refuses them.
+fn load_parts(path: &Path, only: &[load::asset::Selector]) -> Result<Scene> {
+    let ext = path.extension().map(|e| e.to_ascii_lowercase());
+    let asset = match ext.as_ref().and_then(|e| e.to_str()) {
+        Some("obj") => load::asset::Asset::read_obj(path)?,
+        Some("gltf" | "glb") => Some(load::asset::Asset::read(path)?),
+        _ => None,
+    };
+    let Some(asset) = asset else {
+        return Err(Error::invalid(
+            path,
+            "only",
+            "chooses parts of an asset (.gltf, .glb, or .obj with a .mtl); this file has none",
+        ));
+    };
+    let chosen = asset.select(only)?;
+    let mut scene = Scene {
+        warnings: asset.warnings.clone(),
+        ..Default::default()
+    };
+    let skins: Vec<Option<usize>> = chosen.iter().map(|&i| asset.parts[i].skin).collect();
+    if let Some(k) = skins.iter().position(|s| *s != skins[0]) {
+        return Err(Error::invalid(
+            path,
+            "only",
+            format!(
+                "chooses parts bound to different skins ('{}' and '{}'); a surface bakes one skin",
+                load::escape(&asset.parts[chosen[0]].names.node),
+                load::escape(&asset.parts[chosen[k]].names.node)
+            ),
+        ));
+    }
+    for &i in &chosen {
+        let part = &asset.parts[i];
+        scene.meshes.extend(part.scene.meshes.iter().cloned());
+        if scene.skeleton.is_none() {
+            scene.skeleton = part.scene.skeleton.clone();
+        }
+    }
+    if scene.meshes.is_empty() {
+        return Err(Error::Empty {
+            path: path.to_path_buf(),
+            message: "only: every chosen part carries shellbake fur already".into(),
+        });
+    }
+    Ok(scene)
 }
 
 /// The density, length and comb maps surface `s` names, read (images) or checked against the

@@ -374,6 +374,9 @@ impl BakeArgs {
                     })?;
             }
             self.apply(&mut s.params, &mut s.effects);
+            if !self.only.is_empty() && self.is_scene() {
+                s.only = self.only.clone();
+            }
             s.params.check().map_err(|e| named(e.to_string()))?;
         }
         Ok(scene)
@@ -531,7 +534,7 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         pb
     });
     let asset = if args.is_scene() { None } else { args.asset()? };
-    if !args.only.is_empty() && asset.is_none() {
+    if !args.only.is_empty() && asset.is_none() && !args.is_scene() {
         anyhow::bail!(
             "{}: --only chooses parts of an asset (.gltf, .glb, or .obj with a .mtl)",
             args.input.display()

@@ -16,6 +16,8 @@
 //! length_map = "COLOR_0.g" # shorter strands where the vertex colours' green is dark
 //! comb_map = "flow.png"    # comb along a flow map: red/green = +u/+v, mid grey = none
 //!                          # (or "COLOR_0": red and green of the vertex colours)
+//! only = ["material=fur_*"] # of a glTF (or OBJ with a .mtl), only these parts (node, mesh or
+//!                          # material name globs; see `load::asset`), merged into the surface
 //!
 //! [surface.shells]          # any section of the parameters, any subset of its keys
 //! layers = 24
@@ -273,6 +275,9 @@ pub struct Surface {
     pub length_map: Option<MapSource>,
     /// What combs the fur: a flow map (see [`crate::maps`] and [`crate::gravity`]).
     pub comb_map: Option<FlowSource>,
+    /// The parts of the mesh file (an asset) the surface furs, chosen by name
+    /// ([`crate::load::asset::Selector`]); empty: every triangle.
+    pub only: Vec<crate::load::asset::Selector>,
 }
 
 /// Where a flow map comes from.
@@ -383,7 +388,7 @@ impl Quality {
 pub const SINGLE_SURFACE_NAME: &str = "shellbake";
 
 /// Keys of a surface table besides the parameter sections.
-const SURFACE_KEYS: [&str; 9] = [
+const SURFACE_KEYS: [&str; 10] = [
     "name",
     "mesh",
     "preset",
@@ -393,6 +398,7 @@ const SURFACE_KEYS: [&str; 9] = [
     "density_map",
     "length_map",
     "comb_map",
+    "only",
 ];
 
 /// Sections of [`BakeParams`] a surface may override.
@@ -521,6 +527,7 @@ impl SceneFile {
                 density_map: None,
                 length_map: None,
                 comb_map: None,
+                only: Vec::new(),
             }],
         }
     }
@@ -681,6 +688,23 @@ impl Reader<'_> {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "surface".into()),
         };
+        let mut only = Vec::new();
+        if let Some(v) = table.get("only") {
+            let key = at(here, "only");
+            let Some(list) = v.as_array() else {
+                return Err(self.error(&key, "must be an array of KIND=GLOB strings"));
+            };
+            for (k, e) in list.iter().enumerate() {
+                let mut p = key.clone();
+                p.push(Seg::Index(k));
+                let selector = e
+                    .as_str()
+                    .ok_or_else(|| "must be a string".to_string())
+                    .and_then(str::parse)
+                    .map_err(|why| self.error(&p, why))?;
+                only.push(selector);
+            }
+        }
         let (params, overrides) = self.params(here, table, preset)?;
         if comb_map.is_some() && params.gravity.comb.is_some() {
             return Err(self.error(
@@ -761,6 +785,7 @@ impl Reader<'_> {
             density_map,
             length_map,
             comb_map,
+            only,
         })
     }
 

@@ -612,13 +612,29 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     )
     .unwrap();
     let mut obj = String::from("mtllib box.mtl\n");
-    for v in [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]] {
+    for v in [
+        [0, 0, 0],
+        [1, 0, 0],
+        [1, 1, 0],
+        [0, 1, 0],
+        [0, 0, 1],
+        [1, 0, 1],
+        [1, 1, 1],
+        [0, 1, 1],
+    ] {
         obj += &format!("v {} {} {}\n", v[0], v[1], v[2]);
     }
     // vt 1-4: a square in the blue half; 5-8: in the yellow half
     obj += "vt 0.1 0.1\nvt 0.4 0.1\nvt 0.4 0.9\nvt 0.1 0.9\n";
     obj += "vt 0.6 0.1\nvt 0.9 0.1\nvt 0.9 0.9\nvt 0.6 0.9\no box\nusemtl fur_box\n";
-    let faces = [[1, 4, 3, 2], [5, 6, 7, 8], [1, 2, 6, 5], [2, 3, 7, 6], [3, 4, 8, 7], [4, 1, 5, 8]];
+    let faces = [
+        [1, 4, 3, 2],
+        [5, 6, 7, 8],
+        [1, 2, 6, 5],
+        [2, 3, 7, 6],
+        [3, 4, 8, 7],
+        [4, 1, 5, 8],
+    ];
     for (k, f) in faces.iter().enumerate() {
         if k == 5 {
             obj += "o lid\nusemtl plain\n";
@@ -626,7 +642,14 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
         let t = if k == 2 || k == 4 { 4 } else { 0 };
         obj += &format!(
             "f {}/{} {}/{} {}/{} {}/{}\n",
-            f[0], t + 1, f[1], t + 2, f[2], t + 3, f[3], t + 4
+            f[0],
+            t + 1,
+            f[1],
+            t + 2,
+            f[2],
+            t + 3,
+            f[3],
+            t + 4
         );
     }
     let input = dir.join("box.obj");
@@ -634,27 +657,48 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     let (glb, report) = bake(&input, &dir, "box-fur.glb", &["--only", "material=fur_*"]);
     assert_valid(std::slice::from_ref(&glb));
     let after = json_of(&glb);
-    let names: Vec<&str> = after["materials"].as_array().unwrap()[..2].iter().map(|m| m["name"].as_str().unwrap()).collect();
+    let names: Vec<&str> = after["materials"].as_array().unwrap()[..2]
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
     assert_eq!(names, ["fur_box", "plain"]);
-    assert_eq!(after["materials"][1]["pbrMetallicRoughness"]["baseColorFactor"], json!([0.8, 0.1, 0.1, 1.0]));
-    let texture = after["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["index"].as_u64().unwrap();
-    let image = &after["images"][after["textures"][texture as usize]["source"].as_u64().unwrap() as usize];
-    assert_eq!(image["mimeType"], "image/png", "the map_Kd image is embedded: {image}");
+    assert_eq!(
+        after["materials"][1]["pbrMetallicRoughness"]["baseColorFactor"],
+        json!([0.8, 0.1, 0.1, 1.0])
+    );
+    let texture = after["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["index"]
+        .as_u64()
+        .unwrap();
+    let image = &after["images"][after["textures"][texture as usize]["source"]
+        .as_u64()
+        .unwrap() as usize];
+    assert_eq!(
+        image["mimeType"], "image/png",
+        "the map_Kd image is embedded: {image}"
+    );
     assert!(image.get("uri").is_none());
     assert_eq!(after["nodes"][0]["name"], "box");
-    assert!(report["asset"]["skipped"].to_string().contains("material 'plain'"));
+    assert!(report["asset"]["skipped"]
+        .to_string()
+        .contains("material 'plain'"));
     // the fur takes the texture's two colours
     let png = |n: &str| dir.join(n);
     let (eye, target) = ([2.2, 1.8, 2.6], [0.5, 0.5, 0.5]);
     render(
-        &[job(&glb, &png("fur.png"), eye, target, false), job(&glb, &png("hidden.png"), eye, target, true)],
+        &[
+            job(&glb, &png("fur.png"), eye, target, false),
+            job(&glb, &png("hidden.png"), eye, target, true),
+        ],
         &dir,
     );
     let fur = rgb(&png("fur.png"));
     let hue = |pred: &dyn Fn([u8; 3]) -> bool| fur.pixels().filter(|p| pred(p.0)).count();
     let blue = hue(&|[r, g, b]| b as i32 > r as i32 + 40 && b as i32 > g as i32 + 20);
     let yellow = hue(&|[r, g, b]| r as i32 > b as i32 + 60 && g as i32 > b as i32 + 40);
-    assert!(blue > 1000 && yellow > 1000, "blue {blue}, yellow {yellow} pixels");
+    assert!(
+        blue > 1000 && yellow > 1000,
+        "blue {blue}, yellow {yellow} pixels"
+    );
     assert!(differing_pixels(&fur, &rgb(&png("hidden.png"))) > 2000);
 }
 
@@ -664,7 +708,13 @@ fn lab_of(c: glam::Vec3) -> [f64; 3] {
     let x = (0.4124 * lin.x + 0.3576 * lin.y + 0.1805 * lin.z) / 0.95047;
     let y = 0.2126 * lin.x + 0.7152 * lin.y + 0.0722 * lin.z;
     let z = (0.0193 * lin.x + 0.1192 * lin.y + 0.9505 * lin.z) / 1.08883;
-    let f = |t: f64| if t > 0.008856 { t.cbrt() } else { 7.787 * t + 16.0 / 116.0 };
+    let f = |t: f64| {
+        if t > 0.008856 {
+            t.cbrt()
+        } else {
+            7.787 * t + 16.0 / 116.0
+        }
+    };
     let (fx, fy, fz) = (f(x), f(y), f(z));
     [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
 }
@@ -675,7 +725,11 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     // its triangle) against the texture at its root, at 16 x 16 roots per triangle of the
     // critter's body; and what the colour costs in bytes per vertex, against a colour texture
     // at strand resolution.
-    let asset = shellbake::load::asset::Asset::from_bytes(Path::new("critter.glb"), &critter_glb(Critters::default())).unwrap();
+    let asset = shellbake::load::asset::Asset::from_bytes(
+        Path::new("critter.glb"),
+        &critter_glb(Critters::default()),
+    )
+    .unwrap();
     let part = &asset.parts[0];
     let mesh = &part.scene.meshes[0];
     let paint = part.paint.as_ref().unwrap();
@@ -693,7 +747,8 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
                 let exact = texture.sample(uv);
                 let vertex = albedo[a] * w + albedo[b] * u + albedo[c] * v;
                 let (p, q) = (lab_of(exact), lab_of(vertex));
-                let de = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+                let de =
+                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
                 sum += de;
                 worst = worst.max(de);
                 n += 1;
@@ -709,5 +764,29 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     );
     // stripes narrower than a triangle are lost (the worst), the regions larger than one kept
     assert!(mean < 15.0, "mean ΔE76 {mean:.1}");
-    assert!(worst > 30.0, "the stripes should show as the encoding's worst case: {worst:.1}");
+    assert!(
+        worst > 30.0,
+        "the stripes should show as the encoding's worst case: {worst:.1}"
+    );
+}
+
+#[test]
+fn the_committed_critters_are_what_the_code_generates() {
+    for (name, what) in [
+        ("critter.glb", Critters::default()),
+        (
+            "critters.glb",
+            Critters {
+                count: 2,
+                ground: true,
+                camera_and_light: true,
+            },
+        ),
+    ] {
+        let committed = std::fs::read(common::fixture(name)).unwrap();
+        assert!(
+            committed == critter_glb(what),
+            "fixtures/{name} is stale: run `shellbake fixtures fixtures`"
+        );
+    }
 }

@@ -70,3 +70,4 @@ cp out/gallery/verify/bunny-close-baked.png out/gallery/bunny-close-baked.png
 cp out/gallery/verify/bunny-close-difference.png out/gallery/bunny-close-flip.png
 rm -rf out/gallery/verify "$inputs"
 bash tests/gallery_effects.sh
+bash tests/gallery_asset.sh

@@ -371,6 +371,14 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
 /// OBJ's folder, as a glTF's buffers are.
 pub(super) fn asset_glb(path: &Path, bytes: &[u8]) -> Result<Option<Vec<u8>>> {
     use serde_json::{json, Value};
+    // most OBJ files name no material library: find out before parsing anything
+    let names_mtl = bytes.split(|&b| b == b'\n').any(|line| {
+        let line = line.trim_ascii_start();
+        line.starts_with(b"mtllib") && line.get(6).is_some_and(u8::is_ascii_whitespace)
+    });
+    if !names_mtl {
+        return Ok(None);
+    }
     let scene = load(path, bytes)?;
     let bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
     let options = tobj::LoadOptions {

@@ -650,15 +650,28 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     } else {
         (uv_grid.lo * tiles, uv_grid.extent * tiles)
     };
-    // one texture per distinct mask (LOD 0's, and the mips coarser levels ask for)
+    // one texture per distinct mask (LOD 0's, and the mips coarser levels ask for), shared
+    // with an earlier surface of the file that has the same one
     let mut textures: Vec<(u32, TextureRef)> = Vec::new();
     for l in input.levels.iter().filter(|l| l.level.bare.is_none()) {
         if textures.iter().any(|&(m, _)| m == l.level.mask_level) {
             continue;
         }
         let png = encode_mask_png(l.mask);
-        let image = b.stream("mask", Semantic::Image, None, png, None, 0);
-        let texture = Packed::push(&mut b.out.textures, Texture { image });
+        // surfaces of one file with the same strands share the mask's texture (an asset's
+        // parts, a scene's surfaces of one preset)
+        let same = b
+            .out
+            .textures
+            .iter()
+            .position(|t| b.out.streams[t.image].bytes == png);
+        let texture = match same {
+            Some(t) => t,
+            None => {
+                let image = b.stream("mask", Semantic::Image, None, png, None, 0);
+                Packed::push(&mut b.out.textures, Texture { image })
+            }
+        };
         textures.push((
             l.level.mask_level,
             TextureRef {

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Regenerates the README's first pictures: the critter asset (fixtures/critter.glb) bare and
+# furred with `--only material=fur_*`, drawn by stock three.js (GLTFLoader) in headless Chromium
+# from the same cameras (overall and close), and the furred file imported into Blender (bpy)
+# and rendered with Cycles at 64 transparent bounces.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash tests/setup.sh
+cargo build --release --quiet
+mkdir -p out/gallery
+tmp=$(mktemp -d)
+target/release/shellbake bake fixtures/critter.glb --only 'material=fur_*' -o "$tmp/critter-fur.glb" -q
+job() { # GLB PNG EYE TARGET
+  echo "{\"glb\":\"$1\",\"png\":\"$2\",\"width\":480,\"height\":360,\"camera\":{\"eye\":$3,\"target\":$4,\"up\":[0,1,0],\"fovy_deg\":40,\"near\":0.05,\"far\":50},\"light\":{\"direction\":[0.4,1,0.6],\"intensity\":2.5},\"ambient\":0.4,\"background\":[0.55,0.6,0.7]}"
+}
+far='[1.2,1.3,2.4]'; centre='[0,0.6,0]'; near='[1.1,0.95,0.75]'; head='[0.5,0.7,0]'
+{
+  echo "["
+  job fixtures/critter.glb out/gallery/asset-critter-bare.png "$far" "$centre"; echo ","
+  job "$tmp/critter-fur.glb" out/gallery/asset-critter-fur.png "$far" "$centre"; echo ","
+  job fixtures/critter.glb out/gallery/asset-critter-bare-close.png "$near" "$head"; echo ","
+  job "$tmp/critter-fur.glb" out/gallery/asset-critter-fur-close.png "$near" "$head"
+  echo "]"
+} > "$tmp/jobs.json"
+node tests/js/three_render.mjs "$tmp/jobs.json"
+python3 tests/blender_render.py "$tmp/critter-fur.glb" out/gallery/asset-critter-blender.png 64 | tail -1
+rm -rf "$tmp"
