@@ -266,32 +266,37 @@ fn a_textured_skinned_creature_comes_out_whole_with_fur_in_its_own_colours() {
 }
 
 #[test]
-fn skinned_fur_has_its_true_bounds_in_babylon_and_three() {
+fn skinned_fur_has_its_true_bounds_in_babylon_and_three_js() {
     let dir = scratch("asset-bounds");
     let input = critters(&dir, "critter.glb", Critters::default());
     let (glb, _) = bake(&input, &dir, "critter-fur.glb", &[]);
-    let b = node("babylon_bounds.mjs", std::slice::from_ref(&glb));
-    let (fur, bare) = (&b[0]["fur"], &b[0]["bare"]);
-    assert!(fur.is_object() && bare.is_object(), "{b:?}");
-    for k in 0..3 {
-        let (flo, fhi) = (
-            fur["min"][k].as_f64().unwrap(),
-            fur["max"][k].as_f64().unwrap(),
-        );
-        let (blo, bhi) = (
-            bare["min"][k].as_f64().unwrap(),
-            bare["max"][k].as_f64().unwrap(),
-        );
-        // the fur's box is the asset's, give or take the fur's height (not the quantized unit
-        // box near the origin that dequantization in the inverse bind matrices gave)
-        assert!(
-            flo >= blo - 0.1 && fhi <= bhi + 0.1,
-            "axis {k}: fur {flo}..{fhi}, asset {blo}..{bhi}"
-        );
-        assert!(
-            fhi - flo >= 0.9 * (bhi - blo),
-            "axis {k}: fur {flo}..{fhi}, asset {blo}..{bhi}"
-        );
+    let babylon = node("babylon_bounds.mjs", std::slice::from_ref(&glb));
+    let png = dir.join("three.png");
+    let spec = dir.join("jobs.json");
+    let three_job = job(&glb, &png, [1.2, 1.3, 2.4], [0.0, 0.6, 0.0], false);
+    std::fs::write(&spec, serde_json::to_vec(&[three_job]).unwrap()).unwrap();
+    let three = node("three_render.mjs", &[spec]);
+    for (client, b) in [
+        ("Babylon.js", &babylon[0]),
+        ("three.js", &three[0]["bounds"]),
+    ] {
+        let (fur, bare) = (&b["fur"], &b["bare"]);
+        assert!(fur.is_object() && bare.is_object(), "{client}: {b:?}");
+        for k in 0..3 {
+            let (flo, fhi) = (
+                fur["min"][k].as_f64().unwrap(),
+                fur["max"][k].as_f64().unwrap(),
+            );
+            let (blo, bhi) = (
+                bare["min"][k].as_f64().unwrap(),
+                bare["max"][k].as_f64().unwrap(),
+            );
+            // the fur's box is the asset's, give or take the fur's height (not the quantized
+            // unit box near the origin that dequantization in the inverse bind matrices gave)
+            let what = format!("{client}, axis {k}: fur {flo}..{fhi}, asset {blo}..{bhi}");
+            assert!(flo >= blo - 0.1 && fhi <= bhi + 0.1, "{what}");
+            assert!(fhi - flo >= 0.9 * (bhi - blo), "{what}");
+        }
     }
 }
 
@@ -468,10 +473,11 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     let doc = json!({
         "asset": { "version": "2.0" },
         "scene": 0,
-        "scenes": [{ "nodes": [0] }],
+        "scenes": [{ "nodes": [0, 2] }],
         "nodes": [
             { "name": "parent", "translation": [2.0, 0.5, -1.0], "children": [1] },
-            { "name": "box", "mesh": 0, "rotation": [0.0, 0.38268343, 0.0, 0.92387953], "scale": [1.5, 1.5, 1.5] }
+            { "name": "box", "mesh": 0, "rotation": [0.0, 0.38268343, 0.0, 0.92387953], "scale": [1.5, 1.5, 1.5] },
+            { "name": "box_far", "mesh": 0, "translation": [-40.0, 0.0, 0.0], "scale": [0.5, 0.5, 0.5] }
         ],
         "meshes": [{ "name": "box", "primitives": [{ "attributes": { "POSITION": 0 }, "indices": 1, "material": 0 }] }],
         "materials": [{ "name": "fur_box", "pbrMetallicRoughness": { "baseColorFactor": [0.2, 0.4, 0.8, 1.0] } }],
@@ -495,6 +501,9 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     // box · root, and the rendered fur sits on the box (fur hidden = the box)
     let root = after["nodes"][1]["children"][0].as_u64().unwrap() as usize;
     assert!(after["nodes"][root]["extras"]["shellbake"].is_object());
+    // the mesh instanced again (elsewhere, smaller) gets fur of its own under its own node
+    let far = after["nodes"][2]["children"][0].as_u64().unwrap() as usize;
+    assert!(far != root && after["nodes"][far]["extras"]["shellbake_fur"]["node"] == 2);
     let eye = [4.5, 3.0, 3.0];
     let target = [2.0, 0.5, -1.0];
     let png = |n: &str| dir.join(n);
@@ -789,4 +798,55 @@ fn the_committed_critters_are_what_the_code_generates() {
             "fixtures/{name} is stale: run `shellbake fixtures fixtures`"
         );
     }
+}
+
+#[test]
+fn a_shade_colour_overrides_the_asset_and_scene_surfaces_take_only_with_their_maps() {
+    let dir = scratch("asset-override");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let (glb, _) = bake(
+        &input,
+        &dir,
+        "blue.glb",
+        &[
+            "--only",
+            "material=fur_*",
+            "--set",
+            "shade.color=[0.05, 0.1, 0.8]",
+        ],
+    );
+    let (eye, target) = ([1.2, 1.3, 2.4], [0.0, 0.6, 0.0]);
+    render(
+        &[job(&glb, &dir.join("blue.png"), eye, target, false)],
+        &dir,
+    );
+    let (lab, _) = mean_lab(&rgb(&dir.join("blue.png")));
+    assert!(lab[2] < -15.0, "the fur is not blue: {lab:?}");
+
+    // a scene surface: the chosen parts merged, thinned by its density map
+    let density =
+        image::GrayImage::from_fn(64, 64, |_, y| image::Luma([if y < 32 { 255 } else { 0 }]));
+    density.save(dir.join("density.png")).unwrap();
+    std::fs::write(
+        dir.join("scene.toml"),
+        "[[surface]]\nname = \"coat\"\nmesh = \"critter.glb\"\nonly = [\"material=fur_*\"]\ndensity_map = \"density.png\"\n",
+    )
+    .unwrap();
+    let (glb, report) = bake(&dir.join("scene.toml"), &dir, "scene.glb", &[]);
+    assert_valid(std::slice::from_ref(&glb));
+    let surface = &report["surfaces"][0];
+    // the body and head (10 x 6 + 8 x 5 quads, 200 triangles less the poles' collapsed ones) and
+    // the tail's strip: no eye, no paw
+    let triangles = surface["base_triangles"].as_u64().unwrap();
+    assert!((250..=300).contains(&triangles), "{triangles} triangles");
+    let (code, _, err) = shellbake(&[
+        "bake",
+        &path_str(&dir.join("scene.toml")),
+        "-o",
+        &path_str(&dir.join("x.glb")),
+        "--only",
+        "material=nothing",
+    ]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("matches no material"), "{err}");
 }

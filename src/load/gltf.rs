@@ -409,3 +409,20 @@ fn read_checked(
     }
     doc.read_accessor(buffers, a, element)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::triangle_list;
+
+    #[test]
+    fn strips_and_fans_become_the_triangles_they_draw() {
+        // a strip alternates its winding so every triangle faces the first one's way
+        assert_eq!(
+            triangle_list(5, &[0, 1, 2, 3, 4]),
+            [0, 1, 2, 2, 1, 3, 2, 3, 4]
+        );
+        assert_eq!(triangle_list(6, &[0, 1, 2, 3]), [0, 1, 2, 0, 2, 3]);
+        assert_eq!(triangle_list(4, &[0, 1, 2, 3]), [0, 1, 2]);
+        assert!(triangle_list(5, &[0, 1]).is_empty() && triangle_list(6, &[]).is_empty());
+    }
+}

@@ -11,7 +11,10 @@
 //                       three.js's AnimationMixer, looping),
 //               "hide_fur": true (optional: hide the nodes shellbake added to an asset, those
 //                       whose extras carry `shellbake` or `shellbake_fur`) }, ...]
-// Prints one JSON line per job: { png, ok, triangles (drawn in the frame) }.
+// Prints one JSON line per job: { png, ok, triangles (drawn in the frame), bounds }. `bounds`:
+// the world boxes three.js computes ({min, max} or null) of the fur shellbake added to an asset
+// (`fur`, the meshes under a node whose extras carry `shellbake` or `shellbake_fur`) and of the
+// rest (`bare`); a skinned mesh's box is its skinned vertices' (SkinnedMesh.computeBoundingBox).
 // Files are served from a loopback HTTP server; Chromium is Debian's, driven by playwright-core.
 import { createServer } from 'node:http';
 import { readFile, writeFile } from 'node:fs/promises';
@@ -108,7 +111,23 @@ window.renderJob = async (job, url) => {
   const data = canvas.toDataURL('image/png');
   const triangles = renderer.info.render.triangles;
   renderer.dispose();
-  return { data, triangles };
+  const isFur = (o) => {
+    for (let n = o; n; n = n.parent) {
+      if (n.userData.shellbake !== undefined || n.userData.shellbake_fur !== undefined) return true;
+    }
+    return false;
+  };
+  const boxes = { fur: new THREE.Box3(), bare: new THREE.Box3() };
+  gltf.scene.updateMatrixWorld(true);
+  gltf.scene.traverse((o) => {
+    if (!o.isMesh) return;
+    o.computeBoundingBox ? o.computeBoundingBox() : o.geometry.computeBoundingBox();
+    const box = (o.isSkinnedMesh ? o.boundingBox : o.geometry.boundingBox).clone();
+    box.applyMatrix4(o.matrixWorld);
+    boxes[isFur(o) ? 'fur' : 'bare'].union(box);
+  });
+  const json = (b) => (b.isEmpty() ? null : { min: b.min.toArray(), max: b.max.toArray() });
+  return { data, triangles, bounds: { fur: json(boxes.fur), bare: json(boxes.bare) } };
 };
 window.ready = true;
 </script></body></html>`;
@@ -152,9 +171,9 @@ try {
   await page.goto(`http://127.0.0.1:${port}/`);
   await page.waitForFunction(() => window.ready === true, null, { timeout: 30000 });
   for (const [i, job] of jobs.entries()) {
-    const { data, triangles } = await page.evaluate(([j, u]) => window.renderJob(j, u), [job, `/asset/${i}.glb`]);
+    const { data, triangles, bounds } = await page.evaluate(([j, u]) => window.renderJob(j, u), [job, `/asset/${i}.glb`]);
     await writeFile(job.png, Buffer.from(data.split(',')[1], 'base64'));
-    console.log(JSON.stringify({ png: job.png, ok: true, triangles }));
+    console.log(JSON.stringify({ png: job.png, ok: true, triangles, bounds }));
   }
   if (logs.length) console.error(logs.join('\n'));
 } finally {
