@@ -546,6 +546,24 @@ fn verify_checks_each_furred_part_of_the_creature() {
         "{stdout}"
     );
     assert_valid(std::slice::from_ref(&glb));
+    // every part of both characters and the ground (rigid, with its LOD chain), the defaults
+    let scene = critters(
+        &dir,
+        "critters.glb",
+        Critters {
+            count: 2,
+            ground: true,
+            camera_and_light: true,
+        },
+    );
+    let (code, stdout, err) = shellbake(&[
+        "verify",
+        &path_str(&scene),
+        "--out-dir",
+        &path_str(&out),
+        "-q",
+    ]);
+    assert_eq!(code, Some(0), "{stdout}\n{err}");
 }
 
 #[test]

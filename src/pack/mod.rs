@@ -1533,19 +1533,21 @@ fn compact(
             return (vec![], ix);
         }
         let mut attributes = base;
-        // with maps or occlusion, the colour per vertex (COLOR_0, linear) and a white material;
-        // occlusion darkens by the layers' mean shade, 1 − a/2
+        // with maps, occlusion or the asset's colour, the colour per vertex (COLOR_0, linear)
+        // and a white material; occlusion darkens by the layers' mean shade, 1 − a/2
         let weight = ctx.geometry.fur_weight;
         let occlusion = ctx.geometry.occlusion;
-        let per_vertex = weight.is_some() || occlusion.is_some();
+        let albedo = ctx.geometry.albedo;
+        let per_vertex = weight.is_some() || occlusion.is_some() || albedo.is_some();
         let colour = if per_vertex { [1.0; 3] } else { fur };
         if per_vertex {
             let mut bytes = Bytes::default();
             for &o in &s.order {
                 let w = weight.map_or(1.0, |w| w[o as usize]);
                 let shade = occlusion.map_or(1.0, |a| 1.0 - 0.5 * a[o as usize]);
+                let tint = albedo.map_or(Vec3::ONE, |a| a[o as usize]);
                 let c = [0, 1, 2].map(|k| {
-                    let v = (skin[k] + (fur[k] - skin[k]) * w) * shade;
+                    let v = (skin[k] + (fur[k] - skin[k]) * w) * shade * tint[k];
                     (v.clamp(0.0, 1.0) * 255.0).round() as u8
                 });
                 bytes.0.extend_from_slice(&[c[0], c[1], c[2], 255]);
