@@ -22,6 +22,7 @@
 //! | sheen (effect `sheen`) | [`sheen`] | layer materials' [`sheen::Sheen::of`] in pack |
 //! | fins (effect `fins`) | [`fins`] | [`fins::fins`] (edges and strip; the quads [`fins::Fins::mesh`] in pack) |
 //! | outline (effect `outline`) | [`outline`] | [`outline::outline`] (with `collision`, hull rays in the collision stage) |
+//! | asset in, asset out (a glTF, or an OBJ with a `.mtl`: DESIGN §10) | [`load::asset`], [`graft`] | [`load::asset::Asset::read`] and [`load::asset::Asset::select`] (the parts `--only` chooses), [`asset_scene`] (a surface per part), [`bake_asset`] (the plan, then [`graft::graft`]: the input kept, the fur added) |
 //! | skinned fur (a skinned glTF input; no stage: the load line counts it) | [`skin`] | [`load::skin::read_skeleton`]; the shared `JOINTS_0`/`WEIGHTS_0`, skeleton copy and skin in pack |
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
 //! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
