@@ -810,8 +810,7 @@ fn bake_surface(
     shells.sheen = report.gate(plan, Stage::Sheen, i, || params.sheen.clone());
     shells.occlusion = occlusion;
 
-    let no_extras = skinned.then_some("skinned surface: fins and outlines are not skinned");
-    let fins = report.gate_unless(plan, Stage::Fins, i, no_extras, || {
+    let fins = report.gate_unless(plan, Stage::Fins, i, blocked(Stage::Fins, skinned), || {
         let top = shells.t.last().copied().unwrap_or(0.0);
         let scale = (&params.shade, top, density);
         fins::fins(&mesh, &mask, scale, &params.fins, params.strands.seed)
@@ -820,28 +819,32 @@ fn bake_surface(
         report.count("fins", f.edges.len() as f64);
         report.count("fin_candidates", f.candidates as f64);
     }
-    let outline = report.gate_unless(plan, Stage::Outline, i, no_extras, || {
-        // with `collision`, the free distance its rays found holds the hull
-        let limit: Option<Vec<f32>> = hull_bound
-            .as_ref()
-            .map(|b| welded.remap.iter().map(|&w| b[w as usize] as f32).collect());
-        outline::outline(
-            &frames.direction,
-            limit.as_deref(),
-            outline_width,
-            &params.outline,
-        )
-    });
+    let outline = report.gate_unless(
+        plan,
+        Stage::Outline,
+        i,
+        blocked(Stage::Outline, skinned),
+        || {
+            // with `collision`, the free distance its rays found holds the hull
+            let limit: Option<Vec<f32>> = hull_bound
+                .as_ref()
+                .map(|b| welded.remap.iter().map(|&w| b[w as usize] as f32).collect());
+            outline::outline(
+                &frames.direction,
+                limit.as_deref(),
+                outline_width,
+                &params.outline,
+            )
+        },
+    );
     if let Some(o) = &outline {
         report.count("outline_width", o.width as f64);
         report.count("outline_clamped", o.clamped as f64);
     }
     let lod_runs = plan.runs(Stage::Lod, i) && !skinned;
     let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
-    let one_level = skinned
-        .then_some("skinned surface: its layer nodes are scene roots, so one level and no chunks");
     let levels = report
-        .gate_unless(plan, Stage::Lod, i, one_level, || {
+        .gate_unless(plan, Stage::Lod, i, blocked(Stage::Lod, skinned), || {
             let spacing = 1.0 / density as f64;
             let texel = spacing * mask.cells_per_tile as f64 / mask.size as f64;
             let base = lod::Base {
@@ -1045,6 +1048,22 @@ fn bake_surface(
         skeleton: scene.skeleton.clone(),
         fins,
         outline,
+    }
+}
+
+/// Why `stage`, asked for, cannot run on a surface (`None`: it can): a skinned surface takes no
+/// fins or outline (neither is skinned) and no LOD chain (its layer nodes are scene roots,
+/// which `MSFT_lod` cannot switch). The bake skips the stage with this reason and a warning;
+/// `shellbake plan` shows the same.
+pub fn blocked(stage: Stage, skinned: bool) -> Option<&'static str> {
+    match stage {
+        Stage::Fins | Stage::Outline if skinned => {
+            Some("skinned surface: fins and outlines are not skinned")
+        }
+        Stage::Lod if skinned => {
+            Some("skinned surface: its layer nodes are scene roots, so one level and no chunks")
+        }
+        _ => None,
     }
 }
 

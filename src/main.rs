@@ -602,6 +602,20 @@ fn plan(args: &BakeArgs) -> anyhow::Result<()> {
     }
     text += "stages:\n";
     text += &plan.describe();
+    // what the plan runs that a surface cannot take (a skinned surface's fins): a warning each
+    use shellbake::scene::Stage;
+    for (i, (s, l)) in scene.surfaces.iter().zip(&loaded).enumerate() {
+        let skinned = l.scene.skeleton.is_some();
+        for stage in [Stage::Fins, Stage::Outline, Stage::Lod] {
+            if let (true, Some(why)) = (plan.runs(stage, i), shellbake::blocked(stage, skinned)) {
+                text += &format!(
+                    "warning: surface {}: {} was asked for and will not run: {why}\n",
+                    s.name,
+                    stage.name()
+                );
+            }
+        }
+    }
     text += &format!(
         "estimated output: at most {estimate} bytes ({:.1} MiB)\n",
         estimate as f64 / (1 << 20) as f64

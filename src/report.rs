@@ -112,7 +112,8 @@ impl Report {
     }
 
     /// [`Report::gate`], except that a stage the plan runs is skipped with the reason `blocked`
-    /// when there is one (a skinned surface takes no LOD, fins or outline).
+    /// when there is one (a skinned surface takes no LOD, fins or outline), with a warning: an
+    /// effect asked for never does nothing silently.
     pub fn gate_unless<T>(
         &mut self,
         plan: &Plan,
@@ -121,7 +122,14 @@ impl Report {
         blocked: Option<&str>,
         f: impl FnOnce() -> T,
     ) -> Option<T> {
-        let why = plan.skipped(stage, surface).or(blocked.map(str::to_string));
+        let planned = plan.skipped(stage, surface);
+        if let (None, Some(why)) = (&planned, blocked) {
+            self.warnings.push(format!(
+                "{} was asked for and did not run: {why}",
+                stage.name()
+            ));
+        }
+        let why = planned.or(blocked.map(str::to_string));
         match why {
             None => Some(self.run(stage.name(), f)),
             Some(why) => {
@@ -321,10 +329,16 @@ impl SceneReport {
                     .filter_map(|r| r.stage(name))
                     .map(|st| st.ms)
                     .sum();
+                // a stage the plan runs that no surface could (a skinned surface's fins)
+                let recorded: Vec<&Stage> = surfaces.iter().filter_map(|r| r.stage(name)).collect();
+                let blocked = p.runs() && !recorded.is_empty() && recorded.iter().all(|st| !st.ran);
                 PlanEntry {
                     name,
-                    ran: p.runs(),
-                    why: p.why.clone(),
+                    ran: p.runs() && !blocked,
+                    why: match recorded.first().and_then(|st| st.skipped.clone()) {
+                        Some(why) if blocked => why,
+                        _ => p.why.clone(),
+                    },
                     ms: if p.stage == PlanStage::Write {
                         write_ms
                     } else {

@@ -868,3 +868,83 @@ fn a_shade_colour_overrides_the_asset_and_scene_surfaces_take_only_with_their_ma
     assert_eq!(code, Some(1));
     assert!(err.contains("matches no material"), "{err}");
 }
+
+#[test]
+fn effects_a_skinned_part_cannot_take_are_named_in_warnings_and_in_the_plan() {
+    let dir = scratch("asset-effects");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let out = dir.join("fins.glb");
+    let (code, stdout, err) = shellbake(&[
+        "bake",
+        &path_str(&input),
+        "--only",
+        "material=fur_body",
+        "--fins",
+        "-o",
+        &path_str(&out),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        stdout.contains("warning: fins was asked for and did not run: skinned surface"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("warning: lod was asked for and did not run: skinned surface"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("fins skipped") && !stdout.contains("fins 0.0 ms"),
+        "{stdout}"
+    );
+    let (code, stdout, err) = shellbake(&[
+        "plan",
+        &path_str(&input),
+        "--only",
+        "material=fur_body",
+        "--fins",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        stdout.contains("fins was asked for and will not run: skinned surface"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn material_extensions_the_fur_does_not_need_pass_through_and_draco_says_what_to_do() {
+    // the critter, its texture behind KHR_texture_basisu (required) and a material variant
+    let dir = scratch("asset-extensions");
+    let glb = Glb::parse(&critter_glb(Critters::default()));
+    let mut doc = glb.json.clone();
+    doc["extensionsUsed"] = json!(["KHR_texture_basisu", "KHR_materials_variants"]);
+    doc["extensionsRequired"] = json!(["KHR_texture_basisu"]);
+    doc["textures"][0] =
+        json!({ "sampler": 0, "extensions": { "KHR_texture_basisu": { "source": 0 } } });
+    doc["extensions"] = json!({ "KHR_materials_variants": { "variants": [{ "name": "winter" }] } });
+    let input = dir.join("basis.glb");
+    std::fs::write(&input, shellbake::write::glb_bytes(&doc, &glb.bin)).unwrap();
+    let (out, report) = bake(&input, &dir, "basis-fur.glb", &["--only", "material=fur_*"]);
+    let after = json_of(&out);
+    assert_kept(&doc, &after);
+    assert_eq!(after["extensionsRequired"][0], "KHR_texture_basisu");
+    assert_eq!(after["textures"][0], doc["textures"][0]);
+    let warnings = report["asset"]["warnings"].to_string();
+    assert!(
+        warnings.contains("base colour texture") && warnings.contains("colour factor"),
+        "{warnings}"
+    );
+
+    doc["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    std::fs::write(&input, shellbake::write::glb_bytes(&doc, &glb.bin)).unwrap();
+    let (code, _, err) = shellbake(&[
+        "bake",
+        &path_str(&input),
+        "-o",
+        &path_str(&dir.join("x.glb")),
+    ]);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("Draco") && err.contains("gltf-pipeline"),
+        "{err}"
+    );
+}

@@ -340,16 +340,19 @@ fn furred_parts(doc: &Document) -> std::collections::HashSet<(usize, usize)> {
 }
 
 fn names_of(doc: &Document, node: usize, mesh: usize, material: Option<usize>) -> PartNames {
-    let name = |what: &str, i: usize| -> String {
-        doc.json[what][i]["name"]
+    let name = |(list, one): (&str, &str), i: usize| -> String {
+        doc.json[list][i]["name"]
             .as_str()
             .map(str::to_string)
-            .unwrap_or_else(|| format!("{}{i}", &what[..what.len() - 1]))
+            .unwrap_or_else(|| format!("{one}{i}"))
     };
     PartNames {
-        node: name("nodes", node),
-        mesh: name("meshes", mesh),
-        material: material.map_or_else(|| "(none)".to_string(), |m| name("materials", m)),
+        node: name(("nodes", "node"), node),
+        mesh: name(("meshes", "mesh"), mesh),
+        material: material.map_or_else(
+            || "(none)".to_string(),
+            |m| name(("materials", "material"), m),
+        ),
     }
 }
 

@@ -5,9 +5,11 @@
 //! [`Document::parse`] splits a GLB ([`split_glb`]) or takes `.gltf` JSON, parses the JSON with
 //! `serde_json` and checks, before a byte of any buffer is read:
 //!
-//! - **Required extensions**: only [`SUPPORTED_EXTENSIONS`] (implemented by the accessor decoder,
-//!   the meshopt decoder and the viewer's materials). Any other is refused naming it — compressed
-//!   geometry (`KHR_draco_mesh_compression`) would otherwise be read as garbage. Views compressed
+//! - **Required extensions**: [`SUPPORTED_EXTENSIONS`] (implemented by the accessor decoder,
+//!   the meshopt decoder and the viewer's materials) and [`PASSED_THROUGH_EXTENSIONS`] (material
+//!   and texture extensions that leave the geometry plain). Any other is refused naming it —
+//!   compressed geometry (`KHR_draco_mesh_compression`) would otherwise be read as garbage, and
+//!   its message says how to get a readable file. Views compressed
 //!   with `EXT_`/`KHR_meshopt_compression` are decoded into their fallback buffer when the buffers
 //!   are loaded ([`crate::compress::decode_view`]), each with its counts and ranges checked.
 //! - **Every index between objects** the core spec defines is in range: scene → nodes; node →
@@ -66,6 +68,18 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_texture_transform",
     "EXT_meshopt_compression",
     "KHR_meshopt_compression",
+];
+
+/// Required extensions that change how materials and textures are drawn, never the geometry:
+/// a file that requires them is read (its geometry is plain glTF) and, as an asset, written
+/// back with them; a texture shellbake cannot decode (Basis Universal, WebP, AVIF) leaves the
+/// fur's colour to the material's factor, with a warning (`load::asset`).
+pub const PASSED_THROUGH_EXTENSIONS: &[&str] = &[
+    "KHR_texture_basisu",
+    "EXT_texture_webp",
+    "EXT_texture_avif",
+    "KHR_materials_variants",
+    "KHR_materials_pbrSpecularGlossiness",
 ];
 
 /// The meshopt compression extensions (read alike).
@@ -562,14 +576,26 @@ impl Document {
                     format!("entry {i} is not a string"),
                 )
             })?;
-            if !SUPPORTED_EXTENSIONS.contains(&name) {
+            if name == "KHR_draco_mesh_compression" {
+                return Err(Error::invalid(
+                    path,
+                    "extensionsRequired",
+                    "the geometry is Draco-compressed (KHR_draco_mesh_compression), which shellbake \
+                     does not decode: not supported; refused. Decode it first (`npx gltf-pipeline \
+                     -i in.glb -o out.glb` writes it without Draco) or export the asset without \
+                     Draco (Blender: glTF export, Data > Compression off), then bake that file",
+                ));
+            }
+            if !SUPPORTED_EXTENSIONS.contains(&name) && !PASSED_THROUGH_EXTENSIONS.contains(&name) {
                 return Err(Error::invalid(
                     path,
                     "extensionsRequired",
                     format!(
-                        "extension '{}' is required but not supported (supported: {}); refused",
+                        "extension '{}' is required but not supported (supported: {}; passed \
+                         through: {}); refused",
                         escape(name),
-                        SUPPORTED_EXTENSIONS.join(", ")
+                        SUPPORTED_EXTENSIONS.join(", "),
+                        PASSED_THROUGH_EXTENSIONS.join(", ")
                     ),
                 ));
             }
