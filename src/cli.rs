@@ -52,10 +52,13 @@ pub struct RenderFlags {
     size: (u32, u32),
     #[command(flatten)]
     camera: CameraFlags,
-    /// Draw the file's animations (the `wind` effect, a skinned input's clips) at this time,
+    /// Draw the file's animations (the `wind` effect, a skinned input's clip) at this time,
     /// in seconds.
     #[arg(long)]
     time: Option<f32>,
+    /// The animation clip to play (by name) [default: the file's first].
+    #[arg(long)]
+    clip: Option<String>,
 }
 
 impl RenderFlags {
@@ -66,6 +69,7 @@ impl RenderFlags {
             size: self.size,
             camera: self.camera.into_args(),
             time: self.time,
+            clip: self.clip,
         }
     }
 }
@@ -86,6 +90,9 @@ pub struct ViewFlags {
     /// Frames to render before the screenshot.
     #[arg(long, default_value_t = 3)]
     frames: u32,
+    /// The animation clip to play (by name) [default: the file's first].
+    #[arg(long)]
+    clip: Option<String>,
 }
 
 impl ViewFlags {
@@ -96,6 +103,7 @@ impl ViewFlags {
             camera: self.camera.into_args(),
             screenshot: self.screenshot,
             frames: self.frames,
+            clip: self.clip,
         }
     }
 }
@@ -114,9 +122,17 @@ pub struct VerifyFlags {
     /// surface asks for it, and of a skinned input's longest clip].
     #[arg(long, value_delimiter = ',')]
     time: Vec<f32>,
+    /// A skinned input's animation clip to compare (by name) [default: the first].
+    #[arg(long)]
+    clip: Option<String>,
 }
 
 impl VerifyFlags {
+    /// The clip `--clip` names.
+    pub fn clip(&self) -> Option<&str> {
+        self.clip.as_deref()
+    }
+
     pub fn into_args(self) -> view::VerifyArgs {
         view::VerifyArgs {
             out_dir: self.out_dir,
@@ -142,9 +158,17 @@ pub struct BenchFlags {
     /// bake1: cull; bake2: LOD + cull) in this folder.
     #[arg(long)]
     pictures: Option<PathBuf>,
+    /// A skinned input's animation clip (by name) [default: the first].
+    #[arg(long)]
+    clip: Option<String>,
 }
 
 impl BenchFlags {
+    /// The clip `--clip` names.
+    pub fn clip(&self) -> Option<&str> {
+        self.clip.as_deref()
+    }
+
     pub fn into_args(self) -> view::BenchArgs {
         view::BenchArgs {
             frames: self.frames,

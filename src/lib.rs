@@ -279,6 +279,13 @@ pub fn bake_asset(
         .as_array()
         .map_or(0, Vec::len);
     report.kept.insert("lights".into(), lights);
+    report.clips = asset.doc.json["animations"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .enumerate()
+        .map(|(i, a)| load::escape(a["name"].as_str().unwrap_or(&format!("animation{i}"))))
+        .collect();
     let describe = |i: usize| {
         let p = &asset.parts[i];
         format!(
@@ -587,9 +594,13 @@ fn bake_surface(
         report.count("skin_joints", k.joints.len() as f64);
         report.count("skin_nodes", k.nodes.len() as f64);
         report.count("skin_clips", k.clips.len() as f64);
+        let clips: Vec<String> = k.clips.iter().map(|c| load::escape(&c.name)).collect();
         report.note(
             Stage::Load.name(),
-            "skinned: the skin, its skeleton and clips are kept; the fur grows on the bind pose",
+            &format!(
+                "skinned: the skin, its skeleton and clips ({}) are kept; the fur grows on the bind pose",
+                if clips.is_empty() { "none".into() } else { clips.join(", ") }
+            ),
         );
     }
 

@@ -492,6 +492,22 @@ fn check_loaded(
     Ok(estimate)
 }
 
+/// Keeps the clip `--clip` names (or the first) of every skinned surface: what `verify` and
+/// `bench` compare and time.
+#[cfg(feature = "view")]
+fn choose_clips(
+    args: &BakeArgs,
+    loaded: &mut [shellbake::Loaded],
+    clip: Option<&str>,
+) -> anyhow::Result<()> {
+    for l in loaded {
+        if let Some(k) = &mut l.scene.skeleton {
+            shellbake::view::cli::choose_clip(&args.input, &mut k.clips, clip)?;
+        }
+    }
+    Ok(())
+}
+
 /// The asset, the parts `--only` chooses, and the scene and meshes that fur them.
 fn load_asset(
     args: &BakeArgs,
@@ -739,7 +755,8 @@ fn main() -> ExitCode {
         },
         #[cfg(feature = "view")]
         Command::Bench { bake, bench } => bake.scene().and_then(|scene| {
-            let (loaded, _) = load_checked(bake, &scene)?;
+            let (mut loaded, _) = load_checked(bake, &scene)?;
+            choose_clips(bake, &mut loaded, bench.clip())?;
             Ok(shellbake::view::cli::bench(
                 &bake.input,
                 &scene,
@@ -781,7 +798,8 @@ fn main() -> ExitCode {
                     let baked = shellbake::bake_asset(&scene, &asset, &chosen)?;
                     shellbake::write::write_glb(out, &baked.glb)?;
                 }
-                let (parts, loaded) = shellbake::asset_scene(&scene, &asset, &chosen, false)?;
+                let (parts, mut loaded) = shellbake::asset_scene(&scene, &asset, &chosen, false)?;
+                choose_clips(bake, &mut loaded, verify.clip())?;
                 return Ok(shellbake::view::cli::verify(
                     &bake.input,
                     &parts,
@@ -791,7 +809,8 @@ fn main() -> ExitCode {
                     bake.quiet,
                 )?);
             }
-            let (loaded, _) = load_checked(bake, &scene)?;
+            let (mut loaded, _) = load_checked(bake, &scene)?;
+            choose_clips(bake, &mut loaded, verify.clip())?;
             Ok(shellbake::view::cli::verify(
                 &bake.input,
                 &scene,

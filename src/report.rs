@@ -279,6 +279,9 @@ pub struct AssetReport {
     pub furred: Vec<String>,
     /// Parts passed through without fur, with the reason.
     pub skipped: Vec<String>,
+    /// The asset's animations by name (`render`, `verify`, `bench` and `view` play one:
+    /// `--clip`, by default the first).
+    pub clips: Vec<String>,
     /// What the graft had to warn about.
     pub warnings: Vec<String>,
 }
@@ -291,21 +294,21 @@ impl AssetReport {
             .filter(|(_, &n)| n > 0)
             .map(|(k, n)| format!("{n} {k}"))
             .collect();
-        let mut s = format!(
-            "  kept: {}
-",
-            kept.join(", ")
-        );
+        let mut s = format!("  kept: {}\n", kept.join(", "));
+        if !self.clips.is_empty() {
+            s += &format!(
+                "  clips: {} (render, view, verify and bench play one: --clip NAME, else the first)\n",
+                self.clips.join(", ")
+            );
+        }
         s += &format!(
-            "  furred ({}): {}
-",
+            "  furred ({}): {}\n",
             self.furred.len(),
             self.furred.join("; ")
         );
         if !self.skipped.is_empty() {
             s += &format!(
-                "  not furred ({}): {}
-",
+                "  not furred ({}): {}\n",
                 self.skipped.len(),
                 self.skipped.join("; ")
             );

@@ -250,6 +250,36 @@ pub fn pose(locals: &mut [Trs], clips: &[Clip], time: f32) {
     }
 }
 
+/// Keeps the one clip to play: the one named `name`, or the first (the clips of a file are
+/// separate motions — idle, run — that a viewer plays one at a time; playing all at once lets
+/// the last write every joint it animates). The error lists the names the file has.
+pub fn choose_clip(clips: &mut Vec<Clip>, name: Option<&str>) -> std::result::Result<(), String> {
+    match name {
+        None => clips.truncate(1),
+        Some(n) => {
+            let names: Vec<String> = clips.iter().map(|c| c.name.clone()).collect();
+            clips.retain(|c| c.name == n);
+            if clips.is_empty() {
+                return Err(format!(
+                    "no animation clip '{}' (the file has: {})",
+                    crate::load::escape(n),
+                    if names.is_empty() {
+                        "none".to_string()
+                    } else {
+                        names
+                            .iter()
+                            .map(|n| crate::load::escape(n))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    }
+                ));
+            }
+            clips.truncate(1);
+        }
+    }
+    Ok(())
+}
+
 /// A node of the skeleton copy.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SkelNode {

@@ -948,3 +948,59 @@ fn material_extensions_the_fur_does_not_need_pass_through_and_draco_says_what_to
         "{err}"
     );
 }
+
+#[test]
+fn clip_chooses_the_animation_render_and_verify_play() {
+    let dir = scratch("asset-clip");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let (glb, report) = bake(&input, &dir, "fur.glb", &["--only", "material=fur_*"]);
+    assert_eq!(report["asset"]["clips"], json!(["wag_0", "nod_0"]));
+    let render = |clip: Option<&str>, png: &str| {
+        let png = dir.join(png);
+        let mut args = vec![
+            "render",
+            glb.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--time",
+            "0.25",
+        ];
+        args.extend(clip.map(|c| ["--clip", c]).into_iter().flatten());
+        let (code, _, err) = shellbake(&args);
+        assert_eq!(code, Some(0), "{err}");
+        rgb(&png)
+    };
+    // the first clip by default; each clip alone moves its own joint
+    let (first, wag, nod) = (
+        render(None, "first.png"),
+        render(Some("wag_0"), "wag.png"),
+        render(Some("nod_0"), "nod.png"),
+    );
+    assert_eq!(differing_pixels(&first, &wag), 0);
+    assert!(differing_pixels(&wag, &nod) > 500);
+    let (code, _, err) = shellbake(&[
+        "render",
+        glb.to_str().unwrap(),
+        "-o",
+        dir.join("x.png").to_str().unwrap(),
+        "--clip",
+        "run",
+    ]);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("no animation clip 'run' (the file has: wag_0, nod_0)"),
+        "{err}"
+    );
+    let (code, stdout, err) = shellbake(&[
+        "verify",
+        input.to_str().unwrap(),
+        "--only",
+        "material=fur_tail",
+        "--clip",
+        "nod_0",
+        "--out-dir",
+        dir.join("v").to_str().unwrap(),
+        "-q",
+    ]);
+    assert_eq!(code, Some(0), "{stdout}{err}");
+}

@@ -167,7 +167,7 @@ pub(super) fn is_triangles(mode: u64) -> bool {
 /// The triangle list of a primitive of `mode` (a list, a strip or a fan) over `indices` (the
 /// index accessor, or every vertex in order). A strip alternates its winding so that every
 /// triangle faces the first's way; a fan turns around its first vertex.
-pub(super) fn triangle_list(mode: u64, indices: &[u32]) -> Vec<u32> {
+pub(crate) fn triangle_list(mode: u64, indices: &[u32]) -> Vec<u32> {
     let n = indices.len();
     match mode {
         5 => (0..n.saturating_sub(2))

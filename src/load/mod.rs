@@ -29,6 +29,8 @@ mod gltf;
 mod obj;
 pub mod skin;
 
+pub(crate) use gltf::triangle_list;
+
 use std::path::Path;
 
 use glam::{Vec2, Vec3};

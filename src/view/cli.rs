@@ -86,6 +86,8 @@ pub struct RenderArgs {
     pub camera: CameraArgs,
     /// Draw the file's animations at this time, seconds (`None`: the static weights).
     pub time: Option<f32>,
+    /// The skin clip to play, by name (`None`: the file's first).
+    pub clip: Option<String>,
 }
 
 /// `shellbake view`.
@@ -100,6 +102,8 @@ pub struct ViewArgs {
     pub screenshot: Option<PathBuf>,
     /// Frames to render before the screenshot.
     pub frames: u32,
+    /// The skin clip to play, by name (`None`: the file's first).
+    pub clip: Option<String>,
 }
 
 /// `shellbake verify` flags besides the bake flags.
@@ -353,7 +357,9 @@ pub fn bench(
 /// Runs `render`.
 pub fn render(args: &RenderArgs) -> Result<()> {
     let gpu = Gpu::new()?;
-    let mut r = GltfRenderer::new(&gpu, Asset::open(&args.input)?)?;
+    let mut asset = Asset::open(&args.input)?;
+    choose_clip(&args.input, &mut asset.clips, args.clip.as_deref())?;
+    let mut r = GltfRenderer::new(&gpu, asset)?;
     if args.time.is_some() {
         r.set_time(&gpu, args.time)?;
     }
@@ -363,9 +369,21 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     save_png(&image, &args.output)
 }
 
+/// Keeps the clip `name` (or the first) of `clips`, read from `path` (see
+/// [`crate::skin::choose_clip`]); the error names the file.
+pub fn choose_clip(
+    path: &Path,
+    clips: &mut Vec<crate::skin::Clip>,
+    name: Option<&str>,
+) -> Result<()> {
+    crate::skin::choose_clip(clips, name)
+        .map_err(|why| crate::Error::invalid(path, "--clip", why).into())
+}
+
 /// Runs `view`.
 pub fn view(args: &ViewArgs) -> Result<()> {
-    let asset = Asset::open(&args.input)?;
+    let mut asset = Asset::open(&args.input)?;
+    choose_clip(&args.input, &mut asset.clips, args.clip.as_deref())?;
     let title = args
         .input
         .file_name()

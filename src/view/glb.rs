@@ -200,6 +200,8 @@ pub struct Primitive {
     /// A `COLOR_0` morph target: (target index, accessor).
     pub color_target: Option<(usize, usize)>,
     pub material: Option<usize>,
+    /// 4 TRIANGLES, 5 TRIANGLE_STRIP or 6 TRIANGLE_FAN (drawn as the list it makes).
+    pub mode: u64,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -354,11 +356,11 @@ impl Asset {
             let mut primitives = Vec::new();
             for (p, prim) in mesh.primitives.iter().enumerate() {
                 let element = || format!("mesh {m} primitive {p}");
-                if prim.mode != 4 {
+                if !matches!(prim.mode, 4..=6) {
                     return Err(invalid(
                         element(),
                         format!(
-                            "mode {} (only triangles are drawn)",
+                            "mode {} (only triangles, strips and fans are drawn)",
                             document::mode_name(prim.mode)
                         ),
                     ));
@@ -393,6 +395,7 @@ impl Asset {
                     targets,
                     color_target,
                     material: prim.material,
+                    mode: prim.mode,
                 });
             }
             let ranges = &doc.json["meshes"][m]["extras"]["shellbake_layers"];

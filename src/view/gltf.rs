@@ -138,6 +138,8 @@ pub struct GltfRenderer {
     joints_group: wgpu::BindGroup,
     zeros: HashMap<(u64, usize), wgpu::Buffer>,
     index_buffers: HashMap<usize, wgpu::Buffer>,
+    /// Elements of the index buffers made for strips and fans (keyed as in `index_buffers`).
+    strip_elements: HashMap<usize, u32>,
     material_groups: Vec<wgpu::BindGroup>,
     draw_buffer: wgpu::Buffer,
     draw_group: wgpu::BindGroup,
@@ -288,6 +290,7 @@ impl GltfRenderer {
             joints_group,
             zeros: HashMap::new(),
             index_buffers: HashMap::new(),
+            strip_elements: HashMap::new(),
             material_groups,
             draw_buffer,
             draw_group,
@@ -443,7 +446,7 @@ impl GltfRenderer {
         };
         for inst in instances {
             let mesh = &self.asset.meshes[inst.mesh];
-            for prim in &mesh.primitives {
+            for (p, prim) in mesh.primitives.iter().enumerate() {
                 let material = prim
                     .material
                     .map(|m| self.asset.materials[m].clone())
@@ -508,8 +511,43 @@ impl GltfRenderer {
                         });
                     }
                 }
-                let elements = match prim.indices {
-                    Some(a) => {
+                // a strip or a fan: its triangle list, in an index buffer of its own (keyed past
+                // every accessor)
+                let strip_key = (prim.mode != 4)
+                    .then(|| self.asset.doc.accessors.len() + (inst.mesh << 16) + p);
+                if let Some(key) = strip_key {
+                    if !self.index_buffers.contains_key(&key) {
+                        let order: Vec<u32> = match prim.indices {
+                            Some(a) => self.asset.indices(a)?,
+                            None => (0..vertices as u32).collect(),
+                        };
+                        let ix = crate::load::triangle_list(prim.mode, &order);
+                        if let Some(bad) = ix.iter().find(|&&i| i as usize >= vertices) {
+                            return Err(crate::Error::invalid(
+                                &self.asset.doc.path,
+                                format!("mesh {} primitive {p}", inst.mesh),
+                                format!("index {bad} is out of range ({vertices} vertices)"),
+                            )
+                            .into());
+                        }
+                        let buf =
+                            gpu.device
+                                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                                    label: Some("strip indices"),
+                                    contents: bytemuck::cast_slice(if ix.is_empty() {
+                                        &[0u32; 3][..]
+                                    } else {
+                                        &ix
+                                    }),
+                                    usage: wgpu::BufferUsages::INDEX,
+                                });
+                        self.strip_elements.insert(key, ix.len() as u32);
+                        self.index_buffers.insert(key, buf);
+                    }
+                }
+                let elements = match (strip_key, prim.indices) {
+                    (Some(key), _) => self.strip_elements[&key],
+                    (None, Some(a)) => {
                         if !self.index_buffers.contains_key(&a) {
                             let ix = self.asset.indices(a)?;
                             if let Some(bad) = ix.iter().find(|&&i| i as usize >= vertices) {
@@ -531,7 +569,7 @@ impl GltfRenderer {
                         }
                         self.asset.indices(a)?.len() as u32
                     }
-                    None => vertices as u32,
+                    (None, None) => vertices as u32,
                 };
                 let mut weights = [0.0; 4];
                 for (i, w) in weights.iter_mut().enumerate().take(prim.targets.len()) {
@@ -558,7 +596,7 @@ impl GltfRenderer {
                     targets: prim.targets.clone(),
                     color_target,
                     skin,
-                    indices: prim.indices,
+                    indices: strip_key.or(prim.indices),
                     elements: elements - elements % 3,
                     layer_ends: self.asset.meshes[inst.mesh].layer_ends.clone(),
                     class,
