@@ -608,10 +608,23 @@ fn bake_surface(
     report.count("meshes", scene.meshes.len() as f64);
     report.count("vertices", mesh.vertex_count() as f64);
     report.count("triangles", mesh.triangle_count() as f64);
+    let mut fur_uv = "the mesh's own".to_string();
+    // the asset's colour at each strand root, sampled through the asset's own UVs (a `color`
+    // in the shade overrides it); it rides with the vertices from here on
+    if let Some(p) = part {
+        mesh.albedo = match params.shade.color {
+            Some(c) => Some(vec![Vec3::from(c); mesh.vertex_count()]),
+            None => p.paint.as_ref().map(|paint| paint.albedo(&mesh)),
+        };
+    }
     if mesh.uvs.is_none() || mesh::uv_area(&mesh) <= 0.0 {
         report
             .warnings
             .push("texture coordinates have no area; generated a per-face box projection".into());
+        load::generate_box_uvs(&mut mesh);
+    } else if let Some(why) = tiling::fur_uv_box(&mesh, params.strands.fur_uv) {
+        // the fur's own UVs: an asset keeps its own for its textures
+        fur_uv = format!("a box projection: {why}");
         load::generate_box_uvs(&mut mesh);
     }
 
@@ -657,11 +670,7 @@ fn bake_surface(
     mesh.gather_vertices(&welded.vertex_source);
     mesh.indices = welded.render_indices.clone();
     mesh.face_split_normals(input_vertices);
-    // the asset's colour at each strand root (a `color` in the shade overrides it)
-    let albedo: Option<Vec<Vec3>> = part.and_then(|p| match params.shade.color {
-        Some(c) => Some(vec![Vec3::from(c); mesh.vertex_count()]),
-        None => p.paint.as_ref().map(|paint| paint.albedo(&mesh)),
-    });
+    let albedo = mesh.albedo.clone();
     let shade = match &albedo {
         Some(_) => shells::asset_shade(&params.shade),
         None => params.shade.clone(),
@@ -777,6 +786,7 @@ fn bake_surface(
             mask.cells_per_tile,
         )
     });
+    report.note("tiling", &format!("strands follow {fur_uv}"));
     report.warnings.extend(tiling.warning());
     let tiles_per_uv = tiling.tiles_per_uv;
 

@@ -130,6 +130,11 @@ struct BakeArgs {
     /// Strand density in strands per world unit [default: a preset count per diagonal].
     #[arg(long)]
     density: Option<f32>,
+    /// Texture coordinates the strands follow: `auto` (the mesh's, unless their UV-to-world
+    /// scale spreads over 8x, as palette layouts do: then a box projection), `mesh` or `box`
+    /// [default: auto]. An asset keeps its own UVs for its textures either way.
+    #[arg(long, value_parser = named(&shellbake::tiling::FurUv::ALL, |f| f.name()))]
+    fur_uv: Option<shellbake::tiling::FurUv>,
     /// Strand density in strands per UV unit instead of per world unit (ignores the mesh's
     /// UV-to-world scale; for UV layouts authored at a set texel density).
     #[arg(long, conflicts_with = "density")]
@@ -254,6 +259,9 @@ impl BakeArgs {
         if let Some(d) = self.density {
             p.strands.density = Some(d);
             p.strands.uv_density = None;
+        }
+        if let Some(f) = self.fur_uv {
+            p.strands.fur_uv = f;
         }
         if let Some(d) = self.uv_density {
             p.strands.uv_density = Some(d);

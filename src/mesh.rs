@@ -25,6 +25,10 @@ pub struct Mesh {
     /// Vertex colours (glTF `COLOR_0`, or an OBJ `v x y z r g b`) as bytes, RGBA (alpha 255
     /// where the input has three channels); they can drive the density and length maps.
     pub colors: Option<Vec<[u8; 4]>>,
+    /// The asset's base colour at each vertex (linear RGB), when the fur takes it (DESIGN §10;
+    /// `load::asset::Paint`): sampled where the asset's own UVs still hold, then carried through
+    /// every stage that splits or adds vertices.
+    pub albedo: Option<Vec<Vec3>>,
     /// Triangle list.
     pub indices: Vec<u32>,
     /// Each vertex's joints and weights, when the input is skinned ([`crate::skin`]).
@@ -99,6 +103,7 @@ impl Mesh {
         assert_eq!(self.normals.is_some(), other.normals.is_some());
         assert_eq!(self.uvs.is_some(), other.uvs.is_some());
         assert_eq!(self.colors.is_some(), other.colors.is_some());
+        assert_eq!(self.albedo.is_some(), other.albedo.is_some());
         assert_eq!(self.skin.is_some(), other.skin.is_some());
         let base = self.positions.len() as u32;
         let shift = other.origin - self.origin;
@@ -115,6 +120,9 @@ impl Mesh {
             a.extend_from_slice(b);
         }
         if let (Some(a), Some(b)) = (&mut self.colors, &other.colors) {
+            a.extend_from_slice(b);
+        }
+        if let (Some(a), Some(b)) = (&mut self.albedo, &other.albedo) {
             a.extend_from_slice(b);
         }
         if let (Some(a), Some(b)) = (&mut self.skin, &other.skin) {
@@ -139,6 +147,7 @@ impl Mesh {
         self.normals = self.normals.as_deref().map(|n| pick(n, source));
         self.uvs = self.uvs.as_deref().map(|uv| pick(uv, source));
         self.colors = self.colors.as_deref().map(|c| pick(c, source));
+        self.albedo = self.albedo.as_deref().map(|c| pick(c, source));
         if let Some(s) = &mut self.skin {
             s.joints = pick(&s.joints, source);
             s.weights = pick(&s.weights, source);
@@ -196,6 +205,9 @@ impl Mesh {
         }
         if let Some(c) = &self.colors {
             assert_eq!(c.len(), self.positions.len(), "colour count");
+        }
+        if let Some(c) = &self.albedo {
+            assert_eq!(c.len(), self.positions.len(), "albedo count");
         }
         if let Some(s) = &self.skin {
             assert_eq!(s.joints.len(), self.positions.len(), "joint count");

@@ -205,6 +205,10 @@ impl Report {
             r("tiling_deviation_u") * 100.0,
             r("tiling_deviation_v") * 100.0,
         );
+        let tiling = self.stage("tiling").and_then(|t| t.note.as_deref());
+        if let Some(note) = tiling.filter(|n| n.contains("box projection")) {
+            s += &format!("  {note}\n");
+        }
         if let Some(c) = self.stage("clamp") {
             let n = |k: &str| c.counts.get(k).copied().unwrap_or(0.0);
             s += &format!(

@@ -147,6 +147,11 @@ pub struct StrandParams {
     /// density, or strands that must follow a hand-painted UV stretch. Leave unset otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uv_density: Option<f32>,
+    /// Which texture coordinates the strands follow: the mesh's own, a generated box
+    /// projection, or (`auto`) the mesh's unless they cannot carry strands (see
+    /// [`crate::tiling::fur_uv_box`]).
+    #[serde(skip_serializing_if = "crate::tiling::FurUv::is_auto")]
+    pub fur_uv: crate::tiling::FurUv,
 }
 
 impl Default for StrandParams {
@@ -163,6 +168,7 @@ impl Default for StrandParams {
             mask_size: 256,
             seed: 1,
             uv_density: None,
+            fur_uv: crate::tiling::FurUv::Auto,
         }
     }
 }

@@ -171,6 +171,9 @@ pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
             let v: Vec2 = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
             out.push(v);
         }
+        if let (Some(out), Some(inn)) = (m.albedo.as_mut(), src.albedo.as_ref()) {
+            out.push(inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2]);
+        }
         if let (Some(out), Some(inn)) = (m.colors.as_mut(), src.colors.as_ref()) {
             let mix = |k: usize| {
                 let v = inn[at(c[0])][k] as f32 * w[0]

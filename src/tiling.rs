@@ -27,6 +27,61 @@ use crate::mesh::Mesh;
 /// Spread (90th / 10th percentile of the UV-to-world scale, by area) above which the bake warns.
 pub const SPREAD_WARNING: f64 = 2.0;
 
+/// Spread above which `fur_uv = "auto"` gives the strands a generated box projection instead of
+/// the mesh's UVs: strands would differ in size by more than this factor across the surface —
+/// the palette layouts of low-poly assets, where a face maps to a speck of a colour swatch
+/// (70× on a duck tried), draw invisible streaks. Below it the mesh's UVs are kept, with
+/// [`SPREAD_WARNING`]'s warning from 2×.
+pub const AUTO_BOX_SPREAD: f64 = 8.0;
+
+/// Which texture coordinates the strands follow (`strands.fur_uv`, `--fur-uv`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FurUv {
+    /// The mesh's own, unless their UV-to-world scale spreads more than [`AUTO_BOX_SPREAD`].
+    #[default]
+    Auto,
+    /// The mesh's own, whatever their layout.
+    Mesh,
+    /// A per-face box projection (`load::generate_box_uvs`), whatever the mesh has.
+    Box,
+}
+
+impl FurUv {
+    pub const ALL: [FurUv; 3] = [FurUv::Auto, FurUv::Mesh, FurUv::Box];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            FurUv::Auto => "auto",
+            FurUv::Mesh => "mesh",
+            FurUv::Box => "box",
+        }
+    }
+
+    pub fn is_auto(&self) -> bool {
+        *self == FurUv::Auto
+    }
+}
+
+/// Whether the strands of `mesh` take a generated box projection under `mode`, and why (for the
+/// summary); `None` when they follow the mesh's UVs. An asset keeps its UVs for its own
+/// textures either way: the fur has streams of its own.
+pub fn fur_uv_box(mesh: &Mesh, mode: FurUv) -> Option<String> {
+    match mode {
+        FurUv::Mesh => None,
+        FurUv::Box => Some("fur_uv = box".into()),
+        FurUv::Auto => {
+            let (_, spread) = uv_to_world(mesh)?;
+            (spread > AUTO_BOX_SPREAD).then(|| {
+                format!(
+                    "the mesh's UV-to-world scale spreads {spread:.1}x (10th to 90th percentile \
+                     by area, over {AUTO_BOX_SPREAD}x); --fur-uv mesh keeps the mesh's UVs"
+                )
+            })
+        }
+    }
+}
+
 /// The mask tiling of a mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tiling {
@@ -152,6 +207,24 @@ pub fn mask_tiling(
 mod tests {
     use super::*;
     use crate::procedural;
+
+    #[test]
+    fn auto_fur_uvs_leave_even_layouts_and_box_palette_ones() {
+        let mut m = procedural::sphere(1.0, 16, 32);
+        assert_eq!(fur_uv_box(&m, FurUv::Auto), None);
+        assert_eq!(fur_uv_box(&m, FurUv::Mesh), None);
+        assert!(fur_uv_box(&m, FurUv::Box).is_some());
+        // a palette layout: the upper half's faces squeezed into a swatch 50 times smaller
+        let uvs = m.uvs.as_mut().unwrap();
+        for (uv, p) in uvs.iter_mut().zip(&m.positions) {
+            if p.y > 0.0 {
+                *uv = Vec2::new(0.9, 0.9) + (*uv - Vec2::new(0.9, 0.9)) * 0.02;
+            }
+        }
+        let why = fur_uv_box(&m, FurUv::Auto).expect("a palette layout gets a box projection");
+        assert!(why.contains("spreads"), "{why}");
+        assert_eq!(fur_uv_box(&m, FurUv::Mesh), None);
+    }
 
     #[test]
     fn wrapping_tube_gets_whole_tiles_around_and_along() {

@@ -1004,3 +1004,98 @@ fn clip_chooses_the_animation_render_and_verify_play() {
     ]);
     assert_eq!(code, Some(0), "{stdout}{err}");
 }
+
+/// The critter with a palette-style layout: the upper half of its body's texture coordinates
+/// squeezed 50 times into a swatch of the texture (as low-poly assets map faces to colour
+/// swatches), the rest as it was.
+fn palette_critter(dir: &Path) -> PathBuf {
+    let glb = Glb::parse(&critter_glb(Critters::default()));
+    let (doc, mut bin) = (glb.json.clone(), glb.bin.clone());
+    let a = doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"]
+        .as_u64()
+        .unwrap() as usize;
+    let view = &doc["bufferViews"][doc["accessors"][a]["bufferView"].as_u64().unwrap() as usize];
+    let start = view["byteOffset"].as_u64().unwrap() as usize;
+    let count = doc["accessors"][a]["count"].as_u64().unwrap() as usize;
+    for k in 0..count {
+        let at = start + 8 * k;
+        let f = |o: usize| f32::from_le_bytes(bin[o..o + 4].try_into().unwrap());
+        let (u, v) = (f(at), f(at + 4));
+        if v < 0.5 {
+            let (u, v) = (0.3 + (u - 0.3) * 0.02, 0.2 + (v - 0.2) * 0.02);
+            bin[at..at + 4].copy_from_slice(&u.to_le_bytes());
+            bin[at + 4..at + 8].copy_from_slice(&v.to_le_bytes());
+        }
+    }
+    let path = dir.join("palette.glb");
+    std::fs::write(&path, shellbake::write::glb_bytes(&doc, &bin)).unwrap();
+    path
+}
+
+#[test]
+fn fur_uvs_a_palette_layout_cannot_carry_become_a_box_projection() {
+    let dir = scratch("asset-fur-uv");
+    let input = palette_critter(&dir);
+    let note = |report: &Value| -> String {
+        let stages = report["surfaces"][0]["stages"].as_array().unwrap();
+        let tiling = stages.iter().find(|s| s["name"] == "tiling").unwrap();
+        tiling["note"].as_str().unwrap_or_default().to_string()
+    };
+    let (glb, report) = bake(&input, &dir, "auto.glb", &["--only", "material=fur_body"]);
+    assert!(
+        note(&report).contains("box projection") && note(&report).contains("spreads"),
+        "{report}"
+    );
+    assert_valid(std::slice::from_ref(&glb));
+    let (_, report) = bake(
+        &input,
+        &dir,
+        "mesh.glb",
+        &["--only", "material=fur_body", "--fur-uv", "mesh"],
+    );
+    assert!(
+        note(&report).contains("the mesh's own"),
+        "{}",
+        note(&report)
+    );
+    let (_, report) = bake(
+        &fixture_critter(),
+        &dir,
+        "even.glb",
+        &["--only", "material=fur_body"],
+    );
+    assert!(
+        note(&report).contains("the mesh's own"),
+        "{}",
+        note(&report)
+    );
+    // the asset keeps its own UVs for its texture; the fur takes the colours through them
+    let (eye, target) = ([1.2, 1.3, 2.4], [0.0, 0.6, 0.0]);
+    render(
+        &[
+            job(&input, &dir.join("bare.png"), eye, target, false),
+            job(&glb, &dir.join("hidden.png"), eye, target, true),
+            job(&glb, &dir.join("fur.png"), eye, target, false),
+        ],
+        &dir,
+    );
+    assert_eq!(
+        differing_pixels(&rgb(&dir.join("bare.png")), &rgb(&dir.join("hidden.png"))),
+        0
+    );
+    // and verify passes with the defaults
+    let (code, stdout, err) = shellbake(&[
+        "verify",
+        input.to_str().unwrap(),
+        "--only",
+        "material=fur_body",
+        "--out-dir",
+        dir.join("v").to_str().unwrap(),
+        "-q",
+    ]);
+    assert_eq!(code, Some(0), "{stdout}{err}");
+}
+
+fn fixture_critter() -> PathBuf {
+    common::fixture("critter.glb")
+}

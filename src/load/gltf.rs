@@ -347,6 +347,7 @@ pub(super) fn read_primitive(
         normals: normals.filter(|n| n.iter().all(|v| v.is_finite())),
         uvs,
         colors,
+        albedo: None,
         indices,
         skin,
     };

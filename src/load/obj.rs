@@ -118,6 +118,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             normals,
             uvs,
             colors,
+            albedo: None,
             indices: triangulate(&world, &m.indices, &m.face_arities, &mut fanned),
             skin: None,
         };
