@@ -533,7 +533,7 @@ fn run_plan(
         b.report.record(Stage::Write.name(), write_ms);
         fill_sizes(
             &mut b.report,
-            &packed,
+            (&packed, &compressed),
             s,
             &json,
             (glb.len(), json_len),
@@ -551,7 +551,7 @@ fn run_plan(
         total_bytes: glb.len(),
         draw_calls: packed.draw_calls(),
         triangles_drawn: packed.triangles_drawn(),
-        streams: stream_bytes(&packed, None),
+        streams: stream_bytes(&packed, &compressed, None),
         surfaces: reports,
         ..Default::default()
     };
@@ -1168,15 +1168,21 @@ fn fill_report(
     report.layers = shells.t.len();
 }
 
-/// Bytes per stream name, of one surface (`Some`) or of the whole file.
+/// Bytes per stream name as the file stores them (meshopt-compressed where `compressed` has
+/// the stream), of one surface (`Some`) or of the whole file.
 fn stream_bytes(
     packed: &Packed,
+    compressed: &[Option<write::Encoded>],
     surface: Option<usize>,
 ) -> std::collections::BTreeMap<String, usize> {
     let mut out = std::collections::BTreeMap::new();
-    for v in &packed.streams {
+    for (i, v) in packed.streams.iter().enumerate() {
         if surface.is_none_or(|s| v.tag.surface == s) {
-            *out.entry(v.name.to_string()).or_default() += v.bytes.len();
+            let stored = match compressed.get(i) {
+                Some(Some(e)) => e.bytes.len(),
+                _ => v.bytes.len(),
+            };
+            *out.entry(v.name.to_string()).or_default() += stored;
         }
     }
     out
@@ -1185,7 +1191,7 @@ fn stream_bytes(
 /// The sizes in surface `s`'s report, once the file is written.
 fn fill_sizes(
     report: &mut Report,
-    packed: &Packed,
+    (packed, compressed): (&Packed, &[Option<write::Encoded>]),
     s: usize,
     json: &serde_json::Value,
     (file_len, json_len): (usize, usize),
@@ -1193,7 +1199,7 @@ fn fill_sizes(
 ) {
     let surface = &packed.surfaces[s];
     let layer_json = write::json_bytes_per_layer(json, packed, surface, report.layers);
-    report.streams = stream_bytes(packed, Some(s));
+    report.streams = stream_bytes(packed, compressed, Some(s));
     let several_levels = report.lods.len() > 1;
     for (k, entry) in report.lods.iter_mut().enumerate() {
         entry.bytes = packed

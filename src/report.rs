@@ -65,6 +65,7 @@ pub struct Report {
     /// the JSON of its meshes, materials and nodes.
     pub total_bytes: usize,
     pub bytes_per_base_vertex: f64,
+    /// Bytes per stream name as stored in the file (meshopt-compressed with `--compress`).
     pub streams: BTreeMap<String, usize>,
     /// Bytes attributable to each layer (JSON for compact; vertices + indices for single-draw).
     pub bytes_per_layer: Vec<usize>,
@@ -265,7 +266,8 @@ pub struct SceneReport {
     pub total_bytes: usize,
     pub draw_calls: usize,
     pub triangles_drawn: usize,
-    /// Bytes per stream name over all surfaces, plus `json`.
+    /// Bytes per stream name over all surfaces as stored (compressed with `--compress`), plus
+    /// `json`.
     pub streams: BTreeMap<String, usize>,
     pub surfaces: Vec<Report>,
     pub total_ms: f64,
