@@ -701,7 +701,14 @@ fn bake_surface(
         let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
         let hull = hull_rays
             .then(|| clamp::collision_bound(&welded, bvh, &smoothed, outline_width, &params.clamp));
-        let shells = clamp::collision_bound(&welded, bvh, &smoothed, height, &params.clamp);
+        let mut shells = clamp::collision_bound(&welded, bvh, &smoothed, height, &params.clamp);
+        if let Some(fraction) = params.clamp.thin {
+            // thin parts: strands in proportion to the local thickness
+            let thin = clamp::thickness_bound(&welded, bvh, &smoothed, height, fraction);
+            for (s, t) in shells.iter_mut().zip(thin) {
+                *s = s.min(t);
+            }
+        }
         (shells, hull)
     });
     let (collision, hull_bound) = match collision {

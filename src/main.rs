@@ -382,6 +382,11 @@ impl BakeArgs {
                     })?;
             }
             self.apply(&mut s.params, &mut s.effects);
+            // what the parameters now ask for (`--set clamp.thin=…` asks for `collision`)
+            s.effects
+                .extend(Effect::implied(&s.params, s.comb_map.is_some()));
+            s.effects.sort();
+            s.effects.dedup();
             if !self.only.is_empty() && self.is_scene() {
                 s.only = self.only.clone();
             }

@@ -143,7 +143,11 @@ impl Effect {
     /// `comb_map`, or `[surface.gravity] comb`).
     pub fn implied(params: &BakeParams, comb_map: bool) -> Vec<Effect> {
         let combs = comb_map || params.gravity.comb.is_some();
-        combs.then_some(Effect::Gravity).into_iter().collect()
+        let thin = params.clamp.thin.is_some();
+        [(combs, Effect::Gravity), (thin, Effect::Collision)]
+            .into_iter()
+            .filter_map(|(asked, e)| asked.then_some(e))
+            .collect()
     }
 
     /// The stage that computes the effect.
