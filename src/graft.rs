@@ -329,24 +329,37 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
     }
     push(out, "bufferViews", views);
 
-    let mut accessors = list("accessors");
-    for a in &mut accessors {
-        shift(a, "/bufferView", base.views);
+    // the indices each kind holds, by JSON pointer: one (`shift`) or a list (`shift_all`)
+    let rules: [(&str, &[(&str, usize)], &[(&str, usize)]); 5] = [
+        ("accessors", &[("/bufferView", base.views)], &[]),
+        ("images", &[("/bufferView", base.views)], &[]),
+        ("samplers", &[], &[]),
+        (
+            "textures",
+            &[("/source", base.images), ("/sampler", base.samplers)],
+            &[],
+        ),
+        (
+            "skins",
+            &[
+                ("/inverseBindMatrices", base.accessors),
+                ("/skeleton", base.nodes),
+            ],
+            &[("/joints", base.nodes)],
+        ),
+    ];
+    for (kind, one, all) in rules {
+        let mut items = list(kind);
+        for item in &mut items {
+            for &(pointer, by) in one {
+                shift(item, pointer, by);
+            }
+            for &(pointer, by) in all {
+                shift_all(item, pointer, by);
+            }
+        }
+        push(out, kind, items);
     }
-    push(out, "accessors", accessors);
-
-    let mut images = list("images");
-    for i in &mut images {
-        shift(i, "/bufferView", base.views);
-    }
-    push(out, "images", images);
-    push(out, "samplers", list("samplers"));
-    let mut textures = list("textures");
-    for t in &mut textures {
-        shift(t, "/source", base.images);
-        shift(t, "/sampler", base.samplers);
-    }
-    push(out, "textures", textures);
 
     let mut materials = list("materials");
     for m in &mut materials {
@@ -373,14 +386,6 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
         }
     }
     push(out, "meshes", meshes);
-
-    let mut skins = list("skins");
-    for s in &mut skins {
-        shift_all(s, "/joints", base.nodes);
-        shift(s, "/inverseBindMatrices", base.accessors);
-        shift(s, "/skeleton", base.nodes);
-    }
-    push(out, "skins", skins);
 
     let mut nodes = list("nodes");
     for n in &mut nodes {

@@ -260,19 +260,13 @@ pub fn choose_clip(clips: &mut Vec<Clip>, name: Option<&str>) -> std::result::Re
             let names: Vec<String> = clips.iter().map(|c| c.name.clone()).collect();
             clips.retain(|c| c.name == n);
             if clips.is_empty() {
-                return Err(format!(
-                    "no animation clip '{}' (the file has: {})",
-                    crate::load::escape(n),
-                    if names.is_empty() {
-                        "none".to_string()
-                    } else {
-                        names
-                            .iter()
-                            .map(|n| crate::load::escape(n))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    }
-                ));
+                // (the caller escapes names from the file before they reach a terminal)
+                let had = if names.is_empty() {
+                    "none".to_string()
+                } else {
+                    names.join(", ")
+                };
+                return Err(format!("no animation clip '{n}' (the file has: {had})"));
             }
             clips.truncate(1);
         }

@@ -210,35 +210,32 @@ fn a_textured_skinned_creature_comes_out_whole_with_fur_in_its_own_colours() {
     let eye = [1.2, 1.3, 2.4];
     let target = [0.0, 0.6, 0.0];
     let png = |n: &str| dir.join(n);
-    render(
-        &[
-            job(&input, &png("bare.png"), eye, target, false),
-            job(&glb, &png("fur.png"), eye, target, false),
-            job(&glb, &png("hidden.png"), eye, target, true),
-            job(
-                &input,
-                &png("bare-close.png"),
-                [0.9, 0.9, 0.6],
-                [0.5, 0.7, 0.0],
-                false,
-            ),
-            job(
-                &glb,
-                &png("fur-close.png"),
-                [0.9, 0.9, 0.6],
-                [0.5, 0.7, 0.0],
-                false,
-            ),
-            job(
-                &glb,
-                &png("hidden-close.png"),
-                [0.9, 0.9, 0.6],
-                [0.5, 0.7, 0.0],
-                true,
-            ),
-        ],
-        &dir,
-    );
+    let close = ([0.9, 0.9, 0.6], [0.5, 0.7, 0.0]);
+    let mut jobs = Vec::new();
+    for (suffix, (eye, target)) in [("", (eye, target)), ("-close", close)] {
+        jobs.push(job(
+            &input,
+            &png(&format!("bare{suffix}.png")),
+            eye,
+            target,
+            false,
+        ));
+        jobs.push(job(
+            &glb,
+            &png(&format!("fur{suffix}.png")),
+            eye,
+            target,
+            false,
+        ));
+        jobs.push(job(
+            &glb,
+            &png(&format!("hidden{suffix}.png")),
+            eye,
+            target,
+            true,
+        ));
+    }
+    render(&jobs, &dir);
     for (bare, hidden) in [
         ("bare.png", "hidden.png"),
         ("bare-close.png", "hidden-close.png"),

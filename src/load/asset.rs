@@ -186,15 +186,23 @@ impl Asset {
     pub fn read_obj(path: &Path) -> Result<Option<Asset>> {
         let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES)
             .map_err(|e| Error::io(path, e))?;
-        match super::obj::asset_glb(path, &bytes)? {
-            Some(glb) => Asset::from_bytes(path, &glb).map(Some),
+        match super::obj::asset_document(path, &bytes)? {
+            Some((json, bin)) => {
+                Asset::from_document(Document::from_json(path, json, Some(bin))?).map(Some)
+            }
             None => Ok(None),
         }
     }
 
     /// [`Asset::read`] on bytes in memory; `path` names the file and resolves relative URIs.
     pub fn from_bytes(path: &Path, bytes: &[u8]) -> Result<Asset> {
-        let doc = Document::parse(path, bytes)?;
+        Asset::from_document(Document::parse(path, bytes)?)
+    }
+
+    /// [`Asset::read`] on a parsed document.
+    fn from_document(doc: Document) -> Result<Asset> {
+        let path = doc.path.clone();
+        let path = path.as_path();
         let buffers = doc.load_buffers()?;
         let mut warnings = Vec::new();
         let furred = furred_parts(&doc);

@@ -370,7 +370,10 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
 /// (an image naming the file beside the OBJ, embedded when the asset is written). `None` when
 /// the file names no `.mtl` or none can be read (a plain mesh). The `.mtl` is read only inside the
 /// OBJ's folder, as a glTF's buffers are.
-pub(super) fn asset_glb(path: &Path, bytes: &[u8]) -> Result<Option<Vec<u8>>> {
+pub(super) fn asset_document(
+    path: &Path,
+    bytes: &[u8],
+) -> Result<Option<(serde_json::Value, Vec<u8>)>> {
     use serde_json::{json, Value};
     // most OBJ files name no material library: find out before parsing anything
     let names_mtl = bytes.split(|&b| b == b'\n').any(|line| {
@@ -495,7 +498,7 @@ pub(super) fn asset_glb(path: &Path, bytes: &[u8]) -> Result<Option<Vec<u8>>> {
         doc["textures"] = json!(textures);
         doc["samplers"] = json!([{ "wrapS": 10497, "wrapT": 10497 }]);
     }
-    Ok(Some(crate::write::glb_bytes(&doc, &bin)))
+    Ok(Some((doc, bin)))
 }
 
 #[cfg(test)]

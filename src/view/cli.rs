@@ -377,7 +377,7 @@ pub fn choose_clip(
     name: Option<&str>,
 ) -> Result<()> {
     crate::skin::choose_clip(clips, name)
-        .map_err(|why| crate::Error::invalid(path, "--clip", why).into())
+        .map_err(|why| crate::Error::invalid(path, "--clip", crate::load::escape(&why)).into())
 }
 
 /// Runs `view`.
