@@ -330,7 +330,8 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
     push(out, "bufferViews", views);
 
     // the indices each kind holds, by JSON pointer: one (`shift`) or a list (`shift_all`)
-    let rules: [(&str, &[(&str, usize)], &[(&str, usize)]); 5] = [
+    type Pointers<'a> = &'a [(&'a str, usize)];
+    let rules: [(&str, Pointers, Pointers); 6] = [
         ("accessors", &[("/bufferView", base.views)], &[]),
         ("images", &[("/bufferView", base.views)], &[]),
         ("samplers", &[], &[]),
@@ -346,6 +347,14 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
                 ("/skeleton", base.nodes),
             ],
             &[("/joints", base.nodes)],
+        ),
+        (
+            "nodes",
+            &[("/mesh", base.meshes), ("/skin", base.skins)],
+            &[
+                ("/children", base.nodes),
+                ("/extensions/MSFT_lod/ids", base.nodes),
+            ],
         ),
     ];
     for (kind, one, all) in rules {
@@ -386,15 +395,6 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
         }
     }
     push(out, "meshes", meshes);
-
-    let mut nodes = list("nodes");
-    for n in &mut nodes {
-        shift(n, "/mesh", base.meshes);
-        shift(n, "/skin", base.skins);
-        shift_all(n, "/children", base.nodes);
-        shift_all(n, "/extensions/MSFT_lod/ids", base.nodes);
-    }
-    push(out, "nodes", nodes);
 
     let mut animations = list("animations");
     for a in &mut animations {

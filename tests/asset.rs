@@ -988,18 +988,11 @@ fn clip_chooses_the_animation_render_and_verify_play() {
         err.contains("no animation clip 'run' (the file has: wag_0, nod_0)"),
         "{err}"
     );
-    let (code, stdout, err) = shellbake(&[
-        "verify",
-        input.to_str().unwrap(),
-        "--only",
-        "material=fur_tail",
-        "--clip",
-        "nod_0",
-        "--out-dir",
-        dir.join("v").to_str().unwrap(),
-        "-q",
-    ]);
-    assert_eq!(code, Some(0), "{stdout}{err}");
+    verify_passes(
+        &input,
+        &dir,
+        &["--only", "material=fur_tail", "--clip", "nod_0"],
+    );
 }
 
 /// The critter with a palette-style layout: the upper half of its body's texture coordinates
@@ -1081,16 +1074,7 @@ fn fur_uvs_a_palette_layout_cannot_carry_become_a_box_projection() {
         0
     );
     // and verify passes with the defaults
-    let (code, stdout, err) = shellbake(&[
-        "verify",
-        input.to_str().unwrap(),
-        "--only",
-        "material=fur_body",
-        "--out-dir",
-        dir.join("v").to_str().unwrap(),
-        "-q",
-    ]);
-    assert_eq!(code, Some(0), "{stdout}{err}");
+    verify_passes(&input, &dir, &["--only", "material=fur_body"]);
 }
 
 fn fixture_critter() -> PathBuf {
@@ -1117,4 +1101,19 @@ fn the_report_counts_the_bytes_a_compressed_file_stores() {
     assert!(size(&packed) < size(&plain));
     // the asset's own geometry is carried decoded: its validator report is clean
     assert_valid(std::slice::from_ref(&plain));
+}
+
+/// Runs `shellbake verify` on `input` with `args` (pictures under `dir/v`) and checks it passes.
+fn verify_passes(input: &Path, dir: &Path, args: &[&str]) {
+    let out = dir.join("v");
+    let mut all = vec![
+        "verify",
+        input.to_str().unwrap(),
+        "--out-dir",
+        out.to_str().unwrap(),
+        "-q",
+    ];
+    all.extend_from_slice(args);
+    let (code, stdout, err) = shellbake(&all);
+    assert_eq!(code, Some(0), "{stdout}{err}");
 }
