@@ -758,7 +758,9 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     let mesh = &part.scene.meshes[0];
     let paint = part.paint.as_ref().unwrap();
     let texture = paint.texture.as_ref().unwrap();
+    let start = std::time::Instant::now();
     let albedo = paint.albedo(mesh);
+    let sampled = start.elapsed();
     let uvs = mesh.uvs.as_ref().unwrap();
     let (mut sum, mut worst, mut n) = (0.0f64, 0.0f64, 0usize);
     for t in mesh.indices.chunks_exact(3) {
@@ -782,9 +784,10 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     let mean = sum / n as f64;
     println!(
         "critter body: per-vertex colour against the texture at {n} strand roots: mean ΔE76 {mean:.1}, worst {worst:.1}; \
-         {} vertices x 8 bytes = {} bytes",
+         {} vertices x 8 bytes = {} bytes; sampled in {:.3} ms",
         mesh.vertex_count(),
-        8 * mesh.vertex_count()
+        8 * mesh.vertex_count(),
+        sampled.as_secs_f64() * 1e3
     );
     // stripes narrower than a triangle are lost (the worst), the regions larger than one kept
     assert!(mean < 15.0, "mean ΔE76 {mean:.1}");
@@ -999,6 +1002,18 @@ fn clip_chooses_the_animation_render_and_verify_play() {
 /// squeezed 50 times into a swatch of the texture (as low-poly assets map faces to colour
 /// swatches), the rest as it was.
 fn palette_critter(dir: &Path) -> PathBuf {
+    edited_uvs(dir, "palette.glb", |u, v| {
+        if v < 0.5 {
+            Some((0.3 + (u - 0.3) * 0.02, 0.2 + (v - 0.2) * 0.02))
+        } else {
+            None
+        }
+    })
+}
+
+/// The critter with its body's texture coordinates changed by `edit` (`None`: kept), as
+/// `dir/name`.
+fn edited_uvs(dir: &Path, name: &str, edit: impl Fn(f32, f32) -> Option<(f32, f32)>) -> PathBuf {
     let glb = Glb::parse(&critter_glb(Critters::default()));
     let (doc, mut bin) = (glb.json.clone(), glb.bin.clone());
     let a = doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"]
@@ -1010,14 +1025,12 @@ fn palette_critter(dir: &Path) -> PathBuf {
     for k in 0..count {
         let at = start + 8 * k;
         let f = |o: usize| f32::from_le_bytes(bin[o..o + 4].try_into().unwrap());
-        let (u, v) = (f(at), f(at + 4));
-        if v < 0.5 {
-            let (u, v) = (0.3 + (u - 0.3) * 0.02, 0.2 + (v - 0.2) * 0.02);
+        if let Some((u, v)) = edit(f(at), f(at + 4)) {
             bin[at..at + 4].copy_from_slice(&u.to_le_bytes());
             bin[at + 4..at + 8].copy_from_slice(&v.to_le_bytes());
         }
     }
-    let path = dir.join("palette.glb");
+    let path = dir.join(name);
     std::fs::write(&path, shellbake::write::glb_bytes(&doc, &bin)).unwrap();
     path
 }
@@ -1116,4 +1129,16 @@ fn verify_passes(input: &Path, dir: &Path, args: &[&str]) {
     all.extend_from_slice(args);
     let (code, stdout, err) = shellbake(&all);
     assert_eq!(code, Some(0), "{stdout}{err}");
+}
+
+#[test]
+fn a_mirrored_uv_layout_bakes_and_verifies_with_the_defaults() {
+    // half the body's charts mirrored (u → 1 − u where u < 0.5), as symmetric models are laid out
+    let dir = scratch("asset-mirrored");
+    let input = edited_uvs(&dir, "mirrored.glb", |u, v| {
+        (u < 0.5).then_some((1.0 - u, v))
+    });
+    let (glb, _) = bake(&input, &dir, "fur.glb", &[]);
+    assert_valid(std::slice::from_ref(&glb));
+    verify_passes(&input, &dir, &[]);
 }
