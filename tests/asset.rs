@@ -1142,3 +1142,27 @@ fn a_mirrored_uv_layout_bakes_and_verifies_with_the_defaults() {
     assert_valid(std::slice::from_ref(&glb));
     verify_passes(&input, &dir, &[]);
 }
+
+#[test]
+fn thin_legs_take_fur_in_proportion_with_clamp_thin() {
+    // the critter's legs (0.16 thick) with fur asked 0.08 long: off, every vertex keeps it; at
+    // 0.3 of the thickness (0.048), the legs' strands are shortened
+    let dir = scratch("asset-thin");
+    let input = common::fixture("critter.glb");
+    let clamp = |report: &Value| {
+        let stages = report["surfaces"][0]["stages"].as_array().unwrap();
+        stages.iter().find(|s| s["name"] == "clamp").unwrap()["counts"].clone()
+    };
+    let legs = ["--only", "material=paws", "--height", "0.08"];
+    let (_, off) = bake(&input, &dir, "off.glb", &legs);
+    let mut thin = legs.to_vec();
+    thin.extend(["--set", "clamp.thin=0.3"]);
+    let (glb, on) = bake(&input, &dir, "on.glb", &thin);
+    assert_valid(std::slice::from_ref(&glb));
+    assert_eq!(clamp(&off)["limited_by_collision"], 0.0);
+    let (limited, mean) = (
+        clamp(&on)["limited_by_collision"].as_f64().unwrap(),
+        clamp(&on)["mean_limited_scale"].as_f64().unwrap(),
+    );
+    assert!(limited > 40.0 && mean < 0.7, "{}", clamp(&on));
+}
