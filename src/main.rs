@@ -529,10 +529,12 @@ fn load_asset(
 ) -> anyhow::Result<(Vec<usize>, u64)> {
     let chosen = asset.select(&args.only)?;
     if chosen.is_empty() {
-        anyhow::bail!(
-            "{}: nothing to fur: every triangle primitive carries shellbake fur already",
-            args.input.display()
-        );
+        let why = if asset.parts.is_empty() {
+            "the file has no triangle primitive with an area"
+        } else {
+            "every triangle primitive carries shellbake fur already"
+        };
+        anyhow::bail!("{}: nothing to fur: {why}", args.input.display());
     }
     let (scene, loaded) = shellbake::asset_scene(template, asset, &chosen, true)?;
     let kept: u64 = asset.buffers.iter().map(|b| b.len() as u64).sum();

@@ -251,7 +251,16 @@ impl Asset {
                     placed.world
                 };
                 let mut mesh = read_primitive(&doc, &element, prim, &buffers, (world, joints))?;
-                if mesh.indices.is_empty() {
+                let has_area = mesh.indices.chunks_exact(3).any(|t| {
+                    let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+                    crate::mesh::face_normal(a, b, c).1.is_normal()
+                });
+                if !has_area {
+                    // kept as it is: nothing to grow fur on
+                    warnings.push(format!(
+                        "{}: {element} has no triangle with an area; kept, not furred",
+                        path.display()
+                    ));
                     continue;
                 }
                 let (paint, paint_warning) = Paint::of(&doc, &buffers, prim, &element);
