@@ -1166,3 +1166,31 @@ fn thin_legs_take_fur_in_proportion_with_clamp_thin() {
     );
     assert!(limited > 40.0 && mean < 0.7, "{}", clamp(&on));
 }
+
+#[test]
+fn a_rigid_part_s_fur_read_again_is_no_part() {
+    // the critters' ground is rigid: its fur root holds the layer nodes, which carry no marker
+    // of their own; read again, they are not parts
+    let dir = scratch("asset-rigid-rebake");
+    let input = common::fixture("critters.glb");
+    let (once, _) = bake(&input, &dir, "once.glb", &["--only", "node=ground"]);
+    let asset = shellbake::load::asset::Asset::read(&once).unwrap();
+    let parts: Vec<&str> = asset.parts.iter().map(|p| p.names.node.as_str()).collect();
+    assert_eq!(
+        parts.iter().filter(|&&n| n == "ground").count(),
+        1,
+        "{parts:?}"
+    );
+    assert!(
+        parts
+            .iter()
+            .all(|n| n.starts_with("critter_") || *n == "ground"),
+        "{parts:?}"
+    );
+    let ground = asset
+        .parts
+        .iter()
+        .find(|p| p.names.node == "ground")
+        .unwrap();
+    assert!(ground.furred);
+}

@@ -206,13 +206,14 @@ impl Asset {
         let buffers = doc.load_buffers()?;
         let mut warnings = Vec::new();
         let furred = furred_parts(&doc);
+        let fur = fur_subtrees(&doc);
         let mut parts = Vec::new();
         let mut total: u64 = 0;
         for placed in doc.walk(|n| n)? {
             let Some(m) = doc.nodes[placed.node].mesh else {
                 continue;
             };
-            if is_fur_node(&doc.json, placed.node) {
+            if fur.contains(&placed.node) {
                 continue;
             }
             for (k, prim) in doc.meshes[m].primitives.iter().enumerate() {
@@ -340,6 +341,21 @@ impl Asset {
 pub fn is_fur_node(json: &Value, n: usize) -> bool {
     json["nodes"][n]["extras"].get("shellbake").is_some()
         || json["nodes"][n]["extras"].get("shellbake_fur").is_some()
+}
+
+/// The nodes shellbake added (see [`is_fur_node`]) and everything under them (a rigid part's
+/// fur root holds its layer and LOD nodes).
+fn fur_subtrees(doc: &Document) -> std::collections::HashSet<usize> {
+    let mut out = std::collections::HashSet::new();
+    let mut stack: Vec<usize> = (0..doc.nodes.len())
+        .filter(|&n| is_fur_node(&doc.json, n))
+        .collect();
+    while let Some(n) = stack.pop() {
+        if out.insert(n) {
+            stack.extend(doc.nodes[n].children.iter().copied());
+        }
+    }
+    out
 }
 
 /// The (node, primitive) pairs that carry shellbake fur: those a fur node's
