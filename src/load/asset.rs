@@ -5,8 +5,10 @@
 //!
 //! - **Parts.** A primitive drawn by two nodes is two parts (each node gets its own fur). A part
 //!   is placed in world space like the loader's meshes (`gltf.rs`); a skinned one stays in its
-//!   bind space, with the skin's skeleton. Triangle strips and fans are parts too. The nodes
-//!   shellbake added (`extras.shellbake` or `extras.shellbake_fur`) are no parts, and a primitive
+//!   bind space, with the skin's skeleton. Triangle strips and fans are parts too; a primitive
+//!   with no triangle of any area is kept and not furred, with a warning. The nodes shellbake
+//!   added (`extras.shellbake` or `extras.shellbake_fur`) and everything under them are no
+//!   parts, and a primitive
 //!   that a fur node's `extras.shellbake_fur` names (node and primitive) is *furred already*: it
 //!   passes through and is not furred twice.
 //! - **Selection.** `--only KIND=GLOB` (KIND `node`, `mesh` or `material`; `*` and `?` as in a
