@@ -530,7 +530,8 @@ fn load_asset(
     let chosen = asset.select(&args.only)?;
     if chosen.is_empty() {
         let why = if asset.parts.is_empty() {
-            "the file has no triangle primitive with an area"
+            "no triangle primitive has a triangle with an area (every triangle collapses, or \
+             there are none)"
         } else {
             "every triangle primitive carries shellbake fur already"
         };
