@@ -502,6 +502,8 @@ fn run_plan(
     let plan = scene::plan(scene);
     let mut packed = Packed::default();
     let several = scene.surfaces.len() > 1;
+    // surfaces with the same strands (an asset's parts) bake the mask once
+    let mut masks: Vec<(params::StrandParams, Mask)> = Vec::new();
     let mut surfaces: Vec<BakedSurface> = scene
         .surfaces
         .iter()
@@ -515,7 +517,7 @@ fn run_plan(
                 (meshes, maps, part),
                 ms,
                 several,
-                &mut packed,
+                (&mut packed, &mut masks),
             )
         })
         .collect();
@@ -575,7 +577,7 @@ fn bake_surface(
     (scene, maps, part): (&Scene, &SurfaceMaps, Option<&PartOf>),
     load_ms: f64,
     several: bool,
-    packed: &mut Packed,
+    (packed, masks): (&mut Packed, &mut Vec<(params::StrandParams, Mask)>),
 ) -> BakedSurface {
     let params = &surface.params;
     if let Err(e) = params.check() {
@@ -782,7 +784,16 @@ fn bake_surface(
     }
     drop(bvh);
 
-    let mask = report.run("strands", || strands::bake_mask(&params.strands));
+    let mask = report.run("strands", || {
+        match masks.iter().find(|(p, _)| *p == params.strands) {
+            Some((_, m)) => m.clone(),
+            None => {
+                let m = strands::bake_mask(&params.strands);
+                masks.push((params.strands.clone(), m.clone()));
+                m
+            }
+        }
+    });
     report.count("mask_texels", (mask.size * mask.size) as f64);
     report.count("cells_per_tile", mask.cells_per_tile as f64);
     let tiling = report.run("tiling", || {
