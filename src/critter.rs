@@ -121,26 +121,11 @@ pub fn critter_texture() -> Vec<u8> {
         };
     }
     let mut out = Vec::new();
+    use image::ImageEncoder as _;
     image::codecs::png::PngEncoder::new(&mut out)
-        .write_image_checked(&img)
+        .write_image(&img, w, h, image::ExtendedColorType::Rgb8)
         .expect("a PNG encodes");
     out
-}
-
-trait WriteChecked {
-    fn write_image_checked(self, img: &image::RgbImage) -> image::ImageResult<()>;
-}
-
-impl<W: std::io::Write> WriteChecked for image::codecs::png::PngEncoder<W> {
-    fn write_image_checked(self, img: &image::RgbImage) -> image::ImageResult<()> {
-        use image::ImageEncoder as _;
-        self.write_image(
-            img,
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )
-    }
 }
 
 /// The file: JSON arrays and the binary chunk, filled as objects are added.

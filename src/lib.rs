@@ -238,21 +238,18 @@ pub struct AssetBake {
     /// The asset with its fur (see [`graft`]).
     pub glb: Vec<u8>,
     pub json: serde_json::Value,
-    /// The parts furred, surface by surface.
-    pub parts: Vec<usize>,
 }
 
-/// Bakes the parts `chosen` of `asset` (from [`load::asset::Asset::select`]; not empty) with
-/// the settings of `template`'s one surface, and grafts the fur onto the asset. The report
-/// (`fur.report.asset`) says what was kept, furred and passed through. Fails where the scene
-/// does ([`asset_scene`]) or an image file of the asset cannot be read.
+/// Bakes the parts `chosen` of `asset` (from [`load::asset::Asset::select`]; not empty) —
+/// `scene` and `loaded` are [`asset_scene`]'s for them, grafted — and grafts the fur onto the
+/// asset. The report (`fur.report.asset`) says what was kept, furred and passed through. Fails
+/// where an image file of the asset cannot be read.
 pub fn bake_asset(
-    template: &SceneFile,
     asset: &load::asset::Asset,
     chosen: &[usize],
+    (scene, loaded): (&SceneFile, &[Loaded]),
 ) -> Result<AssetBake> {
-    let (scene, loaded) = asset_scene(template, asset, chosen, true)?;
-    let mut fur = bake_scene(&scene, &loaded);
+    let mut fur = bake_scene(scene, loaded);
     let (_, bin) = load::document::split_glb(&fur.glb).expect("our own GLB splits");
     let grafted = graft::graft(asset, chosen, (&fur.json, bin.unwrap_or(&[])), &fur.packed)?;
     let mut report = report::AssetReport {
@@ -315,7 +312,6 @@ pub fn bake_asset(
         fur,
         glb: grafted.glb,
         json: grafted.json,
-        parts: chosen.to_vec(),
     })
 }
 
@@ -353,13 +349,7 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
 /// skin they share): what a scene surface with `only` furs. The asset is a glTF file or an OBJ
 /// with a `.mtl`; parts bound to different skins are refused, as the loader refuses them.
 fn load_parts(path: &Path, only: &[load::asset::Selector]) -> Result<Scene> {
-    let ext = path.extension().map(|e| e.to_ascii_lowercase());
-    let asset = match ext.as_ref().and_then(|e| e.to_str()) {
-        Some("obj") => load::asset::Asset::read_obj(path)?,
-        Some("gltf" | "glb") => Some(load::asset::Asset::read(path)?),
-        _ => None,
-    };
-    let Some(asset) = asset else {
+    let Some(asset) = load::asset::Asset::open(path)? else {
         return Err(Error::invalid(
             path,
             "only",
@@ -402,54 +392,43 @@ fn load_parts(path: &Path, only: &[load::asset::Selector]) -> Result<Scene> {
 /// The density, length and comb maps surface `s` names, read (images) or checked against the
 /// loaded meshes (vertex colours).
 fn surface_maps(s: &Surface, loaded: &Scene) -> Result<SurfaceMaps> {
-    {
-        {
-            let has_colors = loaded.meshes.iter().any(|m| m.colors.is_some());
-            let no_colors = |what: String| {
-                Error::invalid(
-                    &s.mesh,
-                    "COLOR_0",
-                    format!(
-                        "surface '{}' takes its {what}, but the mesh has no vertex colours",
-                        s.name
-                    ),
-                )
-            };
-            let read =
-                |key: &str, source: &Option<scene::MapSource>| -> Result<Option<maps::Map>> {
-                    Ok(match source {
-                        None => None,
-                        Some(scene::MapSource::Image(p)) => {
-                            Some(maps::Map::Image(maps::GreyMap::read(p)?))
-                        }
-                        Some(scene::MapSource::VertexColor(c)) if has_colors => {
-                            Some(maps::Map::VertexColor(*c))
-                        }
-                        Some(scene::MapSource::VertexColor(c)) => {
-                            let channel = ["r", "g", "b", "a"][*c];
-                            return Err(no_colors(format!("{key} from COLOR_0.{channel}")));
-                        }
-                    })
-                };
-            let comb = match &s.comb_map {
-                None => None,
-                Some(scene::FlowSource::Image(p)) => {
-                    Some(maps::Flow::Image(maps::FlowMap::read(p)?))
-                }
-                Some(scene::FlowSource::VertexColors) if has_colors => {
-                    Some(maps::Flow::VertexColors)
-                }
-                Some(scene::FlowSource::VertexColors) => {
-                    return Err(no_colors("comb_map from COLOR_0 (red and green)".into()))
-                }
-            };
-            Ok(SurfaceMaps {
-                density: read("density_map", &s.density_map)?,
-                length: read("length_map", &s.length_map)?,
-                comb,
-            })
+    let has_colors = loaded.meshes.iter().any(|m| m.colors.is_some());
+    let no_colors = |what: String| {
+        Error::invalid(
+            &s.mesh,
+            "COLOR_0",
+            format!(
+                "surface '{}' takes its {what}, but the mesh has no vertex colours",
+                s.name
+            ),
+        )
+    };
+    let read = |key: &str, source: &Option<scene::MapSource>| -> Result<Option<maps::Map>> {
+        Ok(match source {
+            None => None,
+            Some(scene::MapSource::Image(p)) => Some(maps::Map::Image(maps::GreyMap::read(p)?)),
+            Some(scene::MapSource::VertexColor(c)) if has_colors => {
+                Some(maps::Map::VertexColor(*c))
+            }
+            Some(scene::MapSource::VertexColor(c)) => {
+                let channel = ["r", "g", "b", "a"][*c];
+                return Err(no_colors(format!("{key} from COLOR_0.{channel}")));
+            }
+        })
+    };
+    let comb = match &s.comb_map {
+        None => None,
+        Some(scene::FlowSource::Image(p)) => Some(maps::Flow::Image(maps::FlowMap::read(p)?)),
+        Some(scene::FlowSource::VertexColors) if has_colors => Some(maps::Flow::VertexColors),
+        Some(scene::FlowSource::VertexColors) => {
+            return Err(no_colors("comb_map from COLOR_0 (red and green)".into()))
         }
-    }
+    };
+    Ok(SurfaceMaps {
+        density: read("density_map", &s.density_map)?,
+        length: read("length_map", &s.length_map)?,
+        comb,
+    })
 }
 
 /// Bakes a loaded mesh with `params` and no effects: the one-surface shortcut. Never fails:
@@ -672,8 +651,7 @@ fn bake_surface(
     mesh.gather_vertices(&welded.vertex_source);
     mesh.indices = welded.render_indices.clone();
     mesh.face_split_normals(input_vertices);
-    let albedo = mesh.albedo.clone();
-    let shade = match &albedo {
+    let shade = match &mesh.albedo {
         Some(_) => shells::asset_shade(&params.shade),
         None => params.shade.clone(),
     };
@@ -819,7 +797,6 @@ fn bake_surface(
     });
     report.count("layers", shells.t.len() as f64);
     let mut shells = shells;
-    shells.albedo = albedo;
     // the law and the lean axes (made by the first of gravity and wind): each vertex's bend
     // and sway follow from its (guarded) delta where they are drawn
     let mut lean: Option<Vec<glam::Vec3>> = None;
@@ -1027,7 +1004,6 @@ fn bake_surface(
         fins: fins.as_ref(),
         outline: outline.as_ref(),
         base: !grafted,
-        albedo: shells.albedo.as_deref(),
     };
     let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
     report.count(

@@ -319,13 +319,10 @@ impl BakeArgs {
     /// The input as an asset kept whole with fur added (DESIGN §10): a glTF file, or an OBJ
     /// that names a readable `.mtl`; `None` for a plain mesh or a scene file.
     fn asset(&self) -> anyhow::Result<Option<shellbake::load::asset::Asset>> {
-        use shellbake::load::asset::Asset;
-        let ext = self.input.extension().map(|e| e.to_ascii_lowercase());
-        Ok(match ext.as_ref().and_then(|e| e.to_str()) {
-            Some("gltf" | "glb") => Some(Asset::read(&self.input)?),
-            Some("obj") => Asset::read_obj(&self.input)?,
-            _ => None,
-        })
+        if self.is_scene() {
+            return Ok(None);
+        }
+        Ok(shellbake::load::asset::Asset::open(&self.input)?)
     }
 
     /// Whether the input is a scene file.
@@ -521,12 +518,13 @@ fn choose_clips(
     Ok(())
 }
 
-/// The asset, the parts `--only` chooses, and the scene and meshes that fur them.
+/// The parts of `asset` that `--only` chooses, the scene and meshes that fur them (grafted,
+/// [`shellbake::asset_scene`]), and the size estimate.
 fn load_asset(
     args: &BakeArgs,
     template: &SceneFile,
     asset: &shellbake::load::asset::Asset,
-) -> anyhow::Result<(Vec<usize>, u64)> {
+) -> anyhow::Result<(Vec<usize>, SceneFile, Vec<shellbake::Loaded>, u64)> {
     let chosen = asset.select(&args.only)?;
     if chosen.is_empty() {
         let why = if asset.parts.is_empty() {
@@ -540,7 +538,7 @@ fn load_asset(
     let (scene, loaded) = shellbake::asset_scene(template, asset, &chosen, true)?;
     let kept: u64 = asset.buffers.iter().map(|b| b.len() as u64).sum();
     let estimate = check_loaded(args, &scene, &loaded)? + kept;
-    Ok((chosen, estimate))
+    Ok((chosen, scene, loaded, estimate))
 }
 
 fn bake(args: &BakeArgs) -> anyhow::Result<()> {
@@ -565,7 +563,7 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         pb.enable_steady_tick(Duration::from_millis(120));
         pb
     });
-    let asset = if args.is_scene() { None } else { args.asset()? };
+    let asset = args.asset()?;
     if !args.only.is_empty() && asset.is_none() && !args.is_scene() {
         anyhow::bail!(
             "{}: --only chooses parts of an asset (.gltf, .glb, or .obj with a .mtl)",
@@ -573,8 +571,8 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         );
     }
     let (mut report, glb) = if let Some(asset) = &asset {
-        let (chosen, _) = load_asset(args, &scene, asset)?;
-        let baked = shellbake::bake_asset(&scene, asset, &chosen)?;
+        let (chosen, parts, loaded, _) = load_asset(args, &scene, asset)?;
+        let baked = shellbake::bake_asset(asset, &chosen, (&parts, &loaded))?;
         (baked.fur.report, baked.glb)
     } else {
         let (loaded, _) = load_checked(args, &scene)?;
@@ -602,12 +600,11 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
 /// `shellbake plan`: the stages per surface and the estimated size; loads, does not bake.
 fn plan(args: &BakeArgs) -> anyhow::Result<()> {
     let mut scene = args.scene()?;
-    let asset = if args.is_scene() { None } else { args.asset()? };
+    let asset = args.asset()?;
     let (loaded, estimate) = match &asset {
         // an asset's plan: one surface per part to fur
         Some(asset) => {
-            let (chosen, estimate) = load_asset(args, &scene, asset)?;
-            let (parts, loaded) = shellbake::asset_scene(&scene, asset, &chosen, true)?;
+            let (_, parts, loaded, estimate) = load_asset(args, &scene, asset)?;
             scene = parts;
             (loaded, estimate)
         }
@@ -805,13 +802,13 @@ fn main() -> ExitCode {
                 }
                 shellbake::write::check_outputs(&bake.input, &[("output", out)])?;
             }
-            let asset = if bake.is_scene() { None } else { bake.asset()? };
+            let asset = bake.asset()?;
             if let Some(asset) = asset {
                 // the fur of each part, baked alone with a base layer, against the technique;
                 // `-o` writes the asset with its fur
-                let (chosen, _) = load_asset(bake, &scene, &asset)?;
+                let (chosen, grafted, loaded, _) = load_asset(bake, &scene, &asset)?;
                 if let Some(out) = out {
-                    let baked = shellbake::bake_asset(&scene, &asset, &chosen)?;
+                    let baked = shellbake::bake_asset(&asset, &chosen, (&grafted, &loaded))?;
                     shellbake::write::write_glb(out, &baked.glb)?;
                 }
                 let (parts, mut loaded) = shellbake::asset_scene(&scene, &asset, &chosen, false)?;

@@ -333,13 +333,9 @@ impl SceneReport {
             .iter()
             .map(|p| {
                 let name = p.stage.name();
-                let ms: f64 = surfaces
-                    .iter()
-                    .filter_map(|r| r.stage(name))
-                    .map(|st| st.ms)
-                    .sum();
-                // a stage the plan runs that no surface could (a skinned surface's fins)
                 let recorded: Vec<&Stage> = surfaces.iter().filter_map(|r| r.stage(name)).collect();
+                let ms: f64 = recorded.iter().map(|st| st.ms).sum();
+                // a stage the plan runs that no surface could (a skinned surface's fins)
                 let blocked = p.runs() && !recorded.is_empty() && recorded.iter().all(|st| !st.ran);
                 PlanEntry {
                     name,

@@ -161,9 +161,6 @@ pub struct ShellStack {
     pub occlusion: Option<Vec<f32>>,
     /// The `sheen` effect's parameters (layer `t` carries `KHR_materials_sheen`).
     pub sheen: Option<crate::sheen::SheenParams>,
-    /// The asset's base colour per render vertex (linear RGB), when the fur takes it: it
-    /// multiplies [`ShellStack::color`], which is then a grey shade ([`asset_shade`]).
-    pub albedo: Option<Vec<Vec3>>,
 }
 
 /// The root brightness, relative to the tip, of fur coloured by its asset: the preset's
@@ -230,7 +227,6 @@ pub fn build_shells(
         wind: None,
         occlusion: None,
         sheen: None,
-        albedo: None,
     }
 }
 

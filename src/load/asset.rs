@@ -182,6 +182,18 @@ impl Asset {
         Asset::from_bytes(path, &bytes)
     }
 
+    /// Reads the file at `path` as an asset when it is one: a `.gltf` or `.glb` file, or an
+    /// `.obj` that names a readable `.mtl` ([`Asset::read_obj`]); `None` for any other input (a
+    /// plain mesh, a scene file).
+    pub fn open(path: &Path) -> Result<Option<Asset>> {
+        let ext = path.extension().map(|e| e.to_ascii_lowercase());
+        match ext.as_ref().and_then(|e| e.to_str()) {
+            Some("gltf" | "glb") => Asset::read(path).map(Some),
+            Some("obj") => Asset::read_obj(path),
+            _ => Ok(None),
+        }
+    }
+
     /// Reads an `.obj` file with materials as an asset (its objects as nodes and meshes, its
     /// `.mtl` materials and `map_Kd` textures as glTF's; see `obj.rs`), or `None` when it names
     /// no readable `.mtl` (a plain mesh, baked as such).

@@ -253,9 +253,6 @@ pub struct PackInput<'a> {
     /// written, and a skinned surface writes no skeleton of its own (its layer nodes share the
     /// asset's skin, bound when the fur is grafted into the asset).
     pub base: bool,
-    /// The base colour at each vertex's root (linear RGB), when the fur takes the asset's
-    /// colours: it multiplies every layer (`COLOR_0`), whose materials then carry the shade only.
-    pub albedo: Option<&'a [Vec3]>,
 }
 
 /// The surface's vertices with their quantization grids, in the input's order.
@@ -286,7 +283,8 @@ struct Geometry<'a> {
     sheen: Option<&'a crate::sheen::SheenParams>,
     density: Option<&'a [u8]>,
     fur_weight: Option<&'a [f32]>,
-    /// The asset's base colour per vertex (see [`PackInput::albedo`]).
+    /// The asset's base colour per vertex ([`Mesh::albedo`]): it multiplies every layer
+    /// (`COLOR_0`), whose materials then carry the shade only.
     albedo: Option<&'a [Vec3]>,
     /// Joints and weights per vertex, and the skin's joint count.
     skin: Option<(&'a crate::mesh::VertexSkin, usize)>,
@@ -623,7 +621,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         sheen: input.sheen,
         density: input.density,
         fur_weight: input.fur_weight,
-        albedo: input.albedo,
+        albedo: mesh.albedo.as_deref(),
         skin: mesh
             .skin
             .as_ref()
