@@ -15,7 +15,7 @@ fn main() {
         eprintln!("usage: explicit_shells MESH OUT.glb [LAYERS]");
         std::process::exit(2);
     }
-    let scene = shellbake::load::load(std::path::Path::new(&args[1])).expect("readable mesh");
+    let scene = shellbake::input::load(std::path::Path::new(&args[1])).expect("readable mesh");
     let mut params = BakeParams::preset(Preset::Fur);
     if let Some(n) = args.get(3) {
         params.shells.layers = n.parse().expect("LAYERS is a number");
@@ -41,7 +41,7 @@ fn main() {
         views.len() - 1
     };
     let f32s = |v: &[f32]| -> Vec<u8> { v.iter().flat_map(|x| x.to_le_bytes()).collect() };
-    let mask = shellbake::pack::encode_mask_png(&baked.mask);
+    let mask = shellbake::output::pack::encode_mask_png(&baked.mask);
     let image_view = push(&mask, None);
     let mut meshes = Vec::new();
     let mut materials = Vec::new();
@@ -125,8 +125,9 @@ fn main() {
         "bufferViews": views,
         "buffers": [{ "byteLength": bin.len() }],
     });
-    let glb = shellbake::write::glb_bytes(&doc, &bin);
-    shellbake::write::write_glb(std::path::Path::new(&args[2]), &glb).expect("writable output");
+    let glb = shellbake::output::write::glb_bytes(&doc, &bin);
+    shellbake::output::write::write_glb(std::path::Path::new(&args[2]), &glb)
+        .expect("writable output");
     println!(
         "{}: {} layers × {} vertices, {} bytes",
         args[2],

@@ -10,7 +10,7 @@
 //! asset falls to exactly one shard for any `N`.
 //!
 //! **Hermetic and incremental.** Each output `<name>.glb` has a record `<name>.glb.key` written
-//! with it (both complete before either replaces anything: [`crate::write::write_all_atomic`]).
+//! with it (both complete before either replaces anything: [`crate::output::write::write_all_atomic`]).
 //! The record holds the asset's **content key**: the SHA-256 of the shellbake version, the
 //! resolved parameters of every surface (preset, overrides, flags and effects applied), and the
 //! bytes of every file the bake reads (the mesh or scene, each surface's mesh, its maps, a

@@ -6,7 +6,7 @@
 //!
 //! | stage | module | verb |
 //! |---|---|---|
-//! | load | [`load`] | [`load::load`] ([`load_surfaces`]) |
+//! | load | [`input`] | [`input::load`] ([`load_surfaces`]) |
 //! | merge, orient | [`orient`] | [`orient::orient_on`] |
 //! | weld | [`weld`] | [`weld::weld_on`] |
 //! | frames | [`frames`] | [`frames::extrusion_frames`] |
@@ -19,11 +19,11 @@
 //! | shells | [`shells`] | [`shells::build_shells`] |
 //! | gravity (effect `gravity`, alias `comb`) | [`gravity`] | [`gravity::Bend::on`] (a comb field's pulls: [`gravity::comb_pulls`]), [`gravity::lean_axes`] (per vertex [`gravity::Bend::at`], in pack and the reference) |
 //! | wind (effect `wind`) | [`wind`] | [`wind::Wind::new`] (targets and the animation in pack) |
-//! | sheen (effect `sheen`) | [`sheen`] | layer materials' [`sheen::Sheen::of`] in pack |
+//! | sheen (effect `sheen`) | [`effects::sheen`] | layer materials' [`effects::sheen::Sheen::of`] in pack |
 //! | fins (effect `fins`) | [`fins`] | [`fins::fins`] (edges and strip; the quads [`fins::Fins::mesh`] in pack) |
 //! | outline (effect `outline`) | [`outline`] | [`outline::outline`] (with `collision`, hull rays in the collision stage) |
-//! | asset in, asset out (a glTF, or an OBJ with a `.mtl`: DESIGN §10) | [`load::asset`], [`graft`] | [`load::asset::Asset::read`] and [`load::asset::Asset::select`] (the parts `--only` chooses), [`asset_scene`] (a surface per part), [`bake_asset`] (the plan, then [`graft::graft`]: the input kept, the fur added) |
-//! | skinned fur (a skinned glTF input; no stage: the load line counts it) | [`skin`] | [`load::skin::read_skeleton`]; the shared `JOINTS_0`/`WEIGHTS_0`, skeleton copy and skin in pack |
+//! | asset in, asset out (a glTF, or an OBJ with a `.mtl`: DESIGN §10) | [`input::asset`], [`graft`] | [`input::asset::Asset::read`] and [`input::asset::Asset::select`] (the parts `--only` chooses), [`asset_scene`] (a surface per part), [`bake_asset`] (the plan, then [`graft::graft`]: the input kept, the fur added) |
+//! | skinned fur (a skinned glTF input; no stage: the load line counts it) | [`skin`] | [`input::skin::read_skeleton`]; the shared `JOINTS_0`/`WEIGHTS_0`, skeleton copy and skin in pack |
 //! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
 //! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
 //! | pack | [`pack`] | [`pack::pack`] |
@@ -37,40 +37,24 @@
 //! the two (`shellbake verify`).
 
 pub mod batch;
-pub mod clamp;
-pub mod compress;
-pub mod critter;
-pub mod cull;
+pub mod effects;
 pub mod error;
-pub mod fins;
-pub mod frames;
-pub mod graft;
-pub mod gravity;
+pub mod fixtures;
 pub mod grid;
-pub mod load;
-pub mod lod;
-pub mod maps;
+pub mod input;
 pub mod mesh;
-pub mod occlusion;
-pub mod orient;
-pub mod outline;
-pub mod pack;
+pub mod output;
 pub mod params;
-pub mod procedural;
 pub mod report;
 pub mod scene;
-pub mod sheen;
-pub mod shells;
-pub mod skin;
 pub mod srgb;
-pub mod strands;
-pub mod tessellate;
-pub mod tiling;
+pub mod stages;
 #[cfg(feature = "view")]
 pub mod view;
-pub mod weld;
-pub mod wind;
-pub mod write;
+
+use effects::{fins, gravity, occlusion, outline, wind};
+use output::{compress, graft, pack, write};
+use stages::{clamp, cull, frames, lod, orient, shells, skin, strands, tessellate, tiling, weld};
 
 use std::path::Path;
 use std::time::Instant;
@@ -164,20 +148,20 @@ pub struct Loaded {
 #[derive(Clone, Debug, Default)]
 pub struct PartOf {
     /// Where the fur takes its colour (`None`: the preset's colours).
-    pub paint: Option<load::asset::Paint>,
+    pub paint: Option<input::asset::Paint>,
     /// Grafted into the asset ([`bake_asset`]); `false`: baked alone with a base layer in the
     /// fur's colours, as `verify` compares it with the runtime technique.
     pub graft: bool,
 }
 
-/// The scene that furs the chosen parts of `asset` (from [`load::asset::Asset::select`]): one
+/// The scene that furs the chosen parts of `asset` (from [`input::asset::Asset::select`]): one
 /// surface per part, each with `template`'s surface settings (its preset, parameters, effects
 /// and maps), named after the part's node. `graft`: the surfaces are to be grafted into the
 /// asset ([`PartOf::graft`]); a skinned part then stores float positions (its bind space, so
 /// that clients compute true bounds).
 pub fn asset_scene(
     template: &SceneFile,
-    asset: &load::asset::Asset,
+    asset: &input::asset::Asset,
     chosen: &[usize],
     graft: bool,
 ) -> Result<(SceneFile, Vec<Loaded>)> {
@@ -225,10 +209,10 @@ pub fn asset_scene(
 /// The density, length and flow maps of a surface, when its scene names them.
 #[derive(Clone, Debug, Default)]
 pub struct SurfaceMaps {
-    pub density: Option<maps::Map>,
-    pub length: Option<maps::Map>,
+    pub density: Option<input::maps::Map>,
+    pub length: Option<input::maps::Map>,
     /// The `gravity` effect's comb field (`comb_map`).
-    pub comb: Option<maps::Flow>,
+    pub comb: Option<input::maps::Flow>,
 }
 
 /// An asset baked whole: the fur-only bake of its parts, and the asset with the fur grafted on.
@@ -240,17 +224,17 @@ pub struct AssetBake {
     pub json: serde_json::Value,
 }
 
-/// Bakes the parts `chosen` of `asset` (from [`load::asset::Asset::select`]; not empty) —
+/// Bakes the parts `chosen` of `asset` (from [`input::asset::Asset::select`]; not empty) —
 /// `scene` and `loaded` are [`asset_scene`]'s for them, grafted — and grafts the fur onto the
 /// asset. The report (`fur.report.asset`) says what was kept, furred and passed through. Fails
 /// where an image file of the asset cannot be read.
 pub fn bake_asset(
-    asset: &load::asset::Asset,
+    asset: &input::asset::Asset,
     chosen: &[usize],
     (scene, loaded): (&SceneFile, &[Loaded]),
 ) -> Result<AssetBake> {
     let mut fur = bake_scene(scene, loaded);
-    let (_, bin) = load::document::split_glb(&fur.glb).expect("our own GLB splits");
+    let (_, bin) = input::document::split_glb(&fur.glb).expect("our own GLB splits");
     let grafted = graft::graft(asset, chosen, (&fur.json, bin.unwrap_or(&[])), &fur.packed)?;
     let mut report = report::AssetReport {
         warnings: asset.warnings.clone(),
@@ -281,16 +265,16 @@ pub fn bake_asset(
         .into_iter()
         .flatten()
         .enumerate()
-        .map(|(i, a)| load::escape(a["name"].as_str().unwrap_or(&format!("animation{i}"))))
+        .map(|(i, a)| input::escape(a["name"].as_str().unwrap_or(&format!("animation{i}"))))
         .collect();
     let describe = |i: usize| {
         let p = &asset.parts[i];
         format!(
             "node '{}' (mesh '{}' primitive {}, material '{}')",
-            load::escape(&p.names.node),
-            load::escape(&p.names.mesh),
+            input::escape(&p.names.node),
+            input::escape(&p.names.mesh),
             p.primitive,
-            load::escape(&p.names.material)
+            input::escape(&p.names.material)
         )
     };
     for (s, &i) in chosen.iter().enumerate() {
@@ -324,7 +308,7 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
         .map(|s| {
             let start = Instant::now();
             let mut loaded = if s.only.is_empty() {
-                load::load(&s.mesh)?
+                input::load(&s.mesh)?
             } else {
                 load_parts(&s.mesh, &s.only)?
             };
@@ -348,8 +332,8 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
 /// The parts of the asset at `path` that `only` chooses, as one scene (their meshes, and the
 /// skin they share): what a scene surface with `only` furs. The asset is a glTF file or an OBJ
 /// with a `.mtl`; parts bound to different skins are refused, as the loader refuses them.
-fn load_parts(path: &Path, only: &[load::asset::Selector]) -> Result<Scene> {
-    let Some(asset) = load::asset::Asset::open(path)? else {
+fn load_parts(path: &Path, only: &[input::asset::Selector]) -> Result<Scene> {
+    let Some(asset) = input::asset::Asset::open(path)? else {
         return Err(Error::invalid(
             path,
             "only",
@@ -368,8 +352,8 @@ fn load_parts(path: &Path, only: &[load::asset::Selector]) -> Result<Scene> {
             "only",
             format!(
                 "chooses parts bound to different skins ('{}' and '{}'); a surface bakes one skin",
-                load::escape(&asset.parts[chosen[0]].names.node),
-                load::escape(&asset.parts[chosen[k]].names.node)
+                input::escape(&asset.parts[chosen[0]].names.node),
+                input::escape(&asset.parts[chosen[k]].names.node)
             ),
         ));
     }
@@ -403,12 +387,14 @@ fn surface_maps(s: &Surface, loaded: &Scene) -> Result<SurfaceMaps> {
             ),
         )
     };
-    let read = |key: &str, source: &Option<scene::MapSource>| -> Result<Option<maps::Map>> {
+    let read = |key: &str, source: &Option<scene::MapSource>| -> Result<Option<input::maps::Map>> {
         Ok(match source {
             None => None,
-            Some(scene::MapSource::Image(p)) => Some(maps::Map::Image(maps::GreyMap::read(p)?)),
+            Some(scene::MapSource::Image(p)) => {
+                Some(input::maps::Map::Image(input::maps::GreyMap::read(p)?))
+            }
             Some(scene::MapSource::VertexColor(c)) if has_colors => {
-                Some(maps::Map::VertexColor(*c))
+                Some(input::maps::Map::VertexColor(*c))
             }
             Some(scene::MapSource::VertexColor(c)) => {
                 let channel = ["r", "g", "b", "a"][*c];
@@ -418,8 +404,12 @@ fn surface_maps(s: &Surface, loaded: &Scene) -> Result<SurfaceMaps> {
     };
     let comb = match &s.comb_map {
         None => None,
-        Some(scene::FlowSource::Image(p)) => Some(maps::Flow::Image(maps::FlowMap::read(p)?)),
-        Some(scene::FlowSource::VertexColors) if has_colors => Some(maps::Flow::VertexColors),
+        Some(scene::FlowSource::Image(p)) => {
+            Some(input::maps::Flow::Image(input::maps::FlowMap::read(p)?))
+        }
+        Some(scene::FlowSource::VertexColors) if has_colors => {
+            Some(input::maps::Flow::VertexColors)
+        }
         Some(scene::FlowSource::VertexColors) => {
             return Err(no_colors("comb_map from COLOR_0 (red and green)".into()))
         }
@@ -436,11 +426,11 @@ fn surface_maps(s: &Surface, loaded: &Scene) -> Result<SurfaceMaps> {
 ///
 /// ```
 /// use shellbake::params::{BakeParams, Preset};
-/// let scene = shellbake::load::load(std::path::Path::new("fixtures/cube.obj")).unwrap();
+/// let scene = shellbake::input::load(std::path::Path::new("fixtures/cube.obj")).unwrap();
 /// let baked = shellbake::bake(&scene, &BakeParams::preset(Preset::Carpet));
 /// assert_eq!(baked.shells.t.len(), 16);
 /// assert_eq!(&baked.glb[0..4], b"glTF");
-/// shellbake::write::write_glb(&std::env::temp_dir().join("cube-carpet.glb"), &baked.glb).unwrap();
+/// shellbake::output::write::write_glb(&std::env::temp_dir().join("cube-carpet.glb"), &baked.glb).unwrap();
 /// ```
 pub fn bake(scene: &Scene, params: &BakeParams) -> Baked {
     bake_with(scene, params, &Effect::DEFAULT)
@@ -575,7 +565,7 @@ fn bake_surface(
         report.count("skin_joints", k.joints.len() as f64);
         report.count("skin_nodes", k.nodes.len() as f64);
         report.count("skin_clips", k.clips.len() as f64);
-        let clips: Vec<String> = k.clips.iter().map(|c| load::escape(&c.name)).collect();
+        let clips: Vec<String> = k.clips.iter().map(|c| input::escape(&c.name)).collect();
         report.note(
             Stage::Load.name(),
             &format!(
@@ -602,11 +592,11 @@ fn bake_surface(
         report
             .warnings
             .push("texture coordinates have no area; generated a per-face box projection".into());
-        load::generate_box_uvs(&mut mesh);
+        input::generate_box_uvs(&mut mesh);
     } else if let Some(why) = tiling::fur_uv_box(&mesh, params.strands.fur_uv) {
         // the fur's own UVs: an asset keeps its own for its textures
         fur_uv = format!("a box projection: {why}");
-        load::generate_box_uvs(&mut mesh);
+        input::generate_box_uvs(&mut mesh);
     }
 
     // One exact-position topology serves orient and weld (orienting changes no edge).

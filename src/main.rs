@@ -11,20 +11,16 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
-#[cfg(feature = "view")]
 mod cli;
-mod cli_batch;
-#[cfg(feature = "view")]
-mod cli_study;
 
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use image::ImageEncoder as _;
-use shellbake::compress::{Compression, MeshoptExtension};
-use shellbake::orient::OrientMode;
-use shellbake::pack::{LayerWeights, Quantize};
+use shellbake::output::compress::{Compression, MeshoptExtension};
+use shellbake::output::pack::{LayerWeights, Quantize};
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::{Effect, Quality, SceneFile};
+use shellbake::stages::orient::OrientMode;
 
 #[derive(Parser)]
 #[command(
@@ -49,20 +45,20 @@ enum Command {
     /// Bake the assets of a manifest that fall to one shard (`--shard I/N`, or a Kubernetes
     /// Indexed Job's or Slurm array's index), skipping those whose content key is unchanged;
     /// `--merge` joins the shards' results.
-    Batch(cli_batch::BatchArgs),
+    Batch(cli::batch::BatchArgs),
     /// Draw a baked GLB to a PNG (headless).
     #[cfg(feature = "view")]
-    Render(cli::RenderFlags),
+    Render(cli::view::RenderFlags),
     /// Open a baked GLB in a window: orbit camera, layer and LOD stepping, counters.
     #[cfg(feature = "view")]
-    View(cli::ViewFlags),
+    View(cli::view::ViewFlags),
     /// Bake, then render baked and runtime reference from several cameras and compare.
     #[cfg(feature = "view")]
     Verify {
         #[command(flatten)]
         bake: BakeArgs,
         #[command(flatten)]
-        verify: cli::VerifyFlags,
+        verify: cli::view::VerifyFlags,
     },
     /// Bake, then time the baked file against the runtime reference on the GPU.
     #[cfg(feature = "view")]
@@ -70,7 +66,7 @@ enum Command {
         #[command(flatten)]
         bake: BakeArgs,
         #[command(flatten)]
-        bench: cli::BenchFlags,
+        bench: cli::view::BenchFlags,
     },
     /// Sweep the knobs that trade accuracy for bake time, bytes and frame time around the bake
     /// flags' setting: image error against the runtime reference, bake time, bytes, triangles,
@@ -80,7 +76,7 @@ enum Command {
         #[command(flatten)]
         bake: BakeArgs,
         #[command(flatten)]
-        study: cli_study::StudyFlags,
+        study: cli::study::StudyFlags,
     },
     /// Write the procedural fixtures (plane, sphere, torus, split-normal cube) as OBJ into DIR.
     Fixtures {
@@ -133,8 +129,8 @@ struct BakeArgs {
     /// Texture coordinates the strands follow: `auto` (the mesh's, unless their UV-to-world
     /// scale spreads over 8x, as palette layouts do: then a box projection), `mesh` or `box`
     /// [default: auto]. An asset keeps its own UVs for its textures either way.
-    #[arg(long, value_parser = named(&shellbake::tiling::FurUv::ALL, |f| f.name()))]
-    fur_uv: Option<shellbake::tiling::FurUv>,
+    #[arg(long, value_parser = named(&shellbake::stages::tiling::FurUv::ALL, |f| f.name()))]
+    fur_uv: Option<shellbake::stages::tiling::FurUv>,
     /// Strand density in strands per UV unit instead of per world unit (ignores the mesh's
     /// UV-to-world scale; for UV layouts authored at a set texel density).
     #[arg(long, conflicts_with = "density")]
@@ -237,7 +233,7 @@ struct BakeArgs {
     /// (`material=fox_*`; KIND is node, mesh or material; `*` and `?` globs; repeatable); the
     /// rest passes through untouched [default: every triangle primitive].
     #[arg(long = "only", value_name = "KIND=GLOB")]
-    only: Vec<shellbake::load::asset::Selector>,
+    only: Vec<shellbake::input::asset::Selector>,
     /// Write the JSON report here.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -318,11 +314,11 @@ impl BakeArgs {
 
     /// The input as an asset kept whole with fur added (DESIGN §10): a glTF file, or an OBJ
     /// that names a readable `.mtl`; `None` for a plain mesh or a scene file.
-    fn asset(&self) -> anyhow::Result<Option<shellbake::load::asset::Asset>> {
+    fn asset(&self) -> anyhow::Result<Option<shellbake::input::asset::Asset>> {
         if self.is_scene() {
             return Ok(None);
         }
-        Ok(shellbake::load::asset::Asset::open(&self.input)?)
+        Ok(shellbake::input::asset::Asset::open(&self.input)?)
     }
 
     /// Whether the input is a scene file.
@@ -523,7 +519,7 @@ fn choose_clips(
 fn load_asset(
     args: &BakeArgs,
     template: &SceneFile,
-    asset: &shellbake::load::asset::Asset,
+    asset: &shellbake::input::asset::Asset,
 ) -> anyhow::Result<(Vec<usize>, SceneFile, Vec<shellbake::Loaded>, u64)> {
     let chosen = asset.select(&args.only)?;
     if chosen.is_empty() {
@@ -549,10 +545,10 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         outputs.push(("report", report.as_path()));
     }
     for s in &scene.surfaces {
-        shellbake::write::check_outputs(&s.mesh, &outputs)?;
+        shellbake::output::write::check_outputs(&s.mesh, &outputs)?;
     }
     if scene.path.is_some() {
-        shellbake::write::check_outputs(&args.input, &outputs)?;
+        shellbake::output::write::check_outputs(&args.input, &outputs)?;
     }
     let spinner = (!args.quiet).then(|| {
         let pb = indicatif::ProgressBar::new_spinner();
@@ -590,7 +586,7 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         files.push((path.as_path(), json.as_bytes()));
     }
     // both complete before either replaces what was there
-    shellbake::write::write_all_atomic(&files)?;
+    shellbake::output::write::write_all_atomic(&files)?;
     if !args.quiet {
         print!("{}", printable(&report.summary(), true));
     }
@@ -688,31 +684,37 @@ fn message(e: &anyhow::Error) -> String {
 
 /// `shellbake fixtures DIR --library N`: the meshes and the manifest.
 fn library_fixtures(dir: &Path, n: u32) -> anyhow::Result<()> {
-    let (meshes, manifest) = shellbake::procedural::library(n);
+    let (meshes, manifest) = shellbake::fixtures::procedural::library(n);
     for (name, mesh) in meshes {
-        let text = shellbake::procedural::to_obj(&mesh, "shellbake procedural library mesh");
-        shellbake::write::write_atomic(&dir.join(name), text.as_bytes())?;
+        let text =
+            shellbake::fixtures::procedural::to_obj(&mesh, "shellbake procedural library mesh");
+        shellbake::output::write::write_atomic(&dir.join(name), text.as_bytes())?;
     }
-    shellbake::write::write_atomic(&dir.join("manifest.toml"), manifest.as_bytes())?;
+    shellbake::output::write::write_atomic(&dir.join("manifest.toml"), manifest.as_bytes())?;
     Ok(())
 }
 
 fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
-    let mut all = shellbake::procedural::fixtures();
+    let mut all = shellbake::fixtures::procedural::fixtures();
     if dense {
-        all.push(("sphere-dense", shellbake::procedural::sphere(1.0, 256, 512)));
-        all.push(("field", shellbake::procedural::plane(100.0, 256)));
+        all.push((
+            "sphere-dense",
+            shellbake::fixtures::procedural::sphere(1.0, 256, 512),
+        ));
+        all.push(("field", shellbake::fixtures::procedural::plane(100.0, 256)));
     }
     for (name, mesh) in all {
-        let text =
-            shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
-        shellbake::write::write_atomic(&dir.join(format!("{name}.obj")), text.as_bytes())?;
+        let text = shellbake::fixtures::procedural::to_obj(
+            &mesh,
+            &format!("shellbake procedural fixture '{name}'"),
+        );
+        shellbake::output::write::write_atomic(&dir.join(format!("{name}.obj")), text.as_bytes())?;
     }
     // the terrain scene: mesh, maps and scene file
-    let terrain = shellbake::procedural::terrain(120.0, 120);
-    let text = shellbake::procedural::to_obj(&terrain, "shellbake procedural terrain");
-    shellbake::write::write_atomic(&dir.join("terrain.obj"), text.as_bytes())?;
-    let (density, length) = shellbake::procedural::terrain_maps(120.0, 256);
+    let terrain = shellbake::fixtures::procedural::terrain(120.0, 120);
+    let text = shellbake::fixtures::procedural::to_obj(&terrain, "shellbake procedural terrain");
+    shellbake::output::write::write_atomic(&dir.join("terrain.obj"), text.as_bytes())?;
+    let (density, length) = shellbake::fixtures::procedural::terrain_maps(120.0, 256);
     for (name, map) in [
         ("terrain-density.png", density),
         ("terrain-length.png", length),
@@ -724,22 +726,22 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
             256,
             image::ExtendedColorType::L8,
         )?;
-        shellbake::write::write_atomic(&dir.join(name), &png)?;
+        shellbake::output::write::write_atomic(&dir.join(name), &png)?;
     }
-    let scene = shellbake::procedural::TERRAIN_SCENE;
-    shellbake::write::write_atomic(&dir.join("terrain.toml"), scene.as_bytes())?;
-    let tube = shellbake::procedural::skinned_tube();
-    shellbake::write::write_atomic(&dir.join("tube_skinned.glb"), &tube)?;
+    let scene = shellbake::fixtures::procedural::TERRAIN_SCENE;
+    shellbake::output::write::write_atomic(&dir.join("terrain.toml"), scene.as_bytes())?;
+    let tube = shellbake::fixtures::procedural::skinned_tube();
+    shellbake::output::write::write_atomic(&dir.join("tube_skinned.glb"), &tube)?;
     // the creature assets (DESIGN §10): one critter; two on a ground with a camera and a light
-    use shellbake::critter::{critter_glb, Critters};
+    use shellbake::fixtures::critter::{critter_glb, Critters};
     let one = critter_glb(Critters::default());
-    shellbake::write::write_atomic(&dir.join("critter.glb"), &one)?;
+    shellbake::output::write::write_atomic(&dir.join("critter.glb"), &one)?;
     let scene = critter_glb(Critters {
         count: 2,
         ground: true,
         camera_and_light: true,
     });
-    shellbake::write::write_atomic(&dir.join("critters.glb"), &scene)?;
+    shellbake::output::write::write_atomic(&dir.join("critters.glb"), &scene)?;
     Ok(())
 }
 
@@ -748,7 +750,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Bake(args) => bake(args),
         Command::Plan(args) => plan(args),
-        Command::Batch(args) => cli_batch::run(args).and_then(|ok| {
+        Command::Batch(args) => cli::batch::run(args).and_then(|ok| {
             if ok {
                 Ok(())
             } else {
@@ -783,7 +785,7 @@ fn main() -> ExitCode {
                 .skip_while(|a| a != "study")
                 .skip(1)
                 .collect();
-            cli_study::run(&tokens, bake, study)
+            cli::study::run(&tokens, bake, study)
         }
         #[cfg(feature = "view")]
         Command::Render(args) => {
@@ -798,9 +800,9 @@ fn main() -> ExitCode {
             let out = bake.output.as_deref();
             if let Some(out) = out {
                 for s in &scene.surfaces {
-                    shellbake::write::check_outputs(&s.mesh, &[("output", out)])?;
+                    shellbake::output::write::check_outputs(&s.mesh, &[("output", out)])?;
                 }
-                shellbake::write::check_outputs(&bake.input, &[("output", out)])?;
+                shellbake::output::write::check_outputs(&bake.input, &[("output", out)])?;
             }
             let asset = bake.asset()?;
             if let Some(asset) = asset {
@@ -809,7 +811,7 @@ fn main() -> ExitCode {
                 let (chosen, grafted, loaded, _) = load_asset(bake, &scene, &asset)?;
                 if let Some(out) = out {
                     let baked = shellbake::bake_asset(&asset, &chosen, (&grafted, &loaded))?;
-                    shellbake::write::write_glb(out, &baked.glb)?;
+                    shellbake::output::write::write_glb(out, &baked.glb)?;
                 }
                 let (parts, mut loaded) = shellbake::asset_scene(&scene, &asset, &chosen, false)?;
                 choose_clips(bake, &mut loaded, verify.clip())?;
@@ -921,7 +923,7 @@ mod tests {
         assert_eq!(effects(&["bake", "a.obj"]), Effect::DEFAULT);
         assert_eq!(effects(&["bake", "a.obj", "--no-cull", "--no-lod"]), vec![]);
         let p = parse_bool_flags(&["bake", "a.obj", "--orient", "keep"]);
-        assert_eq!(p.orient.mode, shellbake::orient::OrientMode::Keep);
+        assert_eq!(p.orient.mode, shellbake::stages::orient::OrientMode::Keep);
         assert!(
             Cli::try_parse_from(["shellbake", "bake", "a.obj", "--orient", "sideways"]).is_err()
         );

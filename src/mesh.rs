@@ -31,7 +31,7 @@ pub struct Mesh {
     pub albedo: Option<Vec<Vec3>>,
     /// Triangle list.
     pub indices: Vec<u32>,
-    /// Each vertex's joints and weights, when the input is skinned ([`crate::skin`]).
+    /// Each vertex's joints and weights, when the input is skinned ([`crate::stages::skin`]).
     pub skin: Option<VertexSkin>,
 }
 
@@ -228,7 +228,7 @@ pub struct Scene {
     pub meshes: Vec<Mesh>,
     /// The skin every mesh is bound to, when the input is skinned (every mesh then has
     /// [`Mesh::skin`]).
-    pub skeleton: Option<crate::skin::Skeleton>,
+    pub skeleton: Option<crate::stages::skin::Skeleton>,
     /// Things the loader fixed up and the user should know (missing UVs, …).
     pub warnings: Vec<String>,
 }

@@ -16,14 +16,14 @@
 
 use serde::{Deserialize, Serialize};
 
-pub use crate::clamp::ClampParams;
 use crate::error::ParamError;
 pub use crate::grid::MAX_LAYERS;
-pub use crate::lod::LodParams;
-pub use crate::orient::OrientParams;
-pub use crate::pack::{Layout, PackParams};
-pub use crate::shells::{ShadeParams, ShellParams};
-pub use crate::strands::{StrandModel, StrandParams};
+pub use crate::output::pack::{Layout, PackParams};
+pub use crate::stages::clamp::ClampParams;
+pub use crate::stages::lod::LodParams;
+pub use crate::stages::orient::OrientParams;
+pub use crate::stages::shells::{ShadeParams, ShellParams};
+pub use crate::stages::strands::{StrandModel, StrandParams};
 
 /// Named parameter sets for common surfaces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -81,19 +81,19 @@ pub struct BakeParams {
     pub lod: LodParams,
     pub pack: PackParams,
     /// The `gravity` effect's bend (used only when a surface asks for the effect).
-    pub gravity: crate::gravity::GravityParams,
+    pub gravity: crate::effects::gravity::GravityParams,
     /// The `tessellation` effect's factor and shape.
-    pub tessellation: crate::tessellate::TessellationParams,
+    pub tessellation: crate::stages::tessellate::TessellationParams,
     /// The `occlusion` effect's rays and strength.
-    pub occlusion: crate::occlusion::OcclusionParams,
+    pub occlusion: crate::effects::occlusion::OcclusionParams,
     /// The `sheen` effect's colour and roughness (per preset).
-    pub sheen: crate::sheen::SheenParams,
+    pub sheen: crate::effects::sheen::SheenParams,
     /// The `wind` effect's sway and period.
-    pub wind: crate::wind::WindParams,
+    pub wind: crate::effects::wind::WindParams,
     /// The `fins` effect's edge rule and strip.
-    pub fins: crate::fins::FinParams,
+    pub fins: crate::effects::fins::FinParams,
     /// The `outline` effect's width and colour.
-    pub outline: crate::outline::OutlineParams,
+    pub outline: crate::effects::outline::OutlineParams,
 }
 
 /// Keys whose value replaces the base value whole instead of merging into it: a strand model
@@ -185,7 +185,7 @@ impl BakeParams {
         bytes
     }
 
-    /// [`crate::pack::estimate_bytes`] for a loaded scene baked with these parameters: an upper
+    /// [`crate::output::pack::estimate_bytes`] for a loaded scene baked with these parameters: an upper
     /// bound of the written file (`tests/properties.rs` checks it against real bakes of random
     /// meshes).
     ///
@@ -221,7 +221,7 @@ impl BakeParams {
             }
             _ => 1,
         };
-        crate::pack::estimate_bytes(
+        crate::output::pack::estimate_bytes(
             3 * triangles,
             triangles,
             self.shells.layers as u64,

@@ -35,7 +35,7 @@
 //!
 //! A surface with `comb_map`, or with `comb` in its `[surface.gravity]`, asks for the `gravity`
 //! effect (`comb` in an effect list is the same effect) unless its list says `no-gravity`; a
-//! surface with both keys is refused, naming both (see [`crate::gravity`]).
+//! surface with both keys is refused, naming both (see [`crate::effects::gravity`]).
 //!
 //! Every surface bakes into the same GLB under a root node of its own name, with its own
 //! materials, mask and report section. A plain mesh path is the one-surface shortcut
@@ -273,15 +273,15 @@ pub struct Surface {
     pub translation: [f64; 3],
     pub scale: f64,
     /// What thins the fur: a grey PNG over the UV square or a vertex colour channel (see
-    /// [`crate::maps`]).
+    /// [`crate::input::maps`]).
     pub density_map: Option<MapSource>,
     /// What scales the fur's length, likewise.
     pub length_map: Option<MapSource>,
-    /// What combs the fur: a flow map (see [`crate::maps`] and [`crate::gravity`]).
+    /// What combs the fur: a flow map (see [`crate::input::maps`] and [`crate::effects::gravity`]).
     pub comb_map: Option<FlowSource>,
     /// The parts of the mesh file (an asset) the surface furs, chosen by name
-    /// ([`crate::load::asset::Selector`]); empty: every triangle.
-    pub only: Vec<crate::load::asset::Selector>,
+    /// ([`crate::input::asset::Selector`]); empty: every triangle.
+    pub only: Vec<crate::input::asset::Selector>,
 }
 
 /// Where a flow map comes from.
@@ -332,7 +332,7 @@ pub struct SceneFile {
     pub path: Option<PathBuf>,
     pub surfaces: Vec<Surface>,
     /// How the file is written (the `[output]` table): compression.
-    pub output: crate::compress::OutputParams,
+    pub output: crate::output::compress::OutputParams,
 }
 
 /// Accuracy by intent (`--quality`): three points of `shellbake study`'s Pareto front, applied
@@ -369,7 +369,7 @@ impl Quality {
             Quality::Draft => {
                 p.lod.error_pixels = 4.0;
                 // half the texels per strand, the same strands per tile
-                if let crate::strands::StrandModel::Cells {
+                if let crate::stages::strands::StrandModel::Cells {
                     texels_per_cell, ..
                 } = &mut p.strands.model
                 {
@@ -381,7 +381,7 @@ impl Quality {
             }
             Quality::Balanced => {}
             Quality::Exact => {
-                p.pack.quantize = crate::pack::Quantize::None;
+                p.pack.quantize = crate::output::pack::Quantize::None;
                 effects.retain(|&e| e != Effect::Lod);
             }
         }
@@ -539,7 +539,7 @@ impl SceneFile {
     /// Reads and checks the scene file at `path` (at most 1 MiB). Mesh files are not opened.
     pub fn read(path: &Path) -> Result<SceneFile> {
         let bytes =
-            crate::load::read_regular_file(path, 1 << 20).map_err(|e| Error::io(path, e))?;
+            crate::input::read_regular_file(path, 1 << 20).map_err(|e| Error::io(path, e))?;
         let text = std::str::from_utf8(&bytes).map_err(|e| Error::Scene {
             path: path.to_path_buf(),
             line: None,
@@ -568,7 +568,7 @@ impl SceneFile {
                 ));
             }
         }
-        let output: crate::compress::OutputParams = match doc.get("output") {
+        let output: crate::output::compress::OutputParams = match doc.get("output") {
             None => Default::default(),
             Some(v) => v
                 .clone()

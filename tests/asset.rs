@@ -1,6 +1,6 @@
 //! Asset in, asset out (DESIGN §10): an asset as artists bring it — textured, flat-shaded,
 //! skinned, animated, several materials, two characters, a camera, a light and a ground, a
-//! triangle strip (`shellbake::critter`) — comes out whole with fur added where `--only` asks,
+//! triangle strip (`shellbake::fixtures::critter`) — comes out whole with fur added where `--only` asks,
 //! in the asset's own colours; validator-clean, rendered by three.js, bounded right in
 //! Babylon.js, verified against the runtime technique, and not furred twice when read again.
 //!
@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use common::{assert_valid, node, path_str, scratch, shellbake, Glb};
 use serde_json::{json, Value};
-use shellbake::critter::{critter_glb, Critters};
+use shellbake::fixtures::critter::{critter_glb, Critters};
 
 /// Writes the critter asset(s) into `dir`; returns the path.
 fn critters(dir: &Path, name: &str, what: Critters) -> PathBuf {
@@ -433,7 +433,7 @@ fn a_furred_asset_read_again_is_not_furred_twice() {
 fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     // the cube fixture as a glTF mesh under a node turned, scaled and moved, in a parent
     let dir = scratch("asset-rigid");
-    let scene = shellbake::load::load(Path::new("fixtures/cube.obj")).unwrap();
+    let scene = shellbake::input::load(Path::new("fixtures/cube.obj")).unwrap();
     let mesh = &scene.meshes[0];
     let positions: Vec<f32> = mesh
         .positions
@@ -489,7 +489,7 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
         "buffers": [{ "byteLength": bin.len() }]
     });
     let input = dir.join("box.glb");
-    std::fs::write(&input, shellbake::write::glb_bytes(&doc, &bin)).unwrap();
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
     let (glb, _) = bake(&input, &dir, "box-fur.glb", &[]);
     assert_valid(std::slice::from_ref(&glb));
     let after = json_of(&glb);
@@ -749,7 +749,7 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     // its triangle) against the texture at its root, at 16 x 16 roots per triangle of the
     // critter's body; and what the colour costs in bytes per vertex, against a colour texture
     // at strand resolution.
-    let asset = shellbake::load::asset::Asset::from_bytes(
+    let asset = shellbake::input::asset::Asset::from_bytes(
         Path::new("critter.glb"),
         &critter_glb(Critters::default()),
     )
@@ -922,7 +922,7 @@ fn material_extensions_the_fur_does_not_need_pass_through_and_draco_says_what_to
         json!({ "sampler": 0, "extensions": { "KHR_texture_basisu": { "source": 0 } } });
     doc["extensions"] = json!({ "KHR_materials_variants": { "variants": [{ "name": "winter" }] } });
     let input = dir.join("basis.glb");
-    std::fs::write(&input, shellbake::write::glb_bytes(&doc, &glb.bin)).unwrap();
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &glb.bin)).unwrap();
     let (out, report) = bake(&input, &dir, "basis-fur.glb", &["--only", "material=fur_*"]);
     let after = json_of(&out);
     assert_kept(&doc, &after);
@@ -935,7 +935,7 @@ fn material_extensions_the_fur_does_not_need_pass_through_and_draco_says_what_to
     );
 
     doc["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
-    std::fs::write(&input, shellbake::write::glb_bytes(&doc, &glb.bin)).unwrap();
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &glb.bin)).unwrap();
     let (code, _, err) = shellbake(&[
         "bake",
         &path_str(&input),
@@ -1031,7 +1031,7 @@ fn edited_uvs(dir: &Path, name: &str, edit: impl Fn(f32, f32) -> Option<(f32, f3
         }
     }
     let path = dir.join(name);
-    std::fs::write(&path, shellbake::write::glb_bytes(&doc, &bin)).unwrap();
+    std::fs::write(&path, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
     path
 }
 
@@ -1174,7 +1174,7 @@ fn a_rigid_part_s_fur_read_again_is_no_part() {
     let dir = scratch("asset-rigid-rebake");
     let input = common::fixture("critters.glb");
     let (once, _) = bake(&input, &dir, "once.glb", &["--only", "node=ground"]);
-    let asset = shellbake::load::asset::Asset::read(&once).unwrap();
+    let asset = shellbake::input::asset::Asset::read(&once).unwrap();
     let parts: Vec<&str> = asset.parts.iter().map(|p| p.names.node.as_str()).collect();
     assert_eq!(
         parts.iter().filter(|&&n| n == "ground").count(),

@@ -43,7 +43,7 @@ fn bake_matrix() -> Vec<Case> {
     let dir = scratch("bake_matrix");
     let mut cases = Vec::new();
     for fx in FIXTURES {
-        let scene = shellbake::load::load(&fixture(fx)).unwrap();
+        let scene = shellbake::input::load(&fixture(fx)).unwrap();
         for preset in Preset::ALL {
             for layout in LAYOUTS {
                 let mut p = BakeParams::preset(preset);
@@ -59,7 +59,7 @@ fn bake_matrix() -> Vec<Case> {
                     preset.name(),
                     layout_name(layout)
                 ));
-                shellbake::write::write_glb(&file, &baked.glb).unwrap();
+                shellbake::output::write::write_glb(&file, &baked.glb).unwrap();
                 cases.push(Case {
                     file,
                     layout,
@@ -69,7 +69,7 @@ fn bake_matrix() -> Vec<Case> {
                         .iter()
                         .map(|&k| baked.mask.cutoff(k))
                         .collect(),
-                    single_draw_cutoff: shellbake::pack::single_draw_cutoff(&baked.mask),
+                    single_draw_cutoff: shellbake::output::pack::single_draw_cutoff(&baked.mask),
                     t: baked.shells.t.clone(),
                     layers_drawn: baked.culled.kept.iter().filter(|&&k| k > 0).count(),
                 });
@@ -230,9 +230,11 @@ fn every_fixture_preset_and_layout_is_valid_loads_in_three_and_is_exact() {
 
 #[test]
 fn committed_procedural_fixtures_match_the_generator() {
-    for (name, mesh) in shellbake::procedural::fixtures() {
-        let text =
-            shellbake::procedural::to_obj(&mesh, &format!("shellbake procedural fixture '{name}'"));
+    for (name, mesh) in shellbake::fixtures::procedural::fixtures() {
+        let text = shellbake::fixtures::procedural::to_obj(
+            &mesh,
+            &format!("shellbake procedural fixture '{name}'"),
+        );
         let committed = std::fs::read_to_string(fixture(&format!("{name}.obj"))).unwrap();
         assert!(
             committed == text,
@@ -243,7 +245,7 @@ fn committed_procedural_fixtures_match_the_generator() {
 
 #[test]
 fn bakes_are_byte_identical_across_runs() {
-    let scene = shellbake::load::load(&fixture("bunny.obj")).unwrap();
+    let scene = shellbake::input::load(&fixture("bunny.obj")).unwrap();
     for layout in LAYOUTS {
         let mut p = BakeParams::default();
         p.pack.layout = layout;
@@ -253,7 +255,7 @@ fn bakes_are_byte_identical_across_runs() {
 
 #[test]
 fn compact_layers_share_accessors_and_cost_json_only() {
-    let scene = shellbake::load::load(&fixture("sphere.obj")).unwrap();
+    let scene = shellbake::input::load(&fixture("sphere.obj")).unwrap();
     let mut p = BakeParams::default();
     // one level, nothing culled: every layer draws the one index buffer
     p.shells.layers = 8;

@@ -35,11 +35,11 @@ fn result(out: &Path, shard: u32, shards: u32) -> ShardResult {
 
 /// The library: the meshes, two bad inputs, and the manifest.
 fn library(dir: &Path) -> PathBuf {
-    let (meshes, mut manifest) = shellbake::procedural::library(ASSETS);
+    let (meshes, mut manifest) = shellbake::fixtures::procedural::library(ASSETS);
     for (name, mesh) in &meshes {
         std::fs::write(
             dir.join(name),
-            shellbake::procedural::to_obj(mesh, "library"),
+            shellbake::fixtures::procedural::to_obj(mesh, "library"),
         )
         .unwrap();
     }

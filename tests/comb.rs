@@ -18,7 +18,7 @@ use shellbake::scene::{Effect, SceneFile};
 /// A 2 × 2 plane of 16 × 16 quads in XZ facing up (`u` along +x, `v` along +z) as OBJ, each
 /// vertex coloured `paint(x, z)` (RGB in [0, 1]).
 fn plane_obj(paint: impl Fn(f64, f64) -> [f64; 3]) -> String {
-    let m = shellbake::procedural::plane(2.0, 16);
+    let m = shellbake::fixtures::procedural::plane(2.0, 16);
     let mut s = String::new();
     for p in &m.positions {
         let w = m.origin + p.as_dvec3();
@@ -297,7 +297,10 @@ fn a_neutral_map_bends_nothing_and_a_constant_comb_bends_everything() {
 #[test]
 fn a_colour_comb_map_on_a_mesh_without_colours_is_refused() {
     let dir = scratch("comb_no_colours");
-    let plain = shellbake::procedural::to_obj(&shellbake::procedural::plane(2.0, 4), "plane");
+    let plain = shellbake::fixtures::procedural::to_obj(
+        &shellbake::fixtures::procedural::plane(2.0, 4),
+        "plane",
+    );
     std::fs::write(dir.join("plane.obj"), plain).unwrap();
     let path = dir.join("scene.toml");
     std::fs::write(
@@ -323,7 +326,7 @@ fn a_colour_comb_map_on_a_mesh_without_colours_is_refused() {
 fn seam_copies_of_a_combed_sphere_move_together() {
     // the sphere's UV seam and poles split vertices; a constant comb along u must move every
     // copy of a position alike in the file, or the layers crack open along the seam
-    let scene = shellbake::load::load(&common::fixture("sphere.obj")).unwrap();
+    let scene = shellbake::input::load(&common::fixture("sphere.obj")).unwrap();
     for layout in [Layout::Compact, Layout::SingleDraw] {
         let mut p = shellbake::params::BakeParams::preset(shellbake::params::Preset::Fur);
         p.pack.layout = layout;

@@ -10,8 +10,8 @@ mod common;
 use std::path::Path;
 
 use common::{assert_valid, fixture, scratch};
-use shellbake::compress::{Compression, MeshoptExtension};
-use shellbake::load::document::Document;
+use shellbake::input::document::Document;
+use shellbake::output::compress::{Compression, MeshoptExtension};
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::{Effect, SceneFile};
 
@@ -24,8 +24,8 @@ fn bake(name: &str, preset: Preset, layout: Layout, ext: MeshoptExtension) -> (V
     file.output.meshopt_extension = ext;
     let loaded = shellbake::load_surfaces(&file).unwrap();
     let baked = shellbake::bake_scene(&file, &loaded);
-    let (doc, len) = shellbake::write::gltf_json(&baked.packed);
-    let twin = shellbake::write::glb_of_packed(&doc, len, &baked.packed);
+    let (doc, len) = shellbake::output::write::gltf_json(&baked.packed);
+    let twin = shellbake::output::write::glb_of_packed(&doc, len, &baked.packed);
     (baked.glb, twin)
 }
 
@@ -151,8 +151,8 @@ fn a_corrupt_compressed_view_is_refused_naming_it() {
     // claim one more element than was encoded
     let e = &mut v["extensions"]["EXT_meshopt_compression"];
     e["count"] = serde_json::json!(e["count"].as_u64().unwrap() + 1);
-    let glb = shellbake::write::glb_bytes(&json, &bin);
-    let err = shellbake::load::load_bytes(Path::new("bad.glb"), &glb)
+    let glb = shellbake::output::write::glb_bytes(&json, &bin);
+    let err = shellbake::input::load_bytes(Path::new("bad.glb"), &glb)
         .map(|_| ())
         .unwrap_err()
         .to_string();

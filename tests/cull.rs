@@ -26,7 +26,7 @@ fn culling_changes_no_pixel() {
     let gpu = Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)");
     let mut removed = 0usize;
     for fixture in ["cube", "sphere", "torus", "plane", "teapot"] {
-        let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap();
+        let scene = shellbake::input::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap();
         for preset in Preset::ALL {
             for layout in Layout::ALL {
                 let mut params = BakeParams::preset(preset);

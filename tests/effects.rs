@@ -15,7 +15,7 @@ use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 
 fn load(fixture: &str) -> shellbake::mesh::Scene {
-    shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap()
+    shellbake::input::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap()
 }
 
 fn params(layout: Layout) -> BakeParams {
@@ -158,7 +158,7 @@ fn swaying_layers_never_invert_on_the_hard_cases() {
     shapes.push((
         "split cube".into(),
         shellbake::mesh::Scene {
-            meshes: vec![shellbake::procedural::split_cube(1.0)],
+            meshes: vec![shellbake::fixtures::procedural::split_cube(1.0)],
             ..Default::default()
         },
     ));

@@ -15,7 +15,7 @@ use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 
 fn load(fixture: &str) -> shellbake::mesh::Scene {
-    shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap()
+    shellbake::input::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap()
 }
 
 fn params(preset: Preset, layout: Layout) -> BakeParams {
@@ -98,7 +98,7 @@ fn fins_stand_on_half_the_edges_and_verify() {
 fn exact_fins_and_outline_match_the_reference_pixel_for_pixel() {
     let scene = load("bunny");
     let mut p = params(Preset::Fur, Layout::Compact);
-    p.pack.quantize = shellbake::pack::Quantize::None;
+    p.pack.quantize = shellbake::output::pack::Quantize::None;
     p.outline.width_fraction = 0.04;
     let b = shellbake::bake_with(&scene, &p, &[Effect::Fins, Effect::Outline]);
     let v = verify_glb(&b.glb, &b.surface, &p);
@@ -258,7 +258,7 @@ fn a_scene_with_fins_outline_and_tessellation_bakes_one_file_that_verifies_and_t
 /// A skinned surface skips both effects, saying why, and still bakes a valid file.
 #[test]
 fn a_skinned_surface_skips_fins_and_outline_saying_why() {
-    let tube = shellbake::load::load(&common::fixture("tube_skinned.glb")).unwrap();
+    let tube = shellbake::input::load(&common::fixture("tube_skinned.glb")).unwrap();
     let p = params(Preset::Fur, Layout::Compact);
     let b = shellbake::bake_with(&tube, &p, &[Effect::Fins, Effect::Outline]);
     for stage in ["fins", "outline"] {
@@ -271,6 +271,6 @@ fn a_skinned_surface_skips_fins_and_outline_saying_why() {
     assert!(named_mesh(&g, "fins").is_none() && named_mesh(&g, "outline").is_none());
     let dir = common::scratch("fins_skinned");
     let f = dir.join("tube.glb");
-    shellbake::write::write_glb(&f, &b.glb).unwrap();
+    shellbake::output::write::write_glb(&f, &b.glb).unwrap();
     common::assert_valid(&[f]);
 }

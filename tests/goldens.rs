@@ -23,7 +23,7 @@ fn current() -> String {
     names.sort();
     let mut out = String::new();
     for name in &names {
-        let scene = shellbake::load::load(&common::fixture(name)).unwrap();
+        let scene = shellbake::input::load(&common::fixture(name)).unwrap();
         for preset in Preset::ALL {
             for layout in [Layout::Compact, Layout::SingleDraw] {
                 let mut p = BakeParams::preset(preset);

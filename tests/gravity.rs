@@ -26,7 +26,7 @@ fn bake_mesh(
 }
 
 fn bake(fixture: &str, layout: Layout, gravity: bool) -> (shellbake::Baked, BakeParams) {
-    let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap();
+    let scene = shellbake::input::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap();
     bake_mesh(&scene, layout, gravity)
 }
 
@@ -92,7 +92,7 @@ fn bent_layers_stay_outside_and_never_invert() {
     }
     // procedural hard cases: the split cube's inside corners, and spikes
     let cube = shellbake::mesh::Scene {
-        meshes: vec![shellbake::procedural::split_cube(1.0)],
+        meshes: vec![shellbake::fixtures::procedural::split_cube(1.0)],
         ..Default::default()
     };
     for (name, scene) in [

@@ -11,9 +11,9 @@ use std::process::Command;
 
 use common::{assert_valid, scratch, Glb};
 use glam::{DVec3, Vec2, Vec3};
+use shellbake::fixtures::procedural;
 use shellbake::mesh::Mesh;
 use shellbake::params::{BakeParams, Layout, Preset};
-use shellbake::procedural;
 use shellbake::scene::Effect;
 
 /// Bakes `obj` text with every preset and both layouts, clamp on; checks the invariants and
@@ -26,7 +26,7 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
     let dir = scratch(&format!("hard_{case}"));
     let input = dir.join(format!("{case}.obj"));
     std::fs::write(&input, obj).unwrap();
-    let scene = shellbake::load::load(&input).unwrap_or_else(|e| panic!("{case}: {e}"));
+    let scene = shellbake::input::load(&input).unwrap_or_else(|e| panic!("{case}: {e}"));
     let mut files = Vec::new();
     for preset in Preset::ALL {
         for layout in [Layout::Compact, Layout::SingleDraw] {
@@ -42,7 +42,7 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
             no_layer_inverts(&baked, &what);
             no_layer_crosses_the_mesh(&baked, &what);
             let file = dir.join(format!("{case}-{}-{layout:?}.glb", preset.name()));
-            shellbake::write::write_glb(&file, &baked.glb).unwrap();
+            shellbake::output::write::write_glb(&file, &baked.glb).unwrap();
             files.push(file);
         }
     }
@@ -68,7 +68,7 @@ fn bakes_clean_with(case: &str, obj: &str, height_fraction: Option<f32>) {
         no_layer_inverts(&baked, &what);
         no_layer_crosses_the_mesh(&baked, &what);
         let file = dir.join(format!("{case}-tessellated-{layout:?}.glb"));
-        shellbake::write::write_glb(&file, &baked.glb).unwrap();
+        shellbake::output::write::write_glb(&file, &baked.glb).unwrap();
         files.push(file);
     }
     assert_valid(&files);
@@ -116,7 +116,7 @@ fn no_layer_inverts(baked: &shellbake::Baked, what: &str) {
 /// Every vertex's full extrusion segment misses every triangle that does not contain it.
 fn no_layer_crosses_the_mesh(baked: &shellbake::Baked, what: &str) {
     let m = &baked.mesh;
-    let w = shellbake::weld::weld(&m.positions, &m.indices);
+    let w = shellbake::stages::weld::weld(&m.positions, &m.indices);
     let tmax = *baked.shells.t.last().unwrap() as f64;
     let mut seen = vec![false; w.positions.len()];
     for (v, &wv) in w.remap.iter().enumerate() {
@@ -513,13 +513,13 @@ fn clamp_is_needed_for_the_concave_box() {
     let dir = scratch("clamp_needed");
     let input: PathBuf = dir.join("box.obj");
     std::fs::write(&input, obj(&m)).unwrap();
-    let scene = shellbake::load::load(Path::new(&input)).unwrap();
+    let scene = shellbake::input::load(Path::new(&input)).unwrap();
     let mut p = BakeParams::default();
     p.shells.height_fraction = 0.6;
     let mut baked = shellbake::bake(&scene, &p);
     no_layer_inverts(&baked, "bounded");
-    let w = shellbake::weld::weld(&baked.mesh.positions, &baked.mesh.indices);
-    let f = shellbake::frames::extrusion_frames(&w, None);
+    let w = shellbake::stages::weld::weld(&baked.mesh.positions, &baked.mesh.indices);
+    let f = shellbake::stages::frames::extrusion_frames(&w, None);
     assert_eq!(w.vertex_source.len(), baked.mesh.vertex_count());
     baked.shells.delta = f
         .direction

@@ -13,7 +13,7 @@ use std::path::Path;
 use base64::Engine as _;
 use common::{fixture, scratch};
 use serde_json::{json, Value};
-use shellbake::load::{load, load_bytes};
+use shellbake::input::{load, load_bytes};
 
 fn data_uri(bytes: &[u8]) -> String {
     format!(
@@ -319,7 +319,7 @@ fn loader_and_viewer_refuse_a_broken_file_with_the_same_message() {
     let glb_of = |g: &Value| {
         let mut g = g.clone();
         g["buffers"] = json!([{"byteLength": 36}]);
-        shellbake::write::glb_bytes(&g, &pos)
+        shellbake::output::write::glb_bytes(&g, &pos)
     };
     let mut broken: Vec<(String, Vec<u8>)> = Vec::new();
     for (i, (at, value, _)) in out_of_range_cases().into_iter().enumerate() {
@@ -337,7 +337,10 @@ fn loader_and_viewer_refuse_a_broken_file_with_the_same_message() {
     broken.push(("parents.glb".into(), glb_of(&g)));
     let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
     g["buffers"] = json!([{"byteLength": 36}]);
-    broken.push(("nobin.glb".into(), shellbake::write::glb_bytes(&g, &[])));
+    broken.push((
+        "nobin.glb".into(),
+        shellbake::output::write::glb_bytes(&g, &[]),
+    ));
     let mut short = glb_of(&triangle_gltf(
         json!([{"mesh": 0}]),
         json!([{"nodes": [0]}]),

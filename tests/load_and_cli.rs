@@ -90,7 +90,7 @@ fn bad_inputs_are_refused_with_file_and_element_and_nothing_is_written() {
 fn uv_density_and_world_density_agree_on_a_unit_uv_plane() {
     // fixtures/plane.obj: 2 × 2 world units, UVs over [0, 1], so one UV unit spans 2 world units.
     // 512 strands per UV unit = 256 per world unit; the noise law has 256 cells per tile: 2 tiles.
-    let scene = shellbake::load::load(&fixture("plane.obj")).unwrap();
+    let scene = shellbake::input::load(&fixture("plane.obj")).unwrap();
     let mut p = shellbake::params::BakeParams::preset(shellbake::params::Preset::Carpet);
     p.strands.density = Some(256.0);
     let world = shellbake::bake(&scene, &p);
@@ -249,7 +249,7 @@ fn gltf_node_transforms_meshes_and_primitives() {
     let dir = scratch("gltf_hierarchy");
     let path = dir.join("h.gltf");
     std::fs::write(&path, serde_json::to_vec(&hierarchy_gltf()).unwrap()).unwrap();
-    let scene = shellbake::load::load(&path).unwrap();
+    let scene = shellbake::input::load(&path).unwrap();
     assert_eq!(
         scene.meshes.len(),
         3,
@@ -292,7 +292,7 @@ fn gltf_node_transforms_meshes_and_primitives() {
     // and it bakes to a valid file
     let baked = shellbake::bake(&scene, &shellbake::params::BakeParams::default());
     let out = dir.join("h.glb");
-    shellbake::write::write_glb(&out, &baked.glb).unwrap();
+    shellbake::output::write::write_glb(&out, &baked.glb).unwrap();
     common::assert_valid(&[out]);
     assert_eq!(baked.packed.layer_meshes().len(), baked.shells.t.len());
 }
@@ -305,14 +305,14 @@ fn glb_input_round_trips_through_our_own_loader_rules() {
     doc["buffers"][0]["byteLength"] = json!(4096);
     let path = dir.join("short.gltf");
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
-    let e = shellbake::load::load(&path).unwrap_err().to_string();
+    let e = shellbake::input::load(&path).unwrap_err().to_string();
     assert!(e.contains("short.gltf") && e.contains("buffer 0"), "{e}");
     // A URI that leaves the asset folder is refused.
     let mut doc = hierarchy_gltf();
     doc["buffers"][0]["uri"] = json!("../../etc/passwd");
     let path = dir.join("escape.gltf");
     std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
-    let e = shellbake::load::load(&path).unwrap_err().to_string();
+    let e = shellbake::input::load(&path).unwrap_err().to_string();
     assert!(e.contains("escape.gltf") && e.contains("refused"), "{e}");
 }
 
@@ -322,12 +322,12 @@ fn glb_input_with_binary_chunk_loads() {
     let (mut doc, bin) = hierarchy_parts();
     doc["buffers"][0].as_object_mut().unwrap().remove("uri");
     let path = dir.join("h.glb");
-    std::fs::write(&path, shellbake::write::glb_bytes(&doc, &bin)).unwrap();
-    let scene = shellbake::load::load(&path).unwrap();
+    std::fs::write(&path, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let scene = shellbake::input::load(&path).unwrap();
     assert_eq!(scene.meshes.len(), 3);
     // and a GLB with no binary chunk but a buffer that needs one is refused, naming the buffer
     let path = dir.join("nobin.glb");
-    std::fs::write(&path, shellbake::write::glb_bytes(&doc, &[])).unwrap();
-    let e = shellbake::load::load(&path).unwrap_err().to_string();
+    std::fs::write(&path, shellbake::output::write::glb_bytes(&doc, &[])).unwrap();
+    let e = shellbake::input::load(&path).unwrap_err().to_string();
     assert!(e.contains("nobin.glb") && e.contains("buffer 0"), "{e}");
 }

@@ -212,7 +212,7 @@ fn simplified_levels_keep_every_layer_triangle_facing_out() {
             let mut p = BakeParams::preset(preset);
             p.lod.simplify = true;
             p.pack.layout = layout;
-            let scene = shellbake::load::load(&common::fixture(name)).unwrap();
+            let scene = shellbake::input::load(&common::fixture(name)).unwrap();
             let baked = shellbake::bake(&scene, &p);
             let (inverted, total) = common::inverted_layer_triangles(&baked.glb);
             assert!(

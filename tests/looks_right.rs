@@ -20,7 +20,7 @@ fn reversed(m: &Mesh) -> Mesh {
 }
 
 fn load(path: &std::path::Path) -> Scene {
-    shellbake::load::load(path).unwrap()
+    shellbake::input::load(path).unwrap()
 }
 
 fn scene(m: Mesh) -> Scene {
@@ -159,7 +159,7 @@ fn dragon_default_bakes_have_no_inverted_layer() {
 
 #[test]
 fn inside_out_torus_grows_fur_outward_with_a_warning() {
-    let good = shellbake::procedural::torus(1.0, 0.3, 48, 24);
+    let good = shellbake::fixtures::procedural::torus(1.0, 0.3, 48, 24);
     let baked = bake_all("inside-out torus", &scene(reversed(&good)));
     assert!(
         baked.report.warnings.iter().any(|w| w.contains("outward")),
@@ -173,7 +173,7 @@ fn inside_out_torus_grows_fur_outward_with_a_warning() {
     assert!(outward_fraction(&pos, &d, &tris) > 0.999);
     // --orient keep grows it inward, as asked
     let mut p = BakeParams::default();
-    p.orient.mode = shellbake::orient::OrientMode::Keep;
+    p.orient.mode = shellbake::stages::orient::OrientMode::Keep;
     let kept = shellbake::bake(&scene(reversed(&good)), &p);
     let (pos, d, tris) = compact_geometry(&Glb::parse(&kept.glb));
     assert!(volume(&pos, &d, &tris, 0.0) < 0.0);
@@ -182,7 +182,7 @@ fn inside_out_torus_grows_fur_outward_with_a_warning() {
 /// A sheet: a plane and its reversed copy, on their own vertices (as exporters write two-sided
 /// cards) or sharing them (an OBJ listing each face twice).
 fn sheet(shared: bool) -> Mesh {
-    let top = shellbake::procedural::plane(1.0, 12);
+    let top = shellbake::fixtures::procedural::plane(1.0, 12);
     let mut m = top.clone();
     if shared {
         let ix: Vec<u32> = top
@@ -227,8 +227,14 @@ fn two_sided_sheet_is_furred_on_both_sides() {
 fn wrapping_uvs_get_whole_tiles() {
     // the torus wraps u over 0..4 and v over 0..1; the sphere u over 0..1
     let meshes = [
-        ("torus", shellbake::procedural::torus(1.0, 0.3, 48, 24)),
-        ("sphere", shellbake::procedural::sphere(1.0, 24, 48)),
+        (
+            "torus",
+            shellbake::fixtures::procedural::torus(1.0, 0.3, 48, 24),
+        ),
+        (
+            "sphere",
+            shellbake::fixtures::procedural::sphere(1.0, 24, 48),
+        ),
     ];
     for (name, m) in meshes {
         for preset in Preset::ALL {

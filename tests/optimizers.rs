@@ -74,7 +74,7 @@ fn gltf_transform(input: &Path, output: &Path) {
     );
 }
 
-fn bake(dir: &Path, layout: Layout, weights: shellbake::pack::LayerWeights) -> PathBuf {
+fn bake(dir: &Path, layout: Layout, weights: shellbake::output::pack::LayerWeights) -> PathBuf {
     let mut p = BakeParams::preset(Preset::Fur);
     p.shells.layers = 12;
     p.pack.layout = layout;
@@ -115,7 +115,7 @@ fn draw(gpu: &Gpu, file: &Path, camera: &Camera) -> image::RgbaImage {
 
 #[test]
 fn gltfpack_and_gltf_transform_keep_the_picture_and_the_size() {
-    use shellbake::pack::LayerWeights;
+    use shellbake::output::pack::LayerWeights;
     let dir = scratch("optimizers");
     let gpu = Gpu::new().expect("a wgpu adapter (lavapipe on machines without a GPU)");
     let mut failures = Vec::new();

@@ -42,7 +42,7 @@ fn arb_mesh() -> impl Strategy<Value = Mesh> {
 
 fn scene_of(m: &Mesh) -> Scene {
     let mut m = m.clone();
-    shellbake::load::generate_box_uvs(&mut m);
+    shellbake::input::generate_box_uvs(&mut m);
     Scene {
         meshes: vec![m],
         warnings: vec![],
@@ -55,7 +55,7 @@ proptest! {
 
     #[test]
     fn weld_keeps_positions_and_drops_only_collapsed_triangles(m in arb_mesh()) {
-        let w = shellbake::weld::weld(&m.positions, &m.indices);
+        let w = shellbake::stages::weld::weld(&m.positions, &m.indices);
         prop_assert_eq!(w.remap.len(), w.vertex_source.len());
         prop_assert!(w.vertex_source.len() >= m.positions.len());
         for (v, &id) in w.remap.iter().enumerate() {
@@ -79,8 +79,8 @@ proptest! {
 
     #[test]
     fn frames_are_finite_unit_vectors(m in arb_mesh()) {
-        let w = shellbake::weld::weld(&m.positions, &m.indices);
-        let f = shellbake::frames::extrusion_frames(&w, None);
+        let w = shellbake::stages::weld::weld(&m.positions, &m.indices);
+        let f = shellbake::stages::frames::extrusion_frames(&w, None);
         for d in &f.direction {
             prop_assert!(d.is_finite() && (d.length() - 1.0).abs() < 1e-3, "{}", d);
         }
@@ -89,13 +89,13 @@ proptest! {
 
     #[test]
     fn clamp_scales_are_in_range_and_layers_never_invert(m in arb_mesh(), frac in 0.01f32..2.0) {
-        let w = shellbake::weld::weld(&m.positions, &m.indices);
-        let f = shellbake::frames::extrusion_frames(&w, None);
+        let w = shellbake::stages::weld::weld(&m.positions, &m.indices);
+        let f = shellbake::stages::frames::extrusion_frames(&w, None);
         let h = m.diagonal() * frac;
-        let params = shellbake::clamp::ClampParams::default();
-        let s = shellbake::clamp::smooth(&w, &f, h, &params);
-        let bound = shellbake::clamp::collision_bound(&w, &shellbake::clamp::MeshBvh::build(&w), &s, h, &params);
-        let c = shellbake::clamp::clamp_heights(&w, s, h, &params, Some(&bound));
+        let params = shellbake::stages::clamp::ClampParams::default();
+        let s = shellbake::stages::clamp::smooth(&w, &f, h, &params);
+        let bound = shellbake::stages::clamp::collision_bound(&w, &shellbake::stages::clamp::MeshBvh::build(&w), &s, h, &params);
+        let c = shellbake::stages::clamp::clamp_heights(&w, s, h, &params, Some(&bound));
         prop_assert!(c.welded_scale.iter().all(|s| s.is_finite() && (0.0..=1.0).contains(s)));
         let dirs = &c.welded_direction;
         for tri in w.indices.chunks_exact(3) {
@@ -129,10 +129,10 @@ proptest! {
             StrandModel::Noise { threshold }
         };
         let p = StrandParams { model, mask_size: 32, seed, ..BakeParams::default().strands };
-        let mask = shellbake::strands::bake_mask(&p);
-        prop_assert!(mask.alpha.iter().all(|&c| c as u32 >= shellbake::strands::BASE_CODE));
+        let mask = shellbake::stages::strands::bake_mask(&p);
+        prop_assert!(mask.alpha.iter().all(|&c| c as u32 >= shellbake::stages::strands::BASE_CODE));
         let mut last = 1.0;
-        for k in (1..=shellbake::strands::HEIGHT_STEPS).step_by(17) {
+        for k in (1..=shellbake::stages::strands::HEIGHT_STEPS).step_by(17) {
             let c = mask.coverage(k);
             prop_assert!(c <= last);
             last = c;

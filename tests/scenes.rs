@@ -177,10 +177,10 @@ fn collision_builds_a_bvh_only_when_asked() {
     let p = plan(&scene);
     assert!(!p.stage(Stage::Collision).runs());
     let loaded = shellbake::load_surfaces(&scene).unwrap();
-    let before = shellbake::clamp::bvh_builds();
+    let before = shellbake::stages::clamp::bvh_builds();
     let baked = shellbake::bake_scene(&scene, &loaded);
     assert_eq!(
-        shellbake::clamp::bvh_builds(),
+        shellbake::stages::clamp::bvh_builds(),
         before,
         "a BVH was built with no collision asked"
     );
@@ -208,7 +208,7 @@ fn collision_builds_a_bvh_only_when_asked() {
     let path = scene_in(&dir, &asking, &[]);
     let scene = SceneFile::read(&path).unwrap();
     let baked = shellbake::bake_scene(&scene, &loaded);
-    assert_eq!(shellbake::clamp::bvh_builds(), before + 1);
+    assert_eq!(shellbake::stages::clamp::bvh_builds(), before + 1);
     let [plane, sphere] = [&baked.report.surfaces[0], &baked.report.surfaces[1]];
     assert!(!plane.stage("collision").unwrap().ran);
     assert!(plane

@@ -14,7 +14,7 @@ use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::view::{self, compare, NamedView};
 
 fn tube() -> shellbake::mesh::Scene {
-    shellbake::load::load(&common::fixture("tube_skinned.glb")).unwrap()
+    shellbake::input::load(&common::fixture("tube_skinned.glb")).unwrap()
 }
 
 fn params(layout: Layout) -> BakeParams {
@@ -28,7 +28,7 @@ fn params(layout: Layout) -> BakeParams {
 fn the_fixture_is_what_the_generator_makes() {
     let committed = std::fs::read(common::fixture("tube_skinned.glb")).unwrap();
     assert!(
-        committed == shellbake::procedural::skinned_tube(),
+        committed == shellbake::fixtures::procedural::skinned_tube(),
         "fixtures/tube_skinned.glb is stale: run `shellbake fixtures fixtures`"
     );
     let scene = tube();
@@ -36,7 +36,7 @@ fn the_fixture_is_what_the_generator_makes() {
     // four joints and their parent, the armature
     assert_eq!((k.joints.len(), k.nodes.len(), k.roots.len()), (4, 5, 1));
     assert_eq!(k.clips.len(), 1);
-    assert_eq!(k.duration(), shellbake::procedural::TUBE_PERIOD);
+    assert_eq!(k.duration(), shellbake::fixtures::procedural::TUBE_PERIOD);
     assert!(scene.meshes.iter().all(|m| m.skin.is_some()));
 }
 

@@ -12,7 +12,7 @@ use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 
 fn coarse_sphere() -> shellbake::mesh::Scene {
-    let mesh = shellbake::procedural::sphere(1.0, 6, 10);
+    let mesh = shellbake::fixtures::procedural::sphere(1.0, 6, 10);
     shellbake::mesh::Scene {
         meshes: vec![mesh],
         ..Default::default()
@@ -117,7 +117,7 @@ fn edge_length_picks_the_factor_and_bakes_repeat() {
     common::assert_valid(&[{
         let dir = common::scratch("tessellation");
         let f = dir.join("sphere.glb");
-        shellbake::write::write_glb(&f, &a.glb).unwrap();
+        shellbake::output::write::write_glb(&f, &a.glb).unwrap();
         f
     }]);
 }

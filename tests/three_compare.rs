@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 
 use common::{node, scratch, three_job};
 use image::RgbaImage;
-use shellbake::compress::Compression;
+use shellbake::output::compress::Compression;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 use shellbake::view::{self, compare, NamedView};

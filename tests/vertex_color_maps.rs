@@ -12,7 +12,7 @@ use serde_json::{json, Value};
 
 /// A 2 × 2 plane of 16 × 16 quads in XZ, painted black (r and g) on its x < 0 half, as OBJ.
 fn painted_plane_obj() -> String {
-    let m = shellbake::procedural::plane(2.0, 16);
+    let m = shellbake::fixtures::procedural::plane(2.0, 16);
     let mut s = String::new();
     for p in &m.positions {
         let w = m.origin + p.as_dvec3();
@@ -104,7 +104,10 @@ fn painted_vertex_colours_thin_and_shorten_the_fur() {
 #[test]
 fn a_channel_of_a_mesh_without_colours_is_refused() {
     let dir = scratch("vertex_color_maps_missing");
-    let plain = shellbake::procedural::to_obj(&shellbake::procedural::plane(2.0, 4), "plane");
+    let plain = shellbake::fixtures::procedural::to_obj(
+        &shellbake::fixtures::procedural::plane(2.0, 4),
+        "plane",
+    );
     std::fs::write(dir.join("plane.obj"), plain).unwrap();
     let (code, _, err) = bake(&dir, "missing", "density_map = \"COLOR_0.r\"");
     assert_eq!(code, Some(1), "{err}");
@@ -157,7 +160,7 @@ fn gltf_colour_accessors_are_read_as_bytes() {
     };
     let read = |v: Value| {
         let s =
-            shellbake::load::load_bytes(std::path::Path::new("c.gltf"), v.to_string().as_bytes())
+            shellbake::input::load_bytes(std::path::Path::new("c.gltf"), v.to_string().as_bytes())
                 .unwrap();
         s.meshes[0].colors.clone().unwrap()
     };

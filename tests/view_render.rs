@@ -231,7 +231,7 @@ fn feature_asset() -> Vec<u8> {
         "bufferViews": views,
         "buffers": [{ "byteLength": bin.len() }]
     });
-    shellbake::write::glb_bytes(&doc, &bin)
+    shellbake::output::write::glb_bytes(&doc, &bin)
 }
 
 /// The sphere fixture as a float glTF and as gltfpack writes it quantized: `KHR_mesh_quantization`
@@ -239,7 +239,7 @@ fn feature_asset() -> Vec<u8> {
 /// normals as normalized `i8` (stride 4), UVs as normalized `u16` dequantized by the material's
 /// `KHR_texture_transform`; a 4×4 checker texture on both. Returns (float, quantized, step).
 fn sphere_float_and_quantized() -> (Vec<u8>, Vec<u8>, f64) {
-    let scene = shellbake::load::load(Path::new("fixtures/sphere.obj")).unwrap();
+    let scene = shellbake::input::load(Path::new("fixtures/sphere.obj")).unwrap();
     let m = &scene.meshes[0];
     let (normals, uvs) = (m.normals.as_ref().unwrap(), m.uvs.as_ref().unwrap());
     let n = m.positions.len();
@@ -310,8 +310,10 @@ fn sphere_float_and_quantized() -> (Vec<u8>, Vec<u8>, f64) {
         index_accessor.clone(),
     ];
     let node = json!({ "mesh": 0, "translation": m.origin.to_array() });
-    let float =
-        shellbake::write::glb_bytes(&doc(views, accessors, node, json!({}), bin.len()), &bin);
+    let float = shellbake::output::write::glb_bytes(
+        &doc(views, accessors, node, json!({}), bin.len()),
+        &bin,
+    );
 
     // quantized
     let step = ((hi - lo).max_element() / 65535.0) as f64;
@@ -361,8 +363,10 @@ fn sphere_float_and_quantized() -> (Vec<u8>, Vec<u8>, f64) {
     let origin = m.origin + lo.as_dvec3();
     let node = json!({ "mesh": 0, "translation": origin.to_array(), "scale": [step, step, step] });
     let transform = json!({ "offset": uv_lo.to_array(), "scale": uv_range.to_array() });
-    let quantized =
-        shellbake::write::glb_bytes(&doc(views, accessors, node, transform, bin.len()), &bin);
+    let quantized = shellbake::output::write::glb_bytes(
+        &doc(views, accessors, node, transform, bin.len()),
+        &bin,
+    );
     (float, quantized, step)
 }
 
@@ -384,7 +388,7 @@ fn a_gltfpack_style_quantized_file_draws_and_loads_like_its_float_original() {
     // The loader reads the same file through the same reader: the same vertices, within half a
     // quantization step, and normals within the 8-bit rounding.
     let load = |glb: &[u8]| {
-        shellbake::load::load_bytes(Path::new("sphere.glb"), glb)
+        shellbake::input::load_bytes(Path::new("sphere.glb"), glb)
             .unwrap()
             .meshes
             .remove(0)
@@ -486,7 +490,7 @@ fn features_land_where_gltf_says() {
 
 #[test]
 fn baked_bunny_matches_its_golden_picture() {
-    let scene = shellbake::load::load(Path::new("fixtures/bunny.obj")).unwrap();
+    let scene = shellbake::input::load(Path::new("fixtures/bunny.obj")).unwrap();
     let baked = shellbake::bake(&scene, &BakeParams::preset(Preset::Fur));
     let img = view::render_glb_to_png(&baked.glb, NamedView::Front.orbit(), (256, 256)).unwrap();
     golden("bunny-fur-front", &img);
@@ -494,7 +498,7 @@ fn baked_bunny_matches_its_golden_picture() {
 
 #[test]
 fn layer_limit_draws_fewer_triangles_and_both_layouts_agree() {
-    let scene = shellbake::load::load(Path::new("fixtures/cube.obj")).unwrap();
+    let scene = shellbake::input::load(Path::new("fixtures/cube.obj")).unwrap();
     let mut counts = Vec::new();
     for layout in [Layout::Compact, Layout::SingleDraw] {
         let mut p = BakeParams::preset(Preset::Carpet);
@@ -679,7 +683,7 @@ fn what_render_and_verify_print_about_a_file_is_escaped() {
         "asset": { "version": "2.0" },
         "extensionsRequired": ["EXT_\u{1b}[31mred"],
     });
-    std::fs::write(&glb, shellbake::write::glb_bytes(&doc, &[])).unwrap();
+    std::fs::write(&glb, shellbake::output::write::glb_bytes(&doc, &[])).unwrap();
     let out = std::process::Command::new(bin())
         .arg("render")
         .arg(&glb)

@@ -19,14 +19,14 @@ use shellbake::view::verify::Verification;
 fn bake(fixture: &str, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
     let mut params = BakeParams::preset(preset);
     params.pack.layout = layout;
-    let scene = shellbake::load::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap();
+    let scene = shellbake::input::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap();
     (shellbake::bake_with(&scene, &params, &[]), params)
 }
 
 fn bake_file(path: &Path, preset: Preset, layout: Layout) -> (shellbake::Baked, BakeParams) {
     let mut params = BakeParams::preset(preset);
     params.pack.layout = layout;
-    let scene = shellbake::load::load(path).expect("input loads");
+    let scene = shellbake::input::load(path).expect("input loads");
     (shellbake::bake(&scene, &params), params)
 }
 
@@ -191,7 +191,8 @@ fn off_by_one_layer(baked: &shellbake::Baked) -> Vec<u8> {
             let per_layer =
                 doc["accessors"][color]["count"].as_u64().unwrap() as usize / steps.len();
             for j in 1..steps.len() {
-                let a = shellbake::pack::single_draw_alpha(&baked.mask, next(j)).to_le_bytes();
+                let a =
+                    shellbake::output::pack::single_draw_alpha(&baked.mask, next(j)).to_le_bytes();
                 for v in 0..per_layer {
                     let o = offset + 8 * (j * per_layer + v) + 6;
                     bin[o..o + 2].copy_from_slice(&a);
@@ -199,7 +200,7 @@ fn off_by_one_layer(baked: &shellbake::Baked) -> Vec<u8> {
             }
         }
     }
-    shellbake::write::glb_bytes(&doc, &bin)
+    shellbake::output::write::glb_bytes(&doc, &bin)
 }
 
 #[test]
@@ -279,7 +280,7 @@ fn verify_fails_when_distant_levels_thin_the_fur() {
             }
         }
         assert!(changed > 0);
-        let thin = shellbake::write::glb_bytes(&doc, &bin);
+        let thin = shellbake::output::write::glb_bytes(&doc, &bin);
         let v = verify_glb(&thin, &baked, &params);
         let name = format!("thin-levels-{fixture}-{}", preset.name());
         println!("{name}:\n  {}", lines(&v).join("\n  "));

@@ -23,7 +23,7 @@ fn window_screenshot_matches_the_headless_render() {
     );
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("view-window");
     std::fs::create_dir_all(&dir).unwrap();
-    let scene = shellbake::load::load(Path::new("fixtures/torus.obj")).unwrap();
+    let scene = shellbake::input::load(Path::new("fixtures/torus.obj")).unwrap();
     let baked = shellbake::bake(&scene, &BakeParams::preset(Preset::Grass));
     let glb = dir.join("torus.glb");
     std::fs::write(&glb, &baked.glb).unwrap();

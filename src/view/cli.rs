@@ -14,7 +14,7 @@ use super::gpu::{save_png, Gpu, Light, Result, ViewError};
 use super::reference::ReferenceInput;
 use super::reference::ReferenceRenderer;
 use super::verify;
-use crate::load::escape;
+use crate::input::escape;
 use crate::scene::{Effect, SceneFile};
 use glam::DVec3;
 
@@ -344,7 +344,7 @@ pub fn bench(
             "gpu_timestamps": gpu.timestamps, "size": [args.size.0, args.size.1],
             "frames": args.frames, "cameras": rows,
         });
-        crate::write::write_atomic(
+        crate::output::write::write_atomic(
             path,
             serde_json::to_string_pretty(&doc)
                 .unwrap_or_default()
@@ -370,14 +370,14 @@ pub fn render(args: &RenderArgs) -> Result<()> {
 }
 
 /// Keeps the clip `name` (or the first) of `clips`, read from `path` (see
-/// [`crate::skin::choose_clip`]); the error names the file.
+/// [`crate::stages::skin::choose_clip`]); the error names the file.
 pub fn choose_clip(
     path: &Path,
-    clips: &mut Vec<crate::skin::Clip>,
+    clips: &mut Vec<crate::stages::skin::Clip>,
     name: Option<&str>,
 ) -> Result<()> {
-    crate::skin::choose_clip(clips, name)
-        .map_err(|why| crate::Error::invalid(path, "--clip", crate::load::escape(&why)).into())
+    crate::stages::skin::choose_clip(clips, name)
+        .map_err(|why| crate::Error::invalid(path, "--clip", crate::input::escape(&why)).into())
 }
 
 /// Runs `view`.
@@ -417,7 +417,7 @@ pub fn verify(
     // the whole scene's file: what `-o` writes, and the one surface's bake to verify
     let whole = (glb_out.is_some() || !several).then(|| crate::bake_scene(scene, loaded));
     if let (Some(path), Some(baked)) = (glb_out, &whole) {
-        crate::write::write_glb(path, &baked.glb)?;
+        crate::output::write::write_glb(path, &baked.glb)?;
     }
     let gpu = Gpu::new()?;
     let stem = input

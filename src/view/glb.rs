@@ -42,7 +42,7 @@ use std::path::Path;
 use glam::{DMat4, DVec3};
 use serde_json::Value;
 
-use crate::load::document::{self, Document, Kind};
+use crate::input::document::{self, Document, Kind};
 
 /// Morph targets per primitive the vertex shader supports.
 pub const MAX_MORPH_TARGETS: usize = 4;
@@ -264,7 +264,7 @@ pub struct Asset {
     /// Morph weight tracks of each animation.
     pub animations: Vec<Vec<WeightTrack>>,
     /// Node transform channels of every animation.
-    pub clips: Vec<crate::skin::Clip>,
+    pub clips: Vec<crate::stages::skin::Clip>,
     /// Each skin's joints (nodes) and inverse bind matrices.
     pub skins: Vec<(Vec<usize>, Vec<DMat4>)>,
     /// The time the weights are taken at (`None`: the file's static weights).
@@ -326,9 +326,9 @@ fn index(v: &Value) -> Option<usize> {
 
 impl Asset {
     /// Reads a `.glb` or `.gltf` file (a regular file of at most
-    /// [`MAX_INPUT_BYTES`](crate::load::MAX_INPUT_BYTES); relative URIs inside its folder).
+    /// [`MAX_INPUT_BYTES`](crate::input::MAX_INPUT_BYTES); relative URIs inside its folder).
     pub fn open(path: &Path) -> Result<Asset> {
-        let bytes = crate::load::read_regular_file(path, crate::load::MAX_INPUT_BYTES)
+        let bytes = crate::input::read_regular_file(path, crate::input::MAX_INPUT_BYTES)
             .map_err(|e| crate::Error::io(path, e))?;
         Asset::from_document(Document::parse(path, &bytes)?)
     }
@@ -449,10 +449,10 @@ impl Asset {
         };
         asset.textures = asset.parse_textures()?;
         asset.animations = asset.parse_animations()?;
-        asset.clips = crate::load::skin::read_clips(&asset.doc, &asset.buffers)?;
+        asset.clips = crate::input::skin::read_clips(&asset.doc, &asset.buffers)?;
         let skins = asset.doc.json["skins"].as_array().map_or(0, Vec::len);
         asset.skins = (0..skins)
-            .map(|s| crate::load::skin::read_skin(&asset.doc, &asset.buffers, s))
+            .map(|s| crate::input::skin::read_skin(&asset.doc, &asset.buffers, s))
             .collect::<crate::Result<_>>()?;
         Ok(asset)
     }
@@ -693,7 +693,7 @@ impl Asset {
                         let c = |i: usize| {
                             let f = x[i].as_f64().unwrap_or(0.0);
                             if normalized {
-                                crate::load::accessor::normalized_value(ct, f)
+                                crate::input::accessor::normalized_value(ct, f)
                             } else {
                                 f
                             }
@@ -728,9 +728,10 @@ impl Asset {
     pub fn instances_with(&self, pick: impl Fn(usize) -> usize) -> Result<Vec<Instance>> {
         let animated = self.time.map(|t| self.weights_at(t)).unwrap_or_default();
         // node transforms at the time (every clip looping over its own length)
-        let mut locals: Vec<crate::skin::Trs> = self.doc.nodes.iter().map(|n| n.trs).collect();
+        let mut locals: Vec<crate::stages::skin::Trs> =
+            self.doc.nodes.iter().map(|n| n.trs).collect();
         if let Some(t) = self.time {
-            crate::skin::pose(&mut locals, &self.clips, t);
+            crate::stages::skin::pose(&mut locals, &self.clips, t);
         }
         let posed = self.time.is_some() && !self.clips.is_empty();
         let placed = self.doc.walk_with(pick, |n| match posed {

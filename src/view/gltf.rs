@@ -521,7 +521,7 @@ impl GltfRenderer {
                             Some(a) => self.asset.indices(a)?,
                             None => (0..vertices as u32).collect(),
                         };
-                        let ix = crate::load::triangle_list(prim.mode, &order);
+                        let ix = crate::input::triangle_list(prim.mode, &order);
                         if let Some(bad) = ix.iter().find(|&&i| i as usize >= vertices) {
                             return Err(crate::Error::invalid(
                                 &self.asset.doc.path,

@@ -401,10 +401,10 @@ impl Default for Light {
 pub enum Mips {
     /// Level 0 only.
     None,
-    /// Every channel box filtered ([`crate::strands::box_mips`]).
+    /// Every channel box filtered ([`crate::stages::strands::box_mips`]).
     Box,
     /// Colour box filtered, alpha remapped to keep its coverage at every cutoff
-    /// ([`crate::strands::coverage_mips`]): textures that `MASK` materials alpha-test.
+    /// ([`crate::stages::strands::coverage_mips`]): textures that `MASK` materials alpha-test.
     CoverageAlpha,
 }
 
@@ -425,9 +425,9 @@ pub fn upload_rgba_texture(
         let channel = |c: usize| rgba.iter().skip(c).step_by(4).copied().collect::<Vec<u8>>();
         let [r, g, b, a]: [Vec<Vec<u8>>; 4] = std::array::from_fn(|c| {
             if c == 3 && mips == Mips::CoverageAlpha {
-                crate::strands::coverage_mips(&channel(c), width, height)
+                crate::stages::strands::coverage_mips(&channel(c), width, height)
             } else {
-                crate::strands::box_mips(&channel(c), width, height)
+                crate::stages::strands::box_mips(&channel(c), width, height)
             }
         });
         levels += r.len() as u32;
@@ -582,7 +582,7 @@ pub fn save_png(image: &RgbaImage, path: &Path) -> Result<()> {
             path: path.to_path_buf(),
             source,
         })?;
-    crate::write::write_atomic(path, &bytes).map_err(|e| ViewError::Io {
+    crate::output::write::write_atomic(path, &bytes).map_err(|e| ViewError::Io {
         path: path.to_path_buf(),
         source: std::io::Error::other(e.to_string()),
     })

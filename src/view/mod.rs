@@ -3,7 +3,7 @@
 //!
 //! | file | owns |
 //! |---|---|
-//! | `glb.rs` | what drawing needs from a file read by the loader's glTF reader ([`crate::load::document`]): an [`glb::Asset`] with accessors decoded to `f32`, instances in `f64`, materials, textures |
+//! | `glb.rs` | what drawing needs from a file read by the loader's glTF reader ([`crate::input::document`]): an [`glb::Asset`] with accessors decoded to `f32`, instances in `f64`, materials, textures |
 //! | `camera.rs` | cameras framed from bounds; named views; matrices for other renderers |
 //! | `gpu.rs` | device, targets, read-back, timing, frame uniforms; `common.wgsl` (the BRDF) |
 //! | `gltf.rs` | drawing an asset: morph targets, MASK/OPAQUE/BLEND, COLOR_0, texture transform |

@@ -48,8 +48,8 @@ use super::camera::{Camera, Sphere};
 use super::gpu::{self, Frame, Gpu, Light};
 use crate::mesh::Mesh;
 use crate::params::{StrandModel, StrandParams};
-use crate::shells::ShellStack;
-use crate::strands;
+use crate::stages::shells::ShellStack;
+use crate::stages::strands;
 use crate::BakedSurface;
 
 const WGSL: &str = include_str!("reference.wgsl");
@@ -72,16 +72,16 @@ pub struct ReferenceInput<'a> {
     /// layer above the base, as the density map asks.
     pub density: Option<&'a [u8]>,
     /// One sheen for every layer, that of their mean height: what the single-draw layout's one
-    /// material can carry (`crate::sheen`); the technique's per-layer sheen otherwise.
+    /// material can carry (`crate::effects::sheen`); the technique's per-layer sheen otherwise.
     pub mean_sheen: bool,
     /// The skin `mesh.skin` indexes (placed), when the input is skinned: the layers are skinned
     /// after the extrusion, bend and sway, as the technique would on a skinned character.
-    pub skeleton: Option<&'a crate::skin::Skeleton>,
+    pub skeleton: Option<&'a crate::stages::skin::Skeleton>,
     /// The `fins` and `outline` effects' decisions (see `reference_extras.rs`).
-    pub fins: Option<&'a crate::fins::Fins>,
-    pub outline: Option<&'a crate::outline::Outline>,
+    pub fins: Option<&'a crate::effects::fins::Fins>,
+    pub outline: Option<&'a crate::effects::outline::Outline>,
     /// The layer colours' gradient (the fins' strip carries it).
-    pub shade: &'a crate::shells::ShadeParams,
+    pub shade: &'a crate::stages::shells::ShadeParams,
 }
 
 impl<'a> ReferenceInput<'a> {
@@ -246,7 +246,7 @@ pub struct ReferenceRenderer {
     group: wgpu::BindGroup,
     vertices: [wgpu::Buffer; 8],
     /// The skin and its joint matrices at the current time (relative to `origin`).
-    skeleton: Option<crate::skin::Skeleton>,
+    skeleton: Option<crate::stages::skin::Skeleton>,
     joints: wgpu::Buffer,
     /// The `wind` effect's period (seconds), when the stack sways.
     wind_period: Option<f32>,
@@ -297,11 +297,11 @@ impl ReferenceRenderer {
         };
         // the `gravity` effect's bend at the tip per vertex (zero: straight strands)
         let bends = match &shells.bend {
-            Some(b) => crate::gravity::bend(&shells.delta, lean(), b),
+            Some(b) => crate::effects::gravity::bend(&shells.delta, lean(), b),
             None => vec![Vec3::ZERO; mesh.vertex_count()],
         };
         let sways = match &shells.wind {
-            Some(w) => crate::gravity::bend(&shells.delta, lean(), &w.law),
+            Some(w) => crate::effects::gravity::bend(&shells.delta, lean(), &w.law),
             None => vec![Vec3::ZERO; mesh.vertex_count()],
         };
         let vertices = [
@@ -367,11 +367,12 @@ impl ReferenceRenderer {
         // The law texture, sampled exactly as the viewer samples the baked mask.
         let size = input.strands.mask_size;
         let seed = input.strands.seed;
+        let law = law_texture(input.strands);
         let law_view = gpu::upload_rgba_texture(
             gpu,
             size,
             size,
-            &law_texture(input.strands),
+            &law,
             gpu::Mips::CoverageAlpha,
         );
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
@@ -493,6 +494,7 @@ impl ReferenceRenderer {
             fins: input.fins,
             outline: input.outline,
             strands: input.strands,
+            law: &law,
             shade: input.shade,
             roughness: input.roughness,
         })

@@ -7,7 +7,7 @@
 //! - **Fins**: for each fin edge the fins stage chose (its decision, like the frames stage's
 //!   extrusion), the quad `a, b, b + t·δ_b, a + t·δ_a` in both windings, `u` from the edge's
 //!   offset along its world length, `v` = height. The strip comes from the reference's own
-//!   law texture ([`super::reference::law_texture`]) by the law's own test per row: noise
+//!   law texture (`reference::law_texture`, handed in by the reference) by the law's own test per row: noise
 //!   survives while `n·(1 − t) ≥ c`, a cell texel while its code reaches the row's step.
 //! - **Outline**: the base shifted by the stage's offsets, each triangle's winding reversed,
 //!   `KHR_materials_unlit` in the stage's colour.
@@ -16,17 +16,21 @@ use glam::{Vec2, Vec3};
 use serde_json::json;
 
 use super::glb::Asset;
-use crate::fins::{Fins, Strip};
+use crate::effects::fins::{Fins, Strip};
+use crate::effects::outline::Outline;
 use crate::grid::{BASE_CODE, HEIGHT_STEPS};
 use crate::mesh::Mesh;
-use crate::outline::Outline;
 use crate::params::{StrandModel, StrandParams};
-use crate::shells::ShadeParams;
+use crate::stages::shells::ShadeParams;
 
 /// The reference's strip: for each column, the band texel with the largest law value (its
-/// shade), tested per row by the law itself.
-pub fn reference_strip(strands: &StrandParams, shade: &ShadeParams, rows: u32) -> Strip {
-    let law = super::reference::law_texture(strands);
+/// shade), tested per row by the law itself. `law` is the reference's law texture for `strands`.
+pub fn reference_strip(
+    law: &[u8],
+    strands: &StrandParams,
+    shade: &ShadeParams,
+    rows: u32,
+) -> Strip {
     let size = strands.mask_size;
     let band = match strands.model {
         StrandModel::Noise { .. } => 1,
@@ -39,7 +43,7 @@ pub fn reference_strip(strands: &StrandParams, shade: &ShadeParams, rows: u32) -
         let t = (r as f32 + 0.5) / rows as f32;
         let k = ((t * HEIGHT_STEPS as f32).round() as u32).min(HEIGHT_STEPS);
         let t_k = crate::grid::step_height(k);
-        let colour = crate::shells::layer_color(shade, t);
+        let colour = crate::stages::shells::layer_color(shade, t);
         for x in 0..size {
             let mut best = (0u8, 0u8);
             for y in 0..band {
@@ -107,6 +111,8 @@ pub struct ExtrasInput<'a> {
     pub fins: Option<&'a Fins>,
     pub outline: Option<&'a Outline>,
     pub strands: &'a StrandParams,
+    /// The reference's law texture for `strands`.
+    pub law: &'a [u8],
     pub shade: &'a ShadeParams,
     pub roughness: f32,
 }
@@ -151,8 +157,8 @@ pub fn extras_asset(input: &ExtrasInput) -> Option<Asset> {
                 ix.extend([base + i, base + j, base + k]);
             }
         }
-        let strip = reference_strip(input.strands, input.shade, f.strip.height);
-        let png = crate::fins::encode_strip_png(&strip);
+        let strip = reference_strip(input.law, input.strands, input.shade, f.strip.height);
+        let png = crate::effects::fins::encode_strip_png(&strip);
         let image = buf.view(&png);
         images.push(json!({ "bufferView": image, "mimeType": "image/png" }));
         materials.push(json!({
@@ -212,7 +218,7 @@ pub fn extras_asset(input: &ExtrasInput) -> Option<Asset> {
         doc["samplers"] = json!([{ "magFilter": 9729, "minFilter": 9987 }]);
     }
     // the GLB container only (header and chunks): nothing of the pack stage
-    let glb = crate::write::glb_bytes(&doc, &buf.bin);
+    let glb = crate::output::write::glb_bytes(&doc, &buf.bin);
     Some(Asset::from_glb(&glb).expect("the reference's own glTF reads back"))
 }
 
@@ -226,9 +232,14 @@ mod tests {
     fn the_reference_strip_matches_the_baked_one_for_every_preset() {
         for &preset in &Preset::ALL {
             let p = BakeParams::preset(preset);
-            let mask = crate::strands::bake_mask(&p.strands);
-            let baked = crate::fins::strip(&mask, &p.shade, 32);
-            let reference = reference_strip(&p.strands, &p.shade, 32);
+            let mask = crate::stages::strands::bake_mask(&p.strands);
+            let baked = crate::effects::fins::strip(&mask, &p.shade, 32);
+            let reference = reference_strip(
+                &super::super::reference::law_texture(&p.strands),
+                &p.strands,
+                &p.shade,
+                32,
+            );
             let differ = baked
                 .rgba
                 .iter()

@@ -287,7 +287,7 @@ pub fn write(dir: &Path, header: &Header, points: &[Point]) -> Result<Vec<PathBu
     let mut written = Vec::new();
     let mut put = |name: &str, bytes: &[u8]| -> Result<()> {
         let path = dir.join(name);
-        crate::write::write_atomic(&path, bytes)?;
+        crate::output::write::write_atomic(&path, bytes)?;
         written.push(path);
         Ok(())
     };

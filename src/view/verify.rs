@@ -187,8 +187,8 @@ pub struct Viewport {
     pub error_pixels: f64,
 }
 
-impl From<&crate::lod::LodParams> for Viewport {
-    fn from(p: &crate::lod::LodParams) -> Viewport {
+impl From<&crate::stages::lod::LodParams> for Viewport {
+    fn from(p: &crate::stages::lod::LodParams) -> Viewport {
         Viewport {
             height: p.viewport_height as f64,
             fov_y_deg: p.fov_y_degrees as f64,

@@ -388,8 +388,8 @@ pub fn inverted_layer_triangles_with(
 /// chosen by a hash of its position (so copies at one position move together), pushed out to
 /// 1.8 × the radius — and no normals (the frames come from the spiky geometry).
 pub fn spiky_sphere() -> shellbake::mesh::Scene {
-    use shellbake::strands::mix32;
-    let mut m = shellbake::procedural::sphere(1.0, 16, 32);
+    use shellbake::stages::strands::mix32;
+    let mut m = shellbake::fixtures::procedural::sphere(1.0, 16, 32);
     for p in &mut m.positions {
         let h = mix32(p.x.to_bits() ^ mix32(p.y.to_bits() ^ mix32(p.z.to_bits())));
         if h.is_multiple_of(6) {

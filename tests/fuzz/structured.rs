@@ -26,8 +26,8 @@ pub fn load_and_bake(data: &[u8]) -> Result<usize, String> {
     } else {
         ("fuzz.glb", body)
     };
-    let scene =
-        shellbake::load::load_bytes(std::path::Path::new(name), body).map_err(|e| e.to_string())?;
+    let scene = shellbake::input::load_bytes(std::path::Path::new(name), body)
+        .map_err(|e| e.to_string())?;
     let mut p = shellbake::params::BakeParams::default();
     p.shells.layers = 4;
     p.strands.mask_size = 16;

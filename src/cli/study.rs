@@ -1,0 +1,584 @@
+//! `shellbake study` (the binary's part): which points to bake, and baking them.
+//!
+//! Every point is a `shellbake bake` command line: the base flags as the user gave them (less
+//! the study's own flags, `-o`, `--report` and `-q`), then the point's flags, which override
+//! them (the command line lets a later flag win). Each point is baked by parsing exactly that
+//! command, so the command printed beside a point in the study's table makes the same file,
+//! byte for byte. The measuring and the outputs live in the library
+//! (`shellbake::view::study`).
+//!
+//! The knobs and their values (the quick mode's in brackets):
+//!
+//! | knob | values | reference |
+//! |---|---|---|
+//! | `layers` | ¼, ½, ¾, 1, 1½, 2 × the base's [½, 1] | the technique at 2 × the base's layers |
+//! | `mask` | 2, 4, 8, 16 texels per strand cell [4, 8], the mask scaled to keep the strands per tile | 32 texels per cell |
+//! | `bits` | position bits 8, 10, 12, 14, 16 [10, 14] | exact |
+//! | `uv-bits` | texture coordinate bits 8, 10, 12, 14, 16 [10, 16] | exact |
+//! | `lod` | off, budget 0.5, 1, 2, 4, 8 pixels [off, 1] | exact |
+//! | `cull` | on, off | exact |
+//! | `clamp` | off, ray fraction 0.25, 0.45, 0.7 [off, 0.45] | no clamp |
+//! | `occlusion` | 4, 8, 16, 32, 64 samples [8, 32] | 256 samples |
+//! | `compress` | none, meshopt | exact |
+//! | `tess` | tessellation factor 1 (off), 2, 3, 4 [1, 2] | the technique on the base tessellated at 8 |
+//! | `quality` | draft, balanced, exact | exact |
+//!
+//! "exact" is the base with
+//! `--quantize none --compress none --no-lod`; it is measured first, as the anchor.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::{Args, Parser};
+use shellbake::scene::{Effect, SceneFile};
+use shellbake::stages::strands::StrandModel;
+use shellbake::view::cli::parse_size;
+use shellbake::view::study::{self, Cameras, Header, Point};
+use shellbake::view::{Gpu, ReferenceInput};
+
+use crate::{BakeArgs, Cli, Command};
+
+/// `shellbake study` flags besides the bake flags.
+#[derive(Args, Clone, Debug)]
+pub struct StudyFlags {
+    /// Knobs to sweep, comma-separated: layers, mask, bits, uv-bits, lod, cull, clamp,
+    /// occlusion, compress, tess, quality [default: all].
+    #[arg(long, value_delimiter = ',')]
+    knobs: Vec<String>,
+    /// Folder for study.csv, study.md and the plots.
+    #[arg(long, default_value = "out/study")]
+    out: PathBuf,
+    /// Two values per knob, one run, small pictures, few frames (for CI).
+    #[arg(long)]
+    quick: bool,
+    /// Bake runs per point (the median is plotted) [default: 3; --quick: 1].
+    #[arg(long)]
+    runs: Option<usize>,
+    /// Side of the error pictures [default: 256; --quick: 128].
+    #[arg(long)]
+    size: Option<u32>,
+    /// Frames per view for the GPU time [default: 50; --quick: 2].
+    #[arg(long)]
+    frames: Option<u32>,
+    /// Picture size for the GPU time [default: 1920x1080; --quick: 320x180].
+    #[arg(long, value_parser = parse_size)]
+    gpu_size: Option<(u32, u32)>,
+}
+
+/// The knobs, in the order they are swept: name and what it is.
+pub const KNOBS: [(&str, &str); 11] = [
+    ("layers", "layer count"),
+    ("mask", "mask resolution (texels per strand cell)"),
+    ("bits", "position bits"),
+    ("uv-bits", "texture coordinate bits"),
+    ("lod", "LOD error budget, pixels"),
+    ("cull", "culling of layer triangles no strand reaches"),
+    ("clamp", "collision clamp and its ray fraction"),
+    ("occlusion", "occlusion samples"),
+    ("compress", "buffer compression"),
+    ("tess", "tessellation factor (Phong)"),
+    ("quality", "--quality"),
+];
+
+/// Flags of the study that are not bake flags (with whether they take a value), and bake flags
+/// a point's command leaves out.
+const NOT_BAKE: [(&str, bool); 11] = [
+    ("--knobs", true),
+    ("--out", true),
+    ("--quick", false),
+    ("--runs", true),
+    ("--size", true),
+    ("--frames", true),
+    ("--gpu-size", true),
+    ("-o", true),
+    ("--output", true),
+    ("--report", true),
+    ("--quiet", false),
+];
+
+/// The bake flags among `tokens` (the arguments after `study`).
+fn bake_tokens(tokens: &[String]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut skip = false;
+    for t in tokens {
+        if std::mem::take(&mut skip) {
+            continue;
+        }
+        if t == "-q" {
+            continue;
+        }
+        match NOT_BAKE
+            .iter()
+            .find(|(f, _)| t == f || t.starts_with(&format!("{f}=")))
+        {
+            Some(&(f, value)) => skip = value && t == f,
+            None => out.push(t.clone()),
+        }
+    }
+    out
+}
+
+/// `tokens` as one shell line, quoting what needs it.
+fn shell_line(tokens: &[String]) -> String {
+    tokens
+        .iter()
+        .map(|t| {
+            if !t.is_empty()
+                && t.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_.,/=:+".contains(c))
+            {
+                t.clone()
+            } else {
+                format!("'{}'", t.replace('\'', r"'\''"))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn strs(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+/// One point to bake: its value, flags and whether it is the base.
+struct Plan {
+    value: String,
+    flags: Vec<String>,
+    base: bool,
+}
+
+/// A knob's points and the flags (on top of the exact setting) its reference is baked with
+/// (`None`: the exact bake's), with a description of that reference.
+struct KnobPlan {
+    points: Vec<Plan>,
+    reference: Option<Vec<String>>,
+    reference_text: String,
+}
+
+fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
+    let s = &scene.surfaces[0];
+    let p = &s.params;
+    let has = |e: Effect| s.effects.contains(&e);
+    let pick = |full: &[f64], fast: &[f64]| -> Vec<f64> {
+        if quick {
+            fast.to_vec()
+        } else {
+            full.to_vec()
+        }
+    };
+    let point = |value: String, flags: Vec<String>, base: bool| Plan { value, flags, base };
+    // an integer knob: a point per value (the quick mode's values alone), the base's marked
+    let sweep = |full: &[u32], fast: &[u32], base: u32, flags: &dyn Fn(u32) -> Vec<String>| {
+        let values = if quick { fast } else { full };
+        values
+            .iter()
+            .map(|&v| point(v.to_string(), flags(v), v == base))
+            .collect::<Vec<Plan>>()
+    };
+    let exact = "the runtime technique drawn from the exact bake".to_string();
+    match knob {
+        "layers" => {
+            let n = p.shells.layers;
+            let at =
+                |f: f64| ((n as f64 * f).round() as u32).clamp(2, shellbake::params::MAX_LAYERS);
+            let mut values: Vec<u32> = pick(&[0.25, 0.5, 0.75, 1.0, 1.5, 2.0], &[0.5, 1.0])
+                .into_iter()
+                .map(at)
+                .collect();
+            values.dedup();
+            let top = at(2.0);
+            KnobPlan {
+                points: values
+                    .iter()
+                    .map(|&v| point(v.to_string(), strs(&["--layers", &v.to_string()]), v == n))
+                    .collect(),
+                reference: Some(strs(&["--layers", &top.to_string()])),
+                reference_text: format!("the runtime technique at {top} layers"),
+            }
+        }
+        "mask" => {
+            let model = |t: u32| match p.strands.model {
+                StrandModel::Cells {
+                    thickness,
+                    min_length,
+                    texels_per_cell,
+                } => {
+                    let size = (p.strands.mask_size / texels_per_cell * t).clamp(16, 4096);
+                    strs(&[
+                        "--set",
+                        &format!("strands.mask_size={size}"),
+                        "--set",
+                        &format!("strands.model={{ kind = \"cells\", thickness = {thickness}, min_length = {min_length}, texels_per_cell = {t} }}"),
+                    ])
+                }
+                StrandModel::Noise { .. } => {
+                    strs(&["--set", &format!("strands.mask_size={}", 8 * t)])
+                }
+            };
+            let base_t = match p.strands.model {
+                StrandModel::Cells {
+                    texels_per_cell, ..
+                } => texels_per_cell,
+                StrandModel::Noise { .. } => p.strands.mask_size / 8,
+            };
+            let unit = match p.strands.model {
+                StrandModel::Cells { .. } => "",
+                StrandModel::Noise { .. } => " (noise law: mask side / 8)",
+            };
+            KnobPlan {
+                points: sweep(&[2, 4, 8, 16], &[4, 8], base_t, &model),
+                reference: Some(model(32)),
+                reference_text: format!("the runtime technique at 32 texels per strand cell{unit}"),
+            }
+        }
+        "bits" | "uv-bits" => {
+            let (key, base_bits) = if knob == "bits" {
+                ("pack.position_bits", p.pack.position_bits)
+            } else {
+                ("pack.texcoord_bits", p.pack.texcoord_bits)
+            };
+            let fast: &[u32] = if knob == "bits" { &[10, 14] } else { &[10, 16] };
+            let flags = |b: u32| strs(&["--set", &format!("{key}={b}")]);
+            KnobPlan {
+                points: sweep(&[8, 10, 12, 14, 16], fast, base_bits, &flags),
+                reference: None,
+                reference_text: exact,
+            }
+        }
+        "lod" => {
+            let mut points = vec![point("off".into(), strs(&["--no-lod"]), !has(Effect::Lod))];
+            for e in pick(&[0.5, 1.0, 2.0, 4.0, 8.0], &[1.0]) {
+                let base = has(Effect::Lod) && (p.lod.error_pixels as f64 - e).abs() < 1e-6;
+                let flags = strs(&["--lod", "--set", &format!("lod.error_pixels={e}")]);
+                points.push(point(format!("{e} px"), flags, base));
+            }
+            KnobPlan {
+                points,
+                reference: None,
+                reference_text: exact,
+            }
+        }
+        "cull" => KnobPlan {
+            points: vec![
+                point("on".into(), strs(&["--cull"]), has(Effect::Cull)),
+                point("off".into(), strs(&["--no-cull"]), !has(Effect::Cull)),
+            ],
+            reference: None,
+            reference_text: exact,
+        },
+        "clamp" => {
+            let mut points = vec![point(
+                "off".into(),
+                strs(&["--no-clamp"]),
+                !has(Effect::Collision),
+            )];
+            for k in pick(&[0.25, 0.45, 0.7], &[0.45]) {
+                let base = has(Effect::Collision) && (p.clamp.ray_keep as f64 - k).abs() < 1e-6;
+                let flags = strs(&["--clamp", "--set", &format!("clamp.ray_keep={k}")]);
+                points.push(point(format!("ray {k}"), flags, base));
+            }
+            KnobPlan {
+                points,
+                reference: Some(strs(&["--no-clamp"])),
+                reference_text: "the runtime technique without the clamp (which has none)".into(),
+            }
+        }
+        "occlusion" => KnobPlan {
+            points: sweep(
+                &[4, 8, 16, 32, 64],
+                &[8, 32],
+                // no point is the base when the base has no occlusion
+                if has(Effect::Occlusion) {
+                    p.occlusion.samples
+                } else {
+                    0
+                },
+                &|n| strs(&["--occlusion", "--set", &format!("occlusion.samples={n}")]),
+            ),
+            reference: Some(strs(&["--occlusion", "--set", "occlusion.samples=256"])),
+            reference_text: "the runtime technique with occlusion of 256 samples".into(),
+        },
+        "compress" => {
+            let c = scene.output.compress;
+            KnobPlan {
+                points: shellbake::output::compress::Compression::ALL
+                    .iter()
+                    .map(|&k| point(k.name().into(), strs(&["--compress", k.name()]), k == c))
+                    .collect(),
+                reference: None,
+                reference_text: exact,
+            }
+        }
+        "tess" => {
+            // (a base tessellated to an edge length has no factor of its own to mark)
+            let base = match (has(Effect::Tessellation), p.tessellation.edge_length) {
+                (false, _) => 1,
+                (true, None) => p.tessellation.factor,
+                (true, Some(_)) => 0,
+            };
+            let flags =
+                |n: u32| strs(&["--tessellate", "--set", &format!("tessellation.factor={n}")]);
+            KnobPlan {
+                points: sweep(&[1, 2, 3, 4], &[1, 2], base, &flags),
+                reference: Some(flags(8)),
+                reference_text: "the runtime technique on the base tessellated at factor 8".into(),
+            }
+        }
+        "quality" => KnobPlan {
+            points: shellbake::scene::Quality::ALL
+                .iter()
+                .map(|q| {
+                    let base = *q == shellbake::scene::Quality::Balanced;
+                    point(q.name().into(), strs(&["--quality", q.name()]), base)
+                })
+                .collect(),
+            reference: None,
+            reference_text: exact,
+        },
+        other => unreachable!("knob {other} is checked"),
+    }
+}
+
+/// A point's bake: the file, the scene it was baked from, and min/median/max time in ms.
+struct Baked {
+    baked: shellbake::BakedScene,
+    scene: SceneFile,
+    ms: [f64; 3],
+}
+
+/// Parses `shellbake bake <tokens>` and bakes it `runs` times.
+fn bake(tokens: &[String], runs: usize) -> anyhow::Result<Baked> {
+    let argv = ["shellbake", "bake"]
+        .into_iter()
+        .map(String::from)
+        .chain(tokens.iter().cloned());
+    let cli = Cli::try_parse_from(argv)?;
+    let Command::Bake(args) = cli.command else {
+        unreachable!("parsed as bake")
+    };
+    let scene = args.scene()?;
+    let mut times = Vec::new();
+    let mut last = None;
+    for _ in 0..runs.max(1) {
+        let start = Instant::now();
+        let (loaded, _) = crate::load_checked(&args, &scene)?;
+        let baked = shellbake::bake_scene(&scene, &loaded);
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+        last = Some(baked);
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(Baked {
+        baked: last.expect("one run at least"),
+        scene,
+        ms: [times[0], times[times.len() / 2], times[times.len() - 1]],
+    })
+}
+
+/// Runs the study: `tokens` are the arguments after `study` as given, `base` their parse.
+pub fn run(tokens: &[String], base: &BakeArgs, flags: &StudyFlags) -> anyhow::Result<()> {
+    let knobs: Vec<&'static str> = if flags.knobs.is_empty() {
+        KNOBS.iter().map(|k| k.0).collect()
+    } else {
+        flags
+            .knobs
+            .iter()
+            .map(|k| {
+                KNOBS.iter().map(|k| k.0).find(|n| n == k).ok_or_else(|| {
+                    let names: Vec<&str> = KNOBS.iter().map(|k| k.0).collect();
+                    shellbake::Error::Params(format!(
+                        "--knobs: no knob '{k}' (knobs: {})",
+                        names.join(", ")
+                    ))
+                })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    let scene = base.scene()?;
+    if scene.surfaces.len() != 1 {
+        anyhow::bail!(
+            "{}: study takes a mesh or a scene with one surface; this scene has {}",
+            base.input.display(),
+            scene.surfaces.len()
+        );
+    }
+    let quick = flags.quick;
+    let runs = flags.runs.unwrap_or(if quick { 1 } else { 3 });
+    let size = flags.size.unwrap_or(if quick { 128 } else { 256 });
+    let frames = flags.frames.unwrap_or(if quick { 2 } else { 50 });
+    let gpu_size = flags
+        .gpu_size
+        .unwrap_or(if quick { (320, 180) } else { (1920, 1080) });
+    let base_tokens = bake_tokens(tokens);
+    let command = |extra: &[String]| {
+        let mut all = strs(&["shellbake", "bake"]);
+        all.extend(base_tokens.iter().cloned());
+        all.extend(extra.iter().cloned());
+        shell_line(&all)
+    };
+    let plans: Vec<(&'static str, KnobPlan)> = knobs
+        .iter()
+        .map(|&k| (k, plan_knob(k, &scene, quick)))
+        .collect();
+    let exact_flags = strs(&["--quantize", "none", "--compress", "none", "--no-lod"]);
+    let with = |a: &[String], b: &[String]| -> Vec<String> {
+        base_tokens.iter().chain(a).chain(b).cloned().collect()
+    };
+    let total = 1 + plans
+        .iter()
+        .map(|(_, k)| k.points.len() + k.reference.is_some() as usize)
+        .sum::<usize>();
+    let bar = (!base.quiet).then(|| {
+        let pb = indicatif::ProgressBar::new(total as u64);
+        pb.set_style(
+            indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+                .expect("template"),
+        );
+        pb
+    });
+    let tick = |msg: String| {
+        if let Some(pb) = &bar {
+            pb.set_message(msg);
+            pb.inc(1);
+        }
+    };
+
+    let gpu = Gpu::new()?;
+    let exact = bake(&with(&exact_flags, &[]), runs)?;
+    let cameras = Cameras::for_glb(&gpu, &exact.baked.glb, gpu_size)?;
+    let reference_of = |b: &Baked| {
+        study::reference_pictures(
+            &gpu,
+            ReferenceInput::from_baked(&b.baked.surfaces[0], &b.scene.surfaces[0].params),
+            &cameras,
+            size,
+        )
+    };
+    let exact_reference = reference_of(&exact);
+    let measure = |knob: &str,
+                   value: String,
+                   flags: &[String],
+                   b: &Baked,
+                   base: bool,
+                   reference: &[image::RgbaImage]|
+     -> anyhow::Result<Point> {
+        let (error, _) = study::image_error(&gpu, &b.baked.glb, reference, &cameras)?;
+        let cost = study::frame_cost(&gpu, &b.baked.glb, &cameras, gpu_size, frames)?;
+        Ok(Point {
+            knob: knob.into(),
+            value,
+            base,
+            command: command(flags),
+            error,
+            bake_ms: b.ms,
+            bytes: b.baked.glb.len(),
+            cost,
+        })
+    };
+    let mut points = vec![measure(
+        "exact",
+        "exact".into(),
+        &exact_flags,
+        &exact,
+        false,
+        &exact_reference,
+    )?];
+    tick("exact".into());
+    let mut described = Vec::new();
+    for (knob, k) in &plans {
+        let own;
+        let reference = match &k.reference {
+            Some(r) => {
+                own = reference_of(&bake(&with(&exact_flags, r), 1)?);
+                tick(format!("{knob}: reference"));
+                &own
+            }
+            None => &exact_reference,
+        };
+        for p in &k.points {
+            let b = bake(&with(&p.flags, &[]), runs)?;
+            points.push(measure(
+                knob,
+                p.value.clone(),
+                &p.flags,
+                &b,
+                p.base,
+                reference,
+            )?);
+            tick(format!("{knob} {}", p.value));
+        }
+        let what = KNOBS.iter().find(|n| n.0 == *knob).map_or("", |n| n.1);
+        described.push((knob.to_string(), what.to_string(), k.reference_text.clone()));
+    }
+    if let Some(pb) = bar {
+        pb.finish_and_clear();
+    }
+    let header = Header {
+        input: base.input.display().to_string(),
+        base_command: command(&[]),
+        adapter: gpu.adapter_name(),
+        size,
+        timing_size: gpu_size,
+        frames,
+        runs,
+        threads: rayon::current_num_threads(),
+        knobs: described,
+    };
+    let written = study::write(&flags.out, &header, &points)?;
+    if !base.quiet {
+        let anchor = &points[0];
+        println!(
+            "study {} on {}: {} points; exact anchor FLIP {:.5}, {} differing pixels of {}",
+            crate::printable(&header.input, false),
+            crate::printable(&header.adapter, false),
+            points.len(),
+            anchor.error.flip_mean,
+            anchor.error.differing,
+            anchor.error.pixels
+        );
+        for w in written {
+            println!("  {}", crate::printable(&w.display().to_string(), false));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn study_flags_and_outputs_leave_the_bake_command() {
+        let t = strs(&[
+            "fixtures/bunny.obj",
+            "--quick",
+            "--knobs",
+            "layers",
+            "--out=x",
+            "-o",
+            "a.glb",
+            "--layers",
+            "16",
+            "-q",
+            "--size",
+            "64",
+        ]);
+        assert_eq!(
+            bake_tokens(&t),
+            strs(&["fixtures/bunny.obj", "--layers", "16"])
+        );
+    }
+
+    #[test]
+    fn shell_lines_quote_what_needs_it() {
+        let t = strs(&[
+            "shellbake",
+            "--set",
+            "strands.model={ kind = \"cells\" }",
+            "it's",
+        ]);
+        assert_eq!(
+            shell_line(&t),
+            r#"shellbake --set 'strands.model={ kind = "cells" }' 'it'\''s'"#
+        );
+    }
+}

@@ -1,0 +1,1450 @@
+//! The glTF 2.0 reader: one for the loader (`gltf.rs`, which builds [`Mesh`](crate::mesh::Mesh)es
+//! from it) and the viewer (`view/glb.rs`, which draws it), so both accept the same files and
+//! refuse the rest with the same errors, naming the file and the element.
+//!
+//! [`Document::parse`] splits a GLB ([`split_glb`]) or takes `.gltf` JSON, parses the JSON with
+//! `serde_json` and checks, before a byte of any buffer is read:
+//!
+//! - **Required extensions**: [`SUPPORTED_EXTENSIONS`] (implemented by the accessor decoder,
+//!   the meshopt decoder and the viewer's materials) and [`PASSED_THROUGH_EXTENSIONS`] (material
+//!   and texture extensions that leave the geometry plain). Any other is refused naming it —
+//!   compressed geometry (`KHR_draco_mesh_compression`) would otherwise be read as garbage, and
+//!   its message says how to get a readable file. Views compressed
+//!   with `EXT_`/`KHR_meshopt_compression` are decoded into their fallback buffer when the buffers
+//!   are loaded ([`crate::output::compress::decode_view`]), each with its counts and ranges checked.
+//! - **Every index between objects** the core spec defines is in range: scene → nodes; node →
+//!   mesh, children, camera, skin; primitive → accessors (attributes, indices, morph targets),
+//!   material; accessor → buffer view (and its sparse views); buffer view → buffer; image →
+//!   buffer view; texture → sampler, image; material → its five textures; skin → accessor,
+//!   nodes; animation → its samplers, nodes, accessors. A field that is read has its JSON type
+//!   and its range checked (`count` a non-negative integer, `componentType` one of the six,
+//!   `byteStride` within 4..=252 …). Errors read like
+//!   `x.gltf: mesh 3 primitive 0: accessor 17 out of range (the file has 5)`.
+//! - **The node graph is a forest**: a node listed as the child of two parents (or twice by
+//!   one), a scene listing a node twice, or a scene listing another node's child is refused
+//!   naming both; without that check a 3 KB file of shared children instances 2^N copies.
+//!   [`Document::walk`] then visits each node once (depth first, document order), with its world
+//!   matrix composed in `f64` from TRS or `matrix` read as `f64`, so a model placed 1e6 units
+//!   from the origin — a shellbake output's dequantization translation, written in `f64` — keeps
+//!   its precision.
+//!
+//! **Buffers** are resolved only when asked ([`Document::load_buffers`]), so that what a file may
+//! touch is decided in one place: the GLB binary chunk, base64 `data:` URIs, and relative files
+//! **inside the asset's folder** ([`confined_path`], then the real path against the real folder,
+//! so a symlink cannot lead out); only regular files of at most [`MAX_INPUT_BYTES`] are read. A
+//! document parsed from memory ([`Document::without_files`]) reads no file at all. A buffer
+//! shorter than its `byteLength` is an error; a longer one is cut to it, so a view cannot reach
+//! past the declared length (nor tell the size of the file behind it).
+//!
+//! **Accessors** are read by [`Document::read_accessor`] through `accessor.rs`, which checks the
+//! layout against the spec before reading a byte. An accessor without a buffer view reads as
+//! zeros (the spec), at most [`MAX_ZERO_ELEMENTS`]; sparse accessors are refused.
+//!
+//! Not checked, because neither reader uses them: `POSITION` `min`/`max` (the spec requires
+//! them; three.js and Blender read files without), attribute names, fields of objects no index
+//! leads to from the checks above (cameras' projections, animation data).
+//!
+//! Replaced: the `gltf` crate's JSON model, which served the loader only — its validation had to
+//! be preceded by our own attribute-index check (it indexed a primitive's `POSITION` accessor
+//! before checking it existed, a panic found by fuzzing), `KHR_mesh_quantization` had to be
+//! removed from `extensionsRequired` before it, its accessor readers asserted on legal strides,
+//! and it stored node transforms in `f32`; the viewer kept a second reader on `serde_json`.
+
+use std::path::{Component, Path, PathBuf};
+
+use base64::Engine as _;
+use glam::{DMat4, DQuat, DVec3};
+use serde_json::{Map, Value};
+
+use super::{accessor, escape, MAX_INPUT_BYTES};
+use crate::error::{Error, Result};
+use crate::stages::skin::Trs;
+
+/// Extensions a file may list in `extensionsRequired`: quantized attributes (decoded by
+/// `accessor.rs`) and texture transforms (drawn by the viewer; UVs are read untransformed by the
+/// loader, where they only set the strand pattern's placement).
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_mesh_quantization",
+    "KHR_texture_transform",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+];
+
+/// Required extensions that change how materials and textures are drawn, never the geometry:
+/// a file that requires them is read (its geometry is plain glTF) and, as an asset, written
+/// back with them; a texture shellbake cannot decode (Basis Universal, WebP, AVIF) leaves the
+/// fur's colour to the material's factor, with a warning (`load::asset`).
+pub const PASSED_THROUGH_EXTENSIONS: &[&str] = &[
+    "KHR_texture_basisu",
+    "EXT_texture_webp",
+    "EXT_texture_avif",
+    "KHR_materials_variants",
+    "KHR_materials_pbrSpecularGlossiness",
+];
+
+/// The meshopt compression extensions (read alike).
+const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
+
+/// Most bytes the fallback buffers of one file may decode to.
+pub const MAX_DECODED_BYTES: usize = 1 << 31;
+
+/// Deepest node hierarchy walked; deeper is refused.
+pub const MAX_DEPTH: usize = 256;
+
+/// Most elements an accessor without a buffer view (all zeros) may declare.
+pub const MAX_ZERO_ELEMENTS: usize = 1 << 24;
+
+/// Node visits [`Document::walk`] allows beyond one per node (a `pick` that revisits nodes).
+const EXTRA_VISITS: usize = 1 << 16;
+
+/// An accessor's element type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    Scalar,
+    Vec2,
+    Vec3,
+    Vec4,
+    Mat2,
+    Mat3,
+    Mat4,
+}
+
+impl Kind {
+    fn parse(s: &str) -> Option<Kind> {
+        Some(match s {
+            "SCALAR" => Kind::Scalar,
+            "VEC2" => Kind::Vec2,
+            "VEC3" => Kind::Vec3,
+            "VEC4" => Kind::Vec4,
+            "MAT2" => Kind::Mat2,
+            "MAT3" => Kind::Mat3,
+            "MAT4" => Kind::Mat4,
+            _ => return None,
+        })
+    }
+
+    /// Components per element.
+    pub fn components(self) -> usize {
+        match self {
+            Kind::Scalar => 1,
+            Kind::Vec2 => 2,
+            Kind::Vec3 => 3,
+            Kind::Vec4 | Kind::Mat2 => 4,
+            Kind::Mat3 => 9,
+            Kind::Mat4 => 16,
+        }
+    }
+
+    /// The glTF name (`VEC3`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Scalar => "SCALAR",
+            Kind::Vec2 => "VEC2",
+            Kind::Vec3 => "VEC3",
+            Kind::Vec4 => "VEC4",
+            Kind::Mat2 => "MAT2",
+            Kind::Mat3 => "MAT3",
+            Kind::Mat4 => "MAT4",
+        }
+    }
+}
+
+/// The glTF name of a component type (`UNSIGNED_SHORT` for 5123).
+pub fn component_name(component_type: u64) -> &'static str {
+    match component_type {
+        5120 => "BYTE",
+        5121 => "UNSIGNED_BYTE",
+        5122 => "SHORT",
+        5123 => "UNSIGNED_SHORT",
+        5125 => "UNSIGNED_INT",
+        5126 => "FLOAT",
+        _ => "an unknown type",
+    }
+}
+
+/// A buffer as declared: where its bytes are and how many.
+#[derive(Clone, Debug)]
+pub struct Buffer {
+    /// `None`: the GLB binary chunk (or, for a fallback buffer, no data at all).
+    pub uri: Option<String>,
+    pub byte_length: usize,
+    /// A meshopt fallback buffer (`EXT_`/`KHR_meshopt_compression` `"fallback": true`): its
+    /// bytes are what the compressed views decode to.
+    pub fallback: bool,
+}
+
+#[derive(Clone, Debug)]
+pub struct BufferView {
+    pub buffer: usize,
+    pub byte_offset: usize,
+    pub byte_length: usize,
+    pub byte_stride: Option<usize>,
+    /// Where the view's bytes are compressed (`EXT_`/`KHR_meshopt_compression`).
+    pub meshopt: Option<crate::output::compress::MeshoptView>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Accessor {
+    pub buffer_view: Option<usize>,
+    pub byte_offset: usize,
+    /// One of 5120, 5121, 5122, 5123, 5125, 5126 (checked).
+    pub component_type: u64,
+    pub normalized: bool,
+    pub count: usize,
+    pub kind: Kind,
+    pub sparse: bool,
+}
+
+#[derive(Clone, Debug)]
+pub struct Primitive {
+    /// Attribute name → accessor, in document order.
+    pub attributes: Vec<(String, usize)>,
+    pub indices: Option<usize>,
+    pub material: Option<usize>,
+    /// 0 POINTS … 4 TRIANGLES … 6 TRIANGLE_FAN (checked).
+    pub mode: u64,
+    /// Morph targets: attribute name → accessor.
+    pub targets: Vec<Vec<(String, usize)>>,
+}
+
+impl Primitive {
+    /// The accessor of attribute `name`.
+    pub fn attribute(&self, name: &str) -> Option<usize> {
+        self.attributes
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|&(_, a)| a)
+    }
+}
+
+/// The glTF name of a primitive mode.
+pub fn mode_name(mode: u64) -> &'static str {
+    match mode {
+        0 => "POINTS",
+        1 => "LINES",
+        2 => "LINE_LOOP",
+        3 => "LINE_STRIP",
+        4 => "TRIANGLES",
+        5 => "TRIANGLE_STRIP",
+        _ => "TRIANGLE_FAN",
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub primitives: Vec<Primitive>,
+    /// Default morph target weights.
+    pub weights: Vec<f64>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Node {
+    /// TRS or `matrix`, in `f64`.
+    pub local: DMat4,
+    /// The same as translation, rotation, scale (a `matrix` decomposed).
+    pub trs: Trs,
+    pub name: Option<String>,
+    /// The skin of the node's mesh.
+    pub skin: Option<usize>,
+    pub mesh: Option<usize>,
+    pub children: Vec<usize>,
+    /// Morph target weights overriding the mesh's.
+    pub weights: Option<Vec<f64>>,
+}
+
+/// A node reached by [`Document::walk`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placed {
+    pub node: usize,
+    /// The product of the local matrices from the root down.
+    pub world: DMat4,
+    /// Position among the children of its parent (or among the scene's roots).
+    pub sibling: usize,
+}
+
+/// A parsed and checked glTF document (see the module doc).
+#[derive(Debug)]
+pub struct Document {
+    /// Names the file in errors; relative URIs resolve against its folder.
+    pub path: PathBuf,
+    files: bool,
+    /// The whole JSON, for what the typed model leaves out (materials, textures, extras).
+    pub json: Value,
+    bin: Option<Vec<u8>>,
+    pub buffers: Vec<Buffer>,
+    pub views: Vec<BufferView>,
+    pub accessors: Vec<Accessor>,
+    pub meshes: Vec<Mesh>,
+    pub nodes: Vec<Node>,
+    /// The nodes of the default scene (or the first scene); with no scene, every node without a
+    /// parent.
+    pub roots: Vec<usize>,
+}
+
+/// A GLB chunk: its 4-byte type and its body.
+type Chunk<'a> = (&'a [u8], &'a [u8]);
+
+/// The JSON chunk and, when there is one, the binary chunk of a GLB: a 12-byte header (`glTF`,
+/// version 2, a length of at least 20 and at most the bytes given; bytes past it are ignored),
+/// a JSON chunk, then optionally a `BIN` chunk; chunks of other types are ignored, as the spec
+/// asks. The error says what is wrong; the caller names the file.
+pub fn split_glb(bytes: &[u8]) -> std::result::Result<(&[u8], Option<&[u8]>), String> {
+    let u32_at = |o: usize| {
+        bytes
+            .get(o..o + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
+    };
+    if bytes.get(0..4) != Some(b"glTF") {
+        return Err("not a GLB (its first bytes are not 'glTF')".into());
+    }
+    let (Some(version), Some(declared)) = (u32_at(4), u32_at(8)) else {
+        return Err(format!(
+            "the header is cut short ({} bytes of 12)",
+            bytes.len()
+        ));
+    };
+    if version != 2 {
+        return Err(format!("GLB version {version} (only 2 is supported)"));
+    }
+    if declared < 20 || declared > bytes.len() {
+        return Err(format!(
+            "the header declares {declared} bytes; the file has {} (and a GLB needs at least 20)",
+            bytes.len()
+        ));
+    }
+    let bytes = &bytes[..declared];
+    let chunk = |at: usize| -> std::result::Result<Option<Chunk>, String> {
+        let (Some(len), Some(kind)) = (u32_at(at), bytes.get(at + 4..at + 8)) else {
+            return Ok(None);
+        };
+        let body = at
+            .checked_add(8 + len)
+            .and_then(|end| bytes.get(at + 8..end))
+            .ok_or_else(|| {
+                format!(
+                    "the chunk at byte {at} declares {len} bytes, past the end of the file's \
+                     {declared}"
+                )
+            })?;
+        Ok(Some((kind, body)))
+    };
+    let Some((kind, json)) = chunk(12)? else {
+        return Err("the file has no JSON chunk".into());
+    };
+    if kind != b"JSON" {
+        return Err("the first chunk is not JSON".into());
+    }
+    let bin = match chunk(20 + json.len())? {
+        Some((b"BIN\0", body)) => Some(body),
+        _ => None,
+    };
+    Ok((json, bin))
+}
+
+/// One JSON object of the document and the element it is, for typed reads that name it.
+struct Fields<'a> {
+    path: &'a Path,
+    element: String,
+    map: &'a Map<String, Value>,
+}
+
+impl<'a> Fields<'a> {
+    fn of(path: &'a Path, element: String, value: &'a Value) -> Result<Fields<'a>> {
+        match value.as_object() {
+            Some(map) => Ok(Fields { path, element, map }),
+            None => Err(Error::invalid(path, element, "is not a JSON object")),
+        }
+    }
+
+    fn err(&self, message: impl Into<String>) -> Error {
+        Error::invalid(self.path, &self.element, message)
+    }
+
+    /// The value of `key`; `null` reads as absent.
+    fn get(&self, key: &str) -> Option<&'a Value> {
+        self.map.get(key).filter(|v| !v.is_null())
+    }
+
+    /// A non-negative integer.
+    fn count(&self, key: &str) -> Result<Option<usize>> {
+        self.get(key)
+            .map(|v| {
+                v.as_u64()
+                    .and_then(|u| usize::try_from(u).ok())
+                    .ok_or_else(|| self.err(format!("{key} must be a non-negative integer")))
+            })
+            .transpose()
+    }
+
+    fn required_count(&self, key: &str) -> Result<usize> {
+        self.count(key)?
+            .ok_or_else(|| self.err(format!("{key} is missing")))
+    }
+
+    /// An index of one of `len` objects called `what`.
+    fn index(&self, key: &str, what: &str, len: usize) -> Result<Option<usize>> {
+        let Some(i) = self.count(key)? else {
+            return Ok(None);
+        };
+        check_index(self.path, &self.element, what, i, len).map(Some)
+    }
+
+    /// An array of indices of `len` objects called `what` (absent: empty).
+    fn indices(&self, key: &str, what: &str, len: usize) -> Result<Vec<usize>> {
+        let Some(v) = self.get(key) else {
+            return Ok(Vec::new());
+        };
+        let list = v
+            .as_array()
+            .ok_or_else(|| self.err(format!("{key} must be an array of indices")))?;
+        list.iter()
+            .map(|x| {
+                let i = x
+                    .as_u64()
+                    .and_then(|u| usize::try_from(u).ok())
+                    .ok_or_else(|| self.err(format!("{key} must be an array of indices")))?;
+                check_index(self.path, &self.element, what, i, len)
+            })
+            .collect()
+    }
+
+    /// An array of exactly `n` numbers (any length when `n` is 0).
+    fn numbers(&self, key: &str, n: usize) -> Result<Option<Vec<f64>>> {
+        let Some(v) = self.get(key) else {
+            return Ok(None);
+        };
+        let bad = || {
+            if n == 0 {
+                self.err(format!("{key} must be an array of numbers"))
+            } else {
+                self.err(format!("{key} must be an array of {n} numbers"))
+            }
+        };
+        let list: Vec<f64> = v
+            .as_array()
+            .ok_or_else(bad)?
+            .iter()
+            .map(|x| x.as_f64().ok_or_else(bad))
+            .collect::<Result<_>>()?;
+        if n != 0 && list.len() != n {
+            return Err(bad());
+        }
+        Ok(Some(list))
+    }
+
+    fn string(&self, key: &str) -> Result<Option<&'a str>> {
+        self.get(key)
+            .map(|v| {
+                v.as_str()
+                    .ok_or_else(|| self.err(format!("{key} must be a string")))
+            })
+            .transpose()
+    }
+
+    fn boolean(&self, key: &str) -> Result<Option<bool>> {
+        self.get(key)
+            .map(|v| {
+                v.as_bool()
+                    .ok_or_else(|| self.err(format!("{key} must be true or false")))
+            })
+            .transpose()
+    }
+
+    /// A nested object, named `element` (absent: `None`).
+    fn object(&self, key: &str, element: String) -> Result<Option<Fields<'a>>> {
+        self.get(key)
+            .map(|v| Fields::of(self.path, element, v))
+            .transpose()
+    }
+
+    /// The object's `KHR_meshopt_compression` (or, failing that, `EXT_meshopt_compression`)
+    /// extension object, named `<element>: <extension>`.
+    fn meshopt(&self) -> Result<Option<Fields<'a>>> {
+        let Some(extensions) = self.object("extensions", self.element.clone())? else {
+            return Ok(None);
+        };
+        for name in MESHOPT.iter().rev() {
+            if let Some(e) = extensions.object(name, format!("{}: {name}", self.element))? {
+                return Ok(Some(e));
+            }
+        }
+        Ok(None)
+    }
+
+    /// An array of objects (absent: empty).
+    fn array(&self, key: &str) -> Result<&'a [Value]> {
+        match self.get(key) {
+            None => Ok(&[]),
+            Some(v) => v
+                .as_array()
+                .map(Vec::as_slice)
+                .ok_or_else(|| self.err(format!("{key} must be an array"))),
+        }
+    }
+
+    /// An object mapping names to accessor indices (a primitive's attributes, a morph target).
+    fn attributes(&self, accessors: usize) -> Result<Vec<(String, usize)>> {
+        self.map
+            .iter()
+            .filter(|(_, v)| !v.is_null())
+            .map(|(name, v)| {
+                let shown = escape(name);
+                let a = v
+                    .as_u64()
+                    .and_then(|u| usize::try_from(u).ok())
+                    .ok_or_else(|| self.err(format!("attribute {shown} must be an index")))?;
+                check_index(self.path, &self.element, "accessor", a, accessors)?;
+                Ok((name.clone(), a))
+            })
+            .collect()
+    }
+}
+
+fn check_index(path: &Path, element: &str, what: &str, i: usize, len: usize) -> Result<usize> {
+    if i < len {
+        Ok(i)
+    } else {
+        Err(Error::invalid(
+            path,
+            element,
+            format!("{what} {i} out of range (the file has {len})"),
+        ))
+    }
+}
+
+/// The local matrix of a node: `matrix` if given, else translation · rotation · scale, in `f64`.
+fn node_matrix(f: &Fields) -> Result<(DMat4, Trs)> {
+    if let Some(m) = f.numbers("matrix", 16)? {
+        let m = DMat4::from_cols_slice(&m);
+        return Ok((m, Trs::from_matrix(m)));
+    }
+    let t = f.numbers("translation", 3)?.unwrap_or(vec![0.0; 3]);
+    let r = f
+        .numbers("rotation", 4)?
+        .unwrap_or(vec![0.0, 0.0, 0.0, 1.0]);
+    let s = f.numbers("scale", 3)?.unwrap_or(vec![1.0; 3]);
+    let q = DQuat::from_xyzw(r[0], r[1], r[2], r[3]);
+    if q.length() == 0.0 {
+        return Err(f.err("rotation (0, 0, 0, 0) is not a unit quaternion"));
+    }
+    let trs = Trs {
+        translation: DVec3::new(t[0], t[1], t[2]),
+        rotation: q.normalize(),
+        scale: DVec3::new(s[0], s[1], s[2]),
+    };
+    Ok((trs.matrix(), trs))
+}
+
+/// The object counts every index is checked against.
+struct Counts {
+    buffers: usize,
+    views: usize,
+    accessors: usize,
+    meshes: usize,
+    nodes: usize,
+    materials: usize,
+    textures: usize,
+    images: usize,
+    samplers: usize,
+    cameras: usize,
+    skins: usize,
+}
+
+impl Document {
+    /// Parses GLB or `.gltf` bytes (see the module doc); `path` names the file in errors and
+    /// resolves relative URIs.
+    pub fn parse(path: &Path, bytes: &[u8]) -> Result<Document> {
+        let (json, bin) = if bytes.starts_with(b"glTF") {
+            let (json, bin) = split_glb(bytes).map_err(|m| Error::invalid(path, "GLB", m))?;
+            (json, bin.map(<[u8]>::to_vec))
+        } else {
+            (bytes, None)
+        };
+        let json: Value = serde_json::from_slice(json)
+            .map_err(|e| Error::invalid(path, "JSON", escape(&e.to_string())))?;
+        Document::from_json(path, json, bin)
+    }
+
+    /// Checks a parsed JSON document whose GLB binary chunk (if any) is `bin`.
+    pub fn from_json(path: &Path, json: Value, bin: Option<Vec<u8>>) -> Result<Document> {
+        let root = Fields::of(path, "document".into(), &json)?;
+        for (i, e) in root.array("extensionsRequired")?.iter().enumerate() {
+            let name = e.as_str().ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    "extensionsRequired",
+                    format!("entry {i} is not a string"),
+                )
+            })?;
+            if name == "KHR_draco_mesh_compression" {
+                return Err(Error::invalid(
+                    path,
+                    "extensionsRequired",
+                    "the geometry is Draco-compressed (KHR_draco_mesh_compression), which shellbake \
+                     does not decode: not supported; refused. Decode it first (`npx gltf-pipeline \
+                     -i in.glb -o out.glb` writes it without Draco) or export the asset without \
+                     Draco (Blender: glTF export, Data > Compression off), then bake that file",
+                ));
+            }
+            if !SUPPORTED_EXTENSIONS.contains(&name) && !PASSED_THROUGH_EXTENSIONS.contains(&name) {
+                return Err(Error::invalid(
+                    path,
+                    "extensionsRequired",
+                    format!(
+                        "extension '{}' is required but not supported (supported: {}; passed \
+                         through: {}); refused",
+                        escape(name),
+                        SUPPORTED_EXTENSIONS.join(", "),
+                        PASSED_THROUGH_EXTENSIONS.join(", ")
+                    ),
+                ));
+            }
+        }
+        let len = |key: &str| root.array(key).map(<[Value]>::len);
+        let n = Counts {
+            buffers: len("buffers")?,
+            views: len("bufferViews")?,
+            accessors: len("accessors")?,
+            meshes: len("meshes")?,
+            nodes: len("nodes")?,
+            materials: len("materials")?,
+            textures: len("textures")?,
+            images: len("images")?,
+            samplers: len("samplers")?,
+            cameras: len("cameras")?,
+            skins: len("skins")?,
+        };
+        let each = |key: &'static str, name: &'static str| {
+            let root = &root;
+            root.array(key).map(move |list| {
+                list.iter()
+                    .enumerate()
+                    .map(move |(i, v)| Fields::of(root.path, format!("{name} {i}"), v))
+            })
+        };
+
+        let mut buffers = Vec::with_capacity(n.buffers);
+        for f in each("buffers", "buffer")? {
+            let f = f?;
+            let fallback = match f.meshopt()? {
+                Some(e) => e.boolean("fallback")?.unwrap_or(false),
+                None => false,
+            };
+            buffers.push(Buffer {
+                uri: f.string("uri")?.map(str::to_string),
+                byte_length: f.required_count("byteLength")?,
+                fallback,
+            });
+        }
+        let mut views = Vec::with_capacity(n.views);
+        for f in each("bufferViews", "buffer view")? {
+            let f = f?;
+            let byte_stride = f.count("byteStride")?;
+            if let Some(s) = byte_stride.filter(|s| !(4..=252).contains(s)) {
+                return Err(f.err(format!("byteStride {s} is outside 4..=252")));
+            }
+            let mut meshopt = None;
+            if let Some(e) = f.meshopt()? {
+                let mode = e.string("mode")?.ok_or_else(|| e.err("mode is missing"))?;
+                let mode = crate::output::compress::Mode::from_name(mode)
+                    .ok_or_else(|| e.err(format!("unknown mode '{}'", escape(mode))))?;
+                let filter = match e.string("filter")? {
+                    None => crate::output::compress::Filter::None,
+                    Some(s) => crate::output::compress::Filter::from_name(s)
+                        .ok_or_else(|| e.err(format!("unknown filter '{}'", escape(s))))?,
+                };
+                meshopt = Some(crate::output::compress::MeshoptView {
+                    buffer: e
+                        .index("buffer", "buffer", n.buffers)?
+                        .ok_or_else(|| e.err("buffer is missing"))?,
+                    byte_offset: e.count("byteOffset")?.unwrap_or(0),
+                    byte_length: e.required_count("byteLength")?,
+                    byte_stride: e.required_count("byteStride")?,
+                    count: e.required_count("count")?,
+                    mode,
+                    filter,
+                });
+            }
+            views.push(BufferView {
+                buffer: f
+                    .index("buffer", "buffer", n.buffers)?
+                    .ok_or_else(|| f.err("buffer is missing"))?,
+                byte_offset: f.count("byteOffset")?.unwrap_or(0),
+                byte_length: f.required_count("byteLength")?,
+                byte_stride,
+                meshopt,
+            });
+        }
+        let mut accessors = Vec::with_capacity(n.accessors);
+        for f in each("accessors", "accessor")? {
+            let f = f?;
+            let component_type = f.required_count("componentType")? as u64;
+            if accessor::component_size(component_type).is_none() {
+                return Err(f.err(format!(
+                    "componentType {component_type} is not a glTF component type"
+                )));
+            }
+            let kind = f.string("type")?.ok_or_else(|| f.err("type is missing"))?;
+            let kind = Kind::parse(kind).ok_or_else(|| {
+                f.err(format!(
+                    "type '{}' is not a glTF accessor type",
+                    escape(kind)
+                ))
+            })?;
+            let sparse = f.object("sparse", format!("{}: sparse", f.element))?;
+            if let Some(s) = &sparse {
+                for key in ["indices", "values"] {
+                    if let Some(part) = s.object(key, format!("{}.{key}", s.element))? {
+                        part.index("bufferView", "buffer view", n.views)?;
+                    }
+                }
+            }
+            accessors.push(Accessor {
+                buffer_view: f.index("bufferView", "buffer view", n.views)?,
+                byte_offset: f.count("byteOffset")?.unwrap_or(0),
+                component_type,
+                normalized: f.boolean("normalized")?.unwrap_or(false),
+                count: f.required_count("count")?,
+                kind,
+                sparse: sparse.is_some(),
+            });
+        }
+        let mut meshes = Vec::with_capacity(n.meshes);
+        for (m, f) in each("meshes", "mesh")?.enumerate() {
+            let f = f?;
+            let mut primitives = Vec::new();
+            for (k, p) in f.array("primitives")?.iter().enumerate() {
+                let p = Fields::of(path, format!("mesh {m} primitive {k}"), p)?;
+                let attributes = p
+                    .object("attributes", p.element.clone())?
+                    .ok_or_else(|| p.err("attributes is missing"))?
+                    .attributes(n.accessors)?;
+                let mut targets = Vec::new();
+                for (t, target) in p.array("targets")?.iter().enumerate() {
+                    let target = Fields::of(path, format!("{}: target {t}", p.element), target)?;
+                    targets.push(target.attributes(n.accessors)?);
+                }
+                let mode = p.count("mode")?.unwrap_or(4) as u64;
+                if mode > 6 {
+                    return Err(p.err(format!("mode {mode} is not a glTF primitive mode")));
+                }
+                primitives.push(Primitive {
+                    attributes,
+                    indices: p.index("indices", "accessor", n.accessors)?,
+                    material: p.index("material", "material", n.materials)?,
+                    mode,
+                    targets,
+                });
+            }
+            if f.get("primitives").is_none() {
+                return Err(f.err("primitives is missing"));
+            }
+            meshes.push(Mesh {
+                primitives,
+                weights: f.numbers("weights", 0)?.unwrap_or_default(),
+            });
+        }
+        let mut nodes = Vec::with_capacity(n.nodes);
+        for f in each("nodes", "node")? {
+            let f = f?;
+            f.index("camera", "camera", n.cameras)?;
+            let (local, trs) = node_matrix(&f)?;
+            nodes.push(Node {
+                local,
+                trs,
+                name: f.string("name")?.map(str::to_string),
+                skin: f.index("skin", "skin", n.skins)?,
+                mesh: f.index("mesh", "mesh", n.meshes)?,
+                children: f.indices("children", "node", n.nodes)?,
+                weights: f.numbers("weights", 0)?,
+            });
+        }
+        check_materials_and_textures(&root, &n)?;
+        check_skins_and_animations(&root, &n)?;
+        let scene = root.index("scene", "scene", root.array("scenes")?.len())?;
+        let roots = forest_roots(path, &root, &nodes, scene)?;
+        Ok(Document {
+            path: path.to_path_buf(),
+            files: true,
+            json,
+            bin,
+            buffers,
+            views,
+            accessors,
+            meshes,
+            nodes,
+            roots,
+        })
+    }
+
+    /// The document without access to files: a relative URI is refused (for bytes that did not
+    /// come from a folder).
+    pub fn without_files(mut self) -> Document {
+        self.files = false;
+        self
+    }
+
+    /// Every node reachable from the roots, depth first in document order, with its world
+    /// matrix. `pick` may replace a node by another before it is visited (the viewer's
+    /// `MSFT_lod` levels); it must return a node index. The forest check makes the identity walk
+    /// visit each node at most once; a `pick` that leads round in circles is stopped by the depth
+    /// bound ([`MAX_DEPTH`]) and a bound on visits.
+    pub fn walk(&self, pick: impl Fn(usize) -> usize) -> Result<Vec<Placed>> {
+        self.walk_with(pick, |n| self.nodes[n].local)
+    }
+
+    /// [`Document::walk`] with each node's local matrix given by `local` (an animated pose).
+    pub fn walk_with(
+        &self,
+        pick: impl Fn(usize) -> usize,
+        local: impl Fn(usize) -> DMat4,
+    ) -> Result<Vec<Placed>> {
+        let limit = self.nodes.len() + EXTRA_VISITS;
+        let mut out = Vec::new();
+        let mut stack: Vec<(usize, DMat4, usize, usize)> = self
+            .roots
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(i, &r)| (r, DMat4::IDENTITY, i, 0))
+            .collect();
+        while let Some((n, parent, sibling, depth)) = stack.pop() {
+            let n = pick(n);
+            let here = || format!("node {n}");
+            if depth > MAX_DEPTH {
+                return Err(Error::invalid(
+                    &self.path,
+                    here(),
+                    format!("node hierarchy deeper than {MAX_DEPTH}"),
+                ));
+            }
+            if out.len() >= limit {
+                return Err(Error::invalid(
+                    &self.path,
+                    here(),
+                    format!("the node tree expands to more than {limit} nodes"),
+                ));
+            }
+            let node = self
+                .nodes
+                .get(n)
+                .ok_or_else(|| Error::invalid(&self.path, here(), "does not exist"))?;
+            let world = parent * local(n);
+            out.push(Placed {
+                node: n,
+                world,
+                sibling,
+            });
+            for (i, &c) in node.children.iter().enumerate().rev() {
+                stack.push((c, world, i, depth + 1));
+            }
+        }
+        Ok(out)
+    }
+
+    /// The bytes of every buffer, each cut to its `byteLength` (see the module doc).
+    pub fn load_buffers(&self) -> Result<Vec<Vec<u8>>> {
+        let mut out = Vec::with_capacity(self.buffers.len());
+        let mut decoded = 0usize;
+        for (i, buffer) in self.buffers.iter().enumerate() {
+            let element = format!("buffer {i}");
+            if buffer.fallback && buffer.uri.is_none() {
+                decoded = decoded.saturating_add(buffer.byte_length);
+                if decoded > MAX_DECODED_BYTES {
+                    return Err(Error::invalid(
+                        &self.path,
+                        &element,
+                        format!(
+                            "fallback buffers decode to over {MAX_DECODED_BYTES} bytes (refused)"
+                        ),
+                    ));
+                }
+                out.push(vec![0; buffer.byte_length]);
+                continue;
+            }
+            let (mut data, from_file) = match &buffer.uri {
+                None => (
+                    self.bin.clone().ok_or_else(|| {
+                        Error::invalid(
+                            &self.path,
+                            &element,
+                            "refers to the GLB binary chunk, which is missing",
+                        )
+                    })?,
+                    false,
+                ),
+                Some(uri) => (self.read_uri(&element, uri)?, !uri.starts_with("data:")),
+            };
+            if data.len() < buffer.byte_length {
+                // A file's own size is not echoed: the message should not tell a caller how
+                // large a file it cannot otherwise read is.
+                let holds = if from_file {
+                    "its file is shorter".to_string()
+                } else {
+                    format!("holds {}", data.len())
+                };
+                return Err(Error::invalid(
+                    &self.path,
+                    &element,
+                    format!("declares {} bytes but {holds}", buffer.byte_length),
+                ));
+            }
+            data.truncate(buffer.byte_length);
+            out.push(data);
+        }
+        self.decode_meshopt(&mut out)?;
+        Ok(out)
+    }
+
+    /// Decodes every compressed view into its place (see [`crate::output::compress`]).
+    fn decode_meshopt(&self, buffers: &mut [Vec<u8>]) -> Result<()> {
+        for (i, view) in self.views.iter().enumerate() {
+            let Some(m) = &view.meshopt else { continue };
+            let element = format!("buffer view {i}");
+            let bad = |message: String| Error::invalid(&self.path, &element, message);
+            if m.buffer == view.buffer {
+                return Err(bad("decodes into the buffer it reads".into()));
+            }
+            // the two buffers differ: decode from one into the other without copying
+            let mut target = std::mem::take(&mut buffers[view.buffer]);
+            let src = buffers[m.buffer]
+                .get(m.byte_offset..m.byte_offset.saturating_add(m.byte_length))
+                .ok_or_else(|| {
+                    bad(format!(
+                        "compressed bytes ({} at offset {}) run past buffer {}",
+                        m.byte_length, m.byte_offset, m.buffer
+                    ))
+                })?;
+            let n = m.count.saturating_mul(m.byte_stride);
+            let dst = target
+                .get_mut(view.byte_offset..view.byte_offset.saturating_add(n))
+                .filter(|_| n <= view.byte_length)
+                .ok_or_else(|| {
+                    bad(format!(
+                        "{} decoded bytes do not fit the view ({} at offset {} of buffer {})",
+                        n, view.byte_length, view.byte_offset, view.buffer
+                    ))
+                })?;
+            crate::output::compress::decode_view(m, src, dst).map_err(bad)?;
+            buffers[view.buffer] = target;
+        }
+        Ok(())
+    }
+
+    /// Reads a URI: `data:` (base64), or a relative path inside the asset's folder when the
+    /// document may read files. The folder check is made twice: on the URI text
+    /// ([`confined_path`]), then on the real path (symlinks resolved) against the real folder, so
+    /// a link inside the folder cannot reach a file outside it. Only regular files of at most
+    /// [`MAX_INPUT_BYTES`] are read (never a FIFO or a device).
+    pub fn read_uri(&self, element: &str, uri: &str) -> Result<Vec<u8>> {
+        let path = self.path.as_path();
+        if let Some(rest) = uri.strip_prefix("data:") {
+            let Some((_, payload)) = rest.split_once(";base64,") else {
+                return Err(Error::invalid(path, element, "data URI is not base64"));
+            };
+            return base64::engine::general_purpose::STANDARD
+                .decode(payload)
+                .map_err(|e| Error::invalid(path, element, format!("bad base64 data URI: {e}")));
+        }
+        let shown = escape(uri);
+        if !self.files {
+            return Err(Error::invalid(
+                path,
+                element,
+                format!("URI '{shown}' names a file, but this document was not read from a folder; refused"),
+            ));
+        }
+        let leaves = || {
+            Error::invalid(
+                path,
+                element,
+                format!("URI '{shown}' leaves the asset's folder; refused"),
+            )
+        };
+        let target = confined_path(path, uri).ok_or_else(leaves)?;
+        let unreadable = |e: std::io::Error| {
+            Error::invalid(path, element, format!("URI '{shown}' cannot be read: {e}"))
+        };
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
+        let folder = std::fs::canonicalize(folder.unwrap_or(Path::new("."))).map_err(unreadable)?;
+        let real = std::fs::canonicalize(&target).map_err(unreadable)?;
+        if !real.starts_with(&folder) {
+            return Err(leaves());
+        }
+        super::read_regular_file(&real, MAX_INPUT_BYTES).map_err(unreadable)
+    }
+
+    /// The bytes of buffer view `v` in `buffers` (from [`Document::load_buffers`]); the error
+    /// says which view runs past which buffer.
+    pub fn view_bytes<'b>(
+        &self,
+        buffers: &'b [Vec<u8>],
+        v: usize,
+    ) -> std::result::Result<&'b [u8], String> {
+        let view = &self.views[v];
+        let buffer = buffers.get(view.buffer).map_or(&[][..], |b| &b[..]);
+        view.byte_offset
+            .checked_add(view.byte_length)
+            .and_then(|end| buffer.get(view.byte_offset..end))
+            .ok_or_else(|| {
+                format!(
+                    "buffer view {v} ({} bytes at offset {}) runs past buffer {} ({} bytes)",
+                    view.byte_length,
+                    view.byte_offset,
+                    view.buffer,
+                    buffer.len()
+                )
+            })
+    }
+
+    /// Every component of accessor `a` as `f64` (see `accessor.rs`), `count × components`
+    /// values. `within` names what asked for it in errors ("mesh 2 primitive 0"; may be empty).
+    pub fn read_accessor(&self, buffers: &[Vec<u8>], a: usize, within: &str) -> Result<Vec<f64>> {
+        let here = || {
+            if within.is_empty() {
+                format!("accessor {a}")
+            } else {
+                format!("{within}: accessor {a}")
+            }
+        };
+        let acc = &self.accessors[a];
+        if acc.sparse {
+            return Err(Error::invalid(
+                &self.path,
+                here(),
+                "sparse accessors are not supported",
+            ));
+        }
+        let components = acc.kind.components();
+        let Some(v) = acc.buffer_view else {
+            // Zeros, as the spec says; bounded so a one-line accessor cannot ask for terabytes.
+            if acc.count > MAX_ZERO_ELEMENTS {
+                return Err(Error::invalid(
+                    &self.path,
+                    here(),
+                    format!(
+                        "{} elements without a buffer view (at most {MAX_ZERO_ELEMENTS})",
+                        acc.count
+                    ),
+                ));
+            }
+            return Ok(vec![0.0; acc.count * components]);
+        };
+        let bytes = self
+            .view_bytes(buffers, v)
+            .map_err(|m| Error::invalid(&self.path, here(), m))?;
+        let layout = accessor::Layout {
+            component_type: acc.component_type,
+            normalized: acc.normalized,
+            components,
+            count: acc.count,
+            offset: acc.byte_offset,
+            stride: self.views[v].byte_stride,
+        };
+        accessor::decode(bytes, &layout)
+            .map_err(|e| Error::invalid(&self.path, here(), format!("buffer view {v}: {e}")))
+    }
+}
+
+/// Texture, image and material indices.
+fn check_materials_and_textures(root: &Fields, n: &Counts) -> Result<()> {
+    for (i, v) in root.array("images")?.iter().enumerate() {
+        let f = Fields::of(root.path, format!("image {i}"), v)?;
+        f.index("bufferView", "buffer view", n.views)?;
+    }
+    for (i, v) in root.array("textures")?.iter().enumerate() {
+        let f = Fields::of(root.path, format!("texture {i}"), v)?;
+        f.index("sampler", "sampler", n.samplers)?;
+        f.index("source", "image", n.images)?;
+    }
+    for (i, v) in root.array("materials")?.iter().enumerate() {
+        let f = Fields::of(root.path, format!("material {i}"), v)?;
+        let pbr = f.object("pbrMetallicRoughness", f.element.clone())?;
+        let infos = [
+            (pbr.as_ref(), "baseColorTexture"),
+            (pbr.as_ref(), "metallicRoughnessTexture"),
+            (Some(&f), "normalTexture"),
+            (Some(&f), "occlusionTexture"),
+            (Some(&f), "emissiveTexture"),
+        ];
+        for (parent, key) in infos {
+            let Some(parent) = parent else { continue };
+            if let Some(info) = parent.object(key, format!("material {i}: {key}"))? {
+                info.index("index", "texture", n.textures)?
+                    .ok_or_else(|| info.err("index is missing"))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Skin and animation indices.
+fn check_skins_and_animations(root: &Fields, n: &Counts) -> Result<()> {
+    for (i, v) in root.array("skins")?.iter().enumerate() {
+        let f = Fields::of(root.path, format!("skin {i}"), v)?;
+        f.index("inverseBindMatrices", "accessor", n.accessors)?;
+        f.index("skeleton", "node", n.nodes)?;
+        f.indices("joints", "node", n.nodes)?;
+    }
+    for (i, v) in root.array("animations")?.iter().enumerate() {
+        let f = Fields::of(root.path, format!("animation {i}"), v)?;
+        let samplers = f.array("samplers")?;
+        for (k, s) in samplers.iter().enumerate() {
+            let s = Fields::of(root.path, format!("animation {i} sampler {k}"), s)?;
+            s.index("input", "accessor", n.accessors)?;
+            s.index("output", "accessor", n.accessors)?;
+        }
+        for (k, c) in f.array("channels")?.iter().enumerate() {
+            let c = Fields::of(root.path, format!("animation {i} channel {k}"), c)?;
+            c.index("sampler", "sampler", samplers.len())?;
+            if let Some(t) = c.object("target", c.element.clone())? {
+                t.index("node", "node", n.nodes)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The root nodes to walk, after checking that the node graph is a forest: every node has at
+/// most one parent and a scene lists each node once, and only nodes that have no parent.
+fn forest_roots(
+    path: &Path,
+    root: &Fields,
+    nodes: &[Node],
+    scene: Option<usize>,
+) -> Result<Vec<usize>> {
+    let mut parent: Vec<Option<usize>> = vec![None; nodes.len()];
+    for (n, node) in nodes.iter().enumerate() {
+        for &c in &node.children {
+            if let Some(p) = parent[c] {
+                let (element, message) = if p == n {
+                    (
+                        format!("node {p}"),
+                        format!("node {p} lists child node {c} twice"),
+                    )
+                } else {
+                    (
+                        format!("node {c}"),
+                        format!(
+                            "is a child of both node {p} and node {n} (a node may have one parent)"
+                        ),
+                    )
+                };
+                return Err(Error::invalid(path, element, message));
+            }
+            parent[c] = Some(n);
+        }
+    }
+    let scenes = root.array("scenes")?;
+    let Some(s) = scene.or(if scenes.is_empty() { None } else { Some(0) }) else {
+        // No scene: every node without a parent (nodes on a cycle have one and are not reached).
+        return Ok((0..nodes.len()).filter(|&n| parent[n].is_none()).collect());
+    };
+    let f = Fields::of(path, format!("scene {s}"), &scenes[s])?;
+    let listed = f.indices("nodes", "node", nodes.len())?;
+    let mut seen = vec![false; nodes.len()];
+    for &n in &listed {
+        if std::mem::replace(&mut seen[n], true) {
+            return Err(f.err(format!("lists node {n} twice")));
+        }
+        if let Some(p) = parent[n] {
+            return Err(f.err(format!(
+                "lists node {n}, which is a child of node {p} (scene nodes must be roots)"
+            )));
+        }
+    }
+    Ok(listed)
+}
+
+/// `uri` resolved against the folder of `asset`, or `None` if it is absolute, has a scheme, or
+/// climbs out of that folder.
+pub fn confined_path(asset: &Path, uri: &str) -> Option<PathBuf> {
+    let decoded = percent_decode(uri)?;
+    if decoded.contains(':') || decoded.starts_with('/') || decoded.starts_with('\\') {
+        return None;
+    }
+    let rel = Path::new(&decoded);
+    let mut depth = 0i32;
+    for c in rel.components() {
+        match c {
+            Component::Normal(_) => depth += 1,
+            Component::CurDir => {}
+            Component::ParentDir => {
+                depth -= 1;
+                if depth < 0 {
+                    return None;
+                }
+            }
+            Component::RootDir | Component::Prefix(_) => return None,
+        }
+    }
+    Some(asset.parent().unwrap_or(Path::new("")).join(rel))
+}
+
+fn percent_decode(s: &str) -> Option<String> {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%' {
+            let hex = std::str::from_utf8(b.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(b[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn parse(v: Value) -> std::result::Result<Document, String> {
+        Document::from_json(Path::new("t.gltf"), v, None).map_err(|e| e.to_string())
+    }
+
+    fn refused(v: Value, words: &[&str]) {
+        let e = parse(v).expect_err("should be refused");
+        for w in words {
+            assert!(e.contains(w), "'{w}' missing from: {e}");
+        }
+    }
+
+    #[test]
+    fn uris_outside_the_folder_are_refused() {
+        let a = Path::new("assets/x.gltf");
+        assert_eq!(
+            confined_path(a, "buf.bin"),
+            Some(PathBuf::from("assets/buf.bin"))
+        );
+        assert_eq!(
+            confined_path(a, "sub/../buf.bin"),
+            Some(PathBuf::from("assets/sub/../buf.bin"))
+        );
+        assert_eq!(confined_path(a, "../secret.bin"), None);
+        assert_eq!(confined_path(a, "sub/../../secret.bin"), None);
+        assert_eq!(confined_path(a, "/etc/passwd"), None);
+        assert_eq!(confined_path(a, "%2e%2e/secret.bin"), None);
+        assert_eq!(confined_path(a, "file:///etc/passwd"), None);
+        assert_eq!(confined_path(a, "C:\\x.bin"), None);
+    }
+
+    #[test]
+    fn a_glb_splits_into_json_and_bin_and_bad_headers_are_named() {
+        let glb = |declared: u32, chunks: &[(&[u8; 4], &[u8])]| {
+            let mut b = b"glTF".to_vec();
+            b.extend(2u32.to_le_bytes());
+            b.extend(declared.to_le_bytes());
+            for (kind, body) in chunks {
+                b.extend((body.len() as u32).to_le_bytes());
+                b.extend(*kind);
+                b.extend(*body);
+            }
+            b
+        };
+        let ok = glb(36, &[(b"JSON", b"{}  "), (b"BIN\0", b"abcd")]);
+        assert_eq!(split_glb(&ok), Ok((&b"{}  "[..], Some(&b"abcd"[..]))));
+        // An unknown chunk is skipped; bytes past the declared length are ignored.
+        let mut extra = glb(36, &[(b"JSON", b"{}  "), (b"XTRA", b"abcd")]);
+        extra.extend([0; 8]);
+        assert_eq!(split_glb(&extra), Ok((&b"{}  "[..], None)));
+        let e = split_glb(&glb(99, &[(b"JSON", b"{}  ")])).unwrap_err();
+        assert!(e.contains("declares 99 bytes"), "{e}");
+        let e = split_glb(&glb(24, &[(b"BIN\0", b"{}  ")])).unwrap_err();
+        assert!(e.contains("not JSON"), "{e}");
+        let mut long = glb(24, &[(b"JSON", b"{}  ")]);
+        long[12] = 200;
+        assert!(split_glb(&long).unwrap_err().contains("past the end"));
+        assert!(split_glb(b"glTF\x02\0").unwrap_err().contains("cut short"));
+        let mut v1 = glb(24, &[(b"JSON", b"{}  ")]);
+        v1[4] = 1;
+        let e = Document::parse(Path::new("v1.glb"), &v1).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "v1.glb: GLB: GLB version 1 (only 2 is supported)"
+        );
+    }
+
+    #[test]
+    fn indices_out_of_range_are_named_with_their_element() {
+        let base = || {
+            json!({
+                "buffers": [{"byteLength": 12}],
+                "bufferViews": [{"buffer": 0, "byteLength": 12}],
+                "accessors": [{"bufferView": 0, "componentType": 5126, "count": 1, "type": "VEC3"}],
+                "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+                "nodes": [{"mesh": 0}],
+                "scenes": [{"nodes": [0]}]
+            })
+        };
+        assert!(parse(base()).is_ok());
+        let cases: [(&str, Value, &str); 9] = [
+            (
+                "/meshes/0/primitives/0/attributes/NORMAL",
+                json!(5),
+                "mesh 0 primitive 0: accessor 5 out of range (the file has 1)",
+            ),
+            (
+                "/meshes/0/primitives/0/indices",
+                json!(2),
+                "mesh 0 primitive 0: accessor 2 out of range",
+            ),
+            (
+                "/meshes/0/primitives/0/material",
+                json!(0),
+                "mesh 0 primitive 0: material 0 out of range (the file has 0)",
+            ),
+            ("/nodes/0/mesh", json!(1), "node 0: mesh 1 out of range"),
+            (
+                "/nodes/0/children",
+                json!([3]),
+                "node 0: node 3 out of range",
+            ),
+            (
+                "/accessors/0/bufferView",
+                json!(4),
+                "accessor 0: buffer view 4 out of range",
+            ),
+            (
+                "/bufferViews/0/buffer",
+                json!(1),
+                "buffer view 0: buffer 1 out of range",
+            ),
+            (
+                "/scenes/0/nodes",
+                json!([0, 7]),
+                "scene 0: node 7 out of range",
+            ),
+            ("/scene", json!(2), "document: scene 2 out of range"),
+        ];
+        for (pointer, value, want) in cases {
+            let mut g = base();
+            if let Some(slot) = g.pointer_mut(pointer) {
+                *slot = value;
+            } else {
+                let (parent, key) = pointer.rsplit_once('/').unwrap();
+                g.pointer_mut(parent).unwrap()[key] = value;
+            }
+            refused(g, &["t.gltf", want]);
+        }
+    }
+
+    #[test]
+    fn fields_of_the_wrong_type_or_range_are_named() {
+        refused(
+            json!({"accessors": [{"componentType": 5124, "count": 1, "type": "VEC3"}]}),
+            &["accessor 0", "componentType 5124"],
+        );
+        refused(
+            json!({"accessors": [{"componentType": 5126, "count": -1, "type": "VEC3"}]}),
+            &["accessor 0", "count must be a non-negative integer"],
+        );
+        refused(
+            json!({"buffers": [{"byteLength": 4}], "bufferViews": [{"buffer": 0, "byteLength": 4, "byteStride": 2}]}),
+            &["buffer view 0", "byteStride 2"],
+        );
+        refused(
+            json!({"nodes": [{"translation": [1, 2]}]}),
+            &["node 0", "translation must be an array of 3 numbers"],
+        );
+        refused(
+            json!({"meshes": {}}),
+            &["document", "meshes must be an array"],
+        );
+        refused(
+            json!({"meshes": [{"primitives": [{"attributes": {}, "mode": 9}]}]}),
+            &["mesh 0 primitive 0", "mode 9"],
+        );
+        refused(
+            json!({"materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]}),
+            &["material 0: baseColorTexture", "texture 0 out of range"],
+        );
+    }
+
+    #[test]
+    fn unknown_required_extensions_are_refused_by_name() {
+        for name in ["KHR_draco_mesh_compression", "EXT_unheard_of"] {
+            refused(
+                json!({"extensionsUsed": [name], "extensionsRequired": [name]}),
+                &["extensionsRequired", name, "not supported"],
+            );
+        }
+        // Used but not required: read as if absent.
+        assert!(parse(json!({"extensionsUsed": ["EXT_x"]})).is_ok());
+        assert!(parse(json!({"extensionsRequired": SUPPORTED_EXTENSIONS})).is_ok());
+        // A hostile name is escaped.
+        let e = parse(json!({"extensionsRequired": ["X\u{1b}[2J"]})).unwrap_err();
+        assert!(!e.contains('\u{1b}') && e.contains("X\\u{1b}[2J"), "{e}");
+    }
+
+    #[test]
+    fn transforms_compose_in_f64_depth_first() {
+        let d = parse(json!({
+            "nodes": [
+                {"translation": [1000000.125, 0, 0], "children": [1, 2]},
+                {"scale": [0.001, 0.001, 0.001], "translation": [0.0001, 0, 0]},
+                {"matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 3, 0, 1]},
+                {}
+            ],
+            "scenes": [{"nodes": [0, 3]}]
+        }))
+        .unwrap();
+        let w = d.walk(|n| n).unwrap();
+        assert_eq!(
+            w.iter().map(|p| (p.node, p.sibling)).collect::<Vec<_>>(),
+            [(0, 0), (1, 0), (2, 1), (3, 1)]
+        );
+        let p = w[1].world.transform_point3(DVec3::new(1000.0, 0.0, 0.0));
+        assert_eq!(p.x, 1000000.125 + 0.0001 + 1.0);
+        assert_eq!(
+            w[2].world.w_axis.truncate(),
+            DVec3::new(1000000.125, 3.0, 0.0)
+        );
+    }
+
+    #[test]
+    fn a_deep_chain_is_refused_and_a_looping_pick_stops() {
+        let mut nodes: Vec<Value> = (0..300).map(|i| json!({"children": [i + 1]})).collect();
+        nodes.push(json!({}));
+        let d = parse(json!({"nodes": nodes})).unwrap();
+        let e = d.walk(|n| n).unwrap_err().to_string();
+        assert!(e.contains("deeper than 256"), "{e}");
+        // Two children that both pick back to their parent: an exponential tree, stopped.
+        let d = parse(json!({"nodes": [{"children": [1, 2]}, {}, {}]})).unwrap();
+        assert!(d.walk(|_| 0).is_err());
+    }
+
+    #[test]
+    fn a_document_from_memory_reads_no_file() {
+        let d = parse(json!({"buffers": [{"uri": "x.bin", "byteLength": 4}]}))
+            .unwrap()
+            .without_files();
+        let e = d.load_buffers().unwrap_err().to_string();
+        assert!(
+            e.contains("buffer 0") && e.contains("not read from a folder"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn buffers_are_cut_to_their_declared_length() {
+        let bytes = base64::engine::general_purpose::STANDARD.encode([1u8, 2, 3, 4, 5, 6, 7, 8]);
+        let d = parse(json!({
+            "buffers": [{"uri": format!("data:application/octet-stream;base64,{bytes}"), "byteLength": 4}],
+            "bufferViews": [{"buffer": 0, "byteLength": 8}],
+            "accessors": [{"bufferView": 0, "componentType": 5121, "count": 8, "type": "SCALAR"}]
+        }))
+        .unwrap();
+        let buffers = d.load_buffers().unwrap();
+        assert_eq!(buffers[0], [1, 2, 3, 4]);
+        let e = d.read_accessor(&buffers, 0, "").unwrap_err().to_string();
+        assert!(
+            e.contains("accessor 0") && e.contains("runs past buffer 0 (4 bytes)"),
+            "{e}"
+        );
+    }
+}

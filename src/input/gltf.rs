@@ -1,0 +1,429 @@
+//! Meshes from a glTF 2.0 file (`.gltf` + buffers, or `.glb`), read by the one glTF reader
+//! (`document.rs`, shared with the viewer), which checks the JSON (required extensions, every
+//! index between objects, the node forest), resolves the buffers and decodes accessors.
+//!
+//! What is decided here is what a mesh may be made of. `POSITION` and `NORMAL` are `VEC3`,
+//! `TEXCOORD_0` is `VEC2`, each as float or (u)int8/16, normalized or not — the quantized forms
+//! `KHR_mesh_quantization` allows, written by shellbake itself and by gltfpack, load like float
+//! ones; their dequantization lives in the node transform, applied in `f64`. Indices are
+//! (u)int8/16/32 `SCALAR`s, each below the vertex count. An accessor without a buffer view (all
+//! zeros) and a sparse accessor are refused for mesh input (base meshes do not use them).
+//!
+//! The instanced size (vertices and indices of every primitive to read) is summed and bounded by
+//! [`MAX_INSTANCED_ELEMENTS`] before any buffer is resolved or accessor read.
+//!
+//! **Re-baking a baked file**: a shellbake output (and many files from other tools) instances
+//! one geometry many times in the same place — one mesh per shell layer, all reusing the same
+//! POSITION accessor, with the extrusion in morph targets. A primitive whose POSITION accessor
+//! was already taken under the same world transform by another mesh is skipped, with one warning
+//! counting the skipped instances, and so is a primitive repeated in the same place by a second
+//! node: the first instance in scene order is baked, which for a shellbake output is the base
+//! layer. Primitives of one mesh are all read, even when they share
+//! a vertex buffer (a multi-material split does), and so is an instance of the same mesh
+//! elsewhere. Morph targets are ignored (the base geometry is read), so any layer yields
+//! the base surface. The same geometry under a different transform (real instancing) is baked
+//! once per instance. Lower LODs (`MSFT_lod`) live outside the scene and are not read. A
+//! single-draw output holds every layer in one primitive and would be baked as it stands.
+//! Buffer views compressed with `EXT_`/`KHR_meshopt_compression` (shellbake's own `--compress
+//! meshopt`, gltfpack's `-c`) are decoded by the shared reader; other compression
+//! (`KHR_draco_mesh_compression`) is refused by its required-extension check, by name.
+//!
+//! Every primitive with mode TRIANGLES of every node of the default scene (or, with no scene,
+//! every root node) becomes one [`Mesh`] with its world transform applied in `f64`; normals go
+//! through the inverse transpose; mirrored transforms flip the winding. Triangle strips and fans
+//! are read as the triangle lists they draw ([`triangle_list`]); points and lines are skipped
+//! with a warning.
+
+use std::collections::{HashMap, HashSet};
+use std::path::Path;
+
+use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
+
+use super::document::{component_name, mode_name, Document, Kind, Primitive};
+use crate::error::{Error, Result};
+use crate::mesh::{Mesh, Scene};
+
+/// Largest number of vertices plus indices the instanced node tree may hold (every primitive
+/// read, counted once per instance). 2^27 is 134 million, some 3 GB of `Mesh` — far past any base
+/// mesh worth shelling, and small enough that a hostile file is refused before it is expanded.
+pub const MAX_INSTANCED_ELEMENTS: u64 = 1 << 27;
+
+/// One primitive to read, with the world transform of its node (identity for a skinned one,
+/// whose node transform glTF ignores) and its node's skin.
+struct Job<'a> {
+    prim: &'a Primitive,
+    element: String,
+    world: DMat4,
+    skin: Option<usize>,
+}
+
+pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
+    let doc = Document::parse(path, bytes)?;
+    let mut scene = Scene::default();
+    let mut jobs = Vec::new();
+    // (POSITION accessor, world) → the mesh that first read it.
+    let mut taken: HashMap<(usize, [u64; 16]), usize> = HashMap::new();
+    // (mesh, primitive, world) already read: a node repeating another in the same place.
+    let mut read: HashSet<(usize, usize, [u64; 16])> = HashSet::new();
+    let mut skipped = 0usize;
+    let mut total: u64 = 0;
+    // Depth first in document order, so "the first instance" is the one a reader sees first.
+    for placed in doc.walk(|n| n)? {
+        let Some(m) = doc.nodes[placed.node].mesh else {
+            continue;
+        };
+        for (k, prim) in doc.meshes[m].primitives.iter().enumerate() {
+            let element = format!("mesh {m} primitive {k}");
+            if !is_triangles(prim.mode) {
+                scene.warnings.push(format!(
+                    "{}: {element}: mode {} skipped",
+                    path.display(),
+                    mode_name(prim.mode)
+                ));
+                continue;
+            }
+            let Some(pos) = prim.attribute("POSITION") else {
+                return Err(Error::invalid(path, element, "no POSITION attribute"));
+            };
+            let skinned =
+                prim.attribute("JOINTS_0").is_some() && prim.attribute("WEIGHTS_0").is_some();
+            let skin = doc.nodes[placed.node].skin.filter(|_| skinned);
+            let world = if skin.is_some() {
+                DMat4::IDENTITY
+            } else {
+                placed.world
+            };
+            let place = world.to_cols_array().map(f64::to_bits);
+            let first = *taken.entry((pos, place)).or_insert(m);
+            if first != m || !read.insert((m, k, place)) {
+                skipped += 1;
+                continue;
+            }
+            total += doc.accessors[pos].count as u64
+                + prim.indices.map_or(0, |a| doc.accessors[a].count as u64);
+            if total > MAX_INSTANCED_ELEMENTS {
+                return Err(Error::invalid(
+                    path,
+                    format!("node {}", placed.node),
+                    format!(
+                        "the scene instances more than {MAX_INSTANCED_ELEMENTS} vertices and \
+                         indices; refused before reading"
+                    ),
+                ));
+            }
+            jobs.push(Job {
+                prim,
+                element: format!("node {} {element}", placed.node),
+                world,
+                skin,
+            });
+        }
+    }
+    if skipped > 0 {
+        scene.warnings.push(format!(
+            "{}: {skipped} primitive(s) reuse geometry already read in the same place (e.g. the \
+             layers of a baked file); only the first instance is baked",
+            path.display()
+        ));
+    }
+    // one skin for every mesh, or none
+    let skin = jobs.first().and_then(|j| j.skin);
+    if let Some(other) = jobs.iter().find(|j| j.skin != skin) {
+        let what = |s: Option<usize>| s.map_or("no skin".to_string(), |s| format!("skin {s}"));
+        return Err(Error::invalid(
+            path,
+            &other.element,
+            format!(
+                "is bound to {} while {} is bound to {}; a surface bakes one skin (bake the \
+                 meshes as separate surfaces)",
+                what(other.skin),
+                jobs[0].element,
+                what(skin)
+            ),
+        ));
+    }
+    let buffers = doc.load_buffers()?;
+    if let Some(s) = skin {
+        scene.skeleton = Some(super::skin::read_skeleton(&doc, &buffers, s)?);
+    }
+    let joints = scene.skeleton.as_ref().map_or(0, |s| s.joints.len());
+    for job in &jobs {
+        scene.meshes.push(read_primitive(
+            &doc,
+            &job.element,
+            job.prim,
+            &buffers,
+            (job.world, joints),
+        )?);
+    }
+    Ok(scene)
+}
+
+/// Whether a primitive mode is made of triangles (a list, a strip or a fan).
+pub(super) fn is_triangles(mode: u64) -> bool {
+    matches!(mode, 4..=6)
+}
+
+/// The triangle list of a primitive of `mode` (a list, a strip or a fan) over `indices` (the
+/// index accessor, or every vertex in order). A strip alternates its winding so that every
+/// triangle faces the first's way; a fan turns around its first vertex.
+pub(crate) fn triangle_list(mode: u64, indices: &[u32]) -> Vec<u32> {
+    let n = indices.len();
+    match mode {
+        5 => (0..n.saturating_sub(2))
+            .flat_map(|i| {
+                let [a, b, c] = [indices[i], indices[i + 1], indices[i + 2]];
+                if i % 2 == 0 {
+                    [a, b, c]
+                } else {
+                    [b, a, c]
+                }
+            })
+            .collect(),
+        6 => (1..n.saturating_sub(1))
+            .flat_map(|i| [indices[0], indices[i], indices[i + 1]])
+            .collect(),
+        _ => indices[..n / 3 * 3].to_vec(),
+    }
+}
+
+pub(super) fn read_primitive(
+    doc: &Document,
+    element: &str,
+    prim: &Primitive,
+    buffers: &[Vec<u8>],
+    (world, joints): (DMat4, usize),
+) -> Result<Mesh> {
+    let path = doc.path.as_path();
+    let attribute = |name: &str, kind: Kind| -> Result<Option<Vec<f64>>> {
+        let Some(a) = prim.attribute(name) else {
+            return Ok(None);
+        };
+        read_checked(doc, element, a, buffers, (name, kind, ATTRIBUTE_TYPES)).map(Some)
+    };
+    let Some(local) = attribute("POSITION", Kind::Vec3)? else {
+        return Err(Error::invalid(path, element, "no POSITION attribute"));
+    };
+    let nv = local.len() / 3;
+    let mut world_pos = Vec::with_capacity(nv);
+    for (i, p) in local.chunks_exact(3).enumerate() {
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(Error::invalid(
+                path,
+                element.to_string(),
+                format!("vertex {i} has a non-finite coordinate"),
+            ));
+        }
+        world_pos.push(world.transform_point3(DVec3::new(p[0], p[1], p[2])));
+    }
+    super::check_range(path, element, &world_pos)?;
+    let indices: Vec<u32> = match prim.indices {
+        Some(a) => read_checked(
+            doc,
+            element,
+            a,
+            buffers,
+            ("indices", Kind::Scalar, INDEX_TYPES),
+        )?
+        .into_iter()
+        .map(|i| i as u32)
+        .collect(),
+        None => (0..nv as u32).collect(),
+    };
+    if let Some((k, &i)) = indices.iter().enumerate().find(|(_, &i)| i as usize >= nv) {
+        return Err(Error::invalid(
+            path,
+            element,
+            format!("index {k} = {i} is out of range ({nv} vertices)"),
+        ));
+    }
+    let mut indices = triangle_list(prim.mode, &indices);
+    let normal_matrix: DMat3 = DMat3::from_mat4(world).inverse().transpose();
+    let normals = attribute("NORMAL", Kind::Vec3)?.map(|n| {
+        n.chunks_exact(3)
+            .map(|n| {
+                let v = normal_matrix * DVec3::new(n[0], n[1], n[2]);
+                v.as_vec3().normalize_or(Vec3::ZERO)
+            })
+            .collect::<Vec<_>>()
+    });
+    let normals = normals.filter(|n| n.len() == nv);
+    let uvs = attribute("TEXCOORD_0", Kind::Vec2)?.map(|t| {
+        t.chunks_exact(2)
+            .map(|t| Vec2::new(t[0] as f32, t[1] as f32))
+            .collect::<Vec<_>>()
+    });
+    let uvs = uvs.filter(|u| u.len() == nv);
+    if uvs
+        .as_ref()
+        .is_some_and(|u| u.iter().any(|t| !t.is_finite()))
+    {
+        return Err(Error::invalid(path, element, "non-finite TEXCOORD_0"));
+    }
+    // COLOR_0: VEC3 or VEC4 (float, or normalized unsigned byte/short), linear values in [0, 1]
+    let colors = match prim.attribute("COLOR_0") {
+        Some(a) => {
+            let kind = if doc.accessors[a].kind == Kind::Vec3 {
+                Kind::Vec3
+            } else {
+                Kind::Vec4
+            };
+            let n = if kind == Kind::Vec3 { 3 } else { 4 };
+            let values = read_checked(
+                doc,
+                element,
+                a,
+                buffers,
+                ("COLOR_0", kind, &[5126, 5121, 5123]),
+            )?;
+            let colors: Vec<[u8; 4]> = values
+                .chunks_exact(n)
+                .map(|c| {
+                    let at = |k: usize| c.get(k).map_or(255, |&v| crate::mesh::color_byte(v));
+                    [at(0), at(1), at(2), at(3)]
+                })
+                .collect();
+            (colors.len() == nv).then_some(colors)
+        }
+        None => None,
+    };
+    // JOINTS_0 / WEIGHTS_0 of a skinned primitive (`joints` > 0: the skin's joint count)
+    let skin = if joints > 0 {
+        let j = attribute_of(doc, element, prim, buffers, ("JOINTS_0", &[5121, 5123]))?;
+        let w = attribute_of(
+            doc,
+            element,
+            prim,
+            buffers,
+            ("WEIGHTS_0", &[5126, 5121, 5123]),
+        )?;
+        if j.len() != 4 * nv || w.len() != 4 * nv {
+            return Err(Error::invalid(
+                path,
+                element,
+                "JOINTS_0 / WEIGHTS_0 count differs from POSITION's",
+            ));
+        }
+        let mut skin = crate::mesh::VertexSkin::default();
+        for (v, (j, w)) in j.chunks_exact(4).zip(w.chunks_exact(4)).enumerate() {
+            if let Some(&bad) = j
+                .iter()
+                .zip(w)
+                .find(|&(&j, &w)| w != 0.0 && j as usize >= joints)
+                .map(|(j, _)| j)
+            {
+                return Err(Error::invalid(
+                    path,
+                    element,
+                    format!("vertex {v} names joint {bad}; the skin has {joints}"),
+                ));
+            }
+            let (j, w) = crate::stages::skin::normalize_influences(
+                [0, 1, 2, 3].map(|k| {
+                    if (j[k] as usize) < joints {
+                        j[k] as u16
+                    } else {
+                        0
+                    }
+                }),
+                [0, 1, 2, 3].map(|k| w[k] as f32),
+            );
+            skin.joints.push(j);
+            skin.weights.push(w);
+        }
+        Some(skin)
+    } else {
+        None
+    };
+    if DMat3::from_mat4(world).determinant() < 0.0 {
+        for t in indices.chunks_exact_mut(3) {
+            t.swap(1, 2);
+        }
+    }
+    let origin = world_pos.first().copied().unwrap_or_default();
+    let mut mesh = Mesh {
+        origin,
+        positions: world_pos.iter().map(|p| (*p - origin).as_vec3()).collect(),
+        normals: normals.filter(|n| n.iter().all(|v| v.is_finite())),
+        uvs,
+        colors,
+        albedo: None,
+        indices,
+        skin,
+    };
+    mesh.recentre();
+    Ok(mesh)
+}
+
+/// A `VEC4` attribute `name` of `prim` with a component type among `types`.
+fn attribute_of(
+    doc: &Document,
+    element: &str,
+    prim: &Primitive,
+    buffers: &[Vec<u8>],
+    (name, types): (&str, &[u64]),
+) -> Result<Vec<f64>> {
+    let a = prim
+        .attribute(name)
+        .expect("the caller checked the attribute");
+    read_checked(doc, element, a, buffers, (name, Kind::Vec4, types))
+}
+
+/// Vertex attribute component types a mesh may use (float, or integers as
+/// `KHR_mesh_quantization` allows, normalized or not).
+const ATTRIBUTE_TYPES: &[u64] = &[5126, 5120, 5121, 5122, 5123];
+
+/// Index component types.
+const INDEX_TYPES: &[u64] = &[5121, 5123, 5125];
+
+/// Reads accessor `a` of a primitive after checking that its element type is `kind` with a
+/// component type among `types`, and that it has a buffer view (an accessor of zeros is no mesh
+/// input).
+fn read_checked(
+    doc: &Document,
+    element: &str,
+    a: usize,
+    buffers: &[Vec<u8>],
+    (what, kind, types): (&str, Kind, &[u64]),
+) -> Result<Vec<f64>> {
+    let acc = &doc.accessors[a];
+    if acc.kind != kind || !types.contains(&acc.component_type) {
+        let names: Vec<_> = types.iter().map(|&t| component_name(t)).collect();
+        return Err(Error::invalid(
+            &doc.path,
+            format!("{element}: accessor {a}"),
+            format!(
+                "{what} as {} of {} is not supported (expected {} of {})",
+                acc.kind.name(),
+                component_name(acc.component_type),
+                kind.name(),
+                names.join(", ")
+            ),
+        ));
+    }
+    if acc.buffer_view.is_none() && !acc.sparse {
+        return Err(Error::invalid(
+            &doc.path,
+            format!("{element}: accessor {a}"),
+            format!("{what} has no buffer view (its data would be all zeros)"),
+        ));
+    }
+    doc.read_accessor(buffers, a, element)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::triangle_list;
+
+    #[test]
+    fn strips_and_fans_become_the_triangles_they_draw() {
+        // a strip alternates its winding so every triangle faces the first one's way
+        assert_eq!(
+            triangle_list(5, &[0, 1, 2, 3, 4]),
+            [0, 1, 2, 2, 1, 3, 2, 3, 4]
+        );
+        assert_eq!(triangle_list(6, &[0, 1, 2, 3]), [0, 1, 2, 0, 2, 3]);
+        assert_eq!(triangle_list(4, &[0, 1, 2, 3]), [0, 1, 2]);
+        assert!(triangle_list(5, &[0, 1]).is_empty() && triangle_list(6, &[]).is_empty());
+    }
+}

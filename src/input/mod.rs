@@ -1,0 +1,301 @@
+//! Input: OBJ (tobj) and glTF/GLB (our own reader, `document.rs`) into [`Scene`]. No tobj type
+//! leaves this module; the glTF [`document`] is public because the viewer reads files through it
+//! too, so that loader and viewer accept and refuse the same files.
+//!
+//! Everything is checked here, at the boundary, so the stages can assert instead of fail: a
+//! non-finite coordinate, an index past the vertex count, an unreadable or empty file is an
+//! [`Error`] naming the file and the element. OBJ polygons are triangulated (ear clipping where
+//! concave, `obj.rs`), points and lines are ignored, node transforms are applied (glTF) in `f64`.
+//! Files are read only if they are regular files under [`MAX_INPUT_BYTES`] (never a FIFO or a
+//! device; see `read_regular_file` for how a file swapped between check and open is caught),
+//! meshes must span at least [`MIN_EXTENT`], and text from a file is escaped
+//! (`escape`) before it reaches a message.
+//!
+//! Missing UVs: a **per-face box projection** is generated — each triangle is projected on the
+//! axis plane most facing its normal, with coordinates in units of the bounding-box diagonal, and
+//! vertices are split where neighbouring faces pick different planes. It is seamless inside each
+//! of the six regions, never stretches more than √3 : 1, and is isotropic in world units, which
+//! is what strands-per-world-unit density needs. Seams between regions show as a break in the
+//! strand pattern, never as a crack: shells are extruded on the position-welded topology
+//! (`weld.rs`). Rejected: spherical/cylindrical projection (poles collapse strands to a point),
+//! a real unwrap (xatlas-class work belongs to the DCC tool). A warning says it happened.
+//!
+//! Missing normals are left `None`; the bake then shades with the extrusion directions.
+
+pub mod accessor;
+pub mod asset;
+pub mod document;
+mod gltf;
+pub mod maps;
+mod obj;
+pub mod skin;
+
+pub(crate) use gltf::triangle_list;
+
+use std::path::Path;
+
+use glam::{Vec2, Vec3};
+
+use crate::error::{Error, Result};
+use crate::mesh::{face_normal, Mesh, Scene};
+
+/// Largest accepted world coordinate. Beyond it, squared extents overflow `f32` and no shell
+/// height means anything; 1e15 is far past any real asset (a planet in millimetres is 1.3e10).
+pub const MAX_COORDINATE: f64 = 1e15;
+
+/// Smallest accepted bounding-box diagonal of one mesh (world units), unless it is exactly 0.
+/// Below it, edge products underflow `f32` (a node scale of 1e-20 zeroed the extrusion of some
+/// triangles); 1e-7 leaves two orders of magnitude under the smallest tested model (1e-5).
+pub const MIN_EXTENT: f64 = 1e-7;
+
+/// Largest input file (and glTF buffer file) read, in bytes.
+pub const MAX_INPUT_BYTES: u64 = 1 << 31;
+
+/// Checks world coordinates (before they become `f32` offsets) against [`MAX_COORDINATE`], and
+/// the mesh's extent against [`MIN_EXTENT`].
+pub(crate) fn check_range(path: &Path, element: &str, world: &[glam::DVec3]) -> Result<()> {
+    if let Some(v) = world
+        .iter()
+        .position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
+    {
+        return Err(Error::invalid(
+            path,
+            element,
+            format!("vertex {v} lies outside the supported range of ±{MAX_COORDINATE:e} units"),
+        ));
+    }
+    let lo = world.iter().fold(glam::DVec3::INFINITY, |a, &p| a.min(p));
+    let hi = world
+        .iter()
+        .fold(glam::DVec3::NEG_INFINITY, |a, &p| a.max(p));
+    let extent = (hi - lo).length();
+    if !world.is_empty() && extent > 0.0 && extent < MIN_EXTENT {
+        return Err(Error::invalid(
+            path,
+            element,
+            format!(
+                "spans only {extent:e} units, below the smallest supported extent of \
+                 {MIN_EXTENT:e} (a node scale near zero?); scale the model up"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// `s` with control and bidirectional-override characters escaped, for names and text taken
+/// from a file and put into messages (a terminal must not interpret them).
+pub(crate) fn escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        let hostile = c.is_control()
+            || matches!(c, '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}');
+        if hostile {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// Reads a regular file of at most `limit` bytes. The type is checked before opening (opening a
+/// FIFO blocks until a writer comes; a device such as `/dev/zero` never ends), and again on the
+/// open handle, which is what counts: a path swapped for a FIFO between the check and the open
+/// is opened with `O_NONBLOCK` (so the open returns at once, writer or not) and refused by that
+/// second check, and `O_NOCTTY` keeps a terminal swapped in from becoming the process's. The read
+/// itself stops past `limit`.
+pub(crate) fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::{Error as IoError, ErrorKind, Read};
+    let refuse = |m: String| IoError::new(ErrorKind::InvalidInput, m);
+    let not_regular = || refuse("not a regular file; refused".into());
+    let too_large = || refuse(format!("larger than the {limit}-byte input limit; refused"));
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        return Err(not_regular());
+    }
+    if meta.len() > limit {
+        return Err(too_large());
+    }
+    let file = open_without_blocking(path)?;
+    if !file.metadata()?.is_file() {
+        return Err(not_regular());
+    }
+    let mut out = Vec::new();
+    file.take(limit + 1).read_to_end(&mut out)?;
+    if out.len() as u64 > limit {
+        return Err(too_large());
+    }
+    Ok(out)
+}
+
+/// Opens `path` for reading without waiting for anything: on Unix with `O_NONBLOCK` (a FIFO
+/// opens at once instead of waiting for a writer; on a regular file the flag changes nothing)
+/// and `O_NOCTTY`.
+fn open_without_blocking(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK | libc::O_NOCTTY);
+    }
+    options.open(path)
+}
+
+/// Reads an `.obj`, `.gltf` or `.glb` file (a regular file of at most [`MAX_INPUT_BYTES`]). Fails with an error that names the file and the
+/// offending element; never returns a scene with no triangles.
+pub fn load(path: &Path) -> Result<Scene> {
+    let bytes = read_regular_file(path, MAX_INPUT_BYTES).map_err(|e| Error::io(path, e))?;
+    load_bytes(path, &bytes)
+}
+
+/// Like [`load`] on bytes already in memory; `path` names the input in errors and resolves
+/// relative glTF URIs.
+pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Scene> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let mut scene = match ext.as_deref() {
+        Some("obj") => obj::load(path, bytes)?,
+        Some("gltf") | Some("glb") => gltf::load(path, bytes)?,
+        _ => {
+            return Err(Error::Format {
+                path: path.to_path_buf(),
+            })
+        }
+    };
+    scene.meshes.retain(|m| !m.indices.is_empty());
+    if scene.meshes.is_empty() {
+        return Err(Error::Empty {
+            path: path.to_path_buf(),
+            message: "no triangles to bake".into(),
+        });
+    }
+    let mut generated = 0;
+    for m in &mut scene.meshes {
+        if m.uvs.is_none() {
+            generate_box_uvs(m);
+            generated += 1;
+        }
+    }
+    if generated > 0 {
+        scene.warnings.push(format!(
+            "{}: {generated} mesh(es) have no UVs; generated a per-face box projection",
+            path.display()
+        ));
+    }
+    Ok(scene)
+}
+
+/// Replaces `mesh.uvs` with a per-face box projection (see the module doc), splitting vertices
+/// where faces project on different planes. Deterministic: new vertices are appended in triangle
+/// order.
+pub fn generate_box_uvs(mesh: &mut Mesh) {
+    let scale = 1.0 / mesh.diagonal().max(f32::MIN_POSITIVE);
+    let n = mesh.positions.len();
+    // slot[v][axis] = output vertex for (input vertex v, projection axis)
+    let mut slot = vec![[u32::MAX; 3]; n];
+    let mut source: Vec<u32> = Vec::with_capacity(n);
+    let mut uvs = Vec::with_capacity(n);
+    let mut indices = Vec::with_capacity(mesh.indices.len());
+    for tri in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize]);
+        let (fnrm, _) = face_normal(a, b, c);
+        let axis = dominant_axis(fnrm);
+        for &v in tri {
+            let s = &mut slot[v as usize][axis];
+            if *s == u32::MAX {
+                *s = source.len() as u32;
+                source.push(v);
+                let p = mesh.positions[v as usize];
+                let (u, w) = match axis {
+                    0 => (p.z, p.y),
+                    1 => (p.x, p.z),
+                    _ => (p.x, p.y),
+                };
+                uvs.push(Vec2::new(u, -w) * scale);
+            }
+            indices.push(*s);
+        }
+    }
+    mesh.uvs = None;
+    mesh.gather_vertices(&source);
+    mesh.uvs = Some(uvs);
+    mesh.indices = indices;
+}
+
+fn dominant_axis(n: Vec3) -> usize {
+    let a = n.abs();
+    if a.x > a.y && a.x > a.z {
+        0
+    } else if a.z > a.y {
+        2
+    } else {
+        1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_uvs_split_a_cube_corner_three_ways() {
+        // Three faces of a cube meeting at the origin, sharing vertex 0.
+        let mut m = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            indices: vec![0, 1, 2, 0, 2, 3, 0, 3, 1],
+            ..Default::default()
+        };
+        generate_box_uvs(&mut m);
+        assert_eq!(m.indices.len(), 9);
+        // vertex 0 used by three planes, vertices 1..3 by two each
+        assert_eq!(m.positions.len(), 3 + 2 * 3);
+        m.validate();
+    }
+
+    #[test]
+    fn coordinates_beyond_the_range_are_refused() {
+        let e = load_bytes(
+            Path::new("big.obj"),
+            b"v 0 0 0\nv 1e30 0 0\nv 0 1 0\nf 1 2 3\n",
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("vertex 1") && e.to_string().contains("big.obj"),
+            "{e}"
+        );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_opens_without_waiting_and_is_refused_on_the_handle() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("swapped.obj");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        // The open itself, as after a swap that the path check did not see: no writer exists,
+        // so a blocking open would never return.
+        let (tx, rx) = std::sync::mpsc::channel();
+        let path = fifo.clone();
+        std::thread::spawn(move || {
+            let _ = tx.send(open_without_blocking(&path).map(|f| f.metadata().unwrap().is_file()));
+        });
+        let opened = rx
+            .recv_timeout(std::time::Duration::from_secs(5))
+            .expect("opening a FIFO blocked");
+        assert!(!opened.unwrap(), "a FIFO reads as a regular file");
+        let e = read_regular_file(&fifo, 100).unwrap_err();
+        assert!(e.to_string().contains("not a regular file"), "{e}");
+    }
+
+    #[test]
+    fn unknown_extension_is_refused() {
+        let e = load_bytes(Path::new("x.stl"), b"solid").unwrap_err();
+        assert!(e.to_string().contains("x.stl"), "{e}");
+    }
+}

@@ -1,0 +1,509 @@
+//! Asset in, asset out (DESIGN §10): the input document written back whole, with the fur of its
+//! furred parts added.
+//!
+//! [`graft`] takes the asset as read ([`Asset`]: its JSON and its buffers) and the fur-only file
+//! the plan baked for its parts (one surface per part, each without a base layer: the part's own
+//! primitive is the base), and writes one GLB:
+//!
+//! - **The input, kept.** Every object of the input JSON — scenes, nodes with their names,
+//!   transforms and extras, meshes and primitives, materials, textures, samplers, images, skins,
+//!   animations, cameras, `KHR_lights_punctual`, extensions and extras at every level — is
+//!   written as it was, at the same index, so every reference inside it still holds. What
+//!   changes is where bytes live, because the output is one self-contained GLB: every buffer
+//!   becomes part of the one binary chunk (each buffer view moved by its buffer's offset there);
+//!   an image file beside a `.gltf` is embedded as a buffer view (`data:` URIs stay as they are);
+//!   and views compressed with `EXT_`/`KHR_meshopt_compression` are written decoded (the
+//!   extension is dropped), since the reader decodes them and the compressed source would
+//!   otherwise be carried twice.
+//! - **The fur, added.** The fur file's objects are appended after the input's, every index
+//!   shifted by the input's count of that kind. A rigid part's fur root hangs under the part's
+//!   node, its transform `W⁻¹ · D` (`W` the node's world matrix, `D` the dequantization), so the
+//!   node's animation moves the fur with it and the fur renders where it was baked. When
+//!   `W⁻¹ · D` is not a translation-rotation-scale (a non-uniform scale under a rotation), the
+//!   root stays a scene root with `D` and a warning says the fur will not follow the node. A
+//!   skinned part's layer nodes are scene roots bound to the part's own skin (the same joints,
+//!   the same inverse bind matrices: their positions are stored unquantized in the
+//!   primitive's bind space), so the asset's clips animate the fur and every client computes
+//!   true bounds from the positions. Each fur root's (and each skinned layer node's)
+//!   `extras.shellbake_fur` names the node, mesh and primitive it grows on; a file read again
+//!   skips those parts (no fur on fur).
+//! - **Extensions**: `extensionsUsed` and `extensionsRequired` are the union of both files'
+//!   (less meshopt's, as above), in first-seen order.
+
+use glam::{DMat4, DQuat, DVec3};
+use serde_json::{json, Value};
+
+use crate::error::Result;
+use crate::input::asset::Asset;
+use crate::output::pack::Packed;
+
+/// The asset with its fur: the GLB, its JSON, and what the graft had to warn about.
+pub struct Grafted {
+    pub glb: Vec<u8>,
+    pub json: Value,
+    pub warnings: Vec<String>,
+}
+
+/// How many objects of each kind the input holds: the fur's indices are shifted by these.
+#[derive(Clone, Copy, Default)]
+struct Base {
+    nodes: usize,
+    meshes: usize,
+    materials: usize,
+    textures: usize,
+    images: usize,
+    samplers: usize,
+    accessors: usize,
+    views: usize,
+    skins: usize,
+}
+
+const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
+
+/// Writes `asset` with the fur of `fur` (the fur-only file's JSON and binary chunk, and its
+/// packing) grafted on: surface `s` of the fur grows on part `parts[s]` of the asset.
+pub fn graft(
+    asset: &Asset,
+    parts: &[usize],
+    (fur_json, fur_bin): (&Value, &[u8]),
+    packed: &Packed,
+) -> Result<Grafted> {
+    assert_eq!(
+        parts.len(),
+        packed.surfaces.len(),
+        "one part per fur surface"
+    );
+    let mut out = asset.doc.json.clone();
+    let mut bin: Vec<u8> = Vec::new();
+    let mut warnings = Vec::new();
+    carry_buffers(asset, &mut out, &mut bin);
+    embed_images(asset, &mut out, &mut bin)?;
+    let count = |k: &str| out[k].as_array().map_or(0, Vec::len);
+    let base = Base {
+        nodes: count("nodes"),
+        meshes: count("meshes"),
+        materials: count("materials"),
+        textures: count("textures"),
+        images: count("images"),
+        samplers: count("samplers"),
+        accessors: count("accessors"),
+        views: count("bufferViews"),
+        skins: count("skins"),
+    };
+    // the fur's binary chunk, after the input's
+    align(&mut bin);
+    let fur_offset = bin.len();
+    bin.extend_from_slice(fur_bin);
+    let mut buffers = vec![json!({})];
+    // the fur's fallback buffers (compressed views decode into them) follow the input's
+    let mut fur_buffers = Vec::new();
+    for (b, declared) in fur_json["buffers"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .enumerate()
+    {
+        if b == 0 {
+            fur_buffers.push(0);
+        } else {
+            buffers.push(declared.clone());
+            fur_buffers.push(buffers.len() - 1);
+        }
+    }
+    append_fur(&mut out, fur_json, base, (fur_offset, &fur_buffers));
+
+    // attach each surface's fur to its part
+    let default_scene = out["scene"].as_u64().unwrap_or(0) as usize;
+    for (s, &p) in parts.iter().enumerate() {
+        let part = &asset.parts[p];
+        let surface = &packed.surfaces[s];
+        let root = base.nodes + surface.root;
+        let marker = json!({
+            "node": part.node,
+            "mesh": part.mesh,
+            "primitive": part.primitive,
+        });
+        out["nodes"][root]["extras"]["shellbake_fur"] = marker.clone();
+        if let Some(skin) = part.skin {
+            // the layer nodes: roots of the fur file with a mesh, of this surface
+            let layers: Vec<usize> = packed
+                .roots
+                .iter()
+                .copied()
+                .filter(|&n| packed.nodes[n].tag.surface == s && n != surface.root)
+                .collect();
+            for &n in &layers {
+                let node = &mut out["nodes"][base.nodes + n];
+                node["skin"] = json!(skin);
+                node["extras"]["shellbake_fur"] = marker.clone();
+            }
+            let roots = std::iter::once(root).chain(layers.iter().map(|&n| base.nodes + n));
+            add_to_scene(&mut out, default_scene, roots);
+            continue;
+        }
+        let dequantize = DMat4::from_scale_rotation_translation(
+            DVec3::splat(surface.scale),
+            DQuat::IDENTITY,
+            surface.translation,
+        );
+        let local = part.world.inverse() * dequantize;
+        match trs_of(local) {
+            Some((t, r, sc)) => {
+                let node = out["nodes"][root].as_object_mut().expect("a node");
+                node.insert("translation".into(), json!([t.x, t.y, t.z]));
+                if r != DQuat::IDENTITY {
+                    node.insert("rotation".into(), json!([r.x, r.y, r.z, r.w]));
+                }
+                node.insert("scale".into(), json!([sc.x, sc.y, sc.z]));
+                let parent = out["nodes"][part.node].as_object_mut().expect("a node");
+                let children = parent
+                    .entry("children")
+                    .or_insert_with(|| json!([]))
+                    .as_array_mut()
+                    .expect("children");
+                children.push(json!(root));
+            }
+            None => {
+                warnings.push(format!(
+                    "node '{}' has a non-uniform scale under a rotation: its fur is a scene root \
+                     placed where it was baked and does not follow the node's animation",
+                    crate::input::escape(&part.names.node)
+                ));
+                add_to_scene(&mut out, default_scene, std::iter::once(root));
+            }
+        }
+    }
+    merge_extensions(&mut out, fur_json);
+    align(&mut bin);
+    buffers[0] = json!({ "byteLength": bin.len() });
+    out["buffers"] = Value::Array(buffers);
+    let glb = crate::output::write::glb_bytes(&out, &bin);
+    Ok(Grafted {
+        glb,
+        json: out,
+        warnings,
+    })
+}
+
+fn align(bin: &mut Vec<u8>) {
+    bin.resize(bin.len().next_multiple_of(8), 0);
+}
+
+/// Moves the input's buffers into `bin`, the views that read them shifted, compressed views
+/// written decoded. Buffers no view reads are left out.
+fn carry_buffers(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) {
+    let Some(views) = out.get_mut("bufferViews").and_then(Value::as_array_mut) else {
+        return;
+    };
+    for v in views.iter_mut() {
+        if let Some(ext) = v.get_mut("extensions").and_then(Value::as_object_mut) {
+            for name in MESHOPT {
+                ext.remove(name);
+            }
+            if ext.is_empty() {
+                v.as_object_mut().map(|o| o.remove("extensions"));
+            }
+        }
+    }
+    let mut offset: Vec<Option<usize>> = vec![None; asset.buffers.len()];
+    for v in views.iter_mut() {
+        let b = v["buffer"].as_u64().unwrap_or(0) as usize;
+        let at = *offset[b].get_or_insert_with(|| {
+            align(bin);
+            let at = bin.len();
+            bin.extend_from_slice(&asset.buffers[b]);
+            at
+        });
+        let o = v.as_object_mut().expect("a buffer view");
+        o.insert("buffer".into(), json!(0));
+        let shifted = o.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize + at;
+        o.insert("byteOffset".into(), json!(shifted));
+    }
+    for list in ["extensionsUsed", "extensionsRequired"] {
+        if let Some(l) = out.get_mut(list).and_then(Value::as_array_mut) {
+            l.retain(|e| !MESHOPT.contains(&e.as_str().unwrap_or("")));
+        }
+        if out
+            .get(list)
+            .and_then(Value::as_array)
+            .is_some_and(Vec::is_empty)
+        {
+            out.as_object_mut().map(|o| o.remove(list));
+        }
+    }
+}
+
+/// Embeds every image that names a file (not a `data:` URI) as a buffer view of `bin`.
+fn embed_images(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) -> Result<()> {
+    let Some(images) = out["images"].as_array().cloned() else {
+        return Ok(());
+    };
+    for (i, image) in images.iter().enumerate() {
+        let Some(uri) = image["uri"].as_str() else {
+            continue;
+        };
+        if uri.starts_with("data:") {
+            continue;
+        }
+        let bytes = asset.doc.read_uri(&format!("image {i}"), uri)?;
+        let mime = if bytes.starts_with(b"\x89PNG") {
+            "image/png"
+        } else if bytes.starts_with(&[0xff, 0xd8]) {
+            "image/jpeg"
+        } else if bytes.starts_with(b"\xabKTX 20") {
+            "image/ktx2"
+        } else if bytes.len() > 12 && &bytes[8..12] == b"WEBP" {
+            "image/webp"
+        } else {
+            image["mimeType"]
+                .as_str()
+                .unwrap_or("application/octet-stream")
+        };
+        align(bin);
+        let view = out["bufferViews"].as_array().map_or(0, Vec::len);
+        let entry = json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len() });
+        bin.extend_from_slice(&bytes);
+        match out.get_mut("bufferViews").and_then(Value::as_array_mut) {
+            Some(v) => v.push(entry),
+            None => out["bufferViews"] = json!([entry]),
+        }
+        let o = out["images"][i].as_object_mut().expect("an image");
+        o.remove("uri");
+        o.insert("bufferView".into(), json!(view));
+        o.insert("mimeType".into(), json!(mime));
+    }
+    Ok(())
+}
+
+/// Appends the fur file's objects to `out`, every index shifted by `base`; its buffer views
+/// read the fur's chunk at `offset` (buffer 0) or the fallback buffers `buffers` maps to.
+fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usize, &[usize])) {
+    // shifts the index at `pointer` inside `v`, when there is one
+    let shift = |v: &mut Value, pointer: &str, by: usize| {
+        if let Some(x) = v.pointer_mut(pointer) {
+            if let Some(i) = x.as_u64() {
+                *x = json!(i as usize + by);
+            }
+        }
+    };
+    let shift_all = |v: &mut Value, pointer: &str, by: usize| {
+        for x in v
+            .pointer_mut(pointer)
+            .and_then(Value::as_array_mut)
+            .into_iter()
+            .flatten()
+        {
+            if let Some(i) = x.as_u64() {
+                *x = json!(i as usize + by);
+            }
+        }
+    };
+    let push = |out: &mut Value, kind: &str, items: Vec<Value>| {
+        if items.is_empty() {
+            return;
+        }
+        match out.get_mut(kind).and_then(Value::as_array_mut) {
+            Some(list) => list.extend(items),
+            None => out[kind] = Value::Array(items),
+        }
+    };
+    let list = |kind: &str| fur[kind].as_array().cloned().unwrap_or_default();
+
+    let mut views = list("bufferViews");
+    // a view (or its compression extension) on buffer 0 reads the fur's chunk at `offset`
+    let rebase = |v: &mut Value| {
+        let b = v["buffer"].as_u64().unwrap_or(0) as usize;
+        v["buffer"] = json!(buffers[b]);
+        if b == 0 {
+            let at = v.get("byteOffset").and_then(Value::as_u64).unwrap_or(0) as usize;
+            v["byteOffset"] = json!(at + offset);
+        }
+    };
+    for v in &mut views {
+        rebase(v);
+        for name in MESHOPT {
+            if let Some(ext) = v.pointer_mut(&format!("/extensions/{name}")) {
+                rebase(ext);
+            }
+        }
+    }
+    push(out, "bufferViews", views);
+
+    // the indices each kind holds, by JSON pointer: one (`shift`) or a list (`shift_all`)
+    type Pointers<'a> = &'a [(&'a str, usize)];
+    let rules: [(&str, Pointers, Pointers); 6] = [
+        ("accessors", &[("/bufferView", base.views)], &[]),
+        ("images", &[("/bufferView", base.views)], &[]),
+        ("samplers", &[], &[]),
+        (
+            "textures",
+            &[("/source", base.images), ("/sampler", base.samplers)],
+            &[],
+        ),
+        (
+            "skins",
+            &[
+                ("/inverseBindMatrices", base.accessors),
+                ("/skeleton", base.nodes),
+            ],
+            &[("/joints", base.nodes)],
+        ),
+        (
+            "nodes",
+            &[("/mesh", base.meshes), ("/skin", base.skins)],
+            &[
+                ("/children", base.nodes),
+                ("/extensions/MSFT_lod/ids", base.nodes),
+            ],
+        ),
+    ];
+    for (kind, one, all) in rules {
+        let mut items = list(kind);
+        for item in &mut items {
+            for &(pointer, by) in one {
+                shift(item, pointer, by);
+            }
+            for &(pointer, by) in all {
+                shift_all(item, pointer, by);
+            }
+        }
+        push(out, kind, items);
+    }
+
+    let mut materials = list("materials");
+    for m in &mut materials {
+        shift_texture_indices(m, base.textures);
+    }
+    push(out, "materials", materials);
+
+    let mut meshes = list("meshes");
+    for m in &mut meshes {
+        let primitives = m.get_mut("primitives").and_then(Value::as_array_mut);
+        for p in primitives.into_iter().flatten() {
+            let attributes = p.get_mut("attributes").and_then(Value::as_object_mut);
+            for a in attributes.into_iter().flat_map(|o| o.values_mut()) {
+                shift(a, "", base.accessors);
+            }
+            let targets = p.get_mut("targets").and_then(Value::as_array_mut);
+            for t in targets.into_iter().flatten() {
+                for a in t.as_object_mut().into_iter().flat_map(|o| o.values_mut()) {
+                    shift(a, "", base.accessors);
+                }
+            }
+            shift(p, "/indices", base.accessors);
+            shift(p, "/material", base.materials);
+        }
+    }
+    push(out, "meshes", meshes);
+
+    let mut animations = list("animations");
+    for a in &mut animations {
+        let channels = a.get_mut("channels").and_then(Value::as_array_mut);
+        for c in channels.into_iter().flatten() {
+            shift(c, "/target/node", base.nodes);
+        }
+        let samplers = a.get_mut("samplers").and_then(Value::as_array_mut);
+        for s in samplers.into_iter().flatten() {
+            shift(s, "/input", base.accessors);
+            shift(s, "/output", base.accessors);
+        }
+    }
+    push(out, "animations", animations);
+}
+
+/// Shifts every texture index in a material (its `textureInfo`s, those of its extensions too).
+fn shift_texture_indices(v: &mut Value, by: usize) {
+    match v {
+        Value::Object(o) => {
+            for (k, child) in o.iter_mut() {
+                if k == "index" {
+                    if let Some(i) = child.as_u64() {
+                        *child = json!(i as usize + by);
+                    }
+                } else {
+                    shift_texture_indices(child, by);
+                }
+            }
+        }
+        Value::Array(a) => a.iter_mut().for_each(|c| shift_texture_indices(c, by)),
+        _ => {}
+    }
+}
+
+/// Adds `nodes` to scene `scene`'s roots (when the file has scenes; otherwise a parentless node
+/// is a root already).
+fn add_to_scene(out: &mut Value, scene: usize, nodes: impl Iterator<Item = usize>) {
+    let Some(s) = out.pointer_mut(&format!("/scenes/{scene}")) else {
+        return;
+    };
+    match s.get_mut("nodes").and_then(Value::as_array_mut) {
+        Some(list) => list.extend(nodes.map(|n| json!(n))),
+        None => s["nodes"] = Value::Array(nodes.map(|n| json!(n)).collect()),
+    }
+}
+
+/// `m` as translation, rotation and scale, when it is one (to within 1e-9 of its size).
+fn trs_of(m: DMat4) -> Option<(DVec3, DQuat, DVec3)> {
+    let (s, r, t) = m.to_scale_rotation_translation();
+    let back = DMat4::from_scale_rotation_translation(s, r, t);
+    let size = m
+        .to_cols_array()
+        .iter()
+        .fold(0.0f64, |a, v| a.max(v.abs()))
+        .max(1.0);
+    let err = (back - m)
+        .to_cols_array()
+        .iter()
+        .fold(0.0f64, |a, v| a.max(v.abs()));
+    (err <= 1e-9 * size && s.is_finite() && r.is_finite() && t.is_finite()).then_some((t, r, s))
+}
+
+/// The union of both files' extension lists, the input's first.
+fn merge_extensions(out: &mut Value, fur: &Value) {
+    for list in ["extensionsUsed", "extensionsRequired"] {
+        let mut names: Vec<Value> = out[list].as_array().cloned().unwrap_or_default();
+        for e in fur[list].as_array().into_iter().flatten() {
+            if !names.contains(e) {
+                names.push(e.clone());
+            }
+        }
+        if !names.is_empty() {
+            out[list] = Value::Array(names);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trs_of_refuses_shear_and_keeps_trs() {
+        let m = DMat4::from_scale_rotation_translation(
+            DVec3::new(2.0, 2.0, 2.0),
+            DQuat::from_rotation_y(0.7),
+            DVec3::new(1.0, -3.0, 5.0),
+        );
+        let (t, r, s) = trs_of(m).expect("a TRS");
+        assert!((t - DVec3::new(1.0, -3.0, 5.0)).length() < 1e-12);
+        assert!((s - DVec3::splat(2.0)).length() < 1e-12);
+        assert!(r.angle_between(DQuat::from_rotation_y(0.7)) < 1e-9);
+        // a non-uniform scale after a rotation shears
+        let shear = DMat4::from_scale(DVec3::new(1.0, 3.0, 1.0)) * DMat4::from_rotation_z(0.5);
+        assert!(trs_of(shear).is_none());
+    }
+
+    #[test]
+    fn texture_indices_shift_everywhere_in_a_material() {
+        let mut m = json!({
+            "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 } },
+            "extensions": { "KHR_materials_sheen": { "sheenColorTexture": { "index": 2 } } }
+        });
+        shift_texture_indices(&mut m, 5);
+        assert_eq!(m["pbrMetallicRoughness"]["baseColorTexture"]["index"], 5);
+        assert_eq!(
+            m["extensions"]["KHR_materials_sheen"]["sheenColorTexture"]["index"],
+            7
+        );
+    }
+}

@@ -1,0 +1,143 @@
+//! Primitives that are not layers: the `fins` effect's fin quads and the `outline` effect's
+//! inverted hull, each one mesh under the surface's root node (so the root's dequantization
+//! places them), after the chunk and layer nodes.
+//!
+//! Positions go on the surface's position grid like the layers' (normalized `i16`, or the exact
+//! floats of `--quantize none`); the grid is fitted over the hull too, so a hull wider than the
+//! fur stays on it. Fin normals are `i8` like the layers'; fin texture coordinates are
+//! normalized `u16` over `[0, u_max] × [0, 1]` in strip tiles, the strip bound with a
+//! `KHR_texture_transform` scale of `(u_max, 1)`. The hull has positions and indices only: its
+//! material is unlit.
+
+use glam::{Vec2, Vec3};
+
+use super::model::{Alpha, Material, Node, Packed, Semantic, Texture, TextureRef};
+use super::quantize::Bytes;
+use super::{component, Builder, Geometry, PackInput};
+
+/// What the extras added: their nodes, and the bytes each wrote.
+pub(super) struct Extras {
+    pub nodes: Vec<usize>,
+    pub fin_bytes: usize,
+    pub outline_bytes: usize,
+}
+
+/// Bytes of the streams from `first` on.
+fn bytes_since(out: &Packed, first: usize) -> usize {
+    out.streams[first..].iter().map(|s| s.bytes.len()).sum()
+}
+
+pub(super) fn extras(b: &mut Builder, g: &Geometry, input: &PackInput) -> Extras {
+    let mut nodes = Vec::new();
+    let mut fin_bytes = 0;
+    let mut outline_bytes = 0;
+    let stored = |p: &[Vec3]| p.iter().map(|&p| g.stored(p)).collect::<Vec<_>>();
+    if let Some(f) = input.fins {
+        let first = b.out.streams.len();
+        let m = f.mesh(input.mesh, input.delta);
+        let position = b.positions("fin_position", &stored(&m.positions), &g.grid);
+        let normal = b.normals(&m.normals);
+        // normalized u16 over [0, u_max] × [0, 1], the scale in the texture transform (exact
+        // floats under `--quantize none`)
+        let u_max = m.uvs.iter().fold(f32::MIN_POSITIVE, |a, p| a.max(p.x));
+        let mut uv = Bytes::default();
+        let (stride, kind, scale) = if b.float {
+            for p in &m.uvs {
+                uv.f32s(&p.to_array());
+            }
+            (8, component::FLOAT, Vec2::ONE)
+        } else {
+            let scale = Vec2::new(u_max, 1.0);
+            for p in &m.uvs {
+                let q = (*p / scale * 65535.0).round();
+                uv.u16s(&[q.x as u16, q.y as u16], 4);
+            }
+            (4, component::UNSIGNED_SHORT, scale)
+        };
+        let n = m.uvs.len();
+        let v = b.stream(
+            "fin_texcoord",
+            Semantic::TexCoord(0),
+            None,
+            uv.0,
+            Some(stride),
+            n,
+        );
+        let uv = b.out.accessor(v, kind, !b.float, "VEC2", None);
+        let indices = b.indices("fin_indices", &m.indices, m.positions.len());
+        let png = crate::effects::fins::encode_strip_png(&f.strip);
+        let image = b.stream("fin_strip", Semantic::Image, None, png, None, 0);
+        let texture = Packed::push(&mut b.out.textures, Texture { image });
+        let material = Packed::push(
+            &mut b.out.materials,
+            Material {
+                name: format!("{}fins", input.prefix),
+                base_color: [1.0; 4],
+                alpha: Alpha::Mask(0.5),
+                texture: Some(TextureRef {
+                    texture,
+                    offset: Vec2::ZERO,
+                    scale,
+                }),
+                roughness: input.roughness,
+                sheen: None,
+                unlit: false,
+            },
+        );
+        let attributes = vec![
+            (Semantic::Position, position),
+            (Semantic::Normal, normal),
+            (Semantic::TexCoord(0), uv),
+        ];
+        let name = format!("{}fins", input.prefix);
+        let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
+        nodes.push(node(b, name, mesh));
+        fin_bytes = bytes_since(b.out, first);
+    }
+    if let Some(o) = input.outline {
+        let first = b.out.streams.len();
+        let hull: Vec<Vec3> = input
+            .mesh
+            .positions
+            .iter()
+            .zip(&o.offset)
+            .map(|(&p, &d)| p + d)
+            .collect();
+        let position = b.positions("outline_position", &stored(&hull), &g.grid);
+        let reversed = crate::effects::outline::reversed(&input.mesh.indices);
+        let indices = b.indices("outline_indices", &reversed, hull.len());
+        let c = o.color;
+        let material = Packed::push(
+            &mut b.out.materials,
+            Material {
+                name: format!("{}outline", input.prefix),
+                base_color: [c[0], c[1], c[2], 1.0],
+                alpha: Alpha::Opaque,
+                texture: None,
+                roughness: 1.0,
+                sheen: None,
+                unlit: true,
+            },
+        );
+        let name = format!("{}outline", input.prefix);
+        let attributes = vec![(Semantic::Position, position)];
+        let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
+        nodes.push(node(b, name, mesh));
+        outline_bytes = bytes_since(b.out, first);
+    }
+    Extras {
+        nodes,
+        fin_bytes,
+        outline_bytes,
+    }
+}
+
+fn node(b: &mut Builder, name: String, mesh: usize) -> usize {
+    let node = Node {
+        name,
+        tag: b.tag,
+        mesh: Some(mesh),
+        ..Node::default()
+    };
+    Packed::push(&mut b.out.nodes, node)
+}

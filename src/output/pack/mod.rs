@@ -1,0 +1,1950 @@
+//! Pack: quantization, vertex ordering and the byte streams of the two layouts (DESIGN §4).
+//!
+//! `pack` turns the editable mesh and the shell stack into [`Packed`]: byte streams, accessors
+//! over them, primitives and materials — a neutral description that `write.rs` turns into glTF
+//! JSON. All byte encoding lives here; no JSON is written here.
+//!
+//! Order of work follows meshoptimizer's recommendation: index order for the vertex cache
+//! (`meshopt_optimizeVertexCache`), then vertex order for fetch (first use in the index buffer,
+//! as `optimizeVertexFetchRemap` does), then quantization. Both are deterministic. Vertices no
+//! triangle uses are dropped.
+//!
+//! - **compact**: one quantized geometry (POSITION u16, NORMAL i8, TEXCOORD_0 u16, morph target 0
+//!   = extrusion delta as float, see below) shared by every layer; layer `j` is a primitive reusing the same
+//!   accessors with its own material (`MASK`, `alphaCutoff` = the mask's cutoff for the layer's
+//!   step, per-layer colour) and weight `t_j`. The base layer is opaque (still textured: the
+//!   mask's grey carries the strands' shade onto the skin) and has no morph target. Adding a
+//!   layer costs JSON only. LOD levels over the same triangles (merged layers, the bare level)
+//!   draw LOD 0's index stream too: its triangles are ordered by how many LOD 0 layers keep them,
+//!   and a coarser layer draws the shortest prefix that holds every triangle its own culling
+//!   keeps (the few extra triangles show no strand: culling is conservative either way). A level
+//!   with a simplified base (`lod.simplify`) has its own triangles and its own index stream.
+//! - **single-draw**: every layer's vertices explicitly (positions quantized per layer), all in
+//!   one primitive with one material; `COLOR_0` (u16 normalized RGBA) carries the layer's shade
+//!   and an alpha `a_j = C/cutoff_j` against one fixed cutoff `C`, so `a_j·alpha >= C ⇔
+//!   alpha >= cutoff_j` for any (interpolated) mask alpha: the compact layer's test. `C` is the
+//!   lower of `(BASE_CODE − ½)/255` and the base layer's law cutoff, so `C <= cutoff_j` for every
+//!   layer (`a_j <= 1`) and every texel, whose alpha is at least `BASE_CODE/255`, passes the base
+//!   layer (`a_0 = 1`): the base stays opaque. Indices run from the inner to the outer layer.
+//!
+//! The extrusion delta has a precision of its own: 32-bit float in grid units, not integers on
+//! the position grid. On the grid, a delta the clamp shortened to a few steps loses its
+//! direction (the Stanford dragon kept 158 inverted outer-shell triangles that way). A float
+//! delta costs 4 more bytes per vertex than an `i16` one; scaling an `i16` delta up and the layer
+//! weights down would keep it at 8 bytes but breaks every client's bounding box (three.js adds
+//! the whole target to the bounds). The floats lie on the exponent filter's grid (16-bit
+//! mantissas, one exponent per component: at most 1/64 of a grid step off, see
+//! [`crate::output::compress::DeltaGrid`]), so `--compress meshopt` stores them exactly with its
+//! `EXPONENTIAL` filter. Then `guard.rs` checks the stored geometry (deltas as rounded onto that
+//! grid), so no layer triangle of the written file inverts.
+
+mod extras;
+mod guard;
+mod model;
+mod quantize;
+
+pub use model::{
+    Accessor, Alpha, Animation, Channel, LayerRange, Material, Mesh as PackedMesh, Node, NodeLod,
+    Packed, PackedSurface, Primitive, Semantic, ShellExtras, Skin, Stream, StreamKind, Tag,
+    Texture, TextureRef,
+};
+
+pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid, SNORM16};
+
+use glam::{Vec2, Vec3};
+use image::ImageEncoder;
+use serde::{Deserialize, Serialize};
+
+use crate::error::ParamError;
+use crate::mesh::{color_byte, Mesh};
+use crate::stages::lod::Level;
+use crate::stages::strands::{Mask, BASE_CODE};
+use guard::Vary;
+use quantize::Bytes;
+
+/// Which glTF layout `pack` writes (DESIGN §4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Layout {
+    /// One quantized geometry shared by every layer; extrusion as a morph target; one small mesh
+    /// and material per layer. Smallest file, one draw call per layer.
+    Compact,
+    /// All layers in one primitive and one material; per-layer threshold and shade in COLOR_0.
+    /// Larger file, one draw call.
+    SingleDraw,
+}
+
+impl Layout {
+    /// Every layout, in the order the CLI lists them.
+    pub const ALL: [Layout; 2] = [Layout::Compact, Layout::SingleDraw];
+
+    /// The kebab-case name used on the command line, in scene files, reports and `extras`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Compact => "compact",
+            Layout::SingleDraw => "single-draw",
+        }
+    }
+
+    /// The layout called `name`.
+    pub fn from_name(name: &str) -> Option<Layout> {
+        Layout::ALL.into_iter().find(|l| l.name() == name)
+    }
+}
+
+/// How vertex attributes are stored.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Quantize {
+    /// `KHR_mesh_quantization`: POSITION u16 on the grid, NORMAL i8, TEXCOORD_0 u16 (with
+    /// `KHR_texture_transform`). Smallest.
+    #[default]
+    Khr,
+    /// Plain glTF 2.0 floats of the exact geometry and no required extension: positions as
+    /// the bake computed them (relative to the surface's origin, which the root node
+    /// translates by), the extrusion in world units, unit normals, texture coordinates with the
+    /// tiling multiplied in. For clients that read neither extension (the `gltf` crate and
+    /// Bevy, f3d, libGDX), and the accurate end of `shellbake study`: its compact layout draws
+    /// what the runtime reference draws, pixel for pixel. The largest file.
+    None,
+}
+
+impl Quantize {
+    pub const ALL: [Quantize; 2] = [Quantize::Khr, Quantize::None];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantize::Khr => "khr",
+            Quantize::None => "none",
+        }
+    }
+}
+
+/// Where a compact layer's morph weight `t_j` is written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LayerWeights {
+    /// On the layer's node (`node.weights`): a mesh without default weights is one that
+    /// gltfpack may share between layers, so running it over the file keeps the geometry once
+    /// (with mesh weights it copies the geometry into every layer).
+    #[default]
+    Node,
+    /// On the layer's mesh (`mesh.weights`), for clients that read no node weights.
+    Mesh,
+}
+
+impl LayerWeights {
+    pub const ALL: [LayerWeights; 2] = [LayerWeights::Node, LayerWeights::Mesh];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LayerWeights::Node => "node",
+            LayerWeights::Mesh => "mesh",
+        }
+    }
+}
+
+/// Pack stage parameters (`pack/`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PackParams {
+    /// Output layout.
+    pub layout: Layout,
+    /// Position quantization bits, 8–16. 14 keeps the error under 1/16384 of the largest extent.
+    pub position_bits: u32,
+    /// Attribute storage: quantized (`KHR_mesh_quantization`) or floats.
+    pub quantize: Quantize,
+    /// Texture coordinate bits, 8–16 (see [`UvGrid`]; quantized files only).
+    pub texcoord_bits: u32,
+    /// Where layer weights are written.
+    pub layer_weights: LayerWeights,
+}
+
+impl Default for PackParams {
+    fn default() -> Self {
+        PackParams {
+            layout: Layout::Compact,
+            position_bits: 14,
+            quantize: Quantize::Khr,
+            texcoord_bits: 16,
+            layer_weights: LayerWeights::Node,
+        }
+    }
+}
+
+impl PackParams {
+    /// Checks ranges; the error names the parameter.
+    pub fn check(&self) -> Result<(), ParamError> {
+        ParamError::in_range("position_bits", self.position_bits as f32, 8.0, 16.0)?;
+        ParamError::in_range("texcoord_bits", self.texcoord_bits as f32, 8.0, 16.0)?;
+        Ok(())
+    }
+}
+
+/// glTF component types.
+pub mod component {
+    pub const BYTE: u32 = 5120;
+    pub const UNSIGNED_BYTE: u32 = 5121;
+    pub const SHORT: u32 = 5122;
+    pub const UNSIGNED_SHORT: u32 = 5123;
+    pub const UNSIGNED_INT: u32 = 5125;
+    pub const FLOAT: u32 = 5126;
+}
+
+/// One level of detail as `pack` writes it.
+pub struct PackLevel<'a> {
+    pub level: &'a Level,
+    /// The level's mask (LOD 0's, or the mip its distance calls for).
+    pub mask: &'a Mask,
+    /// The layers each triangle of `indices` shows in, at this level.
+    pub culled: &'a crate::stages::cull::Culled,
+    /// The level's triangle list over the mesh's vertices (the mesh's own, or a simplified
+    /// base's).
+    pub indices: &'a [u32],
+    /// Triangles of `indices` in each chunk (chunk for chunk as [`PackInput::chunks`]).
+    pub chunks: &'a [Vec<u32>],
+}
+
+/// What `pack` needs besides the parameters.
+pub struct PackInput<'a> {
+    pub mesh: &'a Mesh,
+    /// Extrusion delta at t = 1 per vertex (world units).
+    pub delta: &'a [Vec3],
+    /// Shell height at t = 1 (for `extras`).
+    pub height: f32,
+    /// The LOD chain, LOD 0 first.
+    pub levels: &'a [PackLevel<'a>],
+    /// Triangles of each chunk (one chunk: every triangle).
+    pub chunks: &'a [Vec<u32>],
+    /// Each chunk's switch distances and `MSFT_screencoverage` (unused with one level).
+    pub switches: &'a [crate::stages::lod::ChunkSwitch],
+    /// Mask tiles per UV unit (u and v).
+    pub tiles_per_uv: Vec2,
+    /// Density per vertex of `mesh` (`COLOR_0` alpha), when the surface has a density map.
+    pub density: Option<&'a [u8]>,
+    /// How much fur each vertex carries, in [0, 1] (density × length), when the surface has
+    /// maps: the bare level blends skin and fur colour by it, per vertex.
+    pub fur_weight: Option<&'a [f32]>,
+    pub roughness: f32,
+    /// The surface's index in the file and the name of its root node.
+    pub surface: usize,
+    pub name: &'a str,
+    /// Prefix of the surface's mesh and material names (empty for a file of one surface).
+    pub prefix: &'a str,
+    /// The `gravity` effect's bend law (`None`: straight strands).
+    pub bend: Option<&'a crate::effects::gravity::Bend>,
+    /// Lean axis per vertex of `mesh`, across which `bend` and `wind` displace (present when
+    /// either is).
+    pub lean: Option<&'a [Vec3]>,
+    /// The `wind` effect's sway and phases (`None`: still).
+    pub wind: Option<&'a crate::effects::wind::Wind>,
+    /// The `occlusion` effect's darkening per vertex of `mesh`.
+    pub occlusion: Option<&'a [f32]>,
+    /// The `sheen` effect's parameters.
+    pub sheen: Option<&'a crate::effects::sheen::SheenParams>,
+    /// The skin `mesh.skin` indexes (placed), when the input is skinned ([`crate::stages::skin`]).
+    pub skeleton: Option<&'a crate::stages::skin::Skeleton>,
+    /// The `fins` effect's fins (a mesh under the root; see `extras.rs`).
+    pub fins: Option<&'a crate::effects::fins::Fins>,
+    /// The `outline` effect's hull (a mesh under the root).
+    pub outline: Option<&'a crate::effects::outline::Outline>,
+    /// Whether the surface draws its own base layer. `false` for a part of an asset kept whole
+    /// (DESIGN §10): the asset's primitive is the base, so no base layer and no bare level are
+    /// written, and a skinned surface writes no skeleton of its own (its layer nodes share the
+    /// asset's skin, bound when the fur is grafted into the asset).
+    pub base: bool,
+}
+
+/// The surface's vertices with their quantization grids, in the input's order.
+struct Geometry<'a> {
+    /// The position grid (a plain float file's: step 1 at zero, see [`Geometry::stored`]).
+    grid: PositionGrid,
+    /// A plain float file: positions as they are.
+    exact: bool,
+    uv_grid: UvGrid,
+    float_uvs: bool,
+    /// Mask tiles per UV unit.
+    tiles: Vec2,
+    positions: &'a [Vec3],
+    normals: &'a [Vec3],
+    uvs: &'a [Vec2],
+    /// Extrusion deltas in grid units (already guarded).
+    deltas: Vec<Vec3>,
+    /// Compact layout under the `gravity` effect: the bend target per vertex, stored unit.
+    bends: Option<Vec<Vec3>>,
+    bend: Option<&'a crate::effects::gravity::Bend>,
+    /// The `wind` effect's two targets per vertex (`s cos φ`, `s sin φ`), stored unit (compact:
+    /// on the exponent filter's grids).
+    winds: Option<[Vec<Vec3>; 2]>,
+    /// Lean axes (empty without bend and wind).
+    lean: &'a [Vec3],
+    wind: Option<&'a crate::effects::wind::Wind>,
+    occlusion: Option<&'a [f32]>,
+    sheen: Option<&'a crate::effects::sheen::SheenParams>,
+    density: Option<&'a [u8]>,
+    fur_weight: Option<&'a [f32]>,
+    /// The asset's base colour per vertex ([`Mesh::albedo`]): it multiplies every layer
+    /// (`COLOR_0`), whose materials then carry the shade only.
+    albedo: Option<&'a [Vec3]>,
+    /// Joints and weights per vertex, and the skin's joint count.
+    skin: Option<(&'a crate::mesh::VertexSkin, usize)>,
+}
+
+impl Geometry<'_> {
+    /// Position `p` as the POSITION stream stores it ([`stored_position`]).
+    fn stored(&self, p: Vec3) -> Vec3 {
+        stored_position(&self.grid, self.exact, p)
+    }
+}
+
+/// Position `p` as the POSITION stream stores it: its level on `grid`, or itself in a plain
+/// float file (`exact`).
+fn stored_position(grid: &PositionGrid, exact: bool, p: Vec3) -> Vec3 {
+    if exact {
+        p
+    } else {
+        grid.quantize(p).map(f32::from).into()
+    }
+}
+
+/// One chunk at one level: triangles ordered so every layer draws a prefix.
+#[derive(Clone)]
+struct Ordering {
+    /// Index buffer in the input's vertex numbering.
+    indices: Vec<u32>,
+    /// The triangle (of the level's list) at each place of `indices`.
+    tris: Vec<u32>,
+    /// Triangles each layer draws: a prefix of `indices`.
+    kept: Vec<usize>,
+}
+
+impl Ordering {
+    /// The same triangles in the same order for another level of the same triangle list whose
+    /// layers show each triangle up to `top` (that level's culling): each layer draws the
+    /// shortest prefix holding every triangle it needs (a few triangles it would have culled
+    /// come along; none it needs is left out), so the level draws LOD 0's index stream.
+    fn reused(&self, top: &[u32], layers: usize) -> Ordering {
+        let mut kept = vec![0usize; layers];
+        for (p, &t) in self.tris.iter().enumerate() {
+            let shows = (top[t as usize] as usize).min(layers);
+            for k in &mut kept[..shows] {
+                *k = p + 1;
+            }
+        }
+        Ordering {
+            kept,
+            ..self.clone()
+        }
+    }
+}
+
+/// Triangles `tris` by the number of layers they show in (`top`), most first, so that every
+/// layer draws a prefix of one index buffer; meshopt's vertex cache order within each group.
+fn order_triangles(
+    indices: &[u32],
+    vertices: usize,
+    tris: &[u32],
+    top: &[u32],
+    layers: usize,
+) -> Ordering {
+    let mut tris = tris.to_vec();
+    tris.sort_by_key(|&t| std::cmp::Reverse(top[t as usize]));
+    let mut out = Vec::with_capacity(tris.len() * 3);
+    let mut order = Vec::with_capacity(tris.len());
+    let mut kept = vec![0usize; layers];
+    for group in tris.chunk_by(|&a, &b| top[a as usize] == top[b as usize]) {
+        let ix: Vec<u32> = group
+            .iter()
+            .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
+            .collect();
+        let optimized = meshopt::optimize_vertex_cache(&ix, vertices);
+        // which triangle each optimized one is (the cache order keeps corners in place)
+        let mut at: std::collections::HashMap<[u32; 3], Vec<u32>> = Default::default();
+        for (k, &t) in group.iter().enumerate() {
+            at.entry([ix[3 * k], ix[3 * k + 1], ix[3 * k + 2]])
+                .or_default()
+                .push(t);
+        }
+        for tri in optimized.chunks_exact(3) {
+            let t = at
+                .get_mut(&[tri[0], tri[1], tri[2]])
+                .and_then(|v| v.pop())
+                .expect("the cache order keeps each triangle's corners");
+            order.push(t);
+        }
+        out.extend(optimized);
+        let top = (top[group[0] as usize] as usize).min(layers);
+        for k in &mut kept[..top] {
+            *k += group.len();
+        }
+    }
+    Ordering {
+        indices: out,
+        tris: order,
+        kept,
+    }
+}
+
+/// Fetch order = first use in the index buffer (what meshopt's optimizeVertexFetchRemap
+/// computes; done here because the binding truncates its remap table when some vertices are
+/// unused): `order[new] = old`, and the buffer renumbered. The vertices a prefix of the
+/// triangles uses are then a prefix of the vertices.
+fn fetch_order(indices: &[u32], nv: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut fetch = vec![u32::MAX; nv];
+    let mut order = Vec::new();
+    for &i in indices {
+        if fetch[i as usize] == u32::MAX {
+            fetch[i as usize] = order.len() as u32;
+            order.push(i);
+        }
+    }
+    let renumbered = indices.iter().map(|&i| fetch[i as usize]).collect();
+    (order, renumbered)
+}
+
+/// Packs one surface into byte streams for `params.layout`, appended to `out`: its streams,
+/// accessors, textures, materials, meshes and nodes — a root node (the dequantization) with,
+/// per chunk, LOD 0's layer nodes and the coarser levels as `MSFT_lod` alternatives. Returns
+/// what the packing decided (also pushed to `out.surfaces`).
+pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedSurface {
+    let mesh = input.mesh;
+    if cfg!(debug_assertions) {
+        mesh.validate();
+    }
+    assert!(
+        mesh.normals.is_some() && mesh.uvs.is_some(),
+        "pack needs normals and uvs"
+    );
+    assert_eq!(input.delta.len(), mesh.vertex_count());
+    assert!(!input.levels.is_empty() && input.levels[0].level.bare.is_none());
+    let nv = mesh.vertex_count();
+
+    let positions = &mesh.positions;
+    let lean: &[Vec3] = input.lean.unwrap_or(&[]);
+    assert!(
+        (input.bend.is_none() && input.wind.is_none()) || lean.len() == nv,
+        "bend and wind need a lean axis per vertex"
+    );
+    // plain float files keep the exact geometry: positions relative to the origin, deltas in
+    // world units (a grid of step 1 at zero)
+    let exact = params.quantize == Quantize::None;
+    let grid = if exact {
+        PositionGrid::identity(params.position_bits.min(15))
+    } else {
+        PositionGrid::fit(
+            // the base and the fully extruded surface (bent: every layer lies within the box of
+            // `p + a·d + c·b`, a and c in [0, 1])
+            positions
+                .iter()
+                .zip(input.delta)
+                .enumerate()
+                .flat_map(|(v, (&p, &d))| {
+                    let b = input.bend.map_or(Vec3::ZERO, |b| b.at(v, d, lean[v]));
+                    // the outline's hull is stored on the grid too
+                    let o = input.outline.map_or(Vec3::ZERO, |o| o.offset[v]);
+                    [p, p + d, p + b, p + d + b, p + o]
+                }),
+            params.position_bits.min(15),
+        )
+    };
+    // on the exponent filter's grid, or as they are in a plain float file
+    let delta_grid = |v: &[Vec3]| {
+        if exact {
+            crate::output::compress::DeltaGrid::EXACT
+        } else {
+            crate::output::compress::DeltaGrid::fit(v)
+        }
+    };
+    // Deltas in grid units, shortened where the stored geometry would invert at any layer
+    // height of any level.
+    let mut deltas: Vec<Vec3> = input.delta.iter().map(|&d| d / grid.step).collect();
+    let mut heights: Vec<f32> = input
+        .levels
+        .iter()
+        .flat_map(|l| l.level.layers.iter().map(|l| l.t))
+        .collect();
+    heights.sort_by(f32::total_cmp);
+    heights.dedup();
+    let top = heights.last().copied().unwrap_or(0.0);
+    // every layer triangle any level draws: LOD 0's, and those of simplified bases
+    let mut guarded_indices = mesh.indices.clone();
+    for l in input
+        .levels
+        .iter()
+        .filter(|l| l.level.base.is_some() && l.level.bare.is_none())
+    {
+        guarded_indices.extend_from_slice(l.indices);
+    }
+    // quantized positions are stored in units of 32767 grid steps (normalized i16) from the
+    // grid's centre level, float ones in grid steps from its corner; the morph target is in the
+    // same unit
+    let (unit, zero_level) = match params.quantize {
+        Quantize::Khr => (SNORM16, grid.center()),
+        Quantize::None => (1.0, 0),
+    };
+    let mut bends = None;
+    // Two passes: the straight stack shortens the extrusion where it would invert; then a bent
+    // or swaying stack bends (and sways) less where it would, keeping the strands' length.
+    let mut leans: Vec<Vec3> = lean.to_vec();
+    // the second pass: `full` checks the bent stack, swaying under the wind at every keyframe
+    // (`rounded`: single-draw layers are rounded to the grid first)
+    let bent_less = |base: &[Vec3],
+                     both: (&mut [Vec3], &mut [Vec3]),
+                     indices: &[u32],
+                     full: &dyn guard::Check,
+                     rounded: Option<f32>| {
+        match (input.bend.is_some(), input.wind) {
+            (_, Some(wind)) => {
+                let swaying =
+                    guard::Swaying::new(full, base, wind, (&heights, input.bend), rounded);
+                guard::guard(base, both, Vary::Leans, indices, &swaying)
+            }
+            (true, None) => guard::guard(base, both, Vary::Leans, indices, &full),
+            (false, None) => 0,
+        }
+    };
+    let (guarded, bent_less) = match params.layout {
+        Layout::Compact => {
+            let base: Vec<Vec3> = positions
+                .iter()
+                .map(|&p| stored_position(&grid, exact, p))
+                .collect();
+            // deltas are stored on the exponent filter's grid (compressed or not, so a
+            // compressed file's twin is the plain file), and checked as stored
+            let stored: Vec<Vec3> = deltas.iter().map(|&d| d / unit).collect();
+            let stored_grid = delta_grid(&stored);
+            let straight = guard::MorphPath {
+                base: &base,
+                top,
+                grid: Some((stored_grid, unit)),
+                bend: None,
+            };
+            let both = (&mut deltas[..], &mut leans[..]);
+            let shortened = guard::guard(&base, both, Vary::Deltas, &guarded_indices, &straight);
+            // the bend target, derived from each (guarded) delta and lean, on a grid of its own
+            let bend_of =
+                |d: &[Vec3], leans: &[Vec3], b: &crate::effects::gravity::Bend| -> Vec<Vec3> {
+                    d.iter()
+                        .zip(leans)
+                        .enumerate()
+                        .map(|(v, (&d, &m))| b.at(v, d, m) / unit)
+                        .collect()
+                };
+            let bend_grid = input
+                .bend
+                .map(|b| (b, delta_grid(&bend_of(&deltas, &leans, b))));
+            let full = guard::MorphPath {
+                bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
+                ..straight
+            };
+            let both = (&mut deltas[..], &mut leans[..]);
+            let bent_less = bent_less(&base, both, &guarded_indices, &full, None);
+            bends = bend_grid.map(|(b, g)| {
+                bend_of(&deltas, &leans, b)
+                    .into_iter()
+                    .map(|x| g.round(x))
+                    .collect()
+            });
+            // from here on, compact deltas are in the stored unit
+            for d in &mut deltas {
+                *d = stored_grid.round(*d / unit);
+            }
+            (shortened, bent_less)
+        }
+        Layout::SingleDraw => {
+            let base: Vec<Vec3> = positions
+                .iter()
+                .map(|&p| (p - grid.min) / grid.step)
+                .collect();
+            let top = (!exact).then_some(grid.max_level() as f32);
+            let straight = guard::RoundedLayers {
+                base: &base,
+                t: &heights,
+                top_level: top,
+                bend: None,
+            };
+            let both = (&mut deltas[..], &mut leans[..]);
+            let shortened = guard::guard(&base, both, Vary::Deltas, &guarded_indices, &straight);
+            let full = guard::RoundedLayers {
+                bend: input.bend,
+                ..straight
+            };
+            let both = (&mut deltas[..], &mut leans[..]);
+            let bent_less = bent_less(&base, both, &guarded_indices, &full, top);
+            (shortened, bent_less)
+        }
+    };
+    let lean = leans.as_slice();
+    // the wind's targets, from the guarded deltas (compact: `deltas` are stored already)
+    let winds = input.wind.map(|w| {
+        let to_grid = match params.layout {
+            Layout::Compact => unit,
+            Layout::SingleDraw => 1.0,
+        };
+        let [a, b]: [Vec<Vec3>; 2] = [0, 1].map(|k| {
+            deltas
+                .iter()
+                .zip(&w.phase)
+                .zip(lean)
+                .map(|((&d, &phase), &m)| w.targets(d * to_grid, m, phase)[k] / unit)
+                .collect()
+        });
+        match params.layout {
+            Layout::Compact => [a, b].map(|v| {
+                let g = delta_grid(&v);
+                v.iter().map(|&x| g.round(x)).collect()
+            }),
+            Layout::SingleDraw => [a, b],
+        }
+    });
+    let uvs = mesh.uvs.as_deref().unwrap();
+    let uv_grid = UvGrid::fit(uvs, params.texcoord_bits);
+    let tiles = input.tiles_per_uv;
+    let texel_error =
+        (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();
+    let float_uvs = texel_error > 0.125;
+    let geometry = Geometry {
+        grid,
+        exact,
+        uv_grid,
+        float_uvs,
+        tiles,
+        positions,
+        normals: mesh.normals.as_deref().unwrap(),
+        uvs,
+        deltas,
+        bends,
+        bend: input.bend,
+        winds,
+        lean,
+        wind: input.wind,
+        occlusion: input.occlusion,
+        sheen: input.sheen,
+        density: input.density,
+        fur_weight: input.fur_weight,
+        albedo: mesh.albedo.as_deref(),
+        skin: mesh
+            .skin
+            .as_ref()
+            .zip(input.skeleton.map(|k| k.joints.len())),
+    };
+
+    let tag = Tag {
+        surface: input.surface,
+        ..Tag::default()
+    };
+    // the root first (filled in below), so a file's first node is its first surface's root
+    let root = Packed::push(&mut out.nodes, Node::default());
+    let mut b = Builder {
+        out,
+        tag,
+        float: params.quantize == Quantize::None,
+        materials: Vec::new(),
+    };
+    let (uv_offset, uv_scale) = if b.float {
+        // the tiling is in the coordinates: no transform
+        (Vec2::ZERO, Vec2::ONE)
+    } else if float_uvs {
+        (Vec2::ZERO, tiles)
+    } else {
+        (uv_grid.lo * tiles, uv_grid.extent * tiles)
+    };
+    // one texture per distinct mask (LOD 0's, and the mips coarser levels ask for), shared
+    // with an earlier surface of the file that has the same one
+    let mut textures: Vec<(u32, TextureRef)> = Vec::new();
+    for l in input.levels.iter().filter(|l| l.level.bare.is_none()) {
+        if textures.iter().any(|&(m, _)| m == l.level.mask_level) {
+            continue;
+        }
+        let png = encode_mask_png(l.mask);
+        // surfaces of one file with the same strands share the mask's texture (an asset's
+        // parts, a scene's surfaces of one preset)
+        let same = b
+            .out
+            .textures
+            .iter()
+            .position(|t| b.out.streams[t.image].bytes == png);
+        let texture = match same {
+            Some(t) => t,
+            None => {
+                let image = b.stream("mask", Semantic::Image, None, png, None, 0);
+                Packed::push(&mut b.out.textures, Texture { image })
+            }
+        };
+        textures.push((
+            l.level.mask_level,
+            TextureRef {
+                texture,
+                offset: uv_offset,
+                scale: uv_scale,
+            },
+        ));
+    }
+    let texture_of = |l: &Level| {
+        textures
+            .iter()
+            .find(|&&(m, _)| m == l.mask_level)
+            .map(|t| t.1)
+    };
+
+    let several_chunks = input.chunks.len() > 1;
+    let several_levels = input.levels.len() > 1;
+    let mut animation = WindAnimation::default();
+    let mut chunk_nodes = Vec::new();
+    let mut lod_meshes: Vec<Vec<usize>> = vec![Vec::new(); input.levels.len()];
+    let mut layer_nodes_all = Vec::new();
+    let mut base_vertices = 0;
+    let mut vertex_order = Vec::new();
+    let mut lod_triangles = vec![0usize; input.levels.len()];
+    for c in 0..input.chunks.len() {
+        let chunk_tag = Tag {
+            chunk: several_chunks.then_some(c),
+            ..tag
+        };
+        b.tag = chunk_tag;
+        let chunk_prefix = if several_chunks {
+            format!("{}chunk_{c:03}_", input.prefix)
+        } else {
+            input.prefix.to_string()
+        };
+        let mut level_nodes = Vec::new();
+        let mut shared: Option<Shared> = None;
+        let mut lod0: Option<(Ordering, usize)> = None;
+        for (k, pl) in input.levels.iter().enumerate() {
+            b.tag = Tag {
+                lod: several_levels.then_some(k),
+                ..chunk_tag
+            };
+            let layers = pl.level.layers.len().max(1);
+            // in the compact layout, a level over LOD 0's triangles draws LOD 0's index stream
+            let reuse = match (&lod0, params.layout) {
+                (Some((o, ix)), Layout::Compact) if pl.level.base.is_none() => Some((o, *ix)),
+                _ => None,
+            };
+            let ordering = match reuse {
+                Some((o, _)) => o.reused(&pl.culled.top, layers),
+                None => order_triangles(
+                    pl.indices,
+                    mesh.vertex_count(),
+                    &pl.chunks[c],
+                    &pl.culled.top,
+                    layers,
+                ),
+            };
+            let name = if several_levels {
+                format!("{chunk_prefix}lod{k}_")
+            } else {
+                chunk_prefix.clone()
+            };
+            let material_prefix = if several_levels {
+                format!("{}lod{k}_", input.prefix)
+            } else {
+                input.prefix.to_string()
+            };
+            let ctx = LevelCtx {
+                index: k,
+                material_prefix: &material_prefix,
+                geometry: &geometry,
+                level: pl.level,
+                mask: pl.mask,
+                texture: texture_of(pl.level),
+                roughness: input.roughness,
+                prefix: &name,
+                base: input.base,
+            };
+            let meshes = match (params.layout, pl.level.bare) {
+                (Layout::Compact, _) => {
+                    let shared = shared.get_or_insert_with(|| {
+                        let s = Shared::new(&mut b, &geometry, &ordering.indices, nv, true);
+                        base_vertices += s.order.len();
+                        vertex_order.extend(s.order.iter().copied());
+                        s
+                    });
+                    let (meshes, ix) = compact(&mut b, &ctx, shared, &ordering, reuse.map(|r| r.1));
+                    if k == 0 {
+                        lod0 = Some((ordering, ix));
+                    }
+                    meshes
+                }
+                (Layout::SingleDraw, None) => {
+                    let (order, indices) = fetch_order(&ordering.indices, nv);
+                    if k == 0 {
+                        base_vertices += order.len();
+                        vertex_order.extend(order.iter().copied());
+                    }
+                    single_draw(&mut b, &ctx, &order, &indices, &ordering.kept)
+                }
+                (Layout::SingleDraw, Some(_)) => {
+                    let s = Shared::new(&mut b, &geometry, &ordering.indices, nv, false);
+                    compact(&mut b, &ctx, &s, &ordering, None).0
+                }
+            };
+            lod_triangles[k] += meshes
+                .iter()
+                .map(|&m| b.out.mesh_triangles(m))
+                .sum::<usize>();
+            let nodes: Vec<usize> = meshes
+                .iter()
+                .map(|&m| {
+                    let mesh = &mut b.out.meshes[m];
+                    let weights = match params.layer_weights {
+                        LayerWeights::Node => std::mem::take(&mut mesh.weights),
+                        LayerWeights::Mesh => vec![],
+                    };
+                    let node = Node {
+                        name: mesh.name.clone(),
+                        tag: mesh.tag,
+                        mesh: Some(m),
+                        weights,
+                        ..Node::default()
+                    };
+                    Packed::push(&mut b.out.nodes, node)
+                })
+                .collect();
+            if let Some(wind) = input.wind {
+                for (&node, &m) in nodes.iter().zip(&meshes) {
+                    let channel = wind_channel(&mut b, wind, (node, m), pl.level, &mut animation);
+                    // coarser levels (MSFT_lod alternatives, outside the scene) animate apart,
+                    // so that a client without MSFT_lod finds every node the clip names
+                    animation.channels[(k > 0) as usize].extend(channel);
+                }
+            }
+            lod_meshes[k].extend(meshes.iter().copied());
+            if k == 0 {
+                layer_nodes_all.extend(nodes.iter().copied());
+            }
+            level_nodes.push(nodes);
+        }
+        b.tag = chunk_tag;
+        if !several_chunks && !several_levels {
+            chunk_nodes.extend(level_nodes.swap_remove(0));
+            continue;
+        }
+        // the chunk: LOD 0's layers as children, coarser levels as MSFT_lod alternatives
+        let mut ids = Vec::new();
+        for (k, nodes) in level_nodes.iter().enumerate().skip(1) {
+            let node = Node {
+                name: format!("{chunk_prefix}lod{k}"),
+                tag: Tag {
+                    lod: Some(k),
+                    ..chunk_tag
+                },
+                children: nodes.clone(),
+                ..Node::default()
+            };
+            ids.push(Packed::push(&mut b.out.nodes, node));
+        }
+        let levels: Vec<&Level> = input.levels.iter().map(|l| l.level).collect();
+        let node = Node {
+            name: format!("{chunk_prefix}lod0")
+                .trim_end_matches('_')
+                .to_string(),
+            tag: chunk_tag,
+            children: level_nodes[0].clone(),
+            lod: several_levels.then(|| NodeLod {
+                ids,
+                coverage: input.switches[c].coverage.clone(),
+                distances: input.switches[c].distances.clone(),
+                layers: levels.iter().map(|l| l.layers.len()).collect(),
+                errors: levels.iter().map(|l| l.error).collect(),
+            }),
+            ..Node::default()
+        };
+        chunk_nodes.push(Packed::push(&mut b.out.nodes, node));
+    }
+
+    for (channels, name) in animation.channels.into_iter().zip(["wind", "wind_lod"]) {
+        if !channels.is_empty() {
+            b.out.animations.push(Animation {
+                name: format!("{}{name}", input.prefix),
+                channels,
+            });
+        }
+    }
+    b.tag = tag;
+    let extras = extras::extras(&mut b, &geometry, input);
+    // the node that dequantizes: stored value → world
+    let step = grid.step as f64;
+    let translation = grid.min.as_dvec3() + mesh.origin + step * zero_level as f64;
+    let scale = step * unit as f64;
+    let dequantize = glam::DMat4::from_scale_rotation_translation(
+        glam::DVec3::splat(scale),
+        glam::DQuat::IDENTITY,
+        translation,
+    );
+    // a skinned surface: the skeleton under the root, the dequantization in the inverse bind
+    // matrices, the layer nodes roots of their own (see `crate::stages::skin`)
+    // (part of an asset: no skeleton of its own; the graft binds the layer nodes to the asset's
+    // skin, which needs positions in its bind space: no dequantization)
+    let skinned = input.skeleton.filter(|_| geometry.skin.is_some());
+    assert!(
+        skinned.is_none() || input.base || dequantize == glam::DMat4::IDENTITY,
+        "an asset's skinned part stores its bind-space positions as they are"
+    );
+    let wrapper = skinned
+        .filter(|_| input.base)
+        .map(|k| skeleton(&mut b, k, dequantize, &chunk_nodes, input.name));
+    let out = b.out;
+    let lod0 = input.levels[0].level;
+    let (children, placed) = match (skinned, wrapper) {
+        (_, Some(wrapper)) => (vec![wrapper], None),
+        (Some(_), None) => (extras.nodes.clone(), None),
+        (None, _) => {
+            let nodes = chunk_nodes.iter().chain(&extras.nodes).copied().collect();
+            (nodes, Some(dequantize))
+        }
+    };
+    out.nodes[root] = Node {
+        name: input.name.to_string(),
+        tag,
+        children,
+        translation: placed.map(|_| translation),
+        scale: placed.map(|_| glam::DVec3::splat(scale)),
+        extras: Some(ShellExtras {
+            layout: params.layout,
+            height: input.height,
+            // the layers the file holds (culling drops layers no triangle shows in)
+            t: (0..lod0.layers.len())
+                .filter(|&j| j == 0 || input.levels[0].culled.kept[j] > 0)
+                .map(|j| lod0.layers[j].t)
+                .collect(),
+        }),
+        ..Node::default()
+    };
+    out.roots.push(root);
+    if skinned.is_some() {
+        out.roots.extend(&chunk_nodes);
+    }
+    let surface = PackedSurface {
+        layout: params.layout,
+        root,
+        layer_nodes: layer_nodes_all,
+        lod_meshes,
+        lod_triangles,
+        uv_offset,
+        uv_scale,
+        translation,
+        scale,
+        grid,
+        float_uvs,
+        base_vertices,
+        vertex_order,
+        guarded,
+        bent_less,
+        fin_bytes: extras.fin_bytes,
+        outline_bytes: extras.outline_bytes,
+    };
+    out.surfaces.push(surface.clone());
+    surface
+}
+
+/// Writes skeleton `k` for the layer nodes `layers`: its nodes (names kept, for retargeting)
+/// under a node carrying the placement, the skin (inverse bind matrices `IBM · P⁻¹ · R`, with `R`
+/// = `dequantize`), each layer node bound to it, and the clips retargeted. Returns the wrapper.
+fn skeleton(
+    b: &mut Builder,
+    k: &crate::stages::skin::Skeleton,
+    dequantize: glam::DMat4,
+    layers: &[usize],
+    name: &str,
+) -> usize {
+    let first = b.out.nodes.len();
+    for n in &k.nodes {
+        let node = Node {
+            name: n.name.clone(),
+            tag: b.tag,
+            children: n.children.iter().map(|&c| first + c).collect(),
+            translation: Some(n.trs.translation),
+            rotation: Some(n.trs.rotation),
+            scale: Some(n.trs.scale),
+            ..Node::default()
+        };
+        b.out.nodes.push(node);
+    }
+    let (scale, rotation, translation) = k.placement.to_scale_rotation_translation();
+    let wrapper = Packed::push(
+        &mut b.out.nodes,
+        Node {
+            name: format!("{name}_skeleton"),
+            tag: b.tag,
+            children: k.roots.iter().map(|&r| first + r).collect(),
+            translation: Some(translation),
+            rotation: Some(rotation),
+            scale: Some(scale),
+            ..Node::default()
+        },
+    );
+    let unplace = k.placement.inverse() * dequantize;
+    let ibm: Vec<glam::DMat4> = k.inverse_bind.iter().map(|m| *m * unplace).collect();
+    let n = ibm.len();
+    let v = b.stream(
+        "inverse_bind",
+        Semantic::InverseBind,
+        None,
+        model::matrix_bytes(&ibm),
+        None,
+        n,
+    );
+    let inverse_bind = b.out.accessor(v, component::FLOAT, false, "MAT4", None);
+    let skin = Packed::push(
+        &mut b.out.skins,
+        Skin {
+            name: name.to_string(),
+            joints: k.joints.iter().map(|&j| first + j).collect(),
+            inverse_bind,
+        },
+    );
+    for &l in layers {
+        b.out.nodes[l].skin = Some(skin);
+    }
+    for clip in &k.clips {
+        let channels = clip
+            .channels
+            .iter()
+            .map(|c| {
+                let mut times = Bytes::default();
+                times.f32s(&c.times);
+                let t = b.stream(
+                    "skin_times",
+                    Semantic::Animation,
+                    None,
+                    times.0,
+                    None,
+                    c.times.len(),
+                );
+                let lo = c.times.first().copied().unwrap_or(0.0) as f64;
+                let hi = c.times.last().copied().unwrap_or(0.0) as f64;
+                let input = b.out.accessor(
+                    t,
+                    component::FLOAT,
+                    false,
+                    "SCALAR",
+                    Some((vec![lo], vec![hi])),
+                );
+                let mut values = Bytes::default();
+                values.f32s(&c.values);
+                let per = c.path.components();
+                let count = c.values.len() / per;
+                let v = b.stream(
+                    "skin_values",
+                    Semantic::Animation,
+                    None,
+                    values.0,
+                    None,
+                    count,
+                );
+                let kind = if per == 4 { "VEC4" } else { "VEC3" };
+                let output = b.out.accessor(v, component::FLOAT, false, kind, None);
+                Channel {
+                    node: first + c.node,
+                    input,
+                    output,
+                    path: Some(c.path),
+                    interpolation: c.interpolation,
+                }
+            })
+            .collect();
+        b.out.animations.push(Animation {
+            name: clip.name.clone(),
+            channels,
+        });
+    }
+    wrapper
+}
+
+/// A surface's wind animation as it is built: its channels (LOD 0's, then the coarser levels'),
+/// the keyframe times, and the value accessors made so far (nodes with the same weights share
+/// one).
+#[derive(Default)]
+struct WindAnimation {
+    channels: [Vec<Channel>; 2],
+    times: Option<usize>,
+    outputs: Vec<(Vec<u32>, usize)>,
+}
+
+/// The wind channel of `node` (showing mesh `m` of `level`), when the mesh has the wind's
+/// targets (its last two): every key holds the node's own weights with the wind's replaced by
+/// their value at that time (compact: the layer's `t^k sin ωτ`, `t^k cos ωτ`; single-draw, whose
+/// targets hold `t^k`: `sin ωτ`, `cos ωτ`).
+fn wind_channel(
+    b: &mut Builder,
+    wind: &crate::effects::wind::Wind,
+    (node, m): (usize, usize),
+    level: &Level,
+    animation: &mut WindAnimation,
+) -> Option<Channel> {
+    let mesh = &b.out.meshes[m];
+    let targets = mesh.primitives.first().map_or(0, |p| p.targets.len());
+    let rest = match &b.out.nodes[node].weights {
+        w if !w.is_empty() => w.clone(),
+        _ => mesh.weights.clone(),
+    };
+    if targets < 2 || rest.len() != targets {
+        return None;
+    }
+    let t = mesh.tag.layer.map_or(1.0, |j| level.layers[j].t);
+    let times = wind.times();
+    let mut values = Vec::with_capacity(times.len() * targets);
+    for &time in &times {
+        values.extend_from_slice(&rest[..targets - 2]);
+        values.extend(wind.weights(time, t));
+    }
+    let key: Vec<u32> = values.iter().map(|v| v.to_bits()).collect();
+    let output = match animation.outputs.iter().find(|(k, _)| *k == key) {
+        Some(&(_, a)) => a,
+        None => {
+            let mut bytes = Bytes::default();
+            bytes.f32s(&values);
+            let n = values.len();
+            let v = b.stream("wind_weights", Semantic::Animation, None, bytes.0, None, n);
+            let a = b.out.accessor(v, component::FLOAT, false, "SCALAR", None);
+            animation.outputs.push((key, a));
+            a
+        }
+    };
+    let input = *animation.times.get_or_insert_with(|| {
+        let mut bytes = Bytes::default();
+        bytes.f32s(&times);
+        let n = times.len();
+        let v = b.stream("wind_times", Semantic::Animation, None, bytes.0, None, n);
+        let bounds = (vec![0.0], vec![wind.period as f64]);
+        b.out
+            .accessor(v, component::FLOAT, false, "SCALAR", Some(bounds))
+    });
+    Some(Channel {
+        node,
+        input,
+        output,
+        path: None,
+        interpolation: crate::stages::skin::Interpolation::Linear,
+    })
+}
+
+/// What one level of one chunk is packed with.
+struct LevelCtx<'a> {
+    geometry: &'a Geometry<'a>,
+    level: &'a Level,
+    mask: &'a Mask,
+    texture: Option<TextureRef>,
+    roughness: f32,
+    /// Prefix of the level's mesh names (surface, chunk, level).
+    prefix: &'a str,
+    /// The level's index and the prefix of its material names (surface, level).
+    index: usize,
+    material_prefix: &'a str,
+    /// Whether the level draws the base layer (and a bare level its mesh): see
+    /// [`PackInput::base`].
+    base: bool,
+}
+
+/// A chunk's vertex streams in the compact layout, shared by every level: fetch order from
+/// LOD 0's index buffer. A bare level of the single-draw layout has its own, without the
+/// streams only shells read (`shells` = false).
+struct Shared {
+    order: Vec<u32>,
+    /// Input vertex → stored vertex.
+    fetch: Vec<u32>,
+    position: usize,
+    normal: usize,
+    /// `JOINTS_0` and `WEIGHTS_0` of a skinned surface.
+    skin: Option<[usize; 2]>,
+    /// Texture coordinates, extrusion target and density (when `shells`).
+    shells: Option<ShellStreams>,
+}
+
+/// The accessors only shell layers read.
+struct ShellStreams {
+    texcoord: usize,
+    delta: usize,
+    /// The `gravity` effect's target.
+    bend: Option<usize>,
+    /// The `wind` effect's two targets.
+    wind: Option<[usize; 2]>,
+    /// `COLOR_0`: density (alpha) and the occlusion's root shade (rgb).
+    color: Option<usize>,
+    /// The occlusion's `COLOR_0` delta in the extrusion target (shade 1 at `t` = 1).
+    color_delta: Option<usize>,
+}
+
+impl Shared {
+    fn new(b: &mut Builder, g: &Geometry, indices: &[u32], nv: usize, shells: bool) -> Shared {
+        let (order, _) = fetch_order(indices, nv);
+        let mut fetch = vec![u32::MAX; nv];
+        for (new, &old) in order.iter().enumerate() {
+            fetch[old as usize] = new as u32;
+        }
+        let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
+        let q: Vec<Vec3> = pick(g.positions).iter().map(|&p| g.stored(p)).collect();
+        let position = b.positions("position", &q, &g.grid);
+        let normal = b.normals(&pick(g.normals));
+        let skin = g.skin.map(|s| b.skin(s, &order));
+        let shells = shells.then(|| {
+            let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
+            let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs, g.tiles);
+            let delta = b.deltas(&pick(&g.deltas), "extrusion", 0);
+            let bend = g.bends.as_ref().map(|v| b.deltas(&pick(v), "bend", 1));
+            let wind = g.winds.as_ref().map(|[sin, cos]| {
+                let first = 1 + bend.is_some() as usize;
+                [
+                    b.deltas(&pick(sin), "wind_sin", first),
+                    b.deltas(&pick(cos), "wind_cos", first + 1),
+                ]
+            });
+            // COLOR_0: the root's occlusion shade `1 − a` (rgb) and the density (alpha); the
+            // extrusion target adds `a` to the rgb, so layer t shows `1 − a + a·t`
+            let n = order.len();
+            let root = |o: u32| {
+                g.occlusion
+                    .map_or(255, |a| color_byte(1.0 - a[o as usize] as f64))
+            };
+            let color = match g.albedo {
+                // the asset's colour at the root, darkened by the occlusion: u16, so that dark
+                // albedos keep their hue
+                Some(albedo) => {
+                    let mut bytes = Bytes::default();
+                    for &o in &order {
+                        let shade = g.occlusion.map_or(1.0, |a| 1.0 - a[o as usize]);
+                        let c = (albedo[o as usize] * shade).clamp(Vec3::ZERO, Vec3::ONE);
+                        let d = g.density.map_or(u16::MAX, |d| d[o as usize] as u16 * 257);
+                        let q = |v: f32| (v * 65535.0).round() as u16;
+                        bytes.u16s(&[q(c.x), q(c.y), q(c.z), d], 8);
+                    }
+                    let v = b.stream("albedo", Semantic::Color(0), None, bytes.0, Some(8), n);
+                    Some(
+                        b.out
+                            .accessor(v, component::UNSIGNED_SHORT, true, "VEC4", None),
+                    )
+                }
+                None => (g.density.is_some() || g.occlusion.is_some()).then(|| {
+                    let mut bytes = Bytes::default();
+                    for &o in &order {
+                        let c = root(o);
+                        let d = g.density.map_or(255, |d| d[o as usize]);
+                        bytes.0.extend_from_slice(&[c, c, c, d]);
+                    }
+                    let name = if g.occlusion.is_some() {
+                        "color"
+                    } else {
+                        "density"
+                    };
+                    let v = b.stream(name, Semantic::Color(0), None, bytes.0, Some(4), n);
+                    b.out
+                        .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
+                }),
+            };
+            let color_delta = g.occlusion.map(|a| {
+                let mut bytes = Bytes::default();
+                for &o in &order {
+                    // what brings the stored root colour to the full colour at t = 1
+                    let rgb = match g.albedo {
+                        Some(albedo) => albedo[o as usize] * a[o as usize],
+                        None => Vec3::splat(1.0 - root(o) as f32 / 255.0),
+                    };
+                    let [r, gr, bl] = rgb
+                        .to_array()
+                        .map(|v| (v.clamp(0.0, 1.0) * 127.0).round() as i8 as u8);
+                    bytes.0.extend_from_slice(&[r, gr, bl, 0]);
+                }
+                let v = b.stream(
+                    "color_delta",
+                    Semantic::Color(0),
+                    Some(0),
+                    bytes.0,
+                    Some(4),
+                    n,
+                );
+                b.out.accessor(v, component::BYTE, true, "VEC4", None)
+            });
+            ShellStreams {
+                texcoord,
+                delta,
+                bend,
+                wind,
+                color,
+                color_delta,
+            }
+        });
+        Shared {
+            order,
+            fetch,
+            position,
+            normal,
+            skin,
+            shells,
+        }
+    }
+}
+
+/// Appends one surface's streams to the file, tagged with the surface.
+struct Builder<'a> {
+    out: &'a mut Packed,
+    tag: Tag,
+    /// The exact geometry as plain floats (`Quantize::None`).
+    float: bool,
+    /// Materials by (level, layer): every chunk's layer shares one.
+    materials: Vec<((usize, usize), usize)>,
+}
+
+impl Builder<'_> {
+    /// A mesh of one untargeted primitive, tagged with the builder's tag.
+    fn single_primitive_mesh(
+        &mut self,
+        name: String,
+        attributes: Vec<(Semantic, usize)>,
+        indices: usize,
+        material: usize,
+    ) -> usize {
+        let primitive = Primitive {
+            attributes,
+            targets: vec![],
+            indices: Some(indices),
+            material,
+        };
+        let mesh = PackedMesh {
+            name,
+            tag: self.tag,
+            primitives: vec![primitive],
+            weights: vec![],
+            layer_ranges: vec![],
+        };
+        Packed::push(&mut self.out.meshes, mesh)
+    }
+
+    /// The material of layer `layer` of level `level`, made by `make` the first time.
+    fn material(&mut self, level: usize, layer: usize, make: impl FnOnce() -> Material) -> usize {
+        if let Some(&(_, m)) = self.materials.iter().find(|(k, _)| *k == (level, layer)) {
+            return m;
+        }
+        let m = Packed::push(&mut self.out.materials, make());
+        self.materials.push(((level, layer), m));
+        m
+    }
+
+    fn stream(
+        &mut self,
+        name: &'static str,
+        semantic: Semantic,
+        target: Option<usize>,
+        bytes: Vec<u8>,
+        stride: Option<usize>,
+        count: usize,
+    ) -> usize {
+        self.out
+            .stream(name, semantic, target, self.tag, (bytes, stride, count))
+    }
+
+    /// POSITION stream of `q` ([`Geometry::stored`]: grid levels, or a plain float file's
+    /// exact positions): normalized i16 centred on the grid (stride 8), or floats (stride 12),
+    /// with exact bounds.
+    fn positions(&mut self, name: &'static str, q: &[Vec3], grid: &PositionGrid) -> usize {
+        let mut bytes = Bytes::default();
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for &p in q {
+            let v = if self.float {
+                bytes.f32s(&p.to_array());
+                p
+            } else {
+                let s = grid.stored(p.to_array().map(|x| x as u16));
+                bytes.i16s(&s, 8);
+                Vec3::from_array(s.map(f32::from))
+            };
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        if q.is_empty() {
+            (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
+        }
+        let (stride, component, normalized) = if self.float {
+            (12, component::FLOAT, false)
+        } else {
+            (8, component::SHORT, true)
+        };
+        let v = self.stream(
+            name,
+            Semantic::Position,
+            None,
+            bytes.0,
+            Some(stride),
+            q.len(),
+        );
+        let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
+        self.out.accessor(
+            v,
+            component,
+            normalized,
+            "VEC3",
+            Some((bounds(lo), bounds(hi))),
+        )
+    }
+
+    /// `JOINTS_0` (unsigned byte, or short past 256 joints) and `WEIGHTS_0` (normalized bytes
+    /// summing to 255) of the vertices `order` lists.
+    fn skin(
+        &mut self,
+        (skin, joints): (&crate::mesh::VertexSkin, usize),
+        order: &[u32],
+    ) -> [usize; 2] {
+        let wide = joints > 256;
+        let mut j = Bytes::default();
+        let mut w = Bytes::default();
+        for &o in order {
+            let (js, ws) = crate::stages::skin::influence_bytes(
+                skin.joints[o as usize],
+                skin.weights[o as usize],
+            );
+            if wide {
+                j.u16s(&js, 8);
+            } else {
+                j.0.extend(js.map(|x| x as u8));
+            }
+            w.0.extend(ws);
+        }
+        let n = order.len();
+        let (stride, component) = if wide {
+            (8, component::UNSIGNED_SHORT)
+        } else {
+            (4, component::UNSIGNED_BYTE)
+        };
+        let jv = self.stream("joints", Semantic::Joints(0), None, j.0, Some(stride), n);
+        let ja = self.out.accessor(jv, component, false, "VEC4", None);
+        let wv = self.stream("weights", Semantic::Weights(0), None, w.0, Some(4), n);
+        let wa = self
+            .out
+            .accessor(wv, component::UNSIGNED_BYTE, true, "VEC4", None);
+        [ja, wa]
+    }
+
+    /// Morph target 0: the extrusion delta as float, in the stored position unit, with exact
+    /// bounds.
+    fn deltas(&mut self, deltas: &[Vec3], name: &'static str, target: usize) -> usize {
+        let mut bytes = Bytes::default();
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for d in deltas {
+            bytes.f32s(&d.to_array());
+            lo = lo.min(*d);
+            hi = hi.max(*d);
+        }
+        if deltas.is_empty() {
+            (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
+        }
+        let n = deltas.len();
+        let dv = self.stream(name, Semantic::Position, Some(target), bytes.0, Some(12), n);
+        let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
+        self.out.accessor(
+            dv,
+            component::FLOAT,
+            false,
+            "VEC3",
+            Some((bounds(lo), bounds(hi))),
+        )
+    }
+
+    fn normals(&mut self, n: &[Vec3]) -> usize {
+        let mut bytes = Bytes::default();
+        if self.float {
+            for &v in n {
+                bytes.f32s(&v.to_array());
+            }
+            let v = self.stream("normal", Semantic::Normal, None, bytes.0, Some(12), n.len());
+            return self.out.accessor(v, component::FLOAT, false, "VEC3", None);
+        }
+        for &v in n {
+            bytes.i8s(&quantize_normal(v), 4);
+        }
+        let v = self.stream("normal", Semantic::Normal, None, bytes.0, Some(4), n.len());
+        self.out.accessor(v, component::BYTE, true, "VEC3", None)
+    }
+
+    fn texcoords(&mut self, uvs: &[Vec2], grid: UvGrid, float: bool, tiles: Vec2) -> usize {
+        let mut bytes = Bytes::default();
+        if self.float {
+            // no KHR_texture_transform: the tiling multiplied in
+            for &uv in uvs {
+                bytes.f32s(&(uv * tiles).to_array());
+            }
+            let uv = Semantic::TexCoord(0);
+            let v = self.stream("texcoord", uv, None, bytes.0, Some(8), uvs.len());
+            return self.out.accessor(v, component::FLOAT, false, "VEC2", None);
+        }
+        if float {
+            for uv in uvs {
+                bytes.f32s(&[uv.x, uv.y]);
+            }
+            let uv = Semantic::TexCoord(0);
+            let v = self.stream("texcoord", uv, None, bytes.0, Some(8), uvs.len());
+            return self.out.accessor(v, component::FLOAT, false, "VEC2", None);
+        }
+        for &uv in uvs {
+            bytes.u16s(&grid.quantize(uv), 4);
+        }
+        let uv = Semantic::TexCoord(0);
+        let v = self.stream("texcoord", uv, None, bytes.0, Some(4), uvs.len());
+        self.out
+            .accessor(v, component::UNSIGNED_SHORT, true, "VEC2", None)
+    }
+
+    fn indices(&mut self, name: &'static str, ix: &[u32], vertex_count: usize) -> usize {
+        let mut bytes = Bytes::default();
+        // 65535 is the primitive-restart value of u16 and may not appear.
+        let component = if vertex_count <= 65535 {
+            let small: Vec<u16> = ix.iter().map(|&i| i as u16).collect();
+            bytes.u16s(&small, 0);
+            component::UNSIGNED_SHORT
+        } else {
+            bytes.u32s(ix);
+            component::UNSIGNED_INT
+        };
+        while bytes.0.len() % 4 != 0 {
+            bytes.0.push(0);
+        }
+        let v = self.stream(name, Semantic::Indices, None, bytes.0, None, ix.len());
+        self.out.accessor(v, component, false, "SCALAR", None)
+    }
+}
+
+/// The compact layout of one level of one chunk: one mesh per layer over the chunk's shared
+/// streams, each with the index prefix its layer keeps (one index stream per level). The bare
+/// level is one opaque, untextured mesh. Returns the meshes in layer order.
+fn compact(
+    b: &mut Builder,
+    ctx: &LevelCtx,
+    s: &Shared,
+    ordering: &Ordering,
+    reuse: Option<usize>,
+) -> (Vec<usize>, usize) {
+    let indices: Vec<u32> = ordering
+        .indices
+        .iter()
+        .map(|&i| s.fetch[i as usize])
+        .collect();
+    let ix = match reuse {
+        Some(ix) => ix,
+        None => b.indices("indices", &indices, s.order.len()),
+    };
+    let mut base = vec![
+        (Semantic::Position, s.position),
+        (Semantic::Normal, s.normal),
+    ];
+    if let Some([j, w]) = s.skin {
+        base.extend([(Semantic::Joints(0), j), (Semantic::Weights(0), w)]);
+    }
+    if let Some([fur, skin]) = ctx.level.bare {
+        if !ctx.base {
+            // the asset's own primitive is the bare level
+            return (vec![], ix);
+        }
+        let mut attributes = base;
+        // with maps, occlusion or the asset's colour, the colour per vertex (COLOR_0, linear)
+        // and a white material; occlusion darkens by the layers' mean shade, 1 − a/2
+        let weight = ctx.geometry.fur_weight;
+        let occlusion = ctx.geometry.occlusion;
+        let albedo = ctx.geometry.albedo;
+        let per_vertex = weight.is_some() || occlusion.is_some() || albedo.is_some();
+        let colour = if per_vertex { [1.0; 3] } else { fur };
+        if per_vertex {
+            let mut bytes = Bytes::default();
+            for &o in &s.order {
+                let w = weight.map_or(1.0, |w| w[o as usize]);
+                let shade = occlusion.map_or(1.0, |a| 1.0 - 0.5 * a[o as usize]);
+                let tint = albedo.map_or(Vec3::ONE, |a| a[o as usize]);
+                let c = [0, 1, 2].map(|k| {
+                    let v = (skin[k] + (fur[k] - skin[k]) * w) * shade * tint[k];
+                    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+                });
+                bytes.0.extend_from_slice(&[c[0], c[1], c[2], 255]);
+            }
+            let n = s.order.len();
+            let v = b.stream("bare_color", Semantic::Color(0), None, bytes.0, Some(4), n);
+            let a = b
+                .out
+                .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None);
+            attributes.push((Semantic::Color(0), a));
+        }
+        let material = b.material(ctx.index, 0, || Material {
+            name: format!("{}bare", ctx.material_prefix),
+            base_color: [colour[0], colour[1], colour[2], 1.0],
+            alpha: Alpha::Opaque,
+            texture: None,
+            roughness: ctx.roughness,
+            sheen: None,
+            unlit: false,
+        });
+        let name = format!("{}bare", ctx.prefix);
+        return (
+            vec![b.single_primitive_mesh(name, attributes, ix, material)],
+            ix,
+        );
+    }
+    let shells = s
+        .shells
+        .as_ref()
+        .expect("shell levels share LOD 0's shell streams");
+    let mut attributes = base;
+    attributes.push((Semantic::TexCoord(0), shells.texcoord));
+    attributes.extend(shells.color.map(|d| (Semantic::Color(0), d)));
+    // one index accessor per distinct triangle count, all over the level's index stream
+    let mut prefixes: Vec<(usize, usize)> = vec![(indices.len() / 3, ix)];
+    let layers = &ctx.level.layers;
+    let meshes = (0..layers.len())
+        .filter(|&j| {
+            if j == 0 {
+                ctx.base
+            } else {
+                ordering.kept[j] > 0
+            }
+        })
+        .map(|j| {
+            let ix = match prefixes.iter().find(|&&(n, _)| n == ordering.kept[j]) {
+                Some(&(_, a)) => a,
+                None => {
+                    let mut a = b.out.accessors[ix].clone();
+                    a.count = 3 * ordering.kept[j];
+                    let a = Packed::push(&mut b.out.accessors, a);
+                    prefixes.push((ordering.kept[j], a));
+                    a
+                }
+            };
+            let l = layers[j];
+            let base = j == 0;
+            let name = format!("{}layer_{j:03}", ctx.prefix);
+            let material = b.material(ctx.index, j, || Material {
+                name: format!("{}layer_{j:03}", ctx.material_prefix),
+                base_color: [l.color[0], l.color[1], l.color[2], 1.0],
+                alpha: if base {
+                    Alpha::Opaque
+                } else {
+                    Alpha::Mask(ctx.mask.cutoff(l.step))
+                },
+                texture: ctx.texture,
+                roughness: ctx.roughness,
+                sheen: ctx
+                    .geometry
+                    .sheen
+                    .and_then(|s| crate::effects::sheen::Sheen::of(s, l.t)),
+                unlit: false,
+            });
+            let primitive = Primitive {
+                attributes: attributes.clone(),
+                targets: if base {
+                    vec![]
+                } else {
+                    let mut extrusion = vec![(Semantic::Position, shells.delta)];
+                    extrusion.extend(shells.color_delta.map(|c| (Semantic::Color(0), c)));
+                    let mut t = vec![extrusion];
+                    t.extend(shells.bend.map(|b| vec![(Semantic::Position, b)]));
+                    for w in shells.wind.into_iter().flatten() {
+                        t.push(vec![(Semantic::Position, w)]);
+                    }
+                    t
+                },
+                indices: Some(ix),
+                material,
+            };
+            let tag = Tag {
+                layer: Some(j),
+                ..b.tag
+            };
+            Packed::push(
+                &mut b.out.meshes,
+                PackedMesh {
+                    name,
+                    tag,
+                    primitives: vec![primitive],
+                    weights: match (base, ctx.geometry.bend.filter(|_| shells.bend.is_some())) {
+                        (true, _) => vec![],
+                        (false, bend) => {
+                            let mut w = vec![l.t];
+                            w.extend(bend.map(|b| b.weight(l.t)));
+                            // the wind at rest (the animation moves it)
+                            w.extend(shells.wind.map_or(&[][..], |_| &[0.0, 0.0]));
+                            w
+                        }
+                    },
+                    layer_ranges: vec![],
+                },
+            )
+        })
+        .collect();
+    (meshes, ix)
+}
+
+/// An upper bound of the GLB size for a mesh of at most `vertices` render vertices and
+/// `triangles` triangles, made before any work so an oversize bake can be refused with the size
+/// it would at most have had. Counts every stream at its widest encoding (float UVs, the float
+/// extrusion delta, u32 indices past 65535 vertices, the density and bare-level colours), every
+/// LOD level (`levels` with shells, each merging twice as many layers as the one before, and the
+/// bare level) in each of `chunks` chunks, the mask PNG at its raw size plus an eighth (deflate's
+/// fixed codes spend at most 9 bits a byte; encoders fall back to stored blocks when that is
+/// larger) and its mips for the coarser levels (a third more), and 600 bytes of JSON per layer
+/// mesh (a layer's mesh, material and node take about 450) plus 1000 per chunk and level.
+pub fn estimate_bytes(
+    vertices: u64,
+    triangles: u64,
+    layers: u64,
+    mask_size: u64,
+    layout: Layout,
+    (levels, chunks): (u64, u64),
+) -> u64 {
+    // grey + alpha per texel, one filter byte per row; mips add at most a third
+    let raw = mask_size * (2 * mask_size + 1);
+    let png = (raw + raw / 8) * 4 / 3 + 4096 * (levels + 1);
+    // layer meshes over all levels: LOD 0's, each coarser level's at most half the previous
+    // plus one, and the bare level
+    let level_layers: u64 = (0..levels.max(1))
+        .map(|k| 1 + layers.saturating_sub(1).div_ceil(1 << k.min(62)))
+        .sum::<u64>()
+        + 1;
+    let json = 8192 + chunks * (600 * level_layers + 1000 * (levels + 1));
+    // each view is padded to 4 bytes
+    let padding = 4 * (12 + 4 * (levels + 1) * chunks);
+    let body = match layout {
+        Layout::Compact => {
+            let index = if vertices <= 65535 { 2 } else { 4 };
+            vertices * (8 + 4 + 8 + 12 + 4 + 8) + (levels + 1) * triangles * 3 * index
+        }
+        Layout::SingleDraw => {
+            let n = vertices * level_layers;
+            let index = if n <= 65535 { 2 } else { 4 };
+            n * (8 + 4 + 8 + 8) + triangles * level_layers * 3 * index
+        }
+    };
+    28 + body + png + json + padding
+}
+
+/// `COLOR_0` alpha of a single-draw layer at height step `k`, as normalized u16: 1 for the base
+/// layer, [`single_draw_cutoff`]` / cutoff(k)` above it (see the module notes).
+pub fn single_draw_alpha(mask: &Mask, k: u32) -> u16 {
+    if k == 0 {
+        return u16::MAX;
+    }
+    let a = single_draw_cutoff(mask) as f64 / mask.cutoff(k) as f64;
+    (a * 65535.0).round() as u16
+}
+
+/// The fixed alpha cutoff of the single-draw material: half a code below the lowest alpha any
+/// texel holds, or the base layer's law cutoff when that is lower.
+pub fn single_draw_cutoff(mask: &Mask) -> f32 {
+    ((BASE_CODE as f32 - 0.5) / 255.0).min(mask.cutoff(0))
+}
+
+/// The single-draw layout of one level of one chunk: every layer's vertices in one primitive
+/// of one mesh (layer `j` stores the prefix of the vertices its kept triangles use). `order`
+/// maps stored vertices to input vertices, `indices` is the level's ordering renumbered.
+fn single_draw(
+    b: &mut Builder,
+    ctx: &LevelCtx,
+    order: &[u32],
+    indices: &[u32],
+    kept: &[usize],
+) -> Vec<usize> {
+    let g = ctx.geometry;
+    let grid = &g.grid;
+    let layers = &ctx.level.layers;
+    // without its own base, layer 0 holds nothing (the asset's primitive is the base)
+    let mut kept = kept.to_vec();
+    if !ctx.base {
+        kept[0] = 0;
+    }
+    let layer_vertices: Vec<usize> = kept
+        .iter()
+        .map(|&n| indices[..3 * n].iter().max().map_or(0, |&m| m as usize + 1))
+        .collect();
+    let total: usize = layer_vertices.iter().sum();
+    let mut q = Vec::with_capacity(total);
+    let mut colors = Bytes::default();
+    let mut all_ix: Vec<u32> = Vec::new();
+    let mut ranges = Vec::with_capacity(layers.len());
+    let top_level = (!b.float).then_some(grid.max_level() as f32);
+    for (j, l) in layers.iter().enumerate() {
+        let (nv, first) = (layer_vertices[j], q.len() as u32);
+        ranges.push(LayerRange {
+            first_index: all_ix.len(),
+            index_count: 3 * kept[j],
+            first_vertex: first as usize,
+            vertex_count: nv,
+        });
+        q.extend(order[..nv].iter().map(|&o| {
+            let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
+            guard::layer_point(
+                (p - grid.min) / grid.step,
+                guard::displacement(o as usize, d, g.lean.get(o as usize).copied(), l.t, g.bend),
+                top_level,
+            )
+        }));
+        let alpha = single_draw_alpha(ctx.mask, l.step);
+        for &o in &order[..nv] {
+            // density scales every layer above the base
+            let a = match &g.density {
+                Some(d) if j > 0 => (alpha as u32 * d[o as usize] as u32 + 127) / 255,
+                _ => alpha as u32,
+            };
+            let shade = g.occlusion.map_or(1.0, |a| {
+                crate::effects::occlusion::shade(a[o as usize], l.t)
+            });
+            let albedo = g.albedo.map_or(Vec3::ONE, |a| a[o as usize]);
+            let c = [0, 1, 2].map(|k| {
+                ((l.color[k] * shade * albedo[k]).clamp(0.0, 1.0) * 65535.0).round() as u16
+            });
+            colors.u16s(&[c[0], c[1], c[2], a as u16], 8);
+        }
+        all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
+    }
+    let position = b.positions("position", &q, &g.grid);
+    let pick = |j: usize| order[..layer_vertices[j]].iter().map(|&o| o as usize);
+    let all_normals: Vec<Vec3> = (0..layers.len())
+        .flat_map(|j| pick(j).map(|v| g.normals[v]))
+        .collect();
+    let normal = b.normals(&all_normals);
+    let all_uvs: Vec<Vec2> = (0..layers.len())
+        .flat_map(|j| pick(j).map(|v| g.uvs[v]))
+        .collect();
+    let texcoord = b.texcoords(&all_uvs, g.uv_grid, g.float_uvs, g.tiles);
+    let cv = b.stream("color", Semantic::Color(0), None, colors.0, Some(8), total);
+    let color = b
+        .out
+        .accessor(cv, component::UNSIGNED_SHORT, true, "VEC4", None);
+    let ix = b.indices("indices", &all_ix, total);
+    let name = format!("{}shells", ctx.prefix);
+    let material = b.material(ctx.index, 0, || Material {
+        name: format!("{}shells", ctx.material_prefix),
+        base_color: [1.0; 4],
+        alpha: Alpha::Mask(single_draw_cutoff(ctx.mask)),
+        texture: ctx.texture,
+        roughness: ctx.roughness,
+        // one material for every layer: the sheen of their mean height
+        sheen: g.sheen.and_then(|s| {
+            let mean = layers.iter().map(|l| l.t).sum::<f32>() / layers.len().max(1) as f32;
+            crate::effects::sheen::Sheen::of(s, mean)
+        }),
+        unlit: false,
+    });
+    let mut attributes = vec![
+        (Semantic::Position, position),
+        (Semantic::Normal, normal),
+        (Semantic::TexCoord(0), texcoord),
+        (Semantic::Color(0), color),
+    ];
+    if let Some(skin) = g.skin {
+        let all: Vec<u32> = (0..layers.len())
+            .flat_map(|j| pick(j).map(|v| v as u32))
+            .collect();
+        let [j, w] = b.skin(skin, &all);
+        attributes.extend([(Semantic::Joints(0), j), (Semantic::Weights(0), w)]);
+    }
+    let mesh = b.single_primitive_mesh(name, attributes, ix, material);
+    // the wind's targets hold each layer's t^k; the animation weighs them sin ωτ and cos ωτ
+    if let (Some(wind), Some(winds)) = (g.wind, &g.winds) {
+        let targets: Vec<usize> = [("wind_sin", 0), ("wind_cos", 1)]
+            .into_iter()
+            .map(|(name, k)| {
+                let v: Vec<Vec3> = (0..layers.len())
+                    .flat_map(|j| {
+                        let w = wind.weights(0.0, layers[j].t)[1];
+                        pick(j).map(move |o| winds[k][o] * w)
+                    })
+                    .collect();
+                b.deltas(&v, name, k)
+            })
+            .collect();
+        let m = &mut b.out.meshes[mesh];
+        m.primitives[0].targets = targets
+            .iter()
+            .map(|&a| vec![(Semantic::Position, a)])
+            .collect();
+        m.weights = vec![0.0, 0.0];
+    }
+    b.out.meshes[mesh].layer_ranges = ranges;
+    vec![mesh]
+}
+
+/// The mask as a grey+alpha PNG (grey = the strands' shade, alpha = the noise byte or the
+/// survival code), deflated at the highest level with adaptive filtering. Deterministic.
+pub fn encode_mask_png(mask: &Mask) -> Vec<u8> {
+    let mut pixels = Vec::with_capacity(mask.alpha.len() * 2);
+    for (&a, &g) in mask.alpha.iter().zip(&mask.shade) {
+        pixels.push(g);
+        pixels.push(a);
+    }
+    let mut out = Vec::new();
+    let enc = image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Best,
+        image::codecs::png::FilterType::Adaptive,
+    );
+    enc.write_image(&pixels, mask.size, mask.size, image::ExtendedColorType::La8)
+        .expect("encoding a PNG into memory cannot fail");
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn single_draw_alpha_reproduces_every_layer_cutoff() {
+        // For every law of the presets (and a threshold below the code floor), every layer step
+        // k and every mask value m: m/255 · a_k >= C  ⇔  m/255 >= cutoff(k) (the compact layer's
+        // test), with a margin that f32 rounding on a GPU cannot cross; and the base layer shows
+        // every texel.
+        let params = crate::params::Preset::ALL
+            .map(|p| crate::params::BakeParams::preset(p).strands)
+            .into_iter()
+            .chain([crate::params::StrandParams {
+                model: crate::params::StrandModel::Noise { threshold: 0.02 },
+                ..crate::params::BakeParams::default().strands
+            }]);
+        for p in params {
+            let mask = crate::stages::strands::bake_mask(&crate::params::StrandParams {
+                mask_size: 16,
+                ..p
+            });
+            let c = single_draw_cutoff(&mask) as f64;
+            assert!(single_draw_alpha(&mask, 0) == u16::MAX && c < BASE_CODE as f64 / 255.0);
+            for k in 1..=crate::stages::strands::HEIGHT_STEPS {
+                let a = single_draw_alpha(&mask, k) as f64 / 65535.0;
+                let cutoff = mask.cutoff(k) as f64;
+                for m in BASE_CODE..=255 {
+                    let v = m as f64 / 255.0;
+                    if (v - cutoff).abs() < 1e-6 * cutoff {
+                        continue; // a tie of the law itself
+                    }
+                    assert_eq!(v * a >= c, v >= cutoff, "{:?} k={k} m={m}", p.model);
+                    let margin = (v * a - c).abs() / c;
+                    assert!(margin > 1e-6, "{:?} k={k} m={m} margin={margin}", p.model);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn estimate_is_an_upper_bound() {
+        let scene = crate::input::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/fixtures/bunny.obj"
+        )))
+        .unwrap();
+        for layout in [Layout::Compact, Layout::SingleDraw] {
+            let mut p = crate::params::BakeParams::default();
+            p.pack.layout = layout;
+            let baked = crate::bake(&scene, &p);
+            let est = p.estimate_bytes(&scene);
+            let len = baked.glb.len() as u64;
+            assert!(est >= len, "{est} < {len}");
+            // three vertices per triangle against about a half on a closed mesh
+            assert!(est < len * 5, "estimate {est} too loose for {len}");
+        }
+    }
+
+    #[test]
+    fn png_is_deterministic_and_decodes_to_the_codes() {
+        let p = crate::params::BakeParams::default().strands;
+        let m =
+            crate::stages::strands::bake_mask(&crate::params::StrandParams { mask_size: 32, ..p });
+        let a = encode_mask_png(&m);
+        assert_eq!(a, encode_mask_png(&m));
+        let img = image::load_from_memory(&a).unwrap().to_luma_alpha8();
+        let alpha: Vec<u8> = img.pixels().map(|p| p.0[1]).collect();
+        let grey: Vec<u8> = img.pixels().map(|p| p.0[0]).collect();
+        assert_eq!((alpha, grey), (m.alpha.clone(), m.shade.clone()));
+    }
+}

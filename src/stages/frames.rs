@@ -1,0 +1,249 @@
+//! Extrusion directions (DESIGN §2): the direction each vertex moves as the shells rise.
+//!
+//! The direction is **not** the shading normal: it is computed on the position-welded topology
+//! so every render vertex at one position moves the same way (no cracks at hard edges or UV
+//! seams). Face normals are weighted by the corner angle (Thürmer & Wüthrich, "Computing vertex
+//! normals from polygonal facets", 1998), which does not depend on how a surface is triangulated.
+//!
+//! When the angle-weighted sum vanishes (two-sided sheets whose faces cancel, needles) the
+//! fallbacks are tried in this order, each only if the previous is degenerate:
+//! 1. the area-weighted sum of face normals;
+//! 2. the normal of the largest adjacent face (first one on ties);
+//! 3. the mean of the input shading normals of the render vertices at that position;
+//! 4. +Y.
+//!
+//! The result is always a finite unit vector. "Vanishes" means shorter than 1e-4 of the summed
+//! weights: a sum that cancelled to rounding noise must not pick a random direction.
+//!
+//! Corner angles use `libm::acosf`, not the platform's `acos`, so directions (and so the baked
+//! bytes) are the same on every OS and C library.
+
+use glam::Vec3;
+
+use crate::mesh::face_normal;
+use crate::stages::weld::Welded;
+
+/// Which rule produced a welded vertex's direction; the report counts each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fallback {
+    AngleWeighted,
+    AreaWeighted,
+    LargestFace,
+    InputNormal,
+    PlusY,
+}
+
+impl Fallback {
+    /// Every rule, in the order they are tried.
+    pub const ALL: [Fallback; 5] = [
+        Fallback::AngleWeighted,
+        Fallback::AreaWeighted,
+        Fallback::LargestFace,
+        Fallback::InputNormal,
+        Fallback::PlusY,
+    ];
+
+    /// The rule's name in the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Fallback::AngleWeighted => "angle_weighted",
+            Fallback::AreaWeighted => "area_weighted",
+            Fallback::LargestFace => "largest_face",
+            Fallback::InputNormal => "input_normal",
+            Fallback::PlusY => "plus_y",
+        }
+    }
+}
+
+/// Per-vertex extrusion frames.
+#[derive(Clone, Debug, Default)]
+pub struct Frames {
+    /// Unit extrusion direction per welded vertex.
+    pub welded: Vec<Vec3>,
+    /// Unit extrusion direction per render vertex (`welded[remap[v]]`).
+    pub direction: Vec<Vec3>,
+    /// How many welded vertices used each rule, in [`Fallback`] order.
+    pub fallbacks: [usize; 5],
+}
+
+const VANISH: f32 = 1e-4;
+
+/// Computes extrusion directions on the welded topology. `input_normals` (per render vertex) feed
+/// fallback 3 only.
+pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Frames {
+    let n = welded.positions.len();
+    let mut angle_sum = vec![Vec3::ZERO; n];
+    let mut angle_w = vec![0.0f32; n];
+    let mut area_sum = vec![Vec3::ZERO; n];
+    let mut area_w = vec![0.0f32; n];
+    let mut largest = vec![(0.0f32, Vec3::ZERO); n];
+    for tri in welded.indices.chunks_exact(3) {
+        let p = [0, 1, 2].map(|k| welded.positions[tri[k] as usize]);
+        let (fnrm, area2) = face_normal(p[0], p[1], p[2]);
+        if area2 == 0.0 {
+            continue;
+        }
+        for k in 0..3 {
+            let v = tri[k] as usize;
+            let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+            let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+            // libm, not the platform's acos: the same bits on every OS.
+            let angle = libm::acosf(e1.dot(e2).clamp(-1.0, 1.0));
+            angle_sum[v] += fnrm * angle;
+            angle_w[v] += angle;
+            area_sum[v] += fnrm * area2;
+            area_w[v] += area2;
+            if area2 > largest[v].0 {
+                largest[v] = (area2, fnrm);
+            }
+        }
+    }
+    let mut input_sum = vec![Vec3::ZERO; n];
+    if let Some(ns) = input_normals {
+        for (v, &w) in welded.remap.iter().enumerate() {
+            if ns[v].is_finite() {
+                input_sum[w as usize] += ns[v];
+            }
+        }
+    }
+    let mut frames = Frames {
+        welded: Vec::with_capacity(n),
+        ..Default::default()
+    };
+    for v in 0..n {
+        let usable = |s: Vec3, w: f32| s.is_finite() && w > 0.0 && s.length() > VANISH * w;
+        let (dir, rule) = if usable(angle_sum[v], angle_w[v]) {
+            (angle_sum[v], Fallback::AngleWeighted)
+        } else if usable(area_sum[v], area_w[v]) {
+            (area_sum[v], Fallback::AreaWeighted)
+        } else if largest[v].0 > 0.0 {
+            (largest[v].1, Fallback::LargestFace)
+        } else if input_sum[v].length() > VANISH {
+            (input_sum[v], Fallback::InputNormal)
+        } else {
+            (Vec3::Y, Fallback::PlusY)
+        };
+        let dir = dir.normalize_or(Vec3::Y);
+        frames.fallbacks[rule as usize] += 1;
+        frames.welded.push(dir);
+    }
+    frames.direction = welded
+        .remap
+        .iter()
+        .map(|&w| frames.welded[w as usize])
+        .collect();
+    debug_assert!(frames
+        .direction
+        .iter()
+        .all(|d| d.is_finite() && (d.length() - 1.0).abs() < 1e-3));
+    frames
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stages::weld::weld;
+
+    fn frames_of(p: &[Vec3], ix: &[u32]) -> Frames {
+        extrusion_frames(&weld(p, ix), None)
+    }
+
+    #[test]
+    fn flat_quad_points_up() {
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 0.0, -1.0),
+            Vec3::new(0.0, 0.0, -1.0),
+        ];
+        let f = frames_of(&p, &[0, 1, 2, 0, 2, 3]);
+        for d in &f.direction {
+            assert!((*d - Vec3::Y).length() < 1e-6, "{d}");
+        }
+        assert_eq!(f.fallbacks[Fallback::AngleWeighted as usize], 4);
+    }
+
+    #[test]
+    fn cube_corner_is_the_diagonal_whatever_the_triangulation() {
+        // Corner of a unit cube: three faces, one split into two triangles; angle weighting
+        // gives the exact diagonal anyway.
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::new(1.0, 1.0, 0.0),
+        ];
+        // -Z face as two triangles (0,4,1),(0,2,4); -X face (0,3,2); -Y face (0,1,3)
+        let f = frames_of(&p, &[0, 4, 1, 0, 2, 4, 0, 3, 2, 0, 1, 3]);
+        let want = Vec3::splat(-1.0).normalize();
+        assert!(
+            (f.direction[0] - want).length() < 1e-6,
+            "{}",
+            f.direction[0]
+        );
+    }
+
+    #[test]
+    fn split_normals_share_one_direction() {
+        // Two copies of the corner vertex (as a split-normal cube has) move together.
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ZERO, Vec3::Z];
+        let f = frames_of(&p, &[0, 2, 1, 3, 1, 4]);
+        assert_eq!(f.direction[0], f.direction[3]);
+    }
+
+    #[test]
+    fn two_sided_sheet_sides_extrude_apart() {
+        // Two triangles on the same positions with opposite winding: weld keeps the sides apart
+        // (splitting the shared render vertices), so each side extrudes along its own normal.
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let f = frames_of(&p, &[0, 1, 2, 0, 2, 1]);
+        assert_eq!(f.direction.len(), 6);
+        for d in &f.direction[..3] {
+            assert!((*d - Vec3::Z).length() < 1e-6, "{d}");
+        }
+        for d in &f.direction[3..] {
+            assert!((*d + Vec3::Z).length() < 1e-6, "{d}");
+        }
+        assert_eq!(f.fallbacks[Fallback::AngleWeighted as usize], 6);
+    }
+
+    #[test]
+    fn bowtie_fans_get_a_welded_vertex_each() {
+        // two triangles touching only at vertex 0, facing opposite ways: one welded vertex per
+        // fan, each extruding along its own face
+        let p = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(-2.0, 0.0, 0.0),
+            Vec3::new(0.0, -2.0, 0.0),
+        ];
+        let w = weld(&p, &[0, 1, 2, 0, 4, 3]);
+        assert_eq!((w.positions.len(), w.split_vertices()), (6, 1));
+        let f = extrusion_frames(&w, None);
+        assert_eq!(f.direction[0], Vec3::Z);
+        assert_eq!(f.direction[5], -Vec3::Z);
+        assert_eq!(f.fallbacks[Fallback::AngleWeighted as usize], 6);
+    }
+
+    #[test]
+    fn isolated_vertices_use_input_normal_then_plus_y() {
+        let p = [Vec3::ZERO, Vec3::X];
+        let w = weld(&p, &[]);
+        let f = extrusion_frames(&w, Some(&[Vec3::X, Vec3::ZERO]));
+        assert_eq!(f.direction, vec![Vec3::X, Vec3::Y]);
+        assert_eq!(f.fallbacks[Fallback::InputNormal as usize], 1);
+        assert_eq!(f.fallbacks[Fallback::PlusY as usize], 1);
+    }
+
+    #[test]
+    fn needle_is_finite() {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::new(2.0, 1e-30, 0.0)];
+        let f = frames_of(&p, &[0, 1, 2]);
+        assert!(f
+            .direction
+            .iter()
+            .all(|d| d.is_finite() && (d.length() - 1.0).abs() < 1e-4));
+    }
+}

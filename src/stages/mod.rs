@@ -1,0 +1,16 @@
+//! The core stages every surface runs, in plan order: orient and weld the mesh, tessellate it
+//! when asked, build the extrusion frames, smooth and clamp the heights (with the collision
+//! bound), bake the strand mask and its tiling, stack the shells, cull what no layer shows and
+//! build the LOD chain. Skinned input keeps its skin (`skin`).
+
+pub mod clamp;
+pub mod cull;
+pub mod frames;
+pub mod lod;
+pub mod orient;
+pub mod shells;
+pub mod skin;
+pub mod strands;
+pub mod tessellate;
+pub mod tiling;
+pub mod weld;

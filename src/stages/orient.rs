@@ -1,0 +1,396 @@
+//! Orientation (DESIGN §2): faces that agree across shared edges, closed parts facing outward.
+//!
+//! Shells grow along the extrusion directions, which follow the winding of the faces. A closed
+//! mesh wound clockwise (many exporters write one) would grow its fur inward, and a part whose
+//! faces disagree with their neighbours would grow fur in both directions at once. This stage
+//! fixes both before anything is extruded, and says what it flipped.
+//!
+//! **Connectivity** is by position (exact, as `weld` does), so split normals and UV seams do not
+//! cut a surface apart. Two triangles are neighbours across an edge when the edge is shared by
+//! exactly those two and they are not folded onto each other (the second triangle is not within
+//! [`FOLD_ANGLE`](crate::stages::weld::FOLD_ANGLE) of lying on top of the first; a two-sided sheet's top and bottom meet at the
+//! rim that way and are kept apart). Edges shared by three or more triangles are ambiguous and do
+//! not propagate orientation.
+//!
+//! **Consistency.** A breadth-first walk from the lowest-numbered triangle of each connected
+//! component decides for every triangle whether it must be flipped to traverse each shared edge
+//! against its neighbour. Where the component is not orientable (a Möbius strip) the first
+//! decision wins and the conflict is counted. Of the two consistent orientations the one that
+//! keeps the larger area's original winding is chosen, so a mostly-right mesh keeps its winding.
+//!
+//! **Outward.** A component is closed when every edge of it has its neighbour. A closed component
+//! whose signed volume is negative (beyond rounding: `|V| > 1e-6 · A^1.5`) is flipped whole. Open
+//! surfaces keep their winding (only made consistent): there is no inside to point away from.
+//!
+//! Flipping a triangle swaps two of its corners. Shading normals of the render vertices of
+//! flipped triangles are negated where they then point against the faces around them (an
+//! inside-out export usually has inward normals too).
+//!
+//! `--orient keep` leaves everything as loaded; `--orient flip` reverses every triangle.
+
+use std::collections::VecDeque;
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::mesh::{face_normal, Mesh};
+use crate::stages::weld::{folded, Topology};
+
+/// What the orient stage does.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum OrientMode {
+    /// Make faces agree across shared edges; turn closed parts outward. The default.
+    #[default]
+    Auto,
+    /// Keep the winding as loaded.
+    Keep,
+    /// Reverse every triangle (for meshes known to be inside out).
+    Flip,
+}
+
+impl OrientMode {
+    /// Every mode, in the order the CLI lists them.
+    pub const ALL: [OrientMode; 3] = [OrientMode::Auto, OrientMode::Keep, OrientMode::Flip];
+
+    /// The mode called `name`.
+    pub fn from_name(name: &str) -> Option<OrientMode> {
+        OrientMode::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// The lowercase name used on the command line, in scene files and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            OrientMode::Auto => "auto",
+            OrientMode::Keep => "keep",
+            OrientMode::Flip => "flip",
+        }
+    }
+}
+
+/// Orient stage parameters.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OrientParams {
+    /// `auto` (default), `keep` or `flip`.
+    pub mode: OrientMode,
+}
+
+/// What the stage did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Orientation {
+    /// Connected components (by position, across unfolded two-triangle edges).
+    pub components: usize,
+    /// Closed components.
+    pub closed: usize,
+    /// Closed components turned outward (flipped whole).
+    pub turned_outward: usize,
+    /// Triangles flipped to agree with their neighbours.
+    pub made_consistent: usize,
+    /// Edges where a non-orientable component could not agree.
+    pub conflicts: usize,
+    /// Triangles flipped in all.
+    pub flipped: usize,
+    /// Shading normals negated to follow their flipped faces.
+    pub normals_flipped: usize,
+}
+
+impl Orientation {
+    /// One line for the warnings list, or `None` when nothing was changed.
+    pub fn warning(&self) -> Option<String> {
+        if self.flipped == 0 {
+            return None;
+        }
+        let mut parts = Vec::new();
+        if self.turned_outward > 0 {
+            parts.push(format!(
+                "turned {} of {} closed part(s) outward (they were inside out)",
+                self.turned_outward, self.closed
+            ));
+        }
+        if self.made_consistent > 0 {
+            parts.push(format!(
+                "flipped {} triangle(s) to agree with their neighbours",
+                self.made_consistent
+            ));
+        }
+        if parts.is_empty() {
+            parts.push("reversed every triangle (--orient flip)".into());
+        }
+        Some(format!(
+            "orientation: {}; {} triangle(s) flipped in all (--orient keep leaves the winding as loaded)",
+            parts.join("; "),
+            self.flipped
+        ))
+    }
+}
+
+/// Orients `mesh` in place.
+pub fn orient(mesh: &mut Mesh, params: &OrientParams) -> Orientation {
+    let topo = Topology::new(&mesh.positions, &mesh.indices);
+    orient_on(mesh, &topo, params)
+}
+
+/// [`orient`] on a topology already built for `mesh` (which `weld` can then reuse).
+pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Orientation {
+    let nt = mesh.triangle_count();
+    let mut out = Orientation::default();
+    match params.mode {
+        OrientMode::Keep => return out,
+        OrientMode::Flip => {
+            let flip = vec![true; nt];
+            apply(mesh, &flip, &mut out);
+            return out;
+        }
+        OrientMode::Auto => {}
+    }
+    let tris = topo.tris(&mesh.indices);
+    let pos = |i: u32| topo.positions[i as usize].as_dvec3();
+
+    // Neighbours: (other triangle, must-differ-in-flip), at most one per edge of a triangle.
+    let mut links = vec![[(u32::MAX, false); 3]; nt];
+    let mut open_edge = vec![false; nt];
+    let sides = topo.sides(&tris);
+    for m in sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
+        let third = |i: usize| pos(tris[m[i].t as usize][(m[i].k as usize + 2) % 3]);
+        if m.len() == 2 && !folded(pos(m[0].a), pos(m[0].b), third(0), third(1)) {
+            // consistent when the two traverse the edge in opposite directions
+            let differ = m[0].forward == m[1].forward;
+            links[m[0].t as usize][m[0].k as usize] = (m[1].t, differ);
+            links[m[1].t as usize][m[1].k as usize] = (m[0].t, differ);
+        } else {
+            for e in m {
+                open_edge[e.t as usize] = true;
+            }
+        }
+    }
+    let collapsed = |t: usize| {
+        let [a, b, c] = tris[t];
+        a == b || b == c || a == c
+    };
+
+    let area: Vec<f64> = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(pos);
+            (b - a).cross(c - a).length()
+        })
+        .collect();
+    let mut flip = vec![false; nt];
+    let mut seen = vec![false; nt];
+    let mut queue = VecDeque::new();
+    for seed in 0..nt {
+        if seen[seed] || collapsed(seed) {
+            continue;
+        }
+        out.components += 1;
+        seen[seed] = true;
+        queue.push_back(seed);
+        let mut members = Vec::new();
+        while let Some(t) = queue.pop_front() {
+            members.push(t);
+            for &(n, differ) in links[t].iter().filter(|l| l.0 != u32::MAX) {
+                let want = flip[t] ^ differ;
+                if !seen[n as usize] {
+                    seen[n as usize] = true;
+                    flip[n as usize] = want;
+                    queue.push_back(n as usize);
+                } else if flip[n as usize] != want && (n as usize) > t {
+                    out.conflicts += 1;
+                }
+            }
+        }
+        // Keep the orientation under which more area keeps its winding.
+        let (kept, changed) = members.iter().fold((0.0, 0.0), |(k, c), &t| {
+            if flip[t] {
+                (k, c + area[t])
+            } else {
+                (k + area[t], c)
+            }
+        });
+        if changed > kept {
+            for &t in &members {
+                flip[t] = !flip[t];
+            }
+        }
+        out.made_consistent += members.iter().filter(|&&t| flip[t]).count();
+        // Closed parts face outward.
+        if members
+            .iter()
+            .all(|&t| !open_edge[t] && links[t].iter().all(|l| l.0 != u32::MAX))
+        {
+            out.closed += 1;
+            let origin = pos(tris[members[0]][0]);
+            let (mut volume, mut total_area) = (0.0, 0.0);
+            for &t in &members {
+                let [a, b, c] = tris[t].map(|i| pos(i) - origin);
+                let v = a.dot(b.cross(c)) / 6.0;
+                volume += if flip[t] { -v } else { v };
+                total_area += area[t] * 0.5;
+            }
+            if volume < 0.0 && volume.abs() > 1e-6 * total_area.powf(1.5) {
+                out.turned_outward += 1;
+                for &t in &members {
+                    flip[t] = !flip[t];
+                }
+                // those flipped to agree are now the ones left alone
+                out.made_consistent -= members.iter().filter(|&&t| !flip[t]).count();
+            }
+        }
+    }
+    apply(mesh, &flip, &mut out);
+    out
+}
+
+/// Swaps two corners of every flagged triangle and makes shading normals follow.
+fn apply(mesh: &mut Mesh, flip: &[bool], out: &mut Orientation) {
+    out.flipped = flip.iter().filter(|&&f| f).count();
+    if out.flipped == 0 {
+        return;
+    }
+    for (t, _) in flip.iter().enumerate().filter(|(_, &f)| f) {
+        mesh.indices.swap(3 * t + 1, 3 * t + 2);
+    }
+    let Some(normals) = &mut mesh.normals else {
+        return;
+    };
+    let mut touched = vec![false; normals.len()];
+    let mut around = vec![Vec3::ZERO; normals.len()];
+    for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize]);
+        let (n, area2) = face_normal(a, b, c);
+        for &v in tri {
+            around[v as usize] += n * area2;
+            touched[v as usize] |= flip[t];
+        }
+    }
+    for v in 0..normals.len() {
+        if touched[v] && normals[v].dot(around[v]) < 0.0 {
+            normals[v] = -normals[v];
+            out.normals_flipped += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::procedural;
+
+    fn signed_volume(m: &Mesh) -> f64 {
+        m.indices
+            .chunks_exact(3)
+            .map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| m.positions[t[k] as usize].as_dvec3());
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum()
+    }
+
+    fn reversed(m: &Mesh) -> Mesh {
+        let mut r = m.clone();
+        for t in r.indices.chunks_exact_mut(3) {
+            t.swap(1, 2);
+        }
+        r
+    }
+
+    #[test]
+    fn inside_out_torus_is_turned_outward() {
+        let good = procedural::torus(1.0, 0.3, 24, 12);
+        assert!(signed_volume(&good) > 0.0);
+        let mut bad = reversed(&good);
+        let o = orient(&mut bad, &OrientParams::default());
+        assert_eq!((o.components, o.closed, o.turned_outward), (1, 1, 1));
+        assert_eq!(o.made_consistent, 0);
+        assert_eq!(o.flipped, good.triangle_count());
+        // orient swaps the same two corners `reversed` swapped
+        assert_eq!(bad.indices, good.indices);
+        assert!(o.warning().unwrap().contains("outward"));
+    }
+
+    #[test]
+    fn a_right_mesh_is_left_alone() {
+        let mut m = procedural::sphere(1.0, 8, 16);
+        let before = m.clone();
+        let o = orient(&mut m, &OrientParams::default());
+        assert_eq!(m, before);
+        assert_eq!(o.flipped, 0);
+        assert!(o.warning().is_none());
+    }
+
+    #[test]
+    fn a_few_flipped_faces_are_made_to_agree() {
+        let good = procedural::sphere(1.0, 8, 16);
+        let mut m = good.clone();
+        for t in [41usize, 60, 100] {
+            m.indices.swap(3 * t + 1, 3 * t + 2);
+        }
+        let o = orient(&mut m, &OrientParams::default());
+        assert_eq!(o.made_consistent, 3);
+        assert_eq!(o.turned_outward, 0);
+        assert!((signed_volume(&m) - signed_volume(&good)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn open_surfaces_keep_their_winding() {
+        // a plane facing -y stays facing -y: no inside to point away from
+        let mut m = reversed(&procedural::plane(1.0, 4));
+        let before = m.clone();
+        let o = orient(&mut m, &OrientParams::default());
+        assert_eq!(m.indices, before.indices);
+        assert_eq!((o.components, o.closed, o.flipped), (1, 0, 0));
+    }
+
+    #[test]
+    fn two_sided_sheet_sides_stay_apart() {
+        // top and bottom of a sheet share positions and fold onto each other at the rim: two
+        // open components, both kept.
+        let top = procedural::plane(1.0, 2);
+        let mut m = top.clone();
+        m.append(&reversed(&top));
+        let before = m.clone();
+        let o = orient(&mut m, &OrientParams::default());
+        assert_eq!(m.indices, before.indices);
+        // interior edges carry four triangles (ambiguous: they do not propagate); the rim folds
+        assert_eq!((o.closed, o.flipped), (0, 0));
+    }
+
+    #[test]
+    fn keep_and_flip() {
+        let good = procedural::torus(1.0, 0.3, 12, 8);
+        let mut m = reversed(&good);
+        let before = m.clone();
+        orient(
+            &mut m,
+            &OrientParams {
+                mode: OrientMode::Keep,
+            },
+        );
+        assert_eq!(m, before);
+        let o = orient(
+            &mut m,
+            &OrientParams {
+                mode: OrientMode::Flip,
+            },
+        );
+        assert_eq!(o.flipped, good.triangle_count());
+        assert_eq!(m.indices, good.indices);
+    }
+
+    #[test]
+    fn inward_normals_follow_their_faces() {
+        let good = procedural::sphere(1.0, 8, 16);
+        let mut bad = reversed(&good);
+        bad.normals = bad.normals.map(|n| n.into_iter().map(|v| -v).collect());
+        let o = orient(&mut bad, &OrientParams::default());
+        assert_eq!(o.turned_outward, 1);
+        assert!(o.normals_flipped > 0);
+        // every vertex of a real (not collapsed) triangle points outward again
+        let (n0, n1) = (bad.normals.unwrap(), good.normals.unwrap());
+        let w = crate::stages::weld::weld(&bad.positions, &bad.indices);
+        for &v in &w.render_indices {
+            assert!(n0[v as usize].dot(n1[v as usize]) > 0.99, "vertex {v}");
+        }
+    }
+}

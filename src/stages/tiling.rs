@@ -1,0 +1,282 @@
+//! Mask tiling (DESIGN §3): how many times the strand mask repeats along each UV axis.
+//!
+//! Three rules, each from a defect users saw:
+//!
+//! - **Whole tiles across each axis's UV range.** A tube whose UVs wrap from 0 to 1 shows a seam
+//!   where the mask is cut if it repeats 19.51 times around it. The count across the UV range
+//!   (`tiles × extent`) is rounded to the nearest whole number (at least 1), so a mask that starts
+//!   at one end of the range ends exactly at the other; the deviation from the requested density
+//!   is reported per axis.
+//! - **Each axis its own world-to-UV ratio.** On a stretched layout (u spans 4 world units, v
+//!   one) a single tiling rate makes strands four times longer one way than the other. The world
+//!   length of one UV unit along u is `|∂P/∂u|` of each triangle's UV-to-world map, averaged with
+//!   the triangles' world areas as weights; likewise along v. Tiles per UV unit along an axis =
+//!   strands per world unit × that length / cells per tile. Strands come out round on average.
+//! - **Say when strand size will vary.** The isotropic UV-to-world scale `sqrt(world area / UV
+//!   area)` of each triangle is compared across the mesh: when its 90th percentile is more than
+//!   [`SPREAD_WARNING`] times its 10th (by area), strands will visibly change size across the
+//!   surface, and the bake warns with the figure.
+//!
+//! With `uv_density` (strands per UV unit) the rate is the user's, the same on both axes, and only
+//! the whole-tile rule applies.
+
+use glam::{DVec2, DVec3, Vec2};
+
+use crate::mesh::Mesh;
+
+/// Spread (90th / 10th percentile of the UV-to-world scale, by area) above which the bake warns.
+pub const SPREAD_WARNING: f64 = 2.0;
+
+/// Spread above which `fur_uv = "auto"` gives the strands a generated box projection instead of
+/// the mesh's UVs: strands would differ in size by more than this factor across the surface —
+/// the palette layouts of low-poly assets, where a face maps to a speck of a colour swatch
+/// (70× on a duck tried), draw invisible streaks. Below it the mesh's UVs are kept, with
+/// [`SPREAD_WARNING`]'s warning from 2×.
+pub const AUTO_BOX_SPREAD: f64 = 8.0;
+
+/// Which texture coordinates the strands follow (`strands.fur_uv`, `--fur-uv`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FurUv {
+    /// The mesh's own, unless their UV-to-world scale spreads more than [`AUTO_BOX_SPREAD`].
+    #[default]
+    Auto,
+    /// The mesh's own, whatever their layout.
+    Mesh,
+    /// A per-face box projection (`load::generate_box_uvs`), whatever the mesh has.
+    Box,
+}
+
+impl FurUv {
+    pub const ALL: [FurUv; 3] = [FurUv::Auto, FurUv::Mesh, FurUv::Box];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            FurUv::Auto => "auto",
+            FurUv::Mesh => "mesh",
+            FurUv::Box => "box",
+        }
+    }
+
+    pub fn is_auto(&self) -> bool {
+        *self == FurUv::Auto
+    }
+}
+
+/// Whether the strands of `mesh` take a generated box projection under `mode`, and why (for the
+/// summary); `None` when they follow the mesh's UVs. An asset keeps its UVs for its own
+/// textures either way: the fur has streams of its own.
+pub fn fur_uv_box(mesh: &Mesh, mode: FurUv) -> Option<String> {
+    match mode {
+        FurUv::Mesh => None,
+        FurUv::Box => Some("fur_uv = box".into()),
+        FurUv::Auto => {
+            let (_, spread) = uv_to_world(mesh)?;
+            (spread > AUTO_BOX_SPREAD).then(|| {
+                format!(
+                    "the mesh's UV-to-world scale spreads {spread:.1}x (10th to 90th percentile \
+                     by area, over {AUTO_BOX_SPREAD}x); --fur-uv mesh keeps the mesh's UVs"
+                )
+            })
+        }
+    }
+}
+
+/// The mask tiling of a mesh.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tiling {
+    /// Mask tiles per UV unit, u and v (what the texture transform scales by).
+    pub tiles_per_uv: Vec2,
+    /// The rate the density asked for, before snapping to whole tiles.
+    pub requested: Vec2,
+    /// Whole tiles across the UV range of each axis.
+    pub tiles_across: [u32; 2],
+    /// 90th / 10th percentile of the UV-to-world scale (1 for an even layout).
+    pub spread: f64,
+}
+
+impl Tiling {
+    /// Relative deviation of the snapped rate from the requested one, per axis.
+    pub fn deviation(&self) -> Vec2 {
+        self.tiles_per_uv / self.requested - Vec2::ONE
+    }
+
+    /// The warning for a mesh whose strand size varies, if it does.
+    pub fn warning(&self) -> Option<String> {
+        (self.spread > SPREAD_WARNING).then(|| {
+            format!(
+                "strand size varies {:.1}x across the mesh (UV-to-world scale, 10th to 90th \
+                 percentile by area): the UV layout's texel density is uneven",
+                self.spread
+            )
+        })
+    }
+}
+
+/// World length of one UV unit along u and v (area-weighted means) and the spread of the
+/// isotropic scale. `None` when no triangle has both world and UV area.
+fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64)> {
+    let uv = mesh.uvs.as_ref()?;
+    let (mut su, mut sv, mut total) = (0.0, 0.0, 0.0);
+    let mut scales: Vec<(f64, f64)> = Vec::new();
+    for t in mesh.indices.chunks_exact(3) {
+        let [p0, p1, p2] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
+        let [t0, t1, t2] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
+        let (e1, e2) = (p1 - p0, p2 - p0);
+        let (d1, d2) = (t1 - t0, t2 - t0);
+        let det = d1.perp_dot(d2);
+        let area = e1.cross(e2).length() * 0.5;
+        if !(det.abs() > 0.0 && area > 0.0 && det.is_finite() && area.is_finite()) {
+            continue;
+        }
+        let dpdu: DVec3 = (e1 * d2.y - e2 * d1.y) / det;
+        let dpdv: DVec3 = (e2 * d1.x - e1 * d2.x) / det;
+        su += dpdu.length() * area;
+        sv += dpdv.length() * area;
+        total += area;
+        scales.push(((area / (det.abs() * 0.5)).sqrt(), area));
+    }
+    if !(total > 0.0 && su > 0.0 && sv > 0.0) {
+        return None;
+    }
+    scales.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let percentile = |q: f64| {
+        let mut acc = 0.0;
+        for &(s, a) in &scales {
+            acc += a;
+            if acc >= q * total {
+                return s;
+            }
+        }
+        scales.last().map_or(1.0, |s| s.0)
+    };
+    let spread = percentile(0.9) / percentile(0.1);
+    Some((DVec2::new(su / total, sv / total), spread))
+}
+
+/// The tiling for `density` strands per world unit (or `uv_density` per UV unit) with
+/// `cells_per_tile` strands along a mask tile's side.
+pub fn mask_tiling(
+    mesh: &Mesh,
+    density: f32,
+    uv_density: Option<f32>,
+    cells_per_tile: u32,
+) -> Tiling {
+    let cells = cells_per_tile as f64;
+    let (requested, spread) = match (uv_density, uv_to_world(mesh)) {
+        (Some(d), found) => (DVec2::splat(d as f64 / cells), found.map_or(1.0, |f| f.1)),
+        (None, Some((world_per_uv, spread))) => (world_per_uv * density as f64 / cells, spread),
+        (None, None) => (DVec2::ONE, 1.0),
+    };
+    let requested = DVec2::new(
+        if requested.x.is_finite() && requested.x > 0.0 {
+            requested.x
+        } else {
+            1.0
+        },
+        if requested.y.is_finite() && requested.y > 0.0 {
+            requested.y
+        } else {
+            1.0
+        },
+    );
+    let (lo, hi) = mesh
+        .uvs
+        .as_deref()
+        .map_or((Vec2::ZERO, Vec2::ZERO), crate::mesh::uv_bounds);
+    let extent = (hi - lo).as_dvec2();
+    let mut across = [0u32; 2];
+    let mut snapped = requested;
+    for axis in 0..2 {
+        let e = extent[axis];
+        if e > 0.0 && e.is_finite() {
+            let n = (requested[axis] * e).round().clamp(1.0, u32::MAX as f64);
+            across[axis] = n as u32;
+            snapped[axis] = n / e;
+        }
+    }
+    Tiling {
+        tiles_per_uv: snapped.as_vec2(),
+        requested: requested.as_vec2(),
+        tiles_across: across,
+        spread: if spread.is_finite() { spread } else { 1.0 },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::procedural;
+
+    #[test]
+    fn auto_fur_uvs_leave_even_layouts_and_box_palette_ones() {
+        let mut m = procedural::sphere(1.0, 16, 32);
+        assert_eq!(fur_uv_box(&m, FurUv::Auto), None);
+        assert_eq!(fur_uv_box(&m, FurUv::Mesh), None);
+        assert!(fur_uv_box(&m, FurUv::Box).is_some());
+        // a palette layout: the upper half's faces squeezed into a swatch 50 times smaller
+        let uvs = m.uvs.as_mut().unwrap();
+        for (uv, p) in uvs.iter_mut().zip(&m.positions) {
+            if p.y > 0.0 {
+                *uv = Vec2::new(0.9, 0.9) + (*uv - Vec2::new(0.9, 0.9)) * 0.02;
+            }
+        }
+        let why = fur_uv_box(&m, FurUv::Auto).expect("a palette layout gets a box projection");
+        assert!(why.contains("spreads"), "{why}");
+        assert_eq!(fur_uv_box(&m, FurUv::Mesh), None);
+    }
+
+    #[test]
+    fn wrapping_tube_gets_whole_tiles_around_and_along() {
+        // torus fixture: u spans 0..4 around the ring, v spans 0..1 around the tube
+        let m = procedural::torus(1.0, 0.3, 48, 24);
+        for density in [37.0, 123.4, 401.0] {
+            let t = mask_tiling(&m, density, None, 32);
+            for axis in 0..2 {
+                let extent = [4.0, 1.0][axis];
+                let across = t.tiles_per_uv[axis] as f64 * extent;
+                assert!((across - across.round()).abs() < 1e-4, "{across}");
+                assert_eq!(across.round() as u32, t.tiles_across[axis]);
+            }
+            assert!(t.deviation().abs().max_element() < 0.5);
+        }
+    }
+
+    #[test]
+    fn stretched_layout_scales_each_axis_by_its_own_ratio() {
+        // a 4 × 1 world rectangle mapped onto the unit UV square: u is 4 world units per UV unit
+        let mut m = procedural::plane(1.0, 4);
+        for p in &mut m.positions {
+            p.x *= 4.0;
+        }
+        let t = mask_tiling(&m, 64.0, None, 8);
+        // 64 strands per unit: 256 strands along u (32 tiles), 64 along v (8 tiles)
+        assert_eq!(t.tiles_across, [32, 8]);
+        assert!((t.tiles_per_uv - Vec2::new(32.0, 8.0)).abs().max_element() < 1e-4);
+        assert!(t.warning().is_none());
+    }
+
+    #[test]
+    fn uneven_texel_density_warns_with_the_figure() {
+        // squeeze half the plane's UVs into a tenth of the range
+        let mut m = procedural::plane(1.0, 8);
+        for uv in m.uvs.as_mut().unwrap() {
+            if uv.x < 0.5 {
+                uv.x *= 0.2;
+            } else {
+                uv.x = 0.1 + (uv.x - 0.5) * 1.8;
+            }
+        }
+        let t = mask_tiling(&m, 64.0, None, 8);
+        let w = t.warning().expect("uneven layout warns");
+        assert!(t.spread > 3.0 && w.contains("varies"), "{w}");
+    }
+
+    #[test]
+    fn uv_density_is_taken_as_given_then_snapped() {
+        let m = procedural::plane(1.0, 4);
+        let t = mask_tiling(&m, 1.0, Some(100.0), 8);
+        assert_eq!(t.tiles_across, [13, 13]);
+        assert!((t.requested.x - 12.5).abs() < 1e-6);
+    }
+}
