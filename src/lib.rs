@@ -1,44 +1,69 @@
 //! shellbake: bakes shell-textured fur, grass, carpet and moss into standard glTF.
 //!
+//! ## The map
+//!
+//! The folders follow the pipeline:
+//!
+//! | folder | what it holds |
+//! |---|---|
+//! | [`input`] | reading meshes and assets: OBJ, glTF/GLB ([`input::document`], one reader for the loader and the viewer), the asset kept whole ([`input::asset`]: parts, `--only`, paint), skins, density/length/comb maps ([`input::maps`]) |
+//! | [`stages`] | the core stages every surface runs, in plan order |
+//! | [`effects`] | the stages a surface asks for: occlusion, gravity (comb), wind, sheen, fins, outline |
+//! | [`output`] | [`output::pack`] (glTF streams, nodes, materials), [`output::write`] (JSON, GLB), [`output::compress`] (meshopt), [`output::graft`] (the fur put back into the asset) |
+//! | [`fixtures`] | procedural inputs for examples and tests (the critter, the skinned tube) |
+//! | [`view`] | the wgpu viewer, the runtime reference, `verify`, `bench`, `study` |
+//! | the ground floor | [`error`], [`facts`] (what a stage reports), [`grid`], [`mesh`], [`srgb`]; then [`params`] (every stage's parameters, presets as data), [`scene`] (scene files, the plan), [`report`], [`batch`] |
+//!
+//! ## The bake
+//!
 //! A bake runs a **plan** ([`scene::plan`]): from a scene file (or the one-surface shortcut, a
-//! mesh path) it decides which stages run for which surface; [`bake_scene`] then reads as the
-//! plan, one line per stage, each gated by it:
+//! mesh path) it decides which stages run for which surface. `bake_surface` reads as the plan:
+//! five phases, each one line per stage, every stage gated by the plan and filing its own
+//! typed facts ([`facts::Reported`], implemented next to each stage's code) in the report:
 //!
-//! | stage | module | verb |
+//! | phase | stage | verb |
 //! |---|---|---|
-//! | load | [`input`] | [`input::load`] ([`load_surfaces`]) |
-//! | merge, orient | [`orient`] | [`orient::orient_on`] |
-//! | weld | [`weld`] | [`weld::weld_on`] |
-//! | frames | [`frames`] | [`frames::extrusion_frames`] |
-//! | smooth | [`clamp`] | [`clamp::smooth`] |
-//! | collision (effect `collision`) | [`clamp`] | [`clamp::collision_bound`] (on a [`clamp::MeshBvh`]) |
-//! | clamp (the inversion bound; always) | [`clamp`] | [`clamp::clamp_heights`] |
-//! | occlusion (effect `occlusion`) | [`occlusion`] | [`occlusion::occlusion`] (on the same BVH) |
-//! | strands | [`strands`] | [`strands::bake_mask`] |
-//! | tiling | [`tiling`] | [`tiling::mask_tiling`] |
-//! | shells | [`shells`] | [`shells::build_shells`] |
-//! | gravity (effect `gravity`, alias `comb`) | [`gravity`] | [`gravity::Bend::on`] (a comb field's pulls: [`gravity::comb_pulls`]), [`gravity::lean_axes`] (per vertex [`gravity::Bend::at`], in pack and the reference) |
-//! | wind (effect `wind`) | [`wind`] | [`wind::Wind::new`] (targets and the animation in pack) |
-//! | sheen (effect `sheen`) | [`effects::sheen`] | layer materials' [`effects::sheen::Sheen::of`] in pack |
-//! | fins (effect `fins`) | [`fins`] | [`fins::fins`] (edges and strip; the quads [`fins::Fins::mesh`] in pack) |
-//! | outline (effect `outline`) | [`outline`] | [`outline::outline`] (with `collision`, hull rays in the collision stage) |
-//! | asset in, asset out (a glTF, or an OBJ with a `.mtl`: DESIGN §10) | [`input::asset`], [`graft`] | [`input::asset::Asset::read`] and [`input::asset::Asset::select`] (the parts `--only` chooses), [`asset_scene`] (a surface per part), [`bake_asset`] (the plan, then [`graft::graft`]: the input kept, the fur added) |
-//! | skinned fur (a skinned glTF input; no stage: the load line counts it) | [`skin`] | [`input::skin::read_skeleton`]; the shared `JOINTS_0`/`WEIGHTS_0`, skeleton copy and skin in pack |
-//! | cull (effect `cull`, on by default) | [`cull`] | [`cull::layer_tops`] |
-//! | lod (effect `lod`, on by default) | [`lod`] | [`lod::build_lods`], [`lod::chunks`] |
-//! | pack | [`pack`] | [`pack::pack`] |
-//! | write (with `--compress meshopt`: [`compress`]) | [`write`](mod@write) | [`write::compress_streams`], [`write::gltf_json_with`], [`write::glb_of_packed_with`] |
+//! | (before) | load | [`input::load`] ([`load_surfaces`]); an asset: [`input::asset::Asset::read`], [`asset_scene`] |
+//! | shape | merge | [`merge::merge`] (the asset's colour at each strand root; the fur's UVs) |
+//! | | orient | [`orient::oriented`] |
+//! | | tessellation (`tessellate`) | [`tessellate::tessellate`] |
+//! | | weld | [`weld::weld_on`], [`weld::Welded::apply_to`] |
+//! | | frames | [`frames::extrusion_frames`] |
+//! | heights | smooth | [`clamp::smooth`] |
+//! | | collision (`collision`) | [`clamp::collision`] (on a [`clamp::MeshBvh`], shared with occlusion) |
+//! | | clamp (always) | [`clamp::clamp_heights`] |
+//! | | occlusion (`occlusion`) | [`occlusion::occlude`] |
+//! | look | strands | [`strands::bake_mask`] (once per distinct strand parameters) |
+//! | | tiling | [`tiling::mask_tiling`] |
+//! | | shells | [`shells::build_shells`] |
+//! | | gravity (`gravity`, alias `comb`) | [`gravity::Bend::on`], [`gravity::lean_axes`] |
+//! | | wind (`wind`) | [`wind::Wind::new`] |
+//! | | sheen (`sheen`) | [`effects::sheen::Sheen::of`] in pack |
+//! | | fins (`fins`) | [`fins::fins`] |
+//! | | outline (`outline`) | [`outline::outline`] |
+//! | levels | lod (`lod`, on by default) | [`lod::build_lods`], [`lod::chunks`] |
+//! | | cull (`cull`, on by default) | [`cull::layer_tops`] |
+//! | pack | pack | [`pack::pack`] |
+//! | (after) | write | [`write::compress_streams`], [`write::gltf_json_with`], [`write::glb_of_packed_with`]; an asset: [`bake_asset`] then [`graft::graft`] |
 //!
-//! Modules form a tree of imports, ground floor first: `error`, `grid`, `mesh`, `srgb`, `compress`
-//! (the meshopt codecs, read by `load` and written by `write`) → the stages
-//! (each owning its parameters) → `params` (gathers them, presets as data) → `scene` (scene
-//! files, the plan) → `report` → this file. After the pipeline, [`view`] draws what was baked
-//! (wgpu), draws the runtime shell technique from the same input as a reference, and compares
-//! the two (`shellbake verify`).
+//! Skinned fur has no stage of its own: the load stage's facts say what the file keeps
+//! ([`skin`]); [`blocked`] names the stages a skinned surface cannot take.
+//!
+//! **Adding an effect** touches its file in [`effects`] (its parameters, its work, its
+//! [`facts::Reported`]), the plan table ([`scene::Effect`], [`scene::Stage`]) with its line in
+//! the look phase here, and the writer's stream model ([`output::pack`]).
+//!
+//! Modules form a tree of imports (`tests/architecture.rs` checks it; each module of a folder
+//! is its own node), ground floor first: `error`, `facts`, `grid`, `mesh`, `srgb`,
+//! `output::compress` (the meshopt codecs, read by `input` and written by `write`) → the stages
+//! and effects (each owning its parameters) → `params` → `scene` → `report` → this file. After
+//! the pipeline, [`view`] draws what was baked, draws the runtime shell technique from the same
+//! input as a reference, and compares the two (`shellbake verify`).
 
 pub mod batch;
 pub mod effects;
 pub mod error;
+pub mod facts;
 pub mod fixtures;
 pub mod grid;
 pub mod input;
@@ -54,12 +79,16 @@ pub mod view;
 
 use effects::{fins, gravity, occlusion, outline, wind};
 use output::{compress, graft, pack, write};
-use stages::{clamp, cull, frames, lod, orient, shells, skin, strands, tessellate, tiling, weld};
+use stages::{
+    clamp, cull, frames, lod, merge, orient, shells, skin, strands, tessellate, tiling, weld,
+};
 
 use std::path::Path;
 use std::time::Instant;
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
+
+use facts::Reported;
 
 pub use error::{Error, Result};
 use mesh::{Mesh, Scene};
@@ -471,23 +500,20 @@ fn run_plan(
     let plan = scene::plan(scene);
     let mut packed = Packed::default();
     let several = scene.surfaces.len() > 1;
-    // surfaces with the same strands (an asset's parts) bake the mask once
-    let mut masks: Vec<(params::StrandParams, Mask)> = Vec::new();
-    let mut surfaces: Vec<BakedSurface> = scene
-        .surfaces
-        .iter()
-        .zip(loaded)
-        .enumerate()
-        .map(|(i, (surface, &(meshes, maps, ms, part)))| {
-            bake_surface(
-                &plan,
+    let mut masks = MaskCache::default();
+    let mut surfaces: Vec<BakedSurface> = (scene.surfaces.iter().zip(loaded).enumerate())
+        .map(|(i, (surface, &(scene, maps, load_ms, part)))| {
+            let job = Job {
+                plan: &plan,
                 i,
                 surface,
-                (meshes, maps, part),
-                ms,
+                scene,
+                maps,
+                part,
+                load_ms,
                 several,
-                (&mut packed, &mut masks),
-            )
+            };
+            bake_surface(job, &mut packed, &mut masks)
         })
         .collect();
     let write_start = Instant::now();
@@ -538,361 +564,489 @@ fn run_plan(
     }
 }
 
-/// One surface through the plan, packed into `packed`.
-fn bake_surface(
-    plan: &Plan,
+/// Masks already baked in this scene, by their strand parameters: surfaces with the same
+/// strands (an asset's parts) bake the mask once.
+#[derive(Default)]
+struct MaskCache(Vec<(params::StrandParams, Mask)>);
+
+impl MaskCache {
+    /// The mask `strands` bake to, baked now if no surface before asked for it.
+    fn mask(&mut self, strands: &params::StrandParams) -> Mask {
+        if let Some((_, m)) = self.0.iter().find(|(p, _)| p == strands) {
+            return m.clone();
+        }
+        let m = strands::bake_mask(strands);
+        self.0.push((strands.clone(), m.clone()));
+        m
+    }
+}
+
+/// One surface of a scene, as [`bake_surface`] takes it.
+struct Job<'a> {
+    plan: &'a Plan,
     i: usize,
-    surface: &Surface,
-    (scene, maps, part): (&Scene, &SurfaceMaps, Option<&PartOf>),
+    surface: &'a Surface,
+    scene: &'a Scene,
+    maps: &'a SurfaceMaps,
+    part: Option<&'a PartOf>,
     load_ms: f64,
+    /// The scene has several surfaces (their node names take a prefix).
     several: bool,
-    (packed, masks): (&mut Packed, &mut Vec<(params::StrandParams, Mask)>),
-) -> BakedSurface {
+}
+
+/// One surface through the plan, packed into `packed`: each phase runs its stages in plan
+/// order, one line each (shape: merge … frames; heights: smooth … occlusion; look: strands …
+/// outline; levels: lod, cull; then pack).
+fn bake_surface(job: Job, packed: &mut Packed, masks: &mut MaskCache) -> BakedSurface {
+    let Job {
+        plan,
+        i,
+        surface,
+        scene,
+        maps,
+        part,
+        load_ms,
+        several,
+    } = job;
     let params = &surface.params;
     if let Err(e) = params.check() {
         panic!("bake called with unchecked parameters: {e}");
     }
     let start = Instant::now();
-    let mut report = Report {
-        name: surface.name.clone(),
-        input: surface.mesh.display().to_string(),
-        warnings: scene.warnings.clone(),
-        ..Default::default()
+    let report = Report::begin(&surface.name, &surface.mesh, &scene.warnings, load_ms);
+    let skinned = scene.skeleton.is_some();
+    let mut run = Run {
+        plan,
+        i,
+        params,
+        skinned,
+        report,
     };
-    report.record(Stage::Load.name(), load_ms);
     if let Some(k) = &scene.skeleton {
-        // skinned fur: no stage of its own; the load line says what the file keeps
-        report.count("skin_joints", k.joints.len() as f64);
-        report.count("skin_nodes", k.nodes.len() as f64);
-        report.count("skin_clips", k.clips.len() as f64);
-        let clips: Vec<String> = k.clips.iter().map(|c| input::escape(&c.name)).collect();
-        report.note(
-            Stage::Load.name(),
-            &format!(
-                "skinned: the skin, its skeleton and clips ({}) are kept; the fur grows on the bind pose",
-                if clips.is_empty() { "none".into() } else { clips.join(", ") }
-            ),
-        );
+        run.report.tell(Stage::Load, k);
+    }
+    let colour = match part {
+        Some(p) => merge::FurColour::Asset {
+            paint: p.paint.as_ref(),
+            color: params.shade.color,
+        },
+        None => merge::FurColour::Preset,
+    };
+    let mut shape = shape(&mut run, scene, colour);
+    let mut heights = heights(&mut run, &mut shape, maps);
+    let look = look(&mut run, &shape, &mut heights, masks);
+    let chain = levels(&mut run, &shape, &heights, &look);
+    let grafted = part.is_some_and(|p| p.graft);
+    let parts = (&shape, &heights, &look, &chain);
+    let surface_packed = pack_surface(&mut run, (surface, scene, grafted), parts, several, packed);
+    let mut report = run.report;
+    report.lods = (chain.levels.iter().zip(&surface_packed.lod_triangles))
+        .map(|(l, &triangles)| report::LodEntry::of(l, triangles, chain.mask_of(l).size))
+        .collect();
+    let resolved = report::Resolved {
+        height: heights.height,
+        density: heights.density,
+        tiling: &look.tiling,
+    };
+    report.fill(&surface_packed, &shape.mesh, &look.shells, resolved, params);
+    report.total_ms = start.elapsed().as_secs_f64() * 1e3;
+    BakedSurface {
+        report,
+        mesh: shape.mesh,
+        shells: look.shells,
+        mask: look.mask,
+        packed: surface_packed,
+        tiles_per_uv: look.tiling.tiles_per_uv,
+        density: heights.density_map,
+        culled: chain.culled.into_iter().next().expect("LOD 0"),
+        levels: chain.levels,
+        skeleton: scene.skeleton.clone(),
+        fins: look.fins,
+        outline: look.outline,
+    }
+}
+
+/// A surface's run through the plan: what every stage of it reads, and the report its stages
+/// file their facts in.
+struct Run<'a> {
+    plan: &'a Plan,
+    /// The surface's index in the scene (and the plan).
+    i: usize,
+    params: &'a BakeParams,
+    /// A skinned surface takes no fins, outline or LOD chain ([`blocked`]).
+    skinned: bool,
+    report: Report,
+}
+
+impl Run<'_> {
+    /// Whether the plan runs `stage` for this surface.
+    fn runs(&self, stage: Stage) -> bool {
+        self.plan.runs(stage, self.i)
     }
 
-    let mut mesh = report.run("merge", || scene.merged());
-    report.count("meshes", scene.meshes.len() as f64);
-    report.count("vertices", mesh.vertex_count() as f64);
-    report.count("triangles", mesh.triangle_count() as f64);
-    let mut fur_uv = "the mesh's own".to_string();
-    // the asset's colour at each strand root, sampled through the asset's own UVs (a `color`
-    // in the shade overrides it); it rides with the vertices from here on
-    if let Some(p) = part {
-        mesh.albedo = match params.shade.color {
-            Some(c) => Some(vec![Vec3::from(c); mesh.vertex_count()]),
-            None => p.paint.as_ref().map(|paint| paint.albedo(&mesh)),
-        };
+    /// Runs `stage` if the plan runs it for this surface and nothing blocks it on this surface
+    /// (see [`Report::gate`]).
+    fn gate<T>(&mut self, stage: Stage, f: impl FnOnce() -> T) -> Option<T> {
+        let blocked = blocked(stage, self.skinned);
+        self.report.gate(self.plan, stage, self.i, blocked, f)
     }
-    if mesh.uvs.is_none() || mesh::uv_area(&mesh) <= 0.0 {
-        report
-            .warnings
-            .push("texture coordinates have no area; generated a per-face box projection".into());
-        input::generate_box_uvs(&mut mesh);
-    } else if let Some(why) = tiling::fur_uv_box(&mesh, params.strands.fur_uv) {
-        // the fur's own UVs: an asset keeps its own for its textures
-        fur_uv = format!("a box projection: {why}");
-        input::generate_box_uvs(&mut mesh);
-    }
+}
 
-    // One exact-position topology serves orient and weld (orienting changes no edge).
-    let (topology, orientation) = report.run("orient", || {
-        let topology = weld::Topology::new(&mesh.positions, &mesh.indices);
-        let orientation = orient::orient_on(&mut mesh, &topology, &params.orient);
-        (topology, orientation)
+/// The shape phase's result: the render mesh, its weld and extrusion frames, and the shade its
+/// layers take.
+struct Shape {
+    mesh: Mesh,
+    welded: weld::Welded,
+    frames: frames::Frames,
+    /// Which UVs the strands follow, and why.
+    fur_uv: String,
+    shade: shells::ShadeParams,
+}
+
+/// Merge, orient, tessellation, weld, frames.
+fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
+    let params = run.params;
+    let fur_uv = params.strands.fur_uv;
+    let merged = run
+        .report
+        .run_stage(Stage::Merge, || merge::merge(scene, colour, fur_uv));
+    let merge::Merged {
+        mut mesh, fur_uv, ..
+    } = merged;
+    let oriented = run.report.run_stage(Stage::Orient, || {
+        orient::oriented(&mut mesh, &params.orient)
     });
-    report.count("components", orientation.components as f64);
-    report.count("closed_components", orientation.closed as f64);
-    report.count("turned_outward", orientation.turned_outward as f64);
-    report.count("made_consistent", orientation.made_consistent as f64);
-    report.count("orientation_conflicts", orientation.conflicts as f64);
-    report.warnings.extend(orientation.warning());
-    if params.orient.mode != orient::OrientMode::Auto {
-        report.note("orient", &format!("--orient {}", params.orient.mode.name()));
-    }
-
-    let tessellated = report.gate(plan, Stage::Tessellation, i, || {
+    let tessellated = run.gate(Stage::Tessellation, || {
         tessellate::tessellate(&mut mesh, &params.tessellation)
     });
     let topology = match tessellated {
         Some(t) => {
-            report.count("factor", t.factor as f64);
-            report.count("triangles_before", t.triangles_before as f64);
-            report.count("triangles_after", t.triangles_after as f64);
+            run.report.tell(Stage::Tessellation, &t);
             // the new vertices and triangles need their own topology
             weld::Topology::new(&mesh.positions, &mesh.indices)
         }
-        None => topology,
+        None => oriented.topology,
     };
-
-    let welded = report.run("weld", || weld::weld_on(&topology, &mesh.indices));
+    let welded = run
+        .report
+        .run_stage(Stage::Weld, || weld::weld_on(&topology, &mesh.indices));
     drop(topology);
-    report.count("welded_vertices", welded.positions.len() as f64);
-    report.count(
-        "collapsed_triangles",
-        (mesh.triangle_count() - welded.source_triangle.len()) as f64,
-    );
-    report.count("sheet_vertices_split", welded.split_vertices() as f64);
-    let input_vertices = mesh.vertex_count();
-    mesh.gather_vertices(&welded.vertex_source);
-    mesh.indices = welded.render_indices.clone();
-    mesh.face_split_normals(input_vertices);
+    welded.apply_to(&mut mesh);
+    let frames = run.report.run_stage(Stage::Frames, || {
+        frames::extrusion_frames(&welded, mesh.normals.as_deref())
+    });
     let shade = match &mesh.albedo {
         Some(_) => shells::asset_shade(&params.shade),
         None => params.shade.clone(),
     };
-
-    let mut frames = report.run("frames", || {
-        frames::extrusion_frames(&welded, mesh.normals.as_deref())
-    });
-    for (rule, n) in frames::Fallback::ALL.iter().zip(frames.fallbacks) {
-        report.count(rule.name(), n as f64);
+    Shape {
+        mesh,
+        welded,
+        frames,
+        fur_uv,
+        shade,
     }
+}
 
+/// The heights phase's result: the clamp's per-vertex scale and directions, the maps read per
+/// render vertex, the darkening, and the lengths the surface resolved to.
+struct Heights {
+    clamp: clamp::Clamp,
+    /// The outline hull's free distance per welded vertex (`collision` with `outline`).
+    hull_bound: Option<Vec<f64>>,
+    length: Option<Vec<u8>>,
+    density_map: Option<Vec<u8>>,
+    comb_map: Option<Vec<glam::Vec2>>,
+    occlusion: Option<Vec<f32>>,
+    diagonal: f32,
+    height: f32,
+    density: f32,
+    outline_width: f32,
+}
+
+impl Heights {
+    /// Per render vertex, the density map's value times the length map's (`None` without
+    /// either): how much fur each vertex carries.
+    fn fur_weight(&self, vertices: usize) -> Option<Vec<f32>> {
+        let (density, length) = (&self.density_map, &self.length);
+        (density.is_some() || length.is_some()).then(|| {
+            let weight =
+                |map: &Option<Vec<u8>>, v: usize| map.as_ref().map_or(1.0, |m| m[v] as f32 / 255.0);
+            (0..vertices)
+                .map(|v| weight(density, v) * weight(length, v))
+                .collect()
+        })
+    }
+}
+
+/// Smooth, collision, clamp, occlusion: how far each strand may reach.
+fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
+    let params = run.params;
+    let Shape {
+        mesh,
+        welded,
+        frames,
+        ..
+    } = shape;
     let diagonal = mesh.diagonal();
     let height = params.resolved_height(diagonal);
     let density = params.resolved_density(diagonal);
-
-    let smoothed = report.run("smooth", || {
-        clamp::smooth(&welded, &frames, height, &params.clamp)
+    // the outline's width: with `collision`, its rays reach as far as the hull does
+    let outline_width = params.outline.resolved_width(diagonal);
+    let hull = (run.runs(Stage::Outline) && !run.skinned).then_some(outline_width);
+    let smoothed = run.report.run(Stage::Smooth.name(), || {
+        clamp::smooth(welded, frames, height, &params.clamp)
     });
     // one BVH per surface, built by the first effect that casts rays and shared by the rest
     let mut bvh: Option<clamp::MeshBvh> = None;
-    // the outline's width: with `collision`, its rays reach as far as the hull does
-    let outline_width = params.outline.resolved_width(diagonal);
-    // a skinned surface takes no fins or outline, and no chunk or LOD nodes (see `skin`)
-    let skinned = scene.skeleton.is_some();
-    let hull_rays = plan.runs(Stage::Outline, i) && !skinned;
-    let collision = report.gate(plan, Stage::Collision, i, || {
-        let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
-        let hull = hull_rays
-            .then(|| clamp::collision_bound(&welded, bvh, &smoothed, outline_width, &params.clamp));
-        let mut shells = clamp::collision_bound(&welded, bvh, &smoothed, height, &params.clamp);
-        if let Some(fraction) = params.clamp.thin {
-            // thin parts: strands in proportion to the local thickness
-            let thin = clamp::thickness_bound(&welded, bvh, &smoothed, height, fraction);
-            for (s, t) in shells.iter_mut().zip(thin) {
-                *s = s.min(t);
-            }
-        }
-        (shells, hull)
-    });
-    let (collision, hull_bound) = match collision {
-        Some((c, h)) => (Some(c), h),
-        None => (None, None),
-    };
-    report.count("bvh_builds", bvh.is_some() as u8 as f64);
-    let clamp = report.run("clamp", || {
+    let collision = run
+        .gate(Stage::Collision, || {
+            clamp::collision(welded, &mut bvh, &smoothed, (height, hull), &params.clamp)
+        })
+        .unwrap_or_default();
+    run.report.tell(Stage::Collision, &collision);
+    let mut clamp = run.report.run(Stage::Clamp.name(), || {
         clamp::clamp_heights(
-            &welded,
+            welded,
             smoothed,
             height,
             &params.clamp,
-            collision.as_deref(),
+            collision.bound.as_deref(),
         )
     });
-    drop(collision);
-    let mut clamp = clamp;
-    let length = maps.length.as_ref().map(|m| m.per_vertex(&mesh));
+    let length = maps.length.as_ref().map(|m| m.per_vertex(mesh));
     if let Some(length) = &length {
         for (s, &l) in clamp.scale.iter_mut().zip(length) {
             *s *= l as f32 / 255.0;
         }
-        report.note("clamp", "extrusion scaled by the length map");
     }
-    let density_map = maps.density.as_ref().map(|m| m.per_vertex(&mesh));
-    let comb_map = maps.comb.as_ref().map(|m| m.per_vertex(&mesh));
-    frames.direction = clamp.directions(&welded);
-    let (min_scale, mean_scale) = clamp.limited_scale();
-    report.count("smoothed_directions", clamp.smoothed as f64);
-    report.count("limited_by_inversion", clamp.limited_by_inversion as f64);
-    report.count("limited_by_collision", clamp.limited_by_collision as f64);
-    report.count("min_scale", min_scale as f64);
-    report.count("mean_limited_scale", mean_scale as f64);
-    if !plan.runs(Stage::Collision, i) {
-        report.note(
-            "clamp",
-            "collision bound not requested (--clamp / scene effect `collision`); smoothing and the inversion bound ran",
-        );
-    }
+    let density_map = maps.density.as_ref().map(|m| m.per_vertex(mesh));
+    let comb_map = maps.comb.as_ref().map(|m| m.per_vertex(mesh));
+    frames.direction = clamp.directions(welded);
+    let facts = clamp.facts(length.is_some(), run.runs(Stage::Collision));
+    run.report.file(Stage::Clamp, facts);
     if mesh.normals.is_none() {
-        report
+        run.report
             .warnings
             .push("no normals in the input; shading with the extrusion directions".into());
         mesh.normals = Some(frames.direction.clone());
     }
-
-    let shared_bvh = bvh.is_some();
-    let occlusion = report.gate(plan, Stage::Occlusion, i, || {
-        let bvh = bvh.get_or_insert_with(|| clamp::MeshBvh::build(&welded));
-        occlusion::occlusion(
-            &welded,
-            bvh,
+    let occlusion = run.gate(Stage::Occlusion, || {
+        occlusion::occlude(
+            welded,
+            &mut bvh,
             &clamp.welded_direction,
             diagonal,
             &params.occlusion,
         )
     });
-    if let Some(a) = &occlusion {
-        // the BVH built here, or the collision bound's reused
-        report.count("bvh_builds", (!shared_bvh) as u8 as f64);
-        let n = a.len().max(1) as f64;
-        report.count(
-            "mean_darkening",
-            a.iter().map(|&a| a as f64).sum::<f64>() / n,
-        );
-        report.count(
-            "max_darkening",
-            a.iter().fold(0.0f32, |m, &a| m.max(a)) as f64,
-        );
+    if let Some(o) = &occlusion {
+        run.report.tell(Stage::Occlusion, o);
     }
-    drop(bvh);
+    Heights {
+        clamp,
+        hull_bound: collision.hull,
+        length,
+        density_map,
+        comb_map,
+        occlusion: occlusion.map(|o| o.darkening),
+        diagonal,
+        height,
+        density,
+        outline_width,
+    }
+}
 
-    let mask = report.run("strands", || {
-        match masks.iter().find(|(p, _)| *p == params.strands) {
-            Some((_, m)) => m.clone(),
-            None => {
-                let m = strands::bake_mask(&params.strands);
-                masks.push((params.strands.clone(), m.clone()));
-                m
-            }
-        }
-    });
-    report.count("mask_texels", (mask.size * mask.size) as f64);
-    report.count("cells_per_tile", mask.cells_per_tile as f64);
-    let tiling = report.run("tiling", || {
+/// The look phase's result: the mask, its tiling, the shells with their effects, fins and
+/// outline.
+struct Look {
+    mask: Mask,
+    tiling: tiling::Tiling,
+    shells: ShellStack,
+    fins: Option<fins::Fins>,
+    outline: Option<outline::Outline>,
+}
+
+/// Strands, tiling, shells, gravity, wind, sheen, fins, outline: what the layers draw.
+fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, masks: &mut MaskCache) -> Look {
+    let params = run.params;
+    let Shape { mesh, welded, .. } = shape;
+    let mask = run
+        .report
+        .run_stage(Stage::Strands, || masks.mask(&params.strands));
+    let tiling = run.report.run(Stage::Tiling.name(), || {
         tiling::mask_tiling(
-            &mesh,
-            density,
+            mesh,
+            heights.density,
             params.strands.uv_density,
             mask.cells_per_tile,
         )
     });
-    report.note("tiling", &format!("strands follow {fur_uv}"));
-    report.warnings.extend(tiling.warning());
-    let tiles_per_uv = tiling.tiles_per_uv;
-
-    let shells = report.run("shells", || {
+    run.report.file(Stage::Tiling, tiling.facts(&shape.fur_uv));
+    let mut shells = run.report.run_stage(Stage::Shells, || {
         shells::build_shells(
-            &frames.direction,
-            Some(clamp.scale.as_slice()),
-            height,
+            &shape.frames.direction,
+            Some(heights.clamp.scale.as_slice()),
+            heights.height,
             &params.shells,
-            &shade,
+            &shape.shade,
         )
     });
-    report.count("layers", shells.t.len() as f64);
-    let mut shells = shells;
     // the law and the lean axes (made by the first of gravity and wind): each vertex's bend
     // and sway follow from its (guarded) delta where they are drawn
-    let mut lean: Option<Vec<glam::Vec3>> = None;
-    let lean_axes = |lean: &mut Option<Vec<glam::Vec3>>| {
-        lean.get_or_insert_with(|| {
-            gravity::lean_axes(
-                &welded,
-                &clamp.welded_direction,
-                &shells.delta,
-                shells.height,
-            )
-        });
+    let lean_axes = || {
+        let direction = &heights.clamp.welded_direction;
+        gravity::lean_axes(welded, direction, &shells.delta, shells.height)
     };
-    let field = params.gravity.field(comb_map.as_deref());
-    let bend = report.gate(plan, Stage::Gravity, i, || {
-        lean_axes(&mut lean);
-        gravity::Bend::on(&params.gravity, &field, &mesh, &welded)
+    let mut lean: Option<Vec<glam::Vec3>> = None;
+    let field = params.gravity.field(heights.comb_map.as_deref());
+    let bend = run.gate(Stage::Gravity, || {
+        lean.get_or_insert_with(lean_axes);
+        gravity::Bend::on(&params.gravity, &field, mesh, welded)
     });
     if bend.is_some() {
-        report.note(Stage::Gravity.name(), &field.describe());
+        run.report.tell(Stage::Gravity, &field);
     }
-    let wind = report.gate(plan, Stage::Wind, i, || {
-        lean_axes(&mut lean);
-        wind::Wind::new(&params.wind, &mesh.positions, diagonal, params.strands.seed)
+    let wind = run.gate(Stage::Wind, || {
+        lean.get_or_insert_with(lean_axes);
+        let seed = params.strands.seed;
+        wind::Wind::new(&params.wind, &mesh.positions, heights.diagonal, seed)
     });
     (shells.bend, shells.wind, shells.lean) = (bend, wind, lean);
-    shells.sheen = report.gate(plan, Stage::Sheen, i, || params.sheen.clone());
-    shells.occlusion = occlusion;
-
-    let fins = report.gate_unless(plan, Stage::Fins, i, blocked(Stage::Fins, skinned), || {
+    shells.sheen = run.gate(Stage::Sheen, || params.sheen.clone());
+    shells.occlusion = heights.occlusion.take();
+    let fins = run.gate(Stage::Fins, || {
         let top = shells.t.last().copied().unwrap_or(0.0);
-        let scale = (&params.shade, top, density);
-        fins::fins(&mesh, &mask, scale, &params.fins, params.strands.seed)
+        let scale = (&params.shade, top, heights.density);
+        fins::fins(mesh, &mask, scale, &params.fins, params.strands.seed)
     });
-    if let Some(f) = &fins {
-        report.count("fins", f.edges.len() as f64);
-        report.count("fin_candidates", f.candidates as f64);
+    let outline = run.gate(Stage::Outline, || {
+        // with `collision`, the free distance its rays found holds the hull
+        let limit: Option<Vec<f32>> = (heights.hull_bound.as_ref())
+            .map(|b| welded.remap.iter().map(|&w| b[w as usize] as f32).collect());
+        let (direction, width) = (&shape.frames.direction, heights.outline_width);
+        outline::outline(direction, limit.as_deref(), width, &params.outline)
+    });
+    for (stage, facts) in [
+        (Stage::Fins, fins.as_ref().map(|f| f.facts())),
+        (Stage::Outline, outline.as_ref().map(|o| o.facts())),
+    ] {
+        if let Some(facts) = facts {
+            run.report.file(stage, facts);
+        }
     }
-    let outline = report.gate_unless(
-        plan,
-        Stage::Outline,
-        i,
-        blocked(Stage::Outline, skinned),
-        || {
-            // with `collision`, the free distance its rays found holds the hull
-            let limit: Option<Vec<f32>> = hull_bound
-                .as_ref()
-                .map(|b| welded.remap.iter().map(|&w| b[w as usize] as f32).collect());
-            outline::outline(
-                &frames.direction,
-                limit.as_deref(),
-                outline_width,
-                &params.outline,
-            )
-        },
-    );
-    if let Some(o) = &outline {
-        report.count("outline_width", o.width as f64);
-        report.count("outline_clamped", o.clamped as f64);
+    Look {
+        mask,
+        tiling,
+        shells,
+        fins,
+        outline,
     }
-    let lod_runs = plan.runs(Stage::Lod, i) && !skinned;
-    let chunks = lod::chunks(&mesh, params.lod.chunk_size.filter(|_| lod_runs));
-    let levels = report
-        .gate_unless(plan, Stage::Lod, i, blocked(Stage::Lod, skinned), || {
-            let spacing = 1.0 / density as f64;
+}
+
+/// The levels phase's result: the LOD chain, its chunks, the masks its levels sample (one per
+/// distinct mip) and what each level's layers keep after culling.
+struct Levels {
+    levels: Vec<lod::Level>,
+    chunks: Vec<Vec<u32>>,
+    /// The mips the levels use, ascending, and their masks.
+    mips: Vec<u32>,
+    masks: Vec<Mask>,
+    culled: Vec<cull::Culled>,
+}
+
+impl Levels {
+    /// The mask level `l` samples.
+    fn mask_of(&self, l: &lod::Level) -> &Mask {
+        &self.masks[self.mips.iter().position(|&m| m == l.mask_level).unwrap()]
+    }
+}
+
+/// Each level's triangles: the render mesh's, or its simplified base's.
+fn level_indices<'a>(l: &'a lod::Level, mesh: &'a Mesh) -> &'a [u32] {
+    l.base.as_ref().map_or(&mesh.indices, |b| &b.indices)
+}
+
+/// Lod, cull: the chain of levels by distance, and the triangles each layer of each keeps.
+fn levels(run: &mut Run, shape: &Shape, heights: &Heights, look: &Look) -> Levels {
+    let params = run.params;
+    let density_map = heights.density_map.as_deref();
+    let (mesh, mask, shells) = (&shape.mesh, &look.mask, &look.shells);
+    let lod_runs = run.runs(Stage::Lod) && !run.skinned;
+    let chunks = lod::chunks(mesh, params.lod.chunk_size.filter(|_| lod_runs));
+    let levels = run
+        .gate(Stage::Lod, || {
+            let spacing = 1.0 / heights.density as f64;
             let texel = spacing * mask.cells_per_tile as f64 / mask.size as f64;
             let base = lod::Base {
-                mesh: &mesh,
+                mesh,
                 chunks: &chunks,
                 delta: &shells.delta,
-                density: density_map.as_deref(),
+                density: density_map,
             };
-            lod::build_lods(&shells, &mask, spacing, texel, &params.lod, Some(&base))
+            lod::build_lods(shells, mask, spacing, texel, &params.lod, Some(&base))
         })
-        .unwrap_or_else(|| vec![lod::full_level(&shells)]);
-    report.count("levels", levels.len() as f64);
-    report.count("chunks", chunks.len() as f64);
+        .unwrap_or_else(|| vec![lod::full_level(shells)]);
+    run.report
+        .file(Stage::Lod, lod::facts(&levels, chunks.len()));
     // One mask, and one cull bound per triangle, per distinct mip the levels use: the bound
     // depends on the mask alone, not on a level's layers.
     let mut mips: Vec<u32> = levels.iter().map(|l| l.mask_level).collect();
     mips.sort_unstable();
     mips.dedup();
-    let masks = lod::level_masks(&mask, &mips);
-    let mip_of = |l: &lod::Level| mips.iter().position(|&m| m == l.mask_level).unwrap();
-    let cull_runs = plan.runs(Stage::Cull, i);
-    let cull_start = Instant::now();
-    let uvs_in_tiles: Vec<Vec2> = if cull_runs {
-        let uvs = mesh.uvs.as_ref().unwrap();
-        uvs.iter().map(|&uv| uv * tiles_per_uv).collect()
-    } else {
-        Vec::new()
+    let masks = lod::level_masks(mask, &mips);
+    let mut out = Levels {
+        levels,
+        chunks,
+        mips,
+        masks,
+        culled: Vec::new(),
     };
-    // each level's triangles: the render mesh's, or its simplified base's
-    fn level_indices<'a>(l: &'a lod::Level, mesh: &'a Mesh) -> &'a [u32] {
-        l.base.as_ref().map_or(&mesh.indices, |b| &b.indices)
+    let cull_start = Instant::now();
+    out.culled = cull_levels(run, mesh, look, &out, density_map);
+    if run.runs(Stage::Cull) {
+        run.report
+            .record(Stage::Cull.name(), cull_start.elapsed().as_secs_f64() * 1e3);
+    } else {
+        let why = run.plan.skipped(Stage::Cull, run.i).unwrap_or_default();
+        run.report.skip(Stage::Cull.name(), &why);
     }
+    run.report.tell(Stage::Cull, &out.culled[0]);
+    run.report.layer_triangles = out.culled[0].kept.clone();
+    out
+}
+
+/// The cull stage on every level: the layers each triangle shows in (all of them where the
+/// stage does not run, and on a bare level).
+fn cull_levels(
+    run: &Run,
+    mesh: &Mesh,
+    look: &Look,
+    chain: &Levels,
+    density_map: Option<&[u8]>,
+) -> Vec<cull::Culled> {
+    let cull_runs = run.runs(Stage::Cull);
+    let uvs_in_tiles: Vec<Vec2> = match (cull_runs, &mesh.uvs) {
+        (true, Some(uvs)) => uvs
+            .iter()
+            .map(|&uv| uv * look.tiling.tiles_per_uv)
+            .collect(),
+        _ => Vec::new(),
+    };
     // the render mesh's bounds per mip, made when a level over its triangles first asks
-    let mut mesh_bounds: Vec<Option<Vec<u8>>> = vec![None; masks.len()];
-    let culled: Vec<cull::Culled> = levels
-        .iter()
+    let mut mesh_bounds: Vec<Option<Vec<u8>>> = vec![None; chain.masks.len()];
+    (chain.levels.iter())
         .map(|level| {
-            let indices = level_indices(level, &mesh);
+            let indices = level_indices(level, mesh);
             if level.bare.is_some() || !cull_runs {
                 return cull::Culled::none(indices.len() / 3, level.layers.len().max(1));
             }
-            let m = &masks[mip_of(level)];
+            let m = chain.mask_of(level);
+            let mip = chain
+                .mips
+                .iter()
+                .position(|&k| k == level.mask_level)
+                .unwrap();
             let triangle_bounds =
                 || cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, indices);
             let own;
@@ -901,89 +1055,61 @@ fn bake_surface(
                     own = triangle_bounds();
                     &own
                 }
-                None => &*mesh_bounds[mip_of(level)].get_or_insert_with(triangle_bounds),
+                None => &*mesh_bounds[mip].get_or_insert_with(triangle_bounds),
             };
             let cutoffs: Vec<f32> = level.layers.iter().map(|l| m.cutoff(l.step)).collect();
-            cull::layer_tops(
-                bounds,
-                indices,
-                density_map.as_deref(),
-                &shells.delta,
-                &cutoffs,
-            )
+            let delta = &look.shells.delta;
+            cull::layer_tops(bounds, indices, density_map, delta, &cutoffs)
         })
-        .collect();
-    let cull_ms = cull_start.elapsed().as_secs_f64() * 1e3;
-    if cull_runs {
-        report.record(Stage::Cull.name(), cull_ms);
-    } else {
-        report.skip(
-            Stage::Cull.name(),
-            &plan.skipped(Stage::Cull, i).unwrap_or_default(),
-        );
-    }
-    report.count("culled_triangles", culled[0].culled() as f64);
-    report.count(
-        "empty_layers",
-        culled[0].kept.iter().filter(|&&k| k == 0).count() as f64,
-    );
-    report.layer_triangles = culled[0].kept.clone();
-    let switches: Vec<lod::ChunkSwitch> = chunks
-        .iter()
+        .collect()
+}
+
+/// Pack: the surface's streams, nodes and materials into `packed`.
+fn pack_surface(
+    run: &mut Run,
+    (surface, scene, grafted): (&Surface, &Scene, bool),
+    (shape, heights, look, chain): (&Shape, &Heights, &Look, &Levels),
+    several: bool,
+    packed: &mut Packed,
+) -> PackedSurface {
+    let mesh = &shape.mesh;
+    let switches: Vec<lod::ChunkSwitch> = (chain.chunks.iter())
         .map(|tris| {
-            let (lo, hi) = chunk_bounds(&mesh, &shells.delta, tris);
-            lod::chunk_switch(&levels, ((hi - lo).length() / 2.0) as f64, &params.lod)
+            let (lo, hi) = chunk_bounds(mesh, &look.shells.delta, tris);
+            let radius = ((hi - lo).length() / 2.0) as f64;
+            lod::chunk_switch(&chain.levels, radius, &run.params.lod)
         })
         .collect();
-    let pack_levels: Vec<pack::PackLevel> = levels
-        .iter()
-        .zip(&culled)
+    let pack_levels: Vec<pack::PackLevel> = (chain.levels.iter().zip(&chain.culled))
         .map(|(level, culled)| pack::PackLevel {
             level,
-            mask: &masks[mip_of(level)],
+            mask: chain.mask_of(level),
             culled,
-            indices: level_indices(level, &mesh),
-            chunks: level.base.as_ref().map_or(&chunks, |b| &b.chunks),
+            indices: level_indices(level, mesh),
+            chunks: level.base.as_ref().map_or(&chain.chunks, |b| &b.chunks),
         })
         .collect();
-
-    let prefix = if several {
-        format!("{}_", surface.name)
-    } else {
-        String::new()
+    let prefix = match several {
+        true => format!("{}_", surface.name),
+        false => String::new(),
     };
-    let fur_weight: Option<Vec<f32>> = (density_map.is_some() || length.is_some()).then(|| {
-        (0..mesh.vertex_count())
-            .map(|v| {
-                let d = density_map.as_ref().map_or(1.0, |d| d[v] as f32 / 255.0);
-                let l = length.as_ref().map_or(1.0, |l| l[v] as f32 / 255.0);
-                d * l
-            })
-            .collect()
-    });
     // an asset's skinned part: positions in the skin's bind space as they are
-    let grafted = part.is_some_and(|p| p.graft);
-    let bind_space = (grafted && scene.skeleton.is_some()).then(|| {
-        let mut m = mesh.clone();
-        for p in &mut m.positions {
-            *p = (p.as_dvec3() + m.origin).as_vec3();
-        }
-        m.origin = glam::DVec3::ZERO;
-        m
-    });
+    let bind_space = (grafted && scene.skeleton.is_some()).then(|| mesh.in_world_space());
+    let shells = &look.shells;
+    let fur_weight = heights.fur_weight(mesh.vertex_count());
     let input = pack::PackInput {
-        mesh: bind_space.as_ref().unwrap_or(&mesh),
+        mesh: bind_space.as_ref().unwrap_or(mesh),
         delta: &shells.delta,
         height: shells.height,
         levels: &pack_levels,
-        chunks: &chunks,
+        chunks: &chain.chunks,
         switches: &switches,
-        tiles_per_uv,
-        roughness: params.shade.roughness,
-        surface: i,
+        tiles_per_uv: look.tiling.tiles_per_uv,
+        roughness: run.params.shade.roughness,
+        surface: run.i,
         name: &surface.name,
         prefix: &prefix,
-        density: density_map.as_deref(),
+        density: heights.density_map.as_deref(),
         fur_weight: fur_weight.as_deref(),
         bend: shells.bend.as_ref(),
         lean: shells.lean.as_deref(),
@@ -991,69 +1117,22 @@ fn bake_surface(
         occlusion: shells.occlusion.as_deref(),
         sheen: shells.sheen.as_ref(),
         skeleton: scene.skeleton.as_ref(),
-        fins: fins.as_ref(),
-        outline: outline.as_ref(),
+        fins: look.fins.as_ref(),
+        outline: look.outline.as_ref(),
         base: !grafted,
     };
-    let surface_packed = report.run("pack", || pack::pack(&input, &params.pack, packed));
-    report.count(
-        "float_uvs",
-        if surface_packed.float_uvs { 1.0 } else { 0.0 },
-    );
-    report.count("guarded_vertices", surface_packed.guarded as f64);
-    report.count("bent_less_vertices", surface_packed.bent_less as f64);
-    report.count_on(
-        Stage::Fins.name(),
-        "fin_bytes",
-        surface_packed.fin_bytes as f64,
-    );
-    report.count_on(
-        Stage::Outline.name(),
-        "outline_bytes",
-        surface_packed.outline_bytes as f64,
-    );
-    report.lods = levels
-        .iter()
-        .zip(&surface_packed.lod_triangles)
-        .map(|(l, &triangles)| report::LodEntry {
-            layers: l.layers.len(),
-            triangles,
-            bytes: 0,
-            distance: l.distance,
-            error: l.error,
-            mask_size: if l.bare.is_some() {
-                0
-            } else {
-                masks[mip_of(l)].size
-            },
-        })
-        .collect();
-
-    fill_report(
-        &mut report,
-        &surface_packed,
-        &shells,
-        &mesh,
-        height,
-        density,
-        &tiling,
-        params,
-    );
-    report.total_ms = start.elapsed().as_secs_f64() * 1e3;
-    BakedSurface {
-        report,
-        mesh,
-        shells,
-        mask,
-        packed: surface_packed,
-        tiles_per_uv,
-        density: density_map,
-        culled: culled.into_iter().next().expect("LOD 0"),
-        levels,
-        skeleton: scene.skeleton.clone(),
-        fins,
-        outline,
+    let params = &run.params.pack;
+    let surface_packed = run
+        .report
+        .run_stage(Stage::Pack, || pack::pack(&input, params, packed));
+    if look.fins.is_some() {
+        run.report.file(Stage::Fins, surface_packed.fin_facts());
     }
+    if look.outline.is_some() {
+        run.report
+            .file(Stage::Outline, surface_packed.outline_facts());
+    }
+    surface_packed
 }
 
 /// Why `stage`, asked for, cannot run on a surface (`None`: it can): a skinned surface takes no
@@ -1114,42 +1193,6 @@ pub fn check_bakeable(scene: &Scene, path: &std::path::Path) -> Result<()> {
              denormal or collinear vertices, or a zero scale); nothing to bake"
         ),
     })
-}
-
-#[allow(clippy::too_many_arguments)]
-fn fill_report(
-    report: &mut Report,
-    packed: &PackedSurface,
-    shells: &ShellStack,
-    mesh: &Mesh,
-    height: f32,
-    density: f32,
-    tiling: &tiling::Tiling,
-    params: &BakeParams,
-) {
-    let tiles = tiling.tiles_per_uv;
-    report.layout = packed.layout.name().into();
-    report.resolved.insert("height".into(), height as f64);
-    match params.strands.uv_density {
-        Some(d) => report.resolved.insert("uv_density".into(), d as f64),
-        None => report.resolved.insert("density".into(), density as f64),
-    };
-    let deviation = tiling.deviation();
-    for (key, value) in [
-        ("diagonal", mesh.diagonal() as f64),
-        ("mask_size", params.strands.mask_size as f64),
-        ("tiles_per_uv_u", tiles.x as f64),
-        ("tiles_per_uv_v", tiles.y as f64),
-        ("tiling_deviation_u", deviation.x as f64),
-        ("tiling_deviation_v", deviation.y as f64),
-        ("uv_scale_spread", tiling.spread),
-    ] {
-        report.resolved.insert(key.into(), value);
-    }
-    report.resolved.insert("position_step".into(), packed.scale);
-    report.base_vertices = packed.base_vertices;
-    report.base_triangles = mesh.triangle_count();
-    report.layers = shells.t.len();
 }
 
 /// Bytes per stream name as the file stores them (meshopt-compressed where `compressed` has

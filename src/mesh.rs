@@ -76,6 +76,17 @@ impl Mesh {
         (lo, hi)
     }
 
+    /// This mesh with its origin added to every position (and a zero origin): positions as
+    /// the input stored them, for an asset's skinned part bound to the asset's own skin.
+    pub fn in_world_space(&self) -> Mesh {
+        let mut m = self.clone();
+        for p in &mut m.positions {
+            *p = (p.as_dvec3() + m.origin).as_vec3();
+        }
+        m.origin = glam::DVec3::ZERO;
+        m
+    }
+
     /// Length of the bounding-box diagonal.
     pub fn diagonal(&self) -> f32 {
         let (lo, hi) = self.bounds();

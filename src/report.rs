@@ -11,7 +11,14 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::facts::{Facts, Reported};
+use crate::mesh::Mesh;
+use crate::output::pack::PackedSurface;
+use crate::params::BakeParams;
 use crate::scene::{Plan, Stage as PlanStage};
+use crate::stages::lod::Level;
+use crate::stages::shells::ShellStack;
+use crate::stages::tiling::Tiling;
 
 /// One stage's entry.
 #[derive(Clone, Debug, Serialize)]
@@ -77,7 +84,81 @@ pub struct Report {
     pub total_ms: f64,
 }
 
+/// The lengths a surface resolved to, for its report.
+pub struct Resolved<'a> {
+    pub height: f32,
+    pub density: f32,
+    pub tiling: &'a Tiling,
+}
+
+impl LodEntry {
+    /// The entry of `level`, which draws `triangles` and samples a mask of `mask_size` texels
+    /// (none on a bare level); its bytes come once the file is written.
+    pub fn of(level: &Level, triangles: usize, mask_size: u32) -> LodEntry {
+        LodEntry {
+            layers: level.layers.len(),
+            triangles,
+            bytes: 0,
+            distance: level.distance,
+            error: level.error,
+            mask_size: if level.bare.is_some() { 0 } else { mask_size },
+        }
+    }
+}
+
 impl Report {
+    /// A surface's report, begun with its load stage (which took `load_ms`) and the warnings
+    /// loading left.
+    pub fn begin(name: &str, input: &std::path::Path, warnings: &[String], load_ms: f64) -> Report {
+        let mut report = Report {
+            name: name.into(),
+            input: input.display().to_string(),
+            warnings: warnings.to_vec(),
+            ..Default::default()
+        };
+        report.record(PlanStage::Load.name(), load_ms);
+        report
+    }
+
+    /// The surface's resolved lengths, layout and sizes, once it is packed.
+    pub fn fill(
+        &mut self,
+        packed: &PackedSurface,
+        mesh: &Mesh,
+        shells: &ShellStack,
+        resolved: Resolved,
+        params: &BakeParams,
+    ) {
+        let Resolved {
+            height,
+            density,
+            tiling,
+        } = resolved;
+        let tiles = tiling.tiles_per_uv;
+        self.layout = packed.layout.name().into();
+        self.resolved.insert("height".into(), height as f64);
+        match params.strands.uv_density {
+            Some(d) => self.resolved.insert("uv_density".into(), d as f64),
+            None => self.resolved.insert("density".into(), density as f64),
+        };
+        let deviation = tiling.deviation();
+        for (key, value) in [
+            ("diagonal", mesh.diagonal() as f64),
+            ("mask_size", params.strands.mask_size as f64),
+            ("tiles_per_uv_u", tiles.x as f64),
+            ("tiles_per_uv_v", tiles.y as f64),
+            ("tiling_deviation_u", deviation.x as f64),
+            ("tiling_deviation_v", deviation.y as f64),
+            ("uv_scale_spread", tiling.spread),
+            ("position_step", packed.scale),
+        ] {
+            self.resolved.insert(key.into(), value);
+        }
+        self.base_vertices = packed.base_vertices;
+        self.base_triangles = mesh.triangle_count();
+        self.layers = shells.t.len();
+    }
+
     /// Runs a stage, timing it.
     pub fn run<T>(&mut self, name: &'static str, f: impl FnOnce() -> T) -> T {
         let start = Instant::now();
@@ -93,6 +174,42 @@ impl Report {
         out
     }
 
+    /// Runs `stage`, timing it, and files what its result reports ([`Report::tell`]).
+    pub fn run_stage<T: Reported>(&mut self, stage: PlanStage, f: impl FnOnce() -> T) -> T {
+        let out = self.run(stage.name(), f);
+        self.tell(stage, &out);
+        out
+    }
+
+    /// Files what `what` reports under `stage`'s entry (run or skipped): its counts and note
+    /// there, its warnings in the surface's list.
+    pub fn tell(&mut self, stage: PlanStage, what: &impl Reported) {
+        self.file(stage, what.facts());
+    }
+
+    /// [`Report::tell`] for facts already made.
+    pub fn file(&mut self, stage: PlanStage, facts: Facts) {
+        let Facts {
+            counts,
+            note,
+            warnings,
+        } = facts;
+        if let Some(entry) = self
+            .stages
+            .iter_mut()
+            .rev()
+            .find(|s| s.name == stage.name())
+        {
+            for (key, value) in counts {
+                entry.counts.insert(key.into(), value);
+            }
+            if let Some(note) = note {
+                entry.note = Some(note);
+            }
+        }
+        self.warnings.extend(warnings);
+    }
+
     /// Records a stage that ran elsewhere (loading before the bake, writing after every
     /// surface) and took `ms`.
     pub fn record(&mut self, name: &'static str, ms: f64) {
@@ -100,22 +217,11 @@ impl Report {
         self.stages.last_mut().expect("just recorded").ms = ms;
     }
 
-    /// Runs `stage` if the plan runs it for surface `surface`, or records it as skipped with
-    /// the plan's reason: the one gated line a stage takes in `bake`.
+    /// Runs `stage` if the plan runs it for surface `surface`, or records it as skipped with the
+    /// plan's reason: the one gated line a stage takes in the bake. A stage the plan runs is
+    /// skipped with the reason `blocked` when there is one (a skinned surface takes no LOD, fins
+    /// or outline), with a warning: an effect asked for never does nothing silently.
     pub fn gate<T>(
-        &mut self,
-        plan: &Plan,
-        stage: PlanStage,
-        surface: usize,
-        f: impl FnOnce() -> T,
-    ) -> Option<T> {
-        self.gate_unless(plan, stage, surface, None, f)
-    }
-
-    /// [`Report::gate`], except that a stage the plan runs is skipped with the reason `blocked`
-    /// when there is one (a skinned surface takes no LOD, fins or outline), with a warning: an
-    /// effect asked for never does nothing silently.
-    pub fn gate_unless<T>(
         &mut self,
         plan: &Plan,
         stage: PlanStage,
@@ -150,26 +256,6 @@ impl Report {
             note: None,
             counts: BTreeMap::new(),
         });
-    }
-
-    /// Adds a note to stage `name` (which must have run or been skipped already).
-    pub fn note(&mut self, name: &str, text: &str) {
-        if let Some(st) = self.stages.iter_mut().find(|s| s.name == name) {
-            st.note = Some(text.into());
-        }
-    }
-
-    /// Adds a count to the last stage.
-    pub fn count(&mut self, key: &str, value: impl Into<f64>) {
-        let stage = self.stages.last_mut().expect("count after a stage");
-        stage.counts.insert(key.into(), value.into());
-    }
-
-    /// Adds count `key` to stage `name`, when that stage ran.
-    pub fn count_on(&mut self, name: &str, key: &str, value: impl Into<f64>) {
-        if let Some(stage) = self.stages.iter_mut().find(|s| s.name == name && s.ran) {
-            stage.counts.insert(key.into(), value.into());
-        }
     }
 
     pub fn stage(&self, name: &str) -> Option<&Stage> {

@@ -44,6 +44,7 @@ use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::{Facts, Reported};
 use crate::grid::HEIGHT_STEPS;
 use crate::mesh::Mesh;
 use crate::stages::shells::ShadeParams;
@@ -332,6 +333,15 @@ pub fn encode_strip_png(strip: &Strip) -> Vec<u8> {
     )
     .expect("encoding a PNG into memory cannot fail");
     out
+}
+
+impl Reported for Fins {
+    fn facts(&self) -> Facts {
+        Facts::counts([
+            ("fins", self.edges.len() as f64),
+            ("fin_candidates", self.candidates as f64),
+        ])
+    }
 }
 
 #[cfg(test)]

@@ -56,6 +56,7 @@ use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::{Facts, Reported};
 use crate::mesh::Mesh;
 use crate::stages::weld::Welded;
 
@@ -345,6 +346,13 @@ pub fn lean_axes(welded: &Welded, welded_dirs: &[Vec3], delta: &[Vec3], height: 
             axes[w as usize] * stretch
         })
         .collect()
+}
+
+/// The gravity stage's facts: which way the field bends the strands.
+impl Reported for Field<'_> {
+    fn facts(&self) -> Facts {
+        Facts::default().with_note(self.describe())
+    }
 }
 
 #[cfg(test)]

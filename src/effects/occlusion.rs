@@ -32,6 +32,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::{Facts, Reported};
 use crate::stages::clamp::MeshBvh;
 use crate::stages::weld::Welded;
 
@@ -143,6 +144,48 @@ pub fn occlusion(
         .iter()
         .map(|&w| per_welded[w as usize])
         .collect()
+}
+
+/// The occlusion stage's result: the darkening per render vertex, and whether this stage built
+/// the surface's BVH (or reused the collision stage's).
+pub struct Occluded {
+    pub darkening: Vec<f32>,
+    pub built_bvh: bool,
+}
+
+/// The occlusion stage: [`occlusion`] on the surface's BVH, building it into `bvh` when no
+/// stage has yet.
+pub fn occlude(
+    welded: &Welded,
+    bvh: &mut Option<MeshBvh>,
+    directions: &[Vec3],
+    diagonal: f32,
+    params: &OcclusionParams,
+) -> Occluded {
+    let built_bvh = bvh.is_none();
+    let bvh = bvh.get_or_insert_with(|| MeshBvh::build(welded));
+    Occluded {
+        darkening: occlusion(welded, bvh, directions, diagonal, params),
+        built_bvh,
+    }
+}
+
+impl Reported for Occluded {
+    fn facts(&self) -> Facts {
+        let a = &self.darkening;
+        let n = a.len().max(1) as f64;
+        Facts::counts([
+            ("bvh_builds", self.built_bvh as u8 as f64),
+            (
+                "mean_darkening",
+                a.iter().map(|&a| a as f64).sum::<f64>() / n,
+            ),
+            (
+                "max_darkening",
+                a.iter().fold(0.0f32, |m, &a| m.max(a)) as f64,
+            ),
+        ])
+    }
 }
 
 #[cfg(test)]

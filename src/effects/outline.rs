@@ -23,6 +23,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::{Facts, Reported};
 
 /// `[surface.outline]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -117,6 +118,15 @@ pub fn reversed(indices: &[u32]) -> Vec<u32> {
         .chunks_exact(3)
         .flat_map(|t| [t[0], t[2], t[1]])
         .collect()
+}
+
+impl Reported for Outline {
+    fn facts(&self) -> Facts {
+        Facts::counts([
+            ("outline_width", self.width as f64),
+            ("outline_clamped", self.clamped as f64),
+        ])
+    }
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@ use serde_json::Value;
 
 use super::document::{Document, Kind};
 use crate::error::{Error, Result};
+use crate::facts::{Facts, Reported};
 use crate::stages::skin::{Channel, Clip, Interpolation, Path, SkelNode, Skeleton};
 
 /// Skin `s`: its joints (node indices) and inverse bind matrices.
@@ -240,4 +241,24 @@ pub fn read_skeleton(doc: &Document, buffers: &[Vec<u8>], s: usize) -> Result<Sk
         clips,
         placement: DMat4::IDENTITY,
     })
+}
+
+/// The load stage's facts about a skinned input: what the file keeps.
+impl Reported for Skeleton {
+    fn facts(&self) -> Facts {
+        let clips: Vec<String> = self.clips.iter().map(|c| super::escape(&c.name)).collect();
+        let clips = if clips.is_empty() {
+            "none".into()
+        } else {
+            clips.join(", ")
+        };
+        Facts::counts([
+            ("skin_joints", self.joints.len() as f64),
+            ("skin_nodes", self.nodes.len() as f64),
+            ("skin_clips", self.clips.len() as f64),
+        ])
+        .with_note(format!(
+            "skinned: the skin, its skeleton and clips ({clips}) are kept; the fur grows on the bind pose"
+        ))
+    }
 }

@@ -68,6 +68,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::{Facts, Reported};
 use crate::mesh::Adjacency;
 use crate::stages::frames::Frames;
 use crate::stages::weld::Welded;
@@ -695,6 +696,74 @@ fn finish(
     out.welded_scale = welded_scale;
     out.welded_direction = dirs;
     out
+}
+
+/// The collision stage's result: the free distance along each welded vertex's strand (the
+/// collision bound, with `thin` parts' shortening folded in), the outline hull's when the
+/// outline asked for it, and whether this stage built the surface's BVH. The default is the
+/// skipped stage's (nothing bound, no BVH).
+#[derive(Clone, Debug, Default)]
+pub struct Collision {
+    pub bound: Option<Vec<f64>>,
+    pub hull: Option<Vec<f64>>,
+    pub built_bvh: bool,
+}
+
+/// The collision stage: casts the strands' rays (and, with `hull_width`, the outline hull's) on
+/// the surface's BVH, building it into `bvh` when no stage has yet.
+pub fn collision(
+    welded: &Welded,
+    bvh: &mut Option<MeshBvh>,
+    smoothed: &Smoothed,
+    (height, hull_width): (f32, Option<f32>),
+    params: &ClampParams,
+) -> Collision {
+    let built_bvh = bvh.is_none();
+    let bvh = bvh.get_or_insert_with(|| MeshBvh::build(welded));
+    let hull = hull_width.map(|w| collision_bound(welded, bvh, smoothed, w, params));
+    let mut bound = collision_bound(welded, bvh, smoothed, height, params);
+    if let Some(fraction) = params.thin {
+        // thin parts: strands in proportion to the local thickness
+        let thin = thickness_bound(welded, bvh, smoothed, height, fraction);
+        for (s, t) in bound.iter_mut().zip(thin) {
+            *s = s.min(t);
+        }
+    }
+    Collision {
+        bound: Some(bound),
+        hull,
+        built_bvh,
+    }
+}
+
+impl Reported for Collision {
+    fn facts(&self) -> Facts {
+        Facts::counts([("bvh_builds", self.built_bvh as u8 as f64)])
+    }
+}
+
+impl Clamp {
+    /// The clamp stage's facts; `length_map`: the extrusion was scaled by a length map,
+    /// `collision`: the collision bound ran.
+    pub fn facts(&self, length_map: bool, collision: bool) -> Facts {
+        let (min_scale, mean_scale) = self.limited_scale();
+        let facts = Facts::counts([
+            ("smoothed_directions", self.smoothed as f64),
+            ("limited_by_inversion", self.limited_by_inversion as f64),
+            ("limited_by_collision", self.limited_by_collision as f64),
+            ("min_scale", min_scale as f64),
+            ("mean_limited_scale", mean_scale as f64),
+        ]);
+        if !collision {
+            facts.with_note(
+                "collision bound not requested (--clamp / scene effect `collision`); smoothing and the inversion bound ran",
+            )
+        } else if length_map {
+            facts.with_note("extrusion scaled by the length map")
+        } else {
+            facts
+        }
+    }
 }
 
 #[cfg(test)]

@@ -41,6 +41,7 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+use crate::facts::{Facts, Reported};
 use crate::stages::strands;
 
 /// Widening of every footprint, in level-0 texels, for UV quantization.
@@ -276,6 +277,19 @@ pub fn layer_tops(
         })
         .collect();
     Culled { top, kept }
+}
+
+/// The cull stage's facts, of LOD 0.
+impl Reported for Culled {
+    fn facts(&self) -> Facts {
+        Facts::counts([
+            ("culled_triangles", self.culled() as f64),
+            (
+                "empty_layers",
+                self.kept.iter().filter(|&&k| k == 0).count() as f64,
+            ),
+        ])
+    }
 }
 
 #[cfg(test)]

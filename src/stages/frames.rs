@@ -20,6 +20,7 @@
 
 use glam::Vec3;
 
+use crate::facts::{Facts, Reported};
 use crate::mesh::face_normal;
 use crate::stages::weld::Welded;
 
@@ -137,6 +138,19 @@ pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Fram
         .iter()
         .all(|d| d.is_finite() && (d.length() - 1.0).abs() < 1e-3));
     frames
+}
+
+impl Reported for Frames {
+    fn facts(&self) -> Facts {
+        Facts {
+            counts: Fallback::ALL
+                .iter()
+                .zip(self.fallbacks)
+                .map(|(rule, n)| (rule.name(), n as f64))
+                .collect(),
+            ..Default::default()
+        }
+    }
 }
 
 #[cfg(test)]

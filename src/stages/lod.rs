@@ -51,6 +51,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::Facts;
 use crate::mesh::Mesh;
 use crate::stages::shells::ShellStack;
 use crate::stages::strands::{self, Mask};
@@ -521,6 +522,11 @@ pub fn chunk_switch(levels: &[Level], radius: f64, params: &LodParams) -> ChunkS
         distances,
         coverage,
     }
+}
+
+/// The lod stage's facts (run or skipped: a skipped stage has its one full level).
+pub fn facts(levels: &[Level], chunks: usize) -> Facts {
+    Facts::counts([("levels", levels.len() as f64), ("chunks", chunks as f64)])
 }
 
 #[cfg(test)]

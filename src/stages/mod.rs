@@ -7,6 +7,7 @@ pub mod clamp;
 pub mod cull;
 pub mod frames;
 pub mod lod;
+pub mod merge;
 pub mod orient;
 pub mod shells;
 pub mod skin;

@@ -33,6 +33,7 @@ use std::collections::VecDeque;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+use crate::facts::{Facts, Reported};
 use crate::mesh::{face_normal, Mesh};
 use crate::stages::weld::{folded, Topology};
 
@@ -269,6 +270,43 @@ fn apply(mesh: &mut Mesh, flip: &[bool], out: &mut Orientation) {
             normals[v] = -normals[v];
             out.normals_flipped += 1;
         }
+    }
+}
+
+/// The orient stage's result: the topology it built (weld reuses it: orienting changes no
+/// edge), what it changed, and the mode it ran in.
+pub struct Oriented {
+    pub topology: Topology,
+    pub orientation: Orientation,
+    pub mode: OrientMode,
+}
+
+/// Orients `mesh` (see [`orient_on`]) on an exact-position topology that it returns for weld.
+pub fn oriented(mesh: &mut Mesh, params: &OrientParams) -> Oriented {
+    let topology = Topology::new(&mesh.positions, &mesh.indices);
+    let orientation = orient_on(mesh, &topology, params);
+    Oriented {
+        topology,
+        orientation,
+        mode: params.mode,
+    }
+}
+
+impl Reported for Oriented {
+    fn facts(&self) -> Facts {
+        let o = &self.orientation;
+        let mut facts = Facts::counts([
+            ("components", o.components as f64),
+            ("closed_components", o.closed as f64),
+            ("turned_outward", o.turned_outward as f64),
+            ("made_consistent", o.made_consistent as f64),
+            ("orientation_conflicts", o.conflicts as f64),
+        ]);
+        facts.warnings.extend(o.warning());
+        if self.mode != OrientMode::Auto {
+            facts = facts.with_note(format!("--orient {}", self.mode.name()));
+        }
+        facts
     }
 }
 

@@ -18,6 +18,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::{Facts, Reported};
 use crate::grid::{layer_step, step_height, MAX_LAYERS};
 
 /// Shell stage parameters (`shells.rs`).
@@ -227,6 +228,12 @@ pub fn build_shells(
         wind: None,
         occlusion: None,
         sheen: None,
+    }
+}
+
+impl Reported for ShellStack {
+    fn facts(&self) -> Facts {
+        Facts::counts([("layers", self.t.len() as f64)])
     }
 }
 

@@ -90,6 +90,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::{Facts, Reported};
 pub use crate::grid::{layer_step, step_cutoff, step_height, BASE_CODE, HEIGHT_STEPS};
 
 /// Largest offset of a strand centre from its cell centre, per axis, in cell widths.
@@ -548,6 +549,15 @@ pub fn coverage_mips(level0: &[u8], width: u32, height: u32) -> Vec<Vec<u8>> {
         (w, h) = (w2, h2);
     }
     levels
+}
+
+impl Reported for Mask {
+    fn facts(&self) -> Facts {
+        Facts::counts([
+            ("mask_texels", (self.size * self.size) as f64),
+            ("cells_per_tile", self.cells_per_tile as f64),
+        ])
+    }
 }
 
 #[cfg(test)]

@@ -36,6 +36,7 @@ use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
+use crate::facts::{Facts, Reported};
 use crate::mesh::Mesh;
 
 /// Largest factor (a triangle becomes at most `MAX_FACTOR²` triangles).
@@ -277,6 +278,16 @@ pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
         factor: n,
         triangles_before: before,
         triangles_after: mesh.triangle_count(),
+    }
+}
+
+impl Reported for Tessellated {
+    fn facts(&self) -> Facts {
+        Facts::counts([
+            ("factor", self.factor as f64),
+            ("triangles_before", self.triangles_before as f64),
+            ("triangles_after", self.triangles_after as f64),
+        ])
     }
 }
 

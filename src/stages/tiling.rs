@@ -22,6 +22,7 @@
 
 use glam::{DVec2, DVec3, Vec2};
 
+use crate::facts::Facts;
 use crate::mesh::Mesh;
 
 /// Spread (90th / 10th percentile of the UV-to-world scale, by area) above which the bake warns.
@@ -200,6 +201,15 @@ pub fn mask_tiling(
         requested: requested.as_vec2(),
         tiles_across: across,
         spread: if spread.is_finite() { spread } else { 1.0 },
+    }
+}
+
+impl Tiling {
+    /// The tiling stage's facts; `fur_uv` says which UVs the strands follow and why.
+    pub fn facts(&self, fur_uv: &str) -> Facts {
+        let mut facts = Facts::default().with_note(format!("strands follow {fur_uv}"));
+        facts.warnings.extend(self.warning());
+        facts
     }
 }
 

@@ -35,6 +35,9 @@ use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::{DVec3, Vec3};
 
+use crate::facts::{Facts, Reported};
+use crate::mesh::Mesh;
+
 /// The welded topology of a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Welded {
@@ -51,6 +54,8 @@ pub struct Welded {
     pub render_indices: Vec<u32>,
     /// For each kept triangle, the input triangle it came from.
     pub source_triangle: Vec<u32>,
+    /// Triangles of the input (kept or collapsed).
+    pub input_triangles: usize,
 }
 
 impl Welded {
@@ -344,6 +349,7 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
     let mut out = Welded {
         vertex_source: (0..nv as u32).collect(),
         remap: vec![u32::MAX; nv],
+        input_triangles: tris.len(),
         ..Default::default()
     };
     let mut welded_of_class = vec![u32::MAX; parent.len()];
@@ -389,6 +395,30 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
         }
     }
     out
+}
+
+impl Welded {
+    /// Gives `mesh` (the mesh this weld was made on) the weld's render vertices and kept
+    /// triangles; normals split where a sheet's two sides now have vertices of their own.
+    pub fn apply_to(&self, mesh: &mut Mesh) {
+        let input_vertices = mesh.vertex_count();
+        mesh.gather_vertices(&self.vertex_source);
+        mesh.indices = self.render_indices.clone();
+        mesh.face_split_normals(input_vertices);
+    }
+}
+
+impl Reported for Welded {
+    fn facts(&self) -> Facts {
+        Facts::counts([
+            ("welded_vertices", self.positions.len() as f64),
+            (
+                "collapsed_triangles",
+                (self.input_triangles - self.source_triangle.len()) as f64,
+            ),
+            ("sheet_vertices_split", self.split_vertices() as f64),
+        ])
+    }
 }
 
 #[cfg(test)]

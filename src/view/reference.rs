@@ -368,13 +368,7 @@ impl ReferenceRenderer {
         let size = input.strands.mask_size;
         let seed = input.strands.seed;
         let law = law_texture(input.strands);
-        let law_view = gpu::upload_rgba_texture(
-            gpu,
-            size,
-            size,
-            &law,
-            gpu::Mips::CoverageAlpha,
-        );
+        let law_view = gpu::upload_rgba_texture(gpu, size, size, &law, gpu::Mips::CoverageAlpha);
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("law"),
             address_mode_u: wgpu::AddressMode::Repeat,

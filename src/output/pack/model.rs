@@ -17,6 +17,7 @@
 use glam::{DMat4, DQuat, DVec3, Vec2};
 
 use super::{Layout, PositionGrid};
+use crate::facts::{Facts, Reported};
 
 /// What a stream or an accessor carries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -429,5 +430,28 @@ impl Packed {
             .filter_map(|n| self.nodes[n].mesh)
             .map(|m| self.meshes[m].primitives.len())
             .sum()
+    }
+}
+
+/// The pack stage's facts.
+impl Reported for PackedSurface {
+    fn facts(&self) -> Facts {
+        Facts::counts([
+            ("float_uvs", if self.float_uvs { 1.0 } else { 0.0 }),
+            ("guarded_vertices", self.guarded as f64),
+            ("bent_less_vertices", self.bent_less as f64),
+        ])
+    }
+}
+
+impl PackedSurface {
+    /// The fins stage's bytes in the file, for its entry.
+    pub fn fin_facts(&self) -> Facts {
+        Facts::counts([("fin_bytes", self.fin_bytes as f64)])
+    }
+
+    /// The outline stage's bytes in the file, for its entry.
+    pub fn outline_facts(&self) -> Facts {
+        Facts::counts([("outline_bytes", self.outline_bytes as f64)])
     }
 }

@@ -1,0 +1,79 @@
+//! The merge stage: a surface's meshes become one render mesh, which takes the asset's colour
+//! at each strand root (DESIGN §10: sampled here, before any stage splits vertices, so the
+//! colour rides with them from here on) and the UVs its strands follow: the mesh's own, or a
+//! per-face box projection when it has none with area or `--fur-uv` says they cannot carry
+//! strands (an asset keeps its own for its textures; the box is the fur's alone).
+
+use glam::Vec3;
+
+use crate::facts::{Facts, Reported};
+use crate::input::asset::Paint;
+use crate::input::generate_box_uvs;
+use crate::mesh::{uv_area, Mesh, Scene};
+use crate::stages::tiling::{fur_uv_box, FurUv};
+
+/// Where a surface's fur takes its colour.
+#[derive(Clone, Copy, Debug)]
+pub enum FurColour<'a> {
+    /// The preset's shade (a plain mesh or scene surface).
+    Preset,
+    /// The asset's paint (`None`: the asset's part has none), unless `color` overrides it.
+    Asset {
+        paint: Option<&'a Paint>,
+        color: Option<[f32; 3]>,
+    },
+}
+
+/// The merged render mesh and what the stage decided.
+pub struct Merged {
+    pub mesh: Mesh,
+    /// Which UVs the strands follow, and why (for the tiling stage's note).
+    pub fur_uv: String,
+    meshes: usize,
+    vertices: usize,
+    triangles: usize,
+    warnings: Vec<String>,
+}
+
+/// Merges `scene`'s meshes, colours the result and gives it the UVs its strands follow.
+pub fn merge(scene: &Scene, colour: FurColour, fur_uv: FurUv) -> Merged {
+    let mut mesh = scene.merged();
+    let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
+    if let FurColour::Asset { paint, color } = colour {
+        mesh.albedo = match color {
+            Some(c) => Some(vec![Vec3::from(c); mesh.vertex_count()]),
+            None => paint.map(|paint| paint.albedo(&mesh)),
+        };
+    }
+    let mut warnings = Vec::new();
+    let mut follows = "the mesh's own".to_string();
+    if mesh.uvs.is_none() || uv_area(&mesh) <= 0.0 {
+        warnings
+            .push("texture coordinates have no area; generated a per-face box projection".into());
+        generate_box_uvs(&mut mesh);
+    } else if let Some(why) = fur_uv_box(&mesh, fur_uv) {
+        follows = format!("a box projection: {why}");
+        generate_box_uvs(&mut mesh);
+    }
+    Merged {
+        mesh,
+        fur_uv: follows,
+        meshes: scene.meshes.len(),
+        vertices,
+        triangles,
+        warnings,
+    }
+}
+
+impl Reported for Merged {
+    fn facts(&self) -> Facts {
+        Facts {
+            warnings: self.warnings.clone(),
+            ..Facts::counts([
+                ("meshes", self.meshes as f64),
+                ("vertices", self.vertices as f64),
+                ("triangles", self.triangles as f64),
+            ])
+        }
+    }
+}
