@@ -57,7 +57,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::mesh::{color_byte, Mesh};
-use crate::stages::lod::Level;
+use crate::stages::lod::{Level, LevelLayer};
 use crate::stages::strands::{Mask, BASE_CODE};
 use guard::Vary;
 use quantize::Bytes;
@@ -276,8 +276,8 @@ struct Geometry<'a> {
     /// The `wind` effect's two targets per vertex (`s cos φ`, `s sin φ`), stored unit (compact:
     /// on the exponent filter's grids).
     winds: Option<[Vec<Vec3>; 2]>,
-    /// Lean axes (empty without bend and wind).
-    lean: &'a [Vec3],
+    /// Lean axes, guarded (empty without bend and wind).
+    lean: Vec<Vec3>,
     wind: Option<&'a crate::effects::wind::Wind>,
     occlusion: Option<&'a [f32]>,
     sheen: Option<&'a crate::effects::sheen::SheenParams>,
@@ -407,228 +407,10 @@ fn fetch_order(indices: &[u32], nv: usize) -> (Vec<u32>, Vec<u32>) {
 /// per chunk, LOD 0's layer nodes and the coarser levels as `MSFT_lod` alternatives. Returns
 /// what the packing decided (also pushed to `out.surfaces`).
 pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedSurface {
-    let mesh = input.mesh;
-    if cfg!(debug_assertions) {
-        mesh.validate();
-    }
-    assert!(
-        mesh.normals.is_some() && mesh.uvs.is_some(),
-        "pack needs normals and uvs"
-    );
-    assert_eq!(input.delta.len(), mesh.vertex_count());
-    assert!(!input.levels.is_empty() && input.levels[0].level.bare.is_none());
-    let nv = mesh.vertex_count();
-
-    let positions = &mesh.positions;
-    let lean: &[Vec3] = input.lean.unwrap_or(&[]);
-    assert!(
-        (input.bend.is_none() && input.wind.is_none()) || lean.len() == nv,
-        "bend and wind need a lean axis per vertex"
-    );
-    // plain float files keep the exact geometry: positions relative to the origin, deltas in
-    // world units (a grid of step 1 at zero)
-    let exact = params.quantize == Quantize::None;
-    let grid = if exact {
-        PositionGrid::identity(params.position_bits.min(15))
-    } else {
-        PositionGrid::fit(
-            // the base and the fully extruded surface (bent: every layer lies within the box of
-            // `p + a·d + c·b`, a and c in [0, 1])
-            positions
-                .iter()
-                .zip(input.delta)
-                .enumerate()
-                .flat_map(|(v, (&p, &d))| {
-                    let b = input.bend.map_or(Vec3::ZERO, |b| b.at(v, d, lean[v]));
-                    // the outline's hull is stored on the grid too
-                    let o = input.outline.map_or(Vec3::ZERO, |o| o.offset[v]);
-                    [p, p + d, p + b, p + d + b, p + o]
-                }),
-            params.position_bits.min(15),
-        )
-    };
-    // on the exponent filter's grid, or as they are in a plain float file
-    let delta_grid = |v: &[Vec3]| {
-        if exact {
-            crate::output::compress::DeltaGrid::EXACT
-        } else {
-            crate::output::compress::DeltaGrid::fit(v)
-        }
-    };
-    // Deltas in grid units, shortened where the stored geometry would invert at any layer
-    // height of any level.
-    let mut deltas: Vec<Vec3> = input.delta.iter().map(|&d| d / grid.step).collect();
-    let mut heights: Vec<f32> = input
-        .levels
-        .iter()
-        .flat_map(|l| l.level.layers.iter().map(|l| l.t))
-        .collect();
-    heights.sort_by(f32::total_cmp);
-    heights.dedup();
-    let top = heights.last().copied().unwrap_or(0.0);
-    // every layer triangle any level draws: LOD 0's, and those of simplified bases
-    let mut guarded_indices = mesh.indices.clone();
-    for l in input
-        .levels
-        .iter()
-        .filter(|l| l.level.base.is_some() && l.level.bare.is_none())
-    {
-        guarded_indices.extend_from_slice(l.indices);
-    }
-    // quantized positions are stored in units of 32767 grid steps (normalized i16) from the
-    // grid's centre level, float ones in grid steps from its corner; the morph target is in the
-    // same unit
-    let (unit, zero_level) = match params.quantize {
-        Quantize::Khr => (SNORM16, grid.center()),
-        Quantize::None => (1.0, 0),
-    };
-    let mut bends = None;
-    // Two passes: the straight stack shortens the extrusion where it would invert; then a bent
-    // or swaying stack bends (and sways) less where it would, keeping the strands' length.
-    let mut leans: Vec<Vec3> = lean.to_vec();
-    // the second pass: `full` checks the bent stack, swaying under the wind at every keyframe
-    // (`rounded`: single-draw layers are rounded to the grid first)
-    let bent_less = |base: &[Vec3],
-                     both: (&mut [Vec3], &mut [Vec3]),
-                     indices: &[u32],
-                     full: &dyn guard::Check,
-                     rounded: Option<f32>| {
-        match (input.bend.is_some(), input.wind) {
-            (_, Some(wind)) => {
-                let swaying =
-                    guard::Swaying::new(full, base, wind, (&heights, input.bend), rounded);
-                guard::guard(base, both, Vary::Leans, indices, &swaying)
-            }
-            (true, None) => guard::guard(base, both, Vary::Leans, indices, &full),
-            (false, None) => 0,
-        }
-    };
-    let (guarded, bent_less) = match params.layout {
-        Layout::Compact => {
-            let base: Vec<Vec3> = positions
-                .iter()
-                .map(|&p| stored_position(&grid, exact, p))
-                .collect();
-            // deltas are stored on the exponent filter's grid (compressed or not, so a
-            // compressed file's twin is the plain file), and checked as stored
-            let stored: Vec<Vec3> = deltas.iter().map(|&d| d / unit).collect();
-            let stored_grid = delta_grid(&stored);
-            let straight = guard::MorphPath {
-                base: &base,
-                top,
-                grid: Some((stored_grid, unit)),
-                bend: None,
-            };
-            let both = (&mut deltas[..], &mut leans[..]);
-            let shortened = guard::guard(&base, both, Vary::Deltas, &guarded_indices, &straight);
-            // the bend target, derived from each (guarded) delta and lean, on a grid of its own
-            let bend_of =
-                |d: &[Vec3], leans: &[Vec3], b: &crate::effects::gravity::Bend| -> Vec<Vec3> {
-                    d.iter()
-                        .zip(leans)
-                        .enumerate()
-                        .map(|(v, (&d, &m))| b.at(v, d, m) / unit)
-                        .collect()
-                };
-            let bend_grid = input
-                .bend
-                .map(|b| (b, delta_grid(&bend_of(&deltas, &leans, b))));
-            let full = guard::MorphPath {
-                bend: bend_grid.map(|(b, g)| (b, g, heights.as_slice())),
-                ..straight
-            };
-            let both = (&mut deltas[..], &mut leans[..]);
-            let bent_less = bent_less(&base, both, &guarded_indices, &full, None);
-            bends = bend_grid.map(|(b, g)| {
-                bend_of(&deltas, &leans, b)
-                    .into_iter()
-                    .map(|x| g.round(x))
-                    .collect()
-            });
-            // from here on, compact deltas are in the stored unit
-            for d in &mut deltas {
-                *d = stored_grid.round(*d / unit);
-            }
-            (shortened, bent_less)
-        }
-        Layout::SingleDraw => {
-            let base: Vec<Vec3> = positions
-                .iter()
-                .map(|&p| (p - grid.min) / grid.step)
-                .collect();
-            let top = (!exact).then_some(grid.max_level() as f32);
-            let straight = guard::RoundedLayers {
-                base: &base,
-                t: &heights,
-                top_level: top,
-                bend: None,
-            };
-            let both = (&mut deltas[..], &mut leans[..]);
-            let shortened = guard::guard(&base, both, Vary::Deltas, &guarded_indices, &straight);
-            let full = guard::RoundedLayers {
-                bend: input.bend,
-                ..straight
-            };
-            let both = (&mut deltas[..], &mut leans[..]);
-            let bent_less = bent_less(&base, both, &guarded_indices, &full, top);
-            (shortened, bent_less)
-        }
-    };
-    let lean = leans.as_slice();
-    // the wind's targets, from the guarded deltas (compact: `deltas` are stored already)
-    let winds = input.wind.map(|w| {
-        let to_grid = match params.layout {
-            Layout::Compact => unit,
-            Layout::SingleDraw => 1.0,
-        };
-        let [a, b]: [Vec<Vec3>; 2] = [0, 1].map(|k| {
-            deltas
-                .iter()
-                .zip(&w.phase)
-                .zip(lean)
-                .map(|((&d, &phase), &m)| w.targets(d * to_grid, m, phase)[k] / unit)
-                .collect()
-        });
-        match params.layout {
-            Layout::Compact => [a, b].map(|v| {
-                let g = delta_grid(&v);
-                v.iter().map(|&x| g.round(x)).collect()
-            }),
-            Layout::SingleDraw => [a, b],
-        }
-    });
-    let uvs = mesh.uvs.as_deref().unwrap();
-    let uv_grid = UvGrid::fit(uvs, params.texcoord_bits);
-    let tiles = input.tiles_per_uv;
-    let texel_error =
-        (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();
-    let float_uvs = texel_error > 0.125;
-    let geometry = Geometry {
-        grid,
-        exact,
-        uv_grid,
-        float_uvs,
-        tiles,
-        positions,
-        normals: mesh.normals.as_deref().unwrap(),
-        uvs,
-        deltas,
-        bends,
-        bend: input.bend,
-        winds,
-        lean,
-        wind: input.wind,
-        occlusion: input.occlusion,
-        sheen: input.sheen,
-        density: input.density,
-        fur_weight: input.fur_weight,
-        albedo: mesh.albedo.as_deref(),
-        skin: mesh
-            .skin
-            .as_ref()
-            .zip(input.skeleton.map(|k| k.joints.len())),
-    };
-
+    check_input(input);
+    let grid = position_grid(input, params);
+    let stack = guard_stack(input, params, &grid);
+    let geometry = geometry(input, params, grid, stack.stored);
     let tag = Tag {
         surface: input.surface,
         ..Tag::default()
@@ -636,223 +418,24 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     // the root first (filled in below), so a file's first node is its first surface's root
     let root = Packed::push(&mut out.nodes, Node::default());
     let mut b = Builder {
-        out,
+        out: &mut *out,
         tag,
         float: params.quantize == Quantize::None,
         materials: Vec::new(),
     };
-    let (uv_offset, uv_scale) = if b.float {
-        // the tiling is in the coordinates: no transform
-        (Vec2::ZERO, Vec2::ONE)
-    } else if float_uvs {
-        (Vec2::ZERO, tiles)
-    } else {
-        (uv_grid.lo * tiles, uv_grid.extent * tiles)
-    };
-    // one texture per distinct mask (LOD 0's, and the mips coarser levels ask for), shared
-    // with an earlier surface of the file that has the same one
-    let mut textures: Vec<(u32, TextureRef)> = Vec::new();
-    for l in input.levels.iter().filter(|l| l.level.bare.is_none()) {
-        if textures.iter().any(|&(m, _)| m == l.level.mask_level) {
-            continue;
-        }
-        let png = encode_mask_png(l.mask);
-        // surfaces of one file with the same strands share the mask's texture (an asset's
-        // parts, a scene's surfaces of one preset)
-        let same = b
-            .out
-            .textures
-            .iter()
-            .position(|t| b.out.streams[t.image].bytes == png);
-        let texture = match same {
-            Some(t) => t,
-            None => {
-                let image = b.stream("mask", Semantic::Image, None, png, None, 0);
-                Packed::push(&mut b.out.textures, Texture { image })
-            }
-        };
-        textures.push((
-            l.level.mask_level,
-            TextureRef {
-                texture,
-                offset: uv_offset,
-                scale: uv_scale,
-            },
-        ));
-    }
-    let texture_of = |l: &Level| {
-        textures
-            .iter()
-            .find(|&&(m, _)| m == l.mask_level)
-            .map(|t| t.1)
-    };
-
-    let several_chunks = input.chunks.len() > 1;
-    let several_levels = input.levels.len() > 1;
-    let mut animation = WindAnimation::default();
-    let mut chunk_nodes = Vec::new();
-    let mut lod_meshes: Vec<Vec<usize>> = vec![Vec::new(); input.levels.len()];
-    let mut layer_nodes_all = Vec::new();
-    let mut base_vertices = 0;
-    let mut vertex_order = Vec::new();
-    let mut lod_triangles = vec![0usize; input.levels.len()];
+    let (uv_offset, uv_scale) = uv_transform(&geometry, b.float);
+    let textures = mask_textures(&mut b, input, (uv_offset, uv_scale));
+    let mut chunks = Chunks::new(input.levels.len());
     for c in 0..input.chunks.len() {
-        let chunk_tag = Tag {
-            chunk: several_chunks.then_some(c),
-            ..tag
-        };
-        b.tag = chunk_tag;
-        let chunk_prefix = if several_chunks {
-            format!("{}chunk_{c:03}_", input.prefix)
-        } else {
-            input.prefix.to_string()
-        };
-        let mut level_nodes = Vec::new();
-        let mut shared: Option<Shared> = None;
-        let mut lod0: Option<(Ordering, usize)> = None;
-        for (k, pl) in input.levels.iter().enumerate() {
-            b.tag = Tag {
-                lod: several_levels.then_some(k),
-                ..chunk_tag
-            };
-            let layers = pl.level.layers.len().max(1);
-            // in the compact layout, a level over LOD 0's triangles draws LOD 0's index stream
-            let reuse = match (&lod0, params.layout) {
-                (Some((o, ix)), Layout::Compact) if pl.level.base.is_none() => Some((o, *ix)),
-                _ => None,
-            };
-            let ordering = match reuse {
-                Some((o, _)) => o.reused(&pl.culled.top, layers),
-                None => order_triangles(
-                    pl.indices,
-                    mesh.vertex_count(),
-                    &pl.chunks[c],
-                    &pl.culled.top,
-                    layers,
-                ),
-            };
-            let name = if several_levels {
-                format!("{chunk_prefix}lod{k}_")
-            } else {
-                chunk_prefix.clone()
-            };
-            let material_prefix = if several_levels {
-                format!("{}lod{k}_", input.prefix)
-            } else {
-                input.prefix.to_string()
-            };
-            let ctx = LevelCtx {
-                index: k,
-                material_prefix: &material_prefix,
-                geometry: &geometry,
-                level: pl.level,
-                mask: pl.mask,
-                texture: texture_of(pl.level),
-                roughness: input.roughness,
-                prefix: &name,
-                base: input.base,
-            };
-            let meshes = match (params.layout, pl.level.bare) {
-                (Layout::Compact, _) => {
-                    let shared = shared.get_or_insert_with(|| {
-                        let s = Shared::new(&mut b, &geometry, &ordering.indices, nv, true);
-                        base_vertices += s.order.len();
-                        vertex_order.extend(s.order.iter().copied());
-                        s
-                    });
-                    let (meshes, ix) = compact(&mut b, &ctx, shared, &ordering, reuse.map(|r| r.1));
-                    if k == 0 {
-                        lod0 = Some((ordering, ix));
-                    }
-                    meshes
-                }
-                (Layout::SingleDraw, None) => {
-                    let (order, indices) = fetch_order(&ordering.indices, nv);
-                    if k == 0 {
-                        base_vertices += order.len();
-                        vertex_order.extend(order.iter().copied());
-                    }
-                    single_draw(&mut b, &ctx, &order, &indices, &ordering.kept)
-                }
-                (Layout::SingleDraw, Some(_)) => {
-                    let s = Shared::new(&mut b, &geometry, &ordering.indices, nv, false);
-                    compact(&mut b, &ctx, &s, &ordering, None).0
-                }
-            };
-            lod_triangles[k] += meshes
-                .iter()
-                .map(|&m| b.out.mesh_triangles(m))
-                .sum::<usize>();
-            let nodes: Vec<usize> = meshes
-                .iter()
-                .map(|&m| {
-                    let mesh = &mut b.out.meshes[m];
-                    let weights = match params.layer_weights {
-                        LayerWeights::Node => std::mem::take(&mut mesh.weights),
-                        LayerWeights::Mesh => vec![],
-                    };
-                    let node = Node {
-                        name: mesh.name.clone(),
-                        tag: mesh.tag,
-                        mesh: Some(m),
-                        weights,
-                        ..Node::default()
-                    };
-                    Packed::push(&mut b.out.nodes, node)
-                })
-                .collect();
-            if let Some(wind) = input.wind {
-                for (&node, &m) in nodes.iter().zip(&meshes) {
-                    let channel = wind_channel(&mut b, wind, (node, m), pl.level, &mut animation);
-                    // coarser levels (MSFT_lod alternatives, outside the scene) animate apart,
-                    // so that a client without MSFT_lod finds every node the clip names
-                    animation.channels[(k > 0) as usize].extend(channel);
-                }
-            }
-            lod_meshes[k].extend(meshes.iter().copied());
-            if k == 0 {
-                layer_nodes_all.extend(nodes.iter().copied());
-            }
-            level_nodes.push(nodes);
-        }
-        b.tag = chunk_tag;
-        if !several_chunks && !several_levels {
-            chunk_nodes.extend(level_nodes.swap_remove(0));
-            continue;
-        }
-        // the chunk: LOD 0's layers as children, coarser levels as MSFT_lod alternatives
-        let mut ids = Vec::new();
-        for (k, nodes) in level_nodes.iter().enumerate().skip(1) {
-            let node = Node {
-                name: format!("{chunk_prefix}lod{k}"),
-                tag: Tag {
-                    lod: Some(k),
-                    ..chunk_tag
-                },
-                children: nodes.clone(),
-                ..Node::default()
-            };
-            ids.push(Packed::push(&mut b.out.nodes, node));
-        }
-        let levels: Vec<&Level> = input.levels.iter().map(|l| l.level).collect();
-        let node = Node {
-            name: format!("{chunk_prefix}lod0")
-                .trim_end_matches('_')
-                .to_string(),
-            tag: chunk_tag,
-            children: level_nodes[0].clone(),
-            lod: several_levels.then(|| NodeLod {
-                ids,
-                coverage: input.switches[c].coverage.clone(),
-                distances: input.switches[c].distances.clone(),
-                layers: levels.iter().map(|l| l.layers.len()).collect(),
-                errors: levels.iter().map(|l| l.error).collect(),
-            }),
-            ..Node::default()
-        };
-        chunk_nodes.push(Packed::push(&mut b.out.nodes, node));
+        pack_chunk(
+            &mut b,
+            (input, params),
+            (&geometry, &textures),
+            c,
+            &mut chunks,
+        );
     }
-
+    let animation = std::mem::take(&mut chunks.animation);
     for (channels, name) in animation.channels.into_iter().zip(["wind", "wind_lod"]) {
         if !channels.is_empty() {
             b.out.animations.push(Animation {
@@ -863,43 +446,647 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     }
     b.tag = tag;
     let extras = extras::extras(&mut b, &geometry, input);
-    // the node that dequantizes: stored value → world
-    let step = grid.step as f64;
-    let translation = grid.min.as_dvec3() + mesh.origin + step * zero_level as f64;
-    let scale = step * unit as f64;
-    let dequantize = glam::DMat4::from_scale_rotation_translation(
-        glam::DVec3::splat(scale),
-        glam::DQuat::IDENTITY,
-        translation,
+    let placement = Placement::of(&geometry.grid, params.quantize, input.mesh.origin);
+    place_root(
+        b,
+        (input, params),
+        (root, tag),
+        &placement,
+        (&chunks, &extras.nodes),
     );
-    // a skinned surface: the skeleton under the root, the dequantization in the inverse bind
-    // matrices, the layer nodes roots of their own (see `crate::stages::skin`)
-    // (part of an asset: no skeleton of its own; the graft binds the layer nodes to the asset's
-    // skin, which needs positions in its bind space: no dequantization)
-    let skinned = input.skeleton.filter(|_| geometry.skin.is_some());
+    let surface = PackedSurface {
+        layout: params.layout,
+        root,
+        layer_nodes: chunks.layer_nodes,
+        lod_meshes: chunks.lod_meshes,
+        lod_triangles: chunks.lod_triangles,
+        uv_offset,
+        uv_scale,
+        translation: placement.translation,
+        scale: placement.scale,
+        grid: geometry.grid,
+        float_uvs: geometry.float_uvs,
+        base_vertices: chunks.base_vertices,
+        vertex_order: chunks.vertex_order,
+        guarded: stack.guarded,
+        bent_less: stack.bent_less,
+        fin_bytes: extras.fin_bytes,
+        outline_bytes: extras.outline_bytes,
+    };
+    out.surfaces.push(surface.clone());
+    surface
+}
+
+/// What `pack` asserts of its input: a valid mesh with normals and UVs, a delta per vertex,
+/// a lean axis per vertex when it bends or sways, and a LOD 0 with shells.
+fn check_input(input: &PackInput) {
+    let mesh = input.mesh;
+    if cfg!(debug_assertions) {
+        mesh.validate();
+    }
+    assert!(
+        mesh.normals.is_some() && mesh.uvs.is_some(),
+        "pack needs normals and uvs"
+    );
+    assert_eq!(input.delta.len(), mesh.vertex_count());
+    assert!(!input.levels.is_empty() && input.levels[0].level.bare.is_none());
+    assert!(
+        (input.bend.is_none() && input.wind.is_none())
+            || input.lean.is_some_and(|l| l.len() == mesh.vertex_count()),
+        "bend and wind need a lean axis per vertex"
+    );
+}
+
+/// The position grid: plain float files keep the exact geometry (positions relative to the
+/// origin, deltas in world units: a grid of step 1 at zero); quantized ones fit the base, the
+/// fully extruded surface (bent: every layer lies within the box of `p + a·d + c·b`, a and c
+/// in [0, 1]) and the outline's hull.
+fn position_grid(input: &PackInput, params: &PackParams) -> PositionGrid {
+    let bits = params.position_bits.min(15);
+    if params.quantize == Quantize::None {
+        return PositionGrid::identity(bits);
+    }
+    let lean: &[Vec3] = input.lean.unwrap_or(&[]);
+    let corners =
+        (input.mesh.positions.iter().zip(input.delta).enumerate()).flat_map(|(v, (&p, &d))| {
+            let b = input.bend.map_or(Vec3::ZERO, |b| b.at(v, d, lean[v]));
+            let o = input.outline.map_or(Vec3::ZERO, |o| o.offset[v]);
+            [p, p + d, p + b, p + d + b, p + o]
+        });
+    PositionGrid::fit(corners, bits)
+}
+
+/// The unit of stored positions and morph targets: quantized positions are stored in units of
+/// 32767 grid steps (normalized i16) from the grid's centre level, float ones in grid steps
+/// from its corner. Returns `(unit, zero level)`.
+fn stored_unit(grid: &PositionGrid, quantize: Quantize) -> (f32, u32) {
+    match quantize {
+        Quantize::Khr => (SNORM16, grid.center()),
+        Quantize::None => (1.0, 0),
+    }
+}
+
+/// The grid a target is stored on: the exponent filter's, or none in a plain float file.
+fn delta_grid(exact: bool, v: &[Vec3]) -> crate::output::compress::DeltaGrid {
+    if exact {
+        crate::output::compress::DeltaGrid::EXACT
+    } else {
+        crate::output::compress::DeltaGrid::fit(v)
+    }
+}
+
+/// The stack's stored targets, guarded: extrusion deltas (grid units; compact: the stored
+/// unit), lean axes, and the compact layout's bend targets.
+struct Stored {
+    deltas: Vec<Vec3>,
+    leans: Vec<Vec3>,
+    bends: Option<Vec<Vec3>>,
+}
+
+/// The guard's result: the stored targets, and how many vertices it shortened (straight) and
+/// bent less.
+struct GuardedStack {
+    stored: Stored,
+    guarded: usize,
+    bent_less: usize,
+}
+
+/// The layer heights of every level, ascending and distinct.
+fn level_heights(input: &PackInput) -> Vec<f32> {
+    let mut heights: Vec<f32> = (input.levels.iter())
+        .flat_map(|l| l.level.layers.iter().map(|l| l.t))
+        .collect();
+    heights.sort_by(f32::total_cmp);
+    heights.dedup();
+    heights
+}
+
+/// Every layer triangle any level draws: LOD 0's, and those of simplified bases.
+fn guarded_indices(input: &PackInput) -> Vec<u32> {
+    let mut out = input.mesh.indices.clone();
+    for l in (input.levels.iter()).filter(|l| l.level.base.is_some() && l.level.bare.is_none()) {
+        out.extend_from_slice(l.indices);
+    }
+    out
+}
+
+/// Deltas in grid units, shortened where the stored geometry would invert at any layer height
+/// of any level. Two passes: the straight stack shortens the extrusion where it would invert;
+/// then a bent or swaying stack bends (and sways) less where it would, keeping the strands'
+/// length.
+fn guard_stack(input: &PackInput, params: &PackParams, grid: &PositionGrid) -> GuardedStack {
+    let guard = Guard {
+        input,
+        heights: level_heights(input),
+        indices: guarded_indices(input),
+    };
+    let stored = Stored {
+        deltas: input.delta.iter().map(|&d| d / grid.step).collect(),
+        leans: input.lean.unwrap_or(&[]).to_vec(),
+        bends: None,
+    };
+    match params.layout {
+        Layout::Compact => guard.compact(params, grid, stored),
+        Layout::SingleDraw => guard.single_draw(params, grid, stored),
+    }
+}
+
+/// What both layouts' guards check against: the input, every level's layer heights and every
+/// triangle a level draws.
+struct Guard<'a> {
+    input: &'a PackInput<'a>,
+    heights: Vec<f32>,
+    indices: Vec<u32>,
+}
+
+impl Guard<'_> {
+    /// The second pass: `full` checks the bent stack, swaying under the wind at every keyframe
+    /// (`rounded`: single-draw layers are rounded to the grid first). Returns the vertices it
+    /// bent less.
+    fn bent_less(
+        &self,
+        base: &[Vec3],
+        stored: &mut Stored,
+        full: &dyn guard::Check,
+        rounded: Option<f32>,
+    ) -> usize {
+        let both = (&mut stored.deltas[..], &mut stored.leans[..]);
+        let (bend, indices) = (self.input.bend, &self.indices);
+        match (bend.is_some(), self.input.wind) {
+            (_, Some(wind)) => {
+                let swaying = guard::Swaying::new(full, base, wind, (&self.heights, bend), rounded);
+                guard::guard(base, both, Vary::Leans, indices, &swaying)
+            }
+            (true, None) => guard::guard(base, both, Vary::Leans, indices, &full),
+            (false, None) => 0,
+        }
+    }
+
+    /// The compact layout: morph targets checked as stored. Deltas are stored on the exponent
+    /// filter's grid (compressed or not, so a compressed file's twin is the plain file); the
+    /// bend target, derived from each (guarded) delta and lean, on a grid of its own.
+    fn compact(&self, params: &PackParams, grid: &PositionGrid, mut s: Stored) -> GuardedStack {
+        let exact = params.quantize == Quantize::None;
+        let (unit, _) = stored_unit(grid, params.quantize);
+        let base: Vec<Vec3> = (self.input.mesh.positions.iter())
+            .map(|&p| stored_position(grid, exact, p))
+            .collect();
+        let as_stored: Vec<Vec3> = s.deltas.iter().map(|&d| d / unit).collect();
+        let stored_grid = delta_grid(exact, &as_stored);
+        let top = self.heights.last().copied().unwrap_or(0.0);
+        let straight = guard::MorphPath {
+            base: &base,
+            top,
+            grid: Some((stored_grid, unit)),
+            bend: None,
+        };
+        let both = (&mut s.deltas[..], &mut s.leans[..]);
+        let shortened = guard::guard(&base, both, Vary::Deltas, &self.indices, &straight);
+        let bend_of = |d: &[Vec3], leans: &[Vec3], b: &crate::effects::gravity::Bend| {
+            (d.iter().zip(leans).enumerate())
+                .map(|(v, (&d, &m))| b.at(v, d, m) / unit)
+                .collect::<Vec<Vec3>>()
+        };
+        let bend_grid =
+            (self.input.bend).map(|b| (b, delta_grid(exact, &bend_of(&s.deltas, &s.leans, b))));
+        let full = guard::MorphPath {
+            bend: bend_grid.map(|(b, g)| (b, g, self.heights.as_slice())),
+            ..straight
+        };
+        let bent_less = self.bent_less(&base, &mut s, &full, None);
+        s.bends = bend_grid.map(|(b, g)| {
+            let bends = bend_of(&s.deltas, &s.leans, b);
+            bends.into_iter().map(|x| g.round(x)).collect()
+        });
+        // from here on, compact deltas are in the stored unit
+        for d in &mut s.deltas {
+            *d = stored_grid.round(*d / unit);
+        }
+        GuardedStack {
+            stored: s,
+            guarded: shortened,
+            bent_less,
+        }
+    }
+
+    /// The single-draw layout: every layer's vertices rounded to the grid, as they are stored.
+    fn single_draw(&self, params: &PackParams, grid: &PositionGrid, mut s: Stored) -> GuardedStack {
+        let exact = params.quantize == Quantize::None;
+        let base: Vec<Vec3> = (self.input.mesh.positions.iter())
+            .map(|&p| (p - grid.min) / grid.step)
+            .collect();
+        let top = (!exact).then_some(grid.max_level() as f32);
+        let straight = guard::RoundedLayers {
+            base: &base,
+            t: &self.heights,
+            top_level: top,
+            bend: None,
+        };
+        let both = (&mut s.deltas[..], &mut s.leans[..]);
+        let shortened = guard::guard(&base, both, Vary::Deltas, &self.indices, &straight);
+        let full = guard::RoundedLayers {
+            bend: self.input.bend,
+            ..straight
+        };
+        let bent_less = self.bent_less(&base, &mut s, &full, top);
+        GuardedStack {
+            stored: s,
+            guarded: shortened,
+            bent_less,
+        }
+    }
+}
+
+/// The wind's two targets per vertex, from the guarded deltas (compact: `deltas` are stored
+/// already, and the targets go on the exponent filter's grids).
+fn wind_targets(
+    wind: &crate::effects::wind::Wind,
+    params: &PackParams,
+    (unit, exact): (f32, bool),
+    stored: &Stored,
+) -> [Vec<Vec3>; 2] {
+    let to_grid = match params.layout {
+        Layout::Compact => unit,
+        Layout::SingleDraw => 1.0,
+    };
+    let [a, b]: [Vec<Vec3>; 2] = [0, 1].map(|k| {
+        (stored.deltas.iter().zip(&wind.phase).zip(&stored.leans))
+            .map(|((&d, &phase), &m)| wind.targets(d * to_grid, m, phase)[k] / unit)
+            .collect()
+    });
+    match params.layout {
+        Layout::Compact => [a, b].map(|v| {
+            let g = delta_grid(exact, &v);
+            v.iter().map(|&x| g.round(x)).collect()
+        }),
+        Layout::SingleDraw => [a, b],
+    }
+}
+
+/// The surface's vertices with their grids and guarded targets.
+fn geometry<'a>(
+    input: &'a PackInput<'a>,
+    params: &PackParams,
+    grid: PositionGrid,
+    stored: Stored,
+) -> Geometry<'a> {
+    let mesh = input.mesh;
+    let exact = params.quantize == Quantize::None;
+    let (unit, _) = stored_unit(&grid, params.quantize);
+    let winds = (input.wind).map(|w| wind_targets(w, params, (unit, exact), &stored));
+    let uvs = mesh.uvs.as_deref().unwrap();
+    let uv_grid = UvGrid::fit(uvs, params.texcoord_bits);
+    let tiles = input.tiles_per_uv;
+    let texel_error =
+        (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();
+    let skin = (mesh.skin.as_ref()).zip(input.skeleton.map(|k| k.joints.len()));
+    Geometry {
+        grid,
+        exact,
+        uv_grid,
+        float_uvs: texel_error > 0.125,
+        tiles,
+        positions: &mesh.positions,
+        normals: mesh.normals.as_deref().unwrap(),
+        uvs,
+        deltas: stored.deltas,
+        bends: stored.bends,
+        bend: input.bend,
+        winds,
+        lean: stored.leans,
+        wind: input.wind,
+        occlusion: input.occlusion,
+        sheen: input.sheen,
+        density: input.density,
+        fur_weight: input.fur_weight,
+        albedo: mesh.albedo.as_deref(),
+        skin,
+    }
+}
+
+/// The mask's texture transform: none when the tiling is in float coordinates; the tiles per
+/// UV unit over float UVs; the UV grid's box in tiles over quantized ones.
+fn uv_transform(g: &Geometry, float: bool) -> (Vec2, Vec2) {
+    if float {
+        (Vec2::ZERO, Vec2::ONE)
+    } else if g.float_uvs {
+        (Vec2::ZERO, g.tiles)
+    } else {
+        (g.uv_grid.lo * g.tiles, g.uv_grid.extent * g.tiles)
+    }
+}
+
+/// One texture per distinct mask (LOD 0's, and the mips coarser levels ask for), by mask level,
+/// shared with an earlier surface of the file that has the same one (an asset's parts, a
+/// scene's surfaces of one preset).
+fn mask_textures(
+    b: &mut Builder,
+    input: &PackInput,
+    (offset, scale): (Vec2, Vec2),
+) -> Vec<(u32, TextureRef)> {
+    let mut textures: Vec<(u32, TextureRef)> = Vec::new();
+    for l in input.levels.iter().filter(|l| l.level.bare.is_none()) {
+        if textures.iter().any(|&(m, _)| m == l.level.mask_level) {
+            continue;
+        }
+        let png = encode_mask_png(l.mask);
+        let same = (b.out.textures.iter()).position(|t| b.out.streams[t.image].bytes == png);
+        let texture = match same {
+            Some(t) => t,
+            None => {
+                let image = b.stream("mask", Semantic::Image, None, png, None, 0);
+                Packed::push(&mut b.out.textures, Texture { image })
+            }
+        };
+        let texture = TextureRef {
+            texture,
+            offset,
+            scale,
+        };
+        textures.push((l.level.mask_level, texture));
+    }
+    textures
+}
+
+/// What the chunks packed so far made: their nodes, each level's meshes and triangles, LOD 0's
+/// layer nodes and stored vertices, and the wind's animation.
+#[derive(Default)]
+struct Chunks {
+    nodes: Vec<usize>,
+    lod_meshes: Vec<Vec<usize>>,
+    lod_triangles: Vec<usize>,
+    layer_nodes: Vec<usize>,
+    base_vertices: usize,
+    vertex_order: Vec<u32>,
+    animation: WindAnimation,
+}
+
+impl Chunks {
+    fn new(levels: usize) -> Chunks {
+        Chunks {
+            lod_meshes: vec![Vec::new(); levels],
+            lod_triangles: vec![0; levels],
+            ..Default::default()
+        }
+    }
+}
+
+/// What the levels of one chunk share as they are packed: the compact layout's vertex
+/// streams, and LOD 0's triangle order with its index accessor.
+#[derive(Default)]
+struct ChunkState {
+    shared: Option<Shared>,
+    lod0: Option<(Ordering, usize)>,
+}
+
+/// Packs chunk `c`: every level's layer meshes and nodes; with several chunks or levels, the
+/// chunk's node (LOD 0's layers as children, coarser levels as `MSFT_lod` alternatives).
+fn pack_chunk(
+    b: &mut Builder,
+    (input, params): (&PackInput, &PackParams),
+    (geometry, textures): (&Geometry, &[(u32, TextureRef)]),
+    c: usize,
+    chunks: &mut Chunks,
+) {
+    let several_chunks = input.chunks.len() > 1;
+    let several_levels = input.levels.len() > 1;
+    let chunk_tag = Tag {
+        chunk: several_chunks.then_some(c),
+        ..b.tag
+    };
+    let chunk_prefix = match several_chunks {
+        true => format!("{}chunk_{c:03}_", input.prefix),
+        false => input.prefix.to_string(),
+    };
+    let mut level_nodes = Vec::new();
+    let mut state = ChunkState::default();
+    for (k, pl) in input.levels.iter().enumerate() {
+        b.tag = Tag {
+            lod: several_levels.then_some(k),
+            ..chunk_tag
+        };
+        let texture = (textures.iter().find(|&&(m, _)| m == pl.level.mask_level)).map(|t| t.1);
+        let name = match several_levels {
+            true => format!("{chunk_prefix}lod{k}_"),
+            false => chunk_prefix.clone(),
+        };
+        let material_prefix = match several_levels {
+            true => format!("{}lod{k}_", input.prefix),
+            false => input.prefix.to_string(),
+        };
+        let ctx = LevelCtx {
+            index: k,
+            material_prefix: &material_prefix,
+            geometry,
+            level: pl.level,
+            mask: pl.mask,
+            texture,
+            roughness: input.roughness,
+            prefix: &name,
+            base: input.base,
+        };
+        let meshes = pack_level(b, (input, params), &ctx, (pl, c), (&mut state, chunks));
+        let nodes = layer_nodes(b, &meshes, params.layer_weights);
+        if let Some(wind) = input.wind {
+            for (&node, &m) in nodes.iter().zip(&meshes) {
+                let animation = &mut chunks.animation;
+                let channel = wind_channel(b, wind, (node, m), pl.level, animation);
+                // coarser levels (MSFT_lod alternatives, outside the scene) animate apart,
+                // so that a client without MSFT_lod finds every node the clip names
+                animation.channels[(k > 0) as usize].extend(channel);
+            }
+        }
+        chunks.lod_triangles[k] += meshes
+            .iter()
+            .map(|&m| b.out.mesh_triangles(m))
+            .sum::<usize>();
+        chunks.lod_meshes[k].extend(meshes.iter().copied());
+        if k == 0 {
+            chunks.layer_nodes.extend(nodes.iter().copied());
+        }
+        level_nodes.push(nodes);
+    }
+    b.tag = chunk_tag;
+    if !several_chunks && !several_levels {
+        chunks.nodes.extend(level_nodes.swap_remove(0));
+        return;
+    }
+    let node = chunk_node(b, input, (c, &chunk_prefix), level_nodes);
+    chunks.nodes.push(node);
+}
+
+/// The meshes of level `pl` in chunk `c`, by layout: the compact layout's share the chunk's
+/// vertex streams (a level over LOD 0's triangles draws LOD 0's index stream); single-draw
+/// writes each layer's vertices, and a bare level streams of its own.
+fn pack_level(
+    b: &mut Builder,
+    (input, params): (&PackInput, &PackParams),
+    ctx: &LevelCtx,
+    (pl, c): (&PackLevel, usize),
+    (state, chunks): (&mut ChunkState, &mut Chunks),
+) -> Vec<usize> {
+    let (nv, k) = (input.mesh.vertex_count(), ctx.index);
+    let layers = pl.level.layers.len().max(1);
+    let reuse = match (&state.lod0, params.layout) {
+        (Some((o, ix)), Layout::Compact) if pl.level.base.is_none() => Some((o, *ix)),
+        _ => None,
+    };
+    let ordering = match reuse {
+        Some((o, _)) => o.reused(&pl.culled.top, layers),
+        None => order_triangles(pl.indices, nv, &pl.chunks[c], &pl.culled.top, layers),
+    };
+    let reuse = reuse.map(|r| r.1);
+    match (params.layout, pl.level.bare) {
+        (Layout::Compact, _) => {
+            let shared = state.shared.get_or_insert_with(|| {
+                let s = Shared::new(b, ctx.geometry, &ordering.indices, nv, true);
+                chunks.base_vertices += s.order.len();
+                chunks.vertex_order.extend(s.order.iter().copied());
+                s
+            });
+            let (meshes, ix) = compact(b, ctx, shared, &ordering, reuse);
+            if k == 0 {
+                state.lod0 = Some((ordering, ix));
+            }
+            meshes
+        }
+        (Layout::SingleDraw, None) => {
+            let (order, indices) = fetch_order(&ordering.indices, nv);
+            if k == 0 {
+                chunks.base_vertices += order.len();
+                chunks.vertex_order.extend(order.iter().copied());
+            }
+            single_draw(b, ctx, &order, &indices, &ordering.kept)
+        }
+        (Layout::SingleDraw, Some(_)) => {
+            let s = Shared::new(b, ctx.geometry, &ordering.indices, nv, false);
+            compact(b, ctx, &s, &ordering, None).0
+        }
+    }
+}
+
+/// A node per mesh of `meshes` (named and tagged as it is), carrying its morph weights or
+/// leaving them on the mesh (`--layer-weights`).
+fn layer_nodes(b: &mut Builder, meshes: &[usize], weights: LayerWeights) -> Vec<usize> {
+    (meshes.iter())
+        .map(|&m| {
+            let mesh = &mut b.out.meshes[m];
+            let weights = match weights {
+                LayerWeights::Node => std::mem::take(&mut mesh.weights),
+                LayerWeights::Mesh => vec![],
+            };
+            let node = Node {
+                name: mesh.name.clone(),
+                tag: mesh.tag,
+                mesh: Some(m),
+                weights,
+                ..Node::default()
+            };
+            Packed::push(&mut b.out.nodes, node)
+        })
+        .collect()
+}
+
+/// Chunk `c`'s node: LOD 0's layers (`level_nodes[0]`) as children, each coarser level a node
+/// of its own named by the chunk's `MSFT_lod` with its switch.
+fn chunk_node(
+    b: &mut Builder,
+    input: &PackInput,
+    (c, chunk_prefix): (usize, &str),
+    level_nodes: Vec<Vec<usize>>,
+) -> usize {
+    let chunk_tag = b.tag;
+    let several_levels = input.levels.len() > 1;
+    let mut ids = Vec::new();
+    for (k, nodes) in level_nodes.iter().enumerate().skip(1) {
+        let node = Node {
+            name: format!("{chunk_prefix}lod{k}"),
+            tag: Tag {
+                lod: Some(k),
+                ..chunk_tag
+            },
+            children: nodes.clone(),
+            ..Node::default()
+        };
+        ids.push(Packed::push(&mut b.out.nodes, node));
+    }
+    let levels: Vec<&Level> = input.levels.iter().map(|l| l.level).collect();
+    let node = Node {
+        name: format!("{chunk_prefix}lod0")
+            .trim_end_matches('_')
+            .to_string(),
+        tag: chunk_tag,
+        children: level_nodes[0].clone(),
+        lod: several_levels.then(|| NodeLod {
+            ids,
+            coverage: input.switches[c].coverage.clone(),
+            distances: input.switches[c].distances.clone(),
+            layers: levels.iter().map(|l| l.layers.len()).collect(),
+            errors: levels.iter().map(|l| l.error).collect(),
+        }),
+        ..Node::default()
+    };
+    Packed::push(&mut b.out.nodes, node)
+}
+
+/// The node transform that dequantizes: stored value → world.
+struct Placement {
+    translation: glam::DVec3,
+    scale: f64,
+}
+
+impl Placement {
+    fn of(grid: &PositionGrid, quantize: Quantize, origin: glam::DVec3) -> Placement {
+        let (unit, zero_level) = stored_unit(grid, quantize);
+        let step = grid.step as f64;
+        Placement {
+            translation: grid.min.as_dvec3() + origin + step * zero_level as f64,
+            scale: step * unit as f64,
+        }
+    }
+
+    fn matrix(&self) -> glam::DMat4 {
+        glam::DMat4::from_scale_rotation_translation(
+            glam::DVec3::splat(self.scale),
+            glam::DQuat::IDENTITY,
+            self.translation,
+        )
+    }
+}
+
+/// Fills the surface's root node (`root`, pushed first): the chunks' nodes and the extras'
+/// (fins, outline) under the dequantization. A skinned surface: the skeleton under the root,
+/// the dequantization in the inverse bind matrices, the layer nodes roots of their own (see
+/// `crate::stages::skin`); part of an asset, no skeleton of its own (the graft binds the layer
+/// nodes to the asset's skin, which needs positions in its bind space: no dequantization).
+fn place_root(
+    mut b: Builder,
+    (input, params): (&PackInput, &PackParams),
+    (root, tag): (usize, Tag),
+    placement: &Placement,
+    (chunks, extras): (&Chunks, &[usize]),
+) {
+    let dequantize = placement.matrix();
+    let skinned = input.skeleton.filter(|_| input.mesh.skin.is_some());
     assert!(
         skinned.is_none() || input.base || dequantize == glam::DMat4::IDENTITY,
         "an asset's skinned part stores its bind-space positions as they are"
     );
-    let wrapper = skinned
-        .filter(|_| input.base)
-        .map(|k| skeleton(&mut b, k, dequantize, &chunk_nodes, input.name));
+    let wrapper = (skinned.filter(|_| input.base))
+        .map(|k| skeleton(&mut b, k, dequantize, &chunks.nodes, input.name));
     let out = b.out;
     let lod0 = input.levels[0].level;
     let (children, placed) = match (skinned, wrapper) {
-        (_, Some(wrapper)) => (vec![wrapper], None),
-        (Some(_), None) => (extras.nodes.clone(), None),
-        (None, _) => {
-            let nodes = chunk_nodes.iter().chain(&extras.nodes).copied().collect();
-            (nodes, Some(dequantize))
-        }
+        (_, Some(wrapper)) => (vec![wrapper], false),
+        (Some(_), None) => (extras.to_vec(), false),
+        (None, _) => (chunks.nodes.iter().chain(extras).copied().collect(), true),
     };
     out.nodes[root] = Node {
         name: input.name.to_string(),
         tag,
         children,
-        translation: placed.map(|_| translation),
-        scale: placed.map(|_| glam::DVec3::splat(scale)),
+        translation: placed.then_some(placement.translation),
+        scale: placed.then(|| glam::DVec3::splat(placement.scale)),
         extras: Some(ShellExtras {
             layout: params.layout,
             height: input.height,
@@ -913,29 +1100,8 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
     };
     out.roots.push(root);
     if skinned.is_some() {
-        out.roots.extend(&chunk_nodes);
+        out.roots.extend(&chunks.nodes);
     }
-    let surface = PackedSurface {
-        layout: params.layout,
-        root,
-        layer_nodes: layer_nodes_all,
-        lod_meshes,
-        lod_triangles,
-        uv_offset,
-        uv_scale,
-        translation,
-        scale,
-        grid,
-        float_uvs,
-        base_vertices,
-        vertex_order,
-        guarded,
-        bent_less,
-        fin_bytes: extras.fin_bytes,
-        outline_bytes: extras.outline_bytes,
-    };
-    out.surfaces.push(surface.clone());
-    surface
 }
 
 /// Writes skeleton `k` for the layer nodes `layers`: its nodes (names kept, for retargeting)
@@ -1528,52 +1694,12 @@ fn compact(
     if let Some([j, w]) = s.skin {
         base.extend([(Semantic::Joints(0), j), (Semantic::Weights(0), w)]);
     }
-    if let Some([fur, skin]) = ctx.level.bare {
+    if let Some(colours) = ctx.level.bare {
         if !ctx.base {
             // the asset's own primitive is the bare level
             return (vec![], ix);
         }
-        let mut attributes = base;
-        // with maps, occlusion or the asset's colour, the colour per vertex (COLOR_0, linear)
-        // and a white material; occlusion darkens by the layers' mean shade, 1 − a/2
-        let weight = ctx.geometry.fur_weight;
-        let occlusion = ctx.geometry.occlusion;
-        let albedo = ctx.geometry.albedo;
-        let per_vertex = weight.is_some() || occlusion.is_some() || albedo.is_some();
-        let colour = if per_vertex { [1.0; 3] } else { fur };
-        if per_vertex {
-            let mut bytes = Bytes::default();
-            for &o in &s.order {
-                let w = weight.map_or(1.0, |w| w[o as usize]);
-                let shade = occlusion.map_or(1.0, |a| 1.0 - 0.5 * a[o as usize]);
-                let tint = albedo.map_or(Vec3::ONE, |a| a[o as usize]);
-                let c = [0, 1, 2].map(|k| {
-                    let v = (skin[k] + (fur[k] - skin[k]) * w) * shade * tint[k];
-                    (v.clamp(0.0, 1.0) * 255.0).round() as u8
-                });
-                bytes.0.extend_from_slice(&[c[0], c[1], c[2], 255]);
-            }
-            let n = s.order.len();
-            let v = b.stream("bare_color", Semantic::Color(0), None, bytes.0, Some(4), n);
-            let a = b
-                .out
-                .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None);
-            attributes.push((Semantic::Color(0), a));
-        }
-        let material = b.material(ctx.index, 0, || Material {
-            name: format!("{}bare", ctx.material_prefix),
-            base_color: [colour[0], colour[1], colour[2], 1.0],
-            alpha: Alpha::Opaque,
-            texture: None,
-            roughness: ctx.roughness,
-            sheen: None,
-            unlit: false,
-        });
-        let name = format!("{}bare", ctx.prefix);
-        return (
-            vec![b.single_primitive_mesh(name, attributes, ix, material)],
-            ix,
-        );
+        return (vec![bare_level(b, ctx, s, (base, ix), colours)], ix);
     }
     let shells = s
         .shells
@@ -1584,8 +1710,7 @@ fn compact(
     attributes.extend(shells.color.map(|d| (Semantic::Color(0), d)));
     // one index accessor per distinct triangle count, all over the level's index stream
     let mut prefixes: Vec<(usize, usize)> = vec![(indices.len() / 3, ix)];
-    let layers = &ctx.level.layers;
-    let meshes = (0..layers.len())
+    let meshes = (0..ctx.level.layers.len())
         .filter(|&j| {
             if j == 0 {
                 ctx.base
@@ -1594,78 +1719,150 @@ fn compact(
             }
         })
         .map(|j| {
-            let ix = match prefixes.iter().find(|&&(n, _)| n == ordering.kept[j]) {
-                Some(&(_, a)) => a,
-                None => {
-                    let mut a = b.out.accessors[ix].clone();
-                    a.count = 3 * ordering.kept[j];
-                    let a = Packed::push(&mut b.out.accessors, a);
-                    prefixes.push((ordering.kept[j], a));
-                    a
-                }
-            };
-            let l = layers[j];
-            let base = j == 0;
-            let name = format!("{}layer_{j:03}", ctx.prefix);
-            let material = b.material(ctx.index, j, || Material {
-                name: format!("{}layer_{j:03}", ctx.material_prefix),
-                base_color: [l.color[0], l.color[1], l.color[2], 1.0],
-                alpha: if base {
-                    Alpha::Opaque
-                } else {
-                    Alpha::Mask(ctx.mask.cutoff(l.step))
-                },
-                texture: ctx.texture,
-                roughness: ctx.roughness,
-                sheen: ctx
-                    .geometry
-                    .sheen
-                    .and_then(|s| crate::effects::sheen::Sheen::of(s, l.t)),
-                unlit: false,
-            });
-            let primitive = Primitive {
-                attributes: attributes.clone(),
-                targets: if base {
-                    vec![]
-                } else {
-                    let mut extrusion = vec![(Semantic::Position, shells.delta)];
-                    extrusion.extend(shells.color_delta.map(|c| (Semantic::Color(0), c)));
-                    let mut t = vec![extrusion];
-                    t.extend(shells.bend.map(|b| vec![(Semantic::Position, b)]));
-                    for w in shells.wind.into_iter().flatten() {
-                        t.push(vec![(Semantic::Position, w)]);
-                    }
-                    t
-                },
-                indices: Some(ix),
-                material,
-            };
-            let tag = Tag {
-                layer: Some(j),
-                ..b.tag
-            };
-            Packed::push(
-                &mut b.out.meshes,
-                PackedMesh {
-                    name,
-                    tag,
-                    primitives: vec![primitive],
-                    weights: match (base, ctx.geometry.bend.filter(|_| shells.bend.is_some())) {
-                        (true, _) => vec![],
-                        (false, bend) => {
-                            let mut w = vec![l.t];
-                            w.extend(bend.map(|b| b.weight(l.t)));
-                            // the wind at rest (the animation moves it)
-                            w.extend(shells.wind.map_or(&[][..], |_| &[0.0, 0.0]));
-                            w
-                        }
-                    },
-                    layer_ranges: vec![],
-                },
-            )
+            let ix = prefix_accessor(b, &mut prefixes, ix, ordering.kept[j]);
+            compact_layer(b, ctx, (shells, &attributes), j, ix)
         })
         .collect();
     (meshes, ix)
+}
+
+/// The index accessor of the first `kept` triangles of index accessor `ix`: one per distinct
+/// count (`prefixes`), all over the level's index stream.
+fn prefix_accessor(
+    b: &mut Builder,
+    prefixes: &mut Vec<(usize, usize)>,
+    ix: usize,
+    kept: usize,
+) -> usize {
+    if let Some(&(_, a)) = prefixes.iter().find(|&&(n, _)| n == kept) {
+        return a;
+    }
+    let mut a = b.out.accessors[ix].clone();
+    a.count = 3 * kept;
+    let a = Packed::push(&mut b.out.accessors, a);
+    prefixes.push((kept, a));
+    a
+}
+
+/// A bare level's mesh: the base, opaque, in the fur's colour (`[fur, skin]`: the fur's and
+/// the skin's, which a density map mixes). With maps, occlusion or the asset's colour, the
+/// colour per vertex (`COLOR_0`, linear) and a white material; occlusion darkens by the
+/// layers' mean shade, 1 − a/2.
+fn bare_level(
+    b: &mut Builder,
+    ctx: &LevelCtx,
+    s: &Shared,
+    (mut attributes, ix): (Vec<(Semantic, usize)>, usize),
+    [fur, skin]: [[f32; 3]; 2],
+) -> usize {
+    // with maps, occlusion or the asset's colour, the colour per vertex (COLOR_0, linear)
+    // and a white material; occlusion darkens by the layers' mean shade, 1 − a/2
+    let weight = ctx.geometry.fur_weight;
+    let occlusion = ctx.geometry.occlusion;
+    let albedo = ctx.geometry.albedo;
+    let per_vertex = weight.is_some() || occlusion.is_some() || albedo.is_some();
+    let colour = if per_vertex { [1.0; 3] } else { fur };
+    if per_vertex {
+        let mut bytes = Bytes::default();
+        for &o in &s.order {
+            let w = weight.map_or(1.0, |w| w[o as usize]);
+            let shade = occlusion.map_or(1.0, |a| 1.0 - 0.5 * a[o as usize]);
+            let tint = albedo.map_or(Vec3::ONE, |a| a[o as usize]);
+            let c = [0, 1, 2].map(|k| {
+                let v = (skin[k] + (fur[k] - skin[k]) * w) * shade * tint[k];
+                (v.clamp(0.0, 1.0) * 255.0).round() as u8
+            });
+            bytes.0.extend_from_slice(&[c[0], c[1], c[2], 255]);
+        }
+        let n = s.order.len();
+        let v = b.stream("bare_color", Semantic::Color(0), None, bytes.0, Some(4), n);
+        let a = b
+            .out
+            .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None);
+        attributes.push((Semantic::Color(0), a));
+    }
+    let material = b.material(ctx.index, 0, || Material {
+        name: format!("{}bare", ctx.material_prefix),
+        base_color: [colour[0], colour[1], colour[2], 1.0],
+        alpha: Alpha::Opaque,
+        texture: None,
+        roughness: ctx.roughness,
+        sheen: None,
+        unlit: false,
+    });
+    let name = format!("{}bare", ctx.prefix);
+    b.single_primitive_mesh(name, attributes, ix, material)
+}
+
+/// Layer `j`'s mesh in the compact layout: the shared streams (`attributes`), its prefix of the
+/// index stream (`ix`), its material, and above the base the extrusion (and bend, wind)
+/// targets with their weights.
+fn compact_layer(
+    b: &mut Builder,
+    ctx: &LevelCtx,
+    (shells, attributes): (&ShellStreams, &[(Semantic, usize)]),
+    j: usize,
+    ix: usize,
+) -> usize {
+    let l = ctx.level.layers[j];
+    let base = j == 0;
+    let name = format!("{}layer_{j:03}", ctx.prefix);
+    let material = b.material(ctx.index, j, || Material {
+        name: format!("{}layer_{j:03}", ctx.material_prefix),
+        base_color: [l.color[0], l.color[1], l.color[2], 1.0],
+        alpha: if base {
+            Alpha::Opaque
+        } else {
+            Alpha::Mask(ctx.mask.cutoff(l.step))
+        },
+        texture: ctx.texture,
+        roughness: ctx.roughness,
+        sheen: ctx
+            .geometry
+            .sheen
+            .and_then(|s| crate::effects::sheen::Sheen::of(s, l.t)),
+        unlit: false,
+    });
+    let primitive = Primitive {
+        attributes: attributes.to_vec(),
+        targets: if base {
+            vec![]
+        } else {
+            let mut extrusion = vec![(Semantic::Position, shells.delta)];
+            extrusion.extend(shells.color_delta.map(|c| (Semantic::Color(0), c)));
+            let mut t = vec![extrusion];
+            t.extend(shells.bend.map(|b| vec![(Semantic::Position, b)]));
+            for w in shells.wind.into_iter().flatten() {
+                t.push(vec![(Semantic::Position, w)]);
+            }
+            t
+        },
+        indices: Some(ix),
+        material,
+    };
+    let tag = Tag {
+        layer: Some(j),
+        ..b.tag
+    };
+    Packed::push(
+        &mut b.out.meshes,
+        PackedMesh {
+            name,
+            tag,
+            primitives: vec![primitive],
+            weights: match (base, ctx.geometry.bend.filter(|_| shells.bend.is_some())) {
+                (true, _) => vec![],
+                (false, bend) => {
+                    let mut w = vec![l.t];
+                    w.extend(bend.map(|b| b.weight(l.t)));
+                    // the wind at rest (the animation moves it)
+                    w.extend(shells.wind.map_or(&[][..], |_| &[0.0, 0.0]));
+                    w
+                }
+            },
+            layer_ranges: vec![],
+        },
+    )
 }
 
 /// An upper bound of the GLB size for a mesh of at most `vertices` render vertices and
@@ -1738,58 +1935,11 @@ fn single_draw(
     kept: &[usize],
 ) -> Vec<usize> {
     let g = ctx.geometry;
-    let grid = &g.grid;
     let layers = &ctx.level.layers;
-    // without its own base, layer 0 holds nothing (the asset's primitive is the base)
-    let mut kept = kept.to_vec();
-    if !ctx.base {
-        kept[0] = 0;
-    }
-    let layer_vertices: Vec<usize> = kept
-        .iter()
-        .map(|&n| indices[..3 * n].iter().max().map_or(0, |&m| m as usize + 1))
-        .collect();
-    let total: usize = layer_vertices.iter().sum();
-    let mut q = Vec::with_capacity(total);
-    let mut colors = Bytes::default();
-    let mut all_ix: Vec<u32> = Vec::new();
-    let mut ranges = Vec::with_capacity(layers.len());
-    let top_level = (!b.float).then_some(grid.max_level() as f32);
-    for (j, l) in layers.iter().enumerate() {
-        let (nv, first) = (layer_vertices[j], q.len() as u32);
-        ranges.push(LayerRange {
-            first_index: all_ix.len(),
-            index_count: 3 * kept[j],
-            first_vertex: first as usize,
-            vertex_count: nv,
-        });
-        q.extend(order[..nv].iter().map(|&o| {
-            let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
-            guard::layer_point(
-                (p - grid.min) / grid.step,
-                guard::displacement(o as usize, d, g.lean.get(o as usize).copied(), l.t, g.bend),
-                top_level,
-            )
-        }));
-        let alpha = single_draw_alpha(ctx.mask, l.step);
-        for &o in &order[..nv] {
-            // density scales every layer above the base
-            let a = match &g.density {
-                Some(d) if j > 0 => (alpha as u32 * d[o as usize] as u32 + 127) / 255,
-                _ => alpha as u32,
-            };
-            let shade = g.occlusion.map_or(1.0, |a| {
-                crate::effects::occlusion::shade(a[o as usize], l.t)
-            });
-            let albedo = g.albedo.map_or(Vec3::ONE, |a| a[o as usize]);
-            let c = [0, 1, 2].map(|k| {
-                ((l.color[k] * shade * albedo[k]).clamp(0.0, 1.0) * 65535.0).round() as u16
-            });
-            colors.u16s(&[c[0], c[1], c[2], a as u16], 8);
-        }
-        all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
-    }
-    let position = b.positions("position", &q, &g.grid);
+    let top_level = (!b.float).then_some(g.grid.max_level() as f32);
+    let stack = SingleDrawStack::of(ctx, (order, indices, kept), top_level);
+    let (layer_vertices, total) = (&stack.layer_vertices, stack.total);
+    let position = b.positions("position", &stack.positions, &g.grid);
     let pick = |j: usize| order[..layer_vertices[j]].iter().map(|&o| o as usize);
     let all_normals: Vec<Vec3> = (0..layers.len())
         .flat_map(|j| pick(j).map(|v| g.normals[v]))
@@ -1799,11 +1949,18 @@ fn single_draw(
         .flat_map(|j| pick(j).map(|v| g.uvs[v]))
         .collect();
     let texcoord = b.texcoords(&all_uvs, g.uv_grid, g.float_uvs, g.tiles);
-    let cv = b.stream("color", Semantic::Color(0), None, colors.0, Some(8), total);
+    let cv = b.stream(
+        "color",
+        Semantic::Color(0),
+        None,
+        stack.colors.0,
+        Some(8),
+        total,
+    );
     let color = b
         .out
         .accessor(cv, component::UNSIGNED_SHORT, true, "VEC4", None);
-    let ix = b.indices("indices", &all_ix, total);
+    let ix = b.indices("indices", &stack.indices, total);
     let name = format!("{}shells", ctx.prefix);
     let material = b.material(ctx.index, 0, || Material {
         name: format!("{}shells", ctx.material_prefix),
@@ -1853,8 +2010,100 @@ fn single_draw(
             .collect();
         m.weights = vec![0.0, 0.0];
     }
-    b.out.meshes[mesh].layer_ranges = ranges;
+    b.out.meshes[mesh].layer_ranges = stack.ranges;
     vec![mesh]
+}
+
+/// The single-draw layout's layers, one after another: each layer's vertices (the first its
+/// triangles use, in fetch order) placed at its height and rounded as stored, their colours
+/// (the layer's shade × occlusion × the asset's colour; alpha: the layer's, scaled by density
+/// above the base), the index buffer and each layer's ranges.
+struct SingleDrawStack {
+    positions: Vec<Vec3>,
+    colors: Bytes,
+    indices: Vec<u32>,
+    ranges: Vec<LayerRange>,
+    /// Vertices of each layer, and in all.
+    layer_vertices: Vec<usize>,
+    total: usize,
+}
+
+impl SingleDrawStack {
+    fn of(
+        ctx: &LevelCtx,
+        (order, indices, kept): (&[u32], &[u32], &[usize]),
+        top_level: Option<f32>,
+    ) -> SingleDrawStack {
+        let g = ctx.geometry;
+        let grid = &g.grid;
+        let layers = &ctx.level.layers;
+        // without its own base, layer 0 holds nothing (the asset's primitive is the base)
+        let mut kept = kept.to_vec();
+        if !ctx.base {
+            kept[0] = 0;
+        }
+        let layer_vertices: Vec<usize> = kept
+            .iter()
+            .map(|&n| indices[..3 * n].iter().max().map_or(0, |&m| m as usize + 1))
+            .collect();
+        let total: usize = layer_vertices.iter().sum();
+        let mut q = Vec::with_capacity(total);
+        let mut colors = Bytes::default();
+        let mut all_ix: Vec<u32> = Vec::new();
+        let mut ranges = Vec::with_capacity(layers.len());
+        for (j, l) in layers.iter().enumerate() {
+            let (nv, first) = (layer_vertices[j], q.len() as u32);
+            ranges.push(LayerRange {
+                first_index: all_ix.len(),
+                index_count: 3 * kept[j],
+                first_vertex: first as usize,
+                vertex_count: nv,
+            });
+            q.extend(order[..nv].iter().map(|&o| {
+                let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
+                guard::layer_point(
+                    (p - grid.min) / grid.step,
+                    guard::displacement(
+                        o as usize,
+                        d,
+                        g.lean.get(o as usize).copied(),
+                        l.t,
+                        g.bend,
+                    ),
+                    top_level,
+                )
+            }));
+            let alpha = single_draw_alpha(ctx.mask, l.step);
+            for &o in &order[..nv] {
+                colors.u16s(&single_draw_color(g, (j, l), alpha, o as usize), 8);
+            }
+            all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
+        }
+        SingleDrawStack {
+            positions: q,
+            colors,
+            indices: all_ix,
+            ranges,
+            layer_vertices,
+            total,
+        }
+    }
+}
+
+/// Vertex `o`'s colour on layer `j` (`l`) of the single-draw layout, whose mask alpha is
+/// `alpha`: density scales every layer above the base.
+fn single_draw_color(g: &Geometry, (j, l): (usize, &LevelLayer), alpha: u16, o: usize) -> [u16; 4] {
+    let a = match &g.density {
+        Some(d) if j > 0 => (alpha as u32 * d[o] as u32 + 127) / 255,
+        _ => alpha as u32,
+    };
+    let shade = g
+        .occlusion
+        .map_or(1.0, |a| crate::effects::occlusion::shade(a[o], l.t));
+    let albedo = g.albedo.map_or(Vec3::ONE, |a| a[o]);
+    let c = [0, 1, 2]
+        .map(|k| ((l.color[k] * shade * albedo[k]).clamp(0.0, 1.0) * 65535.0).round() as u16);
+    [c[0], c[1], c[2], a as u16]
 }
 
 /// The mask as a grey+alpha PNG (grey = the strands' shade, alpha = the noise byte or the
