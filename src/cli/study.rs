@@ -168,8 +168,8 @@ struct Planner<'a> {
     quick: bool,
 }
 
-/// The reference of a knob whose reference is the exact bake.
-fn exact_reference() -> String {
+/// The reference text of a knob measured against the exact bake.
+fn against_exact() -> String {
     "the runtime technique drawn from the exact bake".to_string()
 }
 
@@ -279,7 +279,7 @@ impl Planner<'_> {
         KnobPlan {
             points: self.sweep(&[8, 10, 12, 14, 16], fast, base_bits, &flags),
             reference: None,
-            reference_text: exact_reference(),
+            reference_text: against_exact(),
         }
     }
 
@@ -299,7 +299,7 @@ impl Planner<'_> {
         KnobPlan {
             points,
             reference: None,
-            reference_text: exact_reference(),
+            reference_text: against_exact(),
         }
     }
 
@@ -311,7 +311,7 @@ impl Planner<'_> {
                 point("off".into(), strs(&["--no-cull"]), !self.has(Effect::Cull)),
             ],
             reference: None,
-            reference_text: exact_reference(),
+            reference_text: against_exact(),
         }
     }
 
@@ -363,7 +363,7 @@ impl Planner<'_> {
                 .map(|&k| point(k.name().into(), strs(&["--compress", k.name()]), k == c))
                 .collect(),
             reference: None,
-            reference_text: exact_reference(),
+            reference_text: against_exact(),
         }
     }
 
@@ -395,7 +395,7 @@ impl Planner<'_> {
                 })
                 .collect(),
             reference: None,
-            reference_text: exact_reference(),
+            reference_text: against_exact(),
         }
     }
 }
