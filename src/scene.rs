@@ -497,6 +497,11 @@ fn line_at(text: &str, offset: usize) -> usize {
         + 1
 }
 
+/// A TOML number (float or integer) as `f64`.
+fn number(v: &toml::Value) -> Option<f64> {
+    v.as_float().or(v.as_integer().map(|i| i as f64))
+}
+
 fn at(path: &[Seg], key: &str) -> Vec<Seg> {
     let mut p = path.to_vec();
     p.push(Seg::Key(key.into()));
@@ -614,101 +619,20 @@ impl SceneFile {
 }
 
 impl Reader<'_> {
+    /// The surface `table` at `here`: its mesh, maps, preset and sections, effects and
+    /// placement, each key checked.
     fn surface(&self, here: &[Seg], table: &toml::Table) -> Result<Surface> {
-        let string = |key: &str| -> Result<Option<&str>> {
-            match table.get(key) {
-                None => Ok(None),
-                Some(toml::Value::String(s)) => Ok(Some(s)),
-                Some(v) => Err(self.error(
-                    &at(here, key),
-                    format!("must be a string, not {}", v.type_str()),
-                )),
-            }
-        };
-        for key in table.keys() {
-            if !SURFACE_KEYS.contains(&key.as_str()) && !SECTIONS.contains(&key.as_str()) {
-                return Err(self.error(
-                    &at(here, key),
-                    format!(
-                        "unknown key (expected one of {}, {})",
-                        SURFACE_KEYS.join(", "),
-                        SECTIONS.join(", ")
-                    ),
-                ));
-            }
-        }
-        let Some(mesh) = string("mesh")? else {
+        self.check_surface_keys(here, table)?;
+        let Some(mesh) = self.string(here, table, "mesh")? else {
             return Err(self.error(here, "no `mesh` key: every surface names its mesh file"));
         };
         let mesh = self.mesh_path(&at(here, "mesh"), mesh)?;
-        let map = |key: &str| -> Result<Option<MapSource>> {
-            let Some(value) = string(key)? else {
-                return Ok(None);
-            };
-            if let Some(c) = MapSource::channel(value) {
-                return Ok(Some(MapSource::VertexColor(c)));
-            }
-            if value.starts_with("COLOR_") {
-                return Err(self.error(
-                    &at(here, key),
-                    format!("'{value}' is no vertex colour channel (COLOR_0.r, .g, .b or .a)"),
-                ));
-            }
-            self.mesh_path(&at(here, key), value)
-                .map(|p| Some(MapSource::Image(p)))
-        };
-        let (density_map, length_map) = (map("density_map")?, map("length_map")?);
-        let comb_map = match string("comb_map")? {
-            None => None,
-            Some("COLOR_0") => Some(FlowSource::VertexColors),
-            Some(value) if value.starts_with("COLOR_") => {
-                return Err(self.error(
-                    &at(here, "comb_map"),
-                    format!("'{value}' is no flow source: a comb map takes red and green of all of COLOR_0 (\"COLOR_0\") or an RGB PNG"),
-                ))
-            }
-            Some(value) => Some(FlowSource::Image(
-                self.mesh_path(&at(here, "comb_map"), value)?,
-            )),
-        };
-        let preset = match string("preset")? {
-            None => Preset::Fur,
-            Some(name) => Preset::from_name(name).ok_or_else(|| {
-                let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
-                self.error(
-                    &at(here, "preset"),
-                    format!(
-                        "unknown preset '{name}' (expected one of {})",
-                        names.join(", ")
-                    ),
-                )
-            })?,
-        };
-        let name = match string("name")? {
-            Some(n) if !n.is_empty() => n.to_string(),
-            Some(_) => return Err(self.error(&at(here, "name"), "must not be empty")),
-            None => mesh
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "surface".into()),
-        };
-        let mut only = Vec::new();
-        if let Some(v) = table.get("only") {
-            let key = at(here, "only");
-            let Some(list) = v.as_array() else {
-                return Err(self.error(&key, "must be an array of KIND=GLOB strings"));
-            };
-            for (k, e) in list.iter().enumerate() {
-                let mut p = key.clone();
-                p.push(Seg::Index(k));
-                let selector = e
-                    .as_str()
-                    .ok_or_else(|| "must be a string".to_string())
-                    .and_then(str::parse)
-                    .map_err(|why| self.error(&p, why))?;
-                only.push(selector);
-            }
-        }
+        let density_map = self.map_source(here, table, "density_map")?;
+        let length_map = self.map_source(here, table, "length_map")?;
+        let comb_map = self.comb_map(here, table)?;
+        let preset = self.preset(here, table)?;
+        let name = self.surface_name(here, table, &mesh)?;
+        let only = self.only(here, table)?;
         let (params, overrides) = self.params(here, table, preset)?;
         if comb_map.is_some() && params.gravity.comb.is_some() {
             return Err(self.error(
@@ -716,67 +640,9 @@ impl Reader<'_> {
                 "a surface combs by `comb_map` or by `[surface.gravity] comb`, not both: remove one",
             ));
         }
-        let mut effects = Effect::DEFAULT.to_vec();
-        effects.extend(Effect::implied(&params, comb_map.is_some()));
-        if let Some(v) = table.get("effects") {
-            let key = at(here, "effects");
-            let Some(list) = v.as_array() else {
-                return Err(self.error(&key, "must be an array of effect names"));
-            };
-            for (k, e) in list.iter().enumerate() {
-                let mut p = key.clone();
-                p.push(Seg::Index(k));
-                let names = || {
-                    Effect::ALL
-                        .iter()
-                        .map(|e| e.name())
-                        .chain(Effect::ALIASES.iter().map(|(a, _)| *a))
-                };
-                let known: Vec<String> = names()
-                    .map(String::from)
-                    .chain(names().map(|n| format!("no-{n}")))
-                    .collect();
-                let name = e.as_str().unwrap_or_default();
-                let off = name.strip_prefix("no-").and_then(Effect::from_name);
-                match (Effect::from_name(name), off) {
-                    (Some(effect), _) => effects.push(effect),
-                    (None, Some(effect)) => effects.retain(|&x| x != effect),
-                    _ => {
-                        return Err(self.error(
-                            &p,
-                            format!("unknown effect {e} (expected one of {})", known.join(", ")),
-                        ))
-                    }
-                }
-            }
-        }
-        effects.sort();
-        effects.dedup();
-        let number = |v: &toml::Value| v.as_float().or(v.as_integer().map(|i| i as f64));
-        let translation = match table.get("translation") {
-            None => [0.0; 3],
-            Some(v) => {
-                let xyz: Option<Vec<f64>> = v
-                    .as_array()
-                    .and_then(|a| a.iter().map(number).collect::<Option<Vec<f64>>>());
-                match xyz.as_deref() {
-                    Some(&[x, y, z]) if [x, y, z].iter().all(|c| c.is_finite()) => [x, y, z],
-                    _ => {
-                        return Err(self.error(
-                            &at(here, "translation"),
-                            "must be three finite numbers [x, y, z]",
-                        ))
-                    }
-                }
-            }
-        };
-        let scale = match table.get("scale") {
-            None => 1.0,
-            Some(v) => match number(v) {
-                Some(s) if s.is_finite() && s > 0.0 => s,
-                _ => return Err(self.error(&at(here, "scale"), "must be a positive finite number")),
-            },
-        };
+        let effects = self.effects(here, table, &params, comb_map.is_some())?;
+        let translation = self.translation(here, table)?;
+        let scale = self.scale(here, table)?;
         Ok(Surface {
             name,
             mesh,
@@ -791,6 +657,221 @@ impl Reader<'_> {
             comb_map,
             only,
         })
+    }
+
+    /// Refuses a key of the surface `table` that is neither a surface key nor a section.
+    fn check_surface_keys(&self, here: &[Seg], table: &toml::Table) -> Result<()> {
+        for key in table.keys() {
+            if !SURFACE_KEYS.contains(&key.as_str()) && !SECTIONS.contains(&key.as_str()) {
+                return Err(self.error(
+                    &at(here, key),
+                    format!(
+                        "unknown key (expected one of {}, {})",
+                        SURFACE_KEYS.join(", "),
+                        SECTIONS.join(", ")
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The string at `key` of `table` (`None` when absent; another type is an error).
+    fn string<'t>(
+        &self,
+        here: &[Seg],
+        table: &'t toml::Table,
+        key: &str,
+    ) -> Result<Option<&'t str>> {
+        match table.get(key) {
+            None => Ok(None),
+            Some(toml::Value::String(s)) => Ok(Some(s)),
+            Some(v) => Err(self.error(
+                &at(here, key),
+                format!("must be a string, not {}", v.type_str()),
+            )),
+        }
+    }
+
+    /// The density or length map at `key`: a vertex colour channel or an image beside the
+    /// scene.
+    fn map_source(
+        &self,
+        here: &[Seg],
+        table: &toml::Table,
+        key: &str,
+    ) -> Result<Option<MapSource>> {
+        let Some(value) = self.string(here, table, key)? else {
+            return Ok(None);
+        };
+        if let Some(c) = MapSource::channel(value) {
+            return Ok(Some(MapSource::VertexColor(c)));
+        }
+        if value.starts_with("COLOR_") {
+            return Err(self.error(
+                &at(here, key),
+                format!("'{value}' is no vertex colour channel (COLOR_0.r, .g, .b or .a)"),
+            ));
+        }
+        self.mesh_path(&at(here, key), value)
+            .map(|p| Some(MapSource::Image(p)))
+    }
+
+    /// The comb map: the vertex colours `COLOR_0` or an image beside the scene.
+    fn comb_map(&self, here: &[Seg], table: &toml::Table) -> Result<Option<FlowSource>> {
+        Ok(match self.string(here, table, "comb_map")? {
+            None => None,
+            Some("COLOR_0") => Some(FlowSource::VertexColors),
+            Some(value) if value.starts_with("COLOR_") => {
+                return Err(self.error(
+                    &at(here, "comb_map"),
+                    format!("'{value}' is no flow source: a comb map takes red and green of all of COLOR_0 (\"COLOR_0\") or an RGB PNG"),
+                ))
+            }
+            Some(value) => Some(FlowSource::Image(
+                self.mesh_path(&at(here, "comb_map"), value)?,
+            )),
+        })
+    }
+
+    /// The surface's preset (fur when it names none).
+    fn preset(&self, here: &[Seg], table: &toml::Table) -> Result<Preset> {
+        Ok(match self.string(here, table, "preset")? {
+            None => Preset::Fur,
+            Some(name) => Preset::from_name(name).ok_or_else(|| {
+                let names: Vec<&str> = Preset::ALL.iter().map(|p| p.name()).collect();
+                self.error(
+                    &at(here, "preset"),
+                    format!(
+                        "unknown preset '{name}' (expected one of {})",
+                        names.join(", ")
+                    ),
+                )
+            })?,
+        })
+    }
+
+    /// The surface's name: its `name` key, else its mesh file's stem.
+    fn surface_name(&self, here: &[Seg], table: &toml::Table, mesh: &Path) -> Result<String> {
+        Ok(match self.string(here, table, "name")? {
+            Some(n) if !n.is_empty() => n.to_string(),
+            Some(_) => return Err(self.error(&at(here, "name"), "must not be empty")),
+            None => mesh
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "surface".into()),
+        })
+    }
+
+    /// The entries of the array at `key` (none when absent), each with its key path;
+    /// `not_array` is the error when the value is no array.
+    fn entries<'t>(
+        &self,
+        here: &[Seg],
+        table: &'t toml::Table,
+        key: &str,
+        not_array: &str,
+    ) -> Result<Vec<(Vec<Seg>, &'t toml::Value)>> {
+        let Some(v) = table.get(key) else {
+            return Ok(Vec::new());
+        };
+        let key = at(here, key);
+        let Some(list) = v.as_array() else {
+            return Err(self.error(&key, not_array));
+        };
+        Ok(list
+            .iter()
+            .enumerate()
+            .map(|(k, e)| {
+                let mut p = key.clone();
+                p.push(Seg::Index(k));
+                (p, e)
+            })
+            .collect())
+    }
+
+    /// The surface's `only` selectors (empty: the whole mesh).
+    fn only(
+        &self,
+        here: &[Seg],
+        table: &toml::Table,
+    ) -> Result<Vec<crate::input::asset::Selector>> {
+        let mut only = Vec::new();
+        for (p, e) in self.entries(here, table, "only", "must be an array of KIND=GLOB strings")? {
+            let selector = e
+                .as_str()
+                .ok_or_else(|| "must be a string".to_string())
+                .and_then(str::parse)
+                .map_err(|why| self.error(&p, why))?;
+            only.push(selector);
+        }
+        Ok(only)
+    }
+
+    /// The surface's effects, sorted: the defaults and those `params` imply (with a comb map
+    /// when `combed`), with the `effects` key's names added and its `no-` names removed.
+    fn effects(
+        &self,
+        here: &[Seg],
+        table: &toml::Table,
+        params: &BakeParams,
+        combed: bool,
+    ) -> Result<Vec<Effect>> {
+        let mut effects = Effect::DEFAULT.to_vec();
+        effects.extend(Effect::implied(params, combed));
+        for (p, e) in self.entries(here, table, "effects", "must be an array of effect names")? {
+            let names = || {
+                Effect::ALL
+                    .iter()
+                    .map(|e| e.name())
+                    .chain(Effect::ALIASES.iter().map(|(a, _)| *a))
+            };
+            let known: Vec<String> = names()
+                .map(String::from)
+                .chain(names().map(|n| format!("no-{n}")))
+                .collect();
+            let name = e.as_str().unwrap_or_default();
+            let off = name.strip_prefix("no-").and_then(Effect::from_name);
+            match (Effect::from_name(name), off) {
+                (Some(effect), _) => effects.push(effect),
+                (None, Some(effect)) => effects.retain(|&x| x != effect),
+                _ => {
+                    return Err(self.error(
+                        &p,
+                        format!("unknown effect {e} (expected one of {})", known.join(", ")),
+                    ))
+                }
+            }
+        }
+        effects.sort();
+        effects.dedup();
+        Ok(effects)
+    }
+
+    /// The surface's translation (zero when absent): three finite numbers.
+    fn translation(&self, here: &[Seg], table: &toml::Table) -> Result<[f64; 3]> {
+        let Some(v) = table.get("translation") else {
+            return Ok([0.0; 3]);
+        };
+        let xyz: Option<Vec<f64>> = v
+            .as_array()
+            .and_then(|a| a.iter().map(number).collect::<Option<Vec<f64>>>());
+        match xyz.as_deref() {
+            Some(&[x, y, z]) if [x, y, z].iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+            _ => Err(self.error(
+                &at(here, "translation"),
+                "must be three finite numbers [x, y, z]",
+            )),
+        }
+    }
+
+    /// The surface's scale (one when absent): a positive finite number.
+    fn scale(&self, here: &[Seg], table: &toml::Table) -> Result<f64> {
+        match table.get("scale").map(number) {
+            None => Ok(1.0),
+            Some(Some(s)) if s.is_finite() && s > 0.0 => Ok(s),
+            Some(_) => Err(self.error(&at(here, "scale"), "must be a positive finite number")),
+        }
     }
 
     /// The preset with the surface's sections on top, checked.

@@ -30,6 +30,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::{Args, Parser};
+use shellbake::params::BakeParams;
 use shellbake::scene::{Effect, SceneFile};
 use shellbake::stages::strands::StrandModel;
 use shellbake::view::cli::parse_size;
@@ -155,141 +156,194 @@ struct KnobPlan {
     reference_text: String,
 }
 
-fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
-    let s = &scene.surfaces[0];
-    let p = &s.params;
-    let has = |e: Effect| s.effects.contains(&e);
-    let pick = |full: &[f64], fast: &[f64]| -> Vec<f64> {
-        if quick {
+/// A point of a sweep: its value, its flags and whether it is the base's setting.
+fn point(value: String, flags: Vec<String>, base: bool) -> Plan {
+    Plan { value, flags, base }
+}
+
+/// What a knob's plan is drawn from: the base scene (with one surface) and the quick mode.
+struct Planner<'a> {
+    scene: &'a SceneFile,
+    surface: &'a shellbake::scene::Surface,
+    quick: bool,
+}
+
+/// The reference text of a knob measured against the exact bake.
+fn against_exact() -> String {
+    "the runtime technique drawn from the exact bake".to_string()
+}
+
+impl Planner<'_> {
+    /// The base surface's parameters.
+    fn params(&self) -> &BakeParams {
+        &self.surface.params
+    }
+
+    /// Whether the base surface has effect `e`.
+    fn has(&self, e: Effect) -> bool {
+        self.surface.effects.contains(&e)
+    }
+
+    /// The values to sweep: `fast` in the quick mode, else `full`.
+    fn pick(&self, full: &[f64], fast: &[f64]) -> Vec<f64> {
+        if self.quick {
             fast.to_vec()
         } else {
             full.to_vec()
         }
-    };
-    let point = |value: String, flags: Vec<String>, base: bool| Plan { value, flags, base };
-    // an integer knob: a point per value (the quick mode's values alone), the base's marked
-    let sweep = |full: &[u32], fast: &[u32], base: u32, flags: &dyn Fn(u32) -> Vec<String>| {
-        let values = if quick { fast } else { full };
+    }
+
+    /// An integer knob's points: a point per value (the quick mode's values alone), the base's
+    /// marked.
+    fn sweep(
+        &self,
+        full: &[u32],
+        fast: &[u32],
+        base: u32,
+        flags: &dyn Fn(u32) -> Vec<String>,
+    ) -> Vec<Plan> {
+        let values = if self.quick { fast } else { full };
         values
             .iter()
             .map(|&v| point(v.to_string(), flags(v), v == base))
-            .collect::<Vec<Plan>>()
-    };
-    let exact = "the runtime technique drawn from the exact bake".to_string();
-    match knob {
-        "layers" => {
-            let n = p.shells.layers;
-            let at =
-                |f: f64| ((n as f64 * f).round() as u32).clamp(2, shellbake::params::MAX_LAYERS);
-            let mut values: Vec<u32> = pick(&[0.25, 0.5, 0.75, 1.0, 1.5, 2.0], &[0.5, 1.0])
-                .into_iter()
-                .map(at)
-                .collect();
-            values.dedup();
-            let top = at(2.0);
-            KnobPlan {
-                points: values
-                    .iter()
-                    .map(|&v| point(v.to_string(), strs(&["--layers", &v.to_string()]), v == n))
-                    .collect(),
-                reference: Some(strs(&["--layers", &top.to_string()])),
-                reference_text: format!("the runtime technique at {top} layers"),
-            }
+            .collect()
+    }
+
+    /// `layers`: fractions of the base's layer count, against twice the base's layers.
+    fn layers(&self) -> KnobPlan {
+        let n = self.params().shells.layers;
+        let at = |f: f64| ((n as f64 * f).round() as u32).clamp(2, shellbake::params::MAX_LAYERS);
+        let mut values: Vec<u32> = self
+            .pick(&[0.25, 0.5, 0.75, 1.0, 1.5, 2.0], &[0.5, 1.0])
+            .into_iter()
+            .map(at)
+            .collect();
+        values.dedup();
+        let top = at(2.0);
+        KnobPlan {
+            points: values
+                .iter()
+                .map(|&v| point(v.to_string(), strs(&["--layers", &v.to_string()]), v == n))
+                .collect(),
+            reference: Some(strs(&["--layers", &top.to_string()])),
+            reference_text: format!("the runtime technique at {top} layers"),
         }
-        "mask" => {
-            let model = |t: u32| match p.strands.model {
-                StrandModel::Cells {
-                    thickness,
-                    min_length,
-                    texels_per_cell,
-                } => {
-                    let size = (p.strands.mask_size / texels_per_cell * t).clamp(16, 4096);
-                    strs(&[
-                        "--set",
-                        &format!("strands.mask_size={size}"),
-                        "--set",
-                        &format!("strands.model={{ kind = \"cells\", thickness = {thickness}, min_length = {min_length}, texels_per_cell = {t} }}"),
-                    ])
-                }
-                StrandModel::Noise { .. } => {
-                    strs(&["--set", &format!("strands.mask_size={}", 8 * t)])
-                }
-            };
-            let base_t = match p.strands.model {
-                StrandModel::Cells {
-                    texels_per_cell, ..
-                } => texels_per_cell,
-                StrandModel::Noise { .. } => p.strands.mask_size / 8,
-            };
-            let unit = match p.strands.model {
-                StrandModel::Cells { .. } => "",
-                StrandModel::Noise { .. } => " (noise law: mask side / 8)",
-            };
-            KnobPlan {
-                points: sweep(&[2, 4, 8, 16], &[4, 8], base_t, &model),
-                reference: Some(model(32)),
-                reference_text: format!("the runtime technique at 32 texels per strand cell{unit}"),
+    }
+
+    /// `mask`: texels per strand cell, the mask scaled to keep the strands per tile.
+    fn mask(&self) -> KnobPlan {
+        let p = self.params();
+        let model = |t: u32| match p.strands.model {
+            StrandModel::Cells {
+                thickness,
+                min_length,
+                texels_per_cell,
+            } => {
+                let size = (p.strands.mask_size / texels_per_cell * t).clamp(16, 4096);
+                strs(&[
+                    "--set",
+                    &format!("strands.mask_size={size}"),
+                    "--set",
+                    &format!("strands.model={{ kind = \"cells\", thickness = {thickness}, min_length = {min_length}, texels_per_cell = {t} }}"),
+                ])
             }
+            StrandModel::Noise { .. } => strs(&["--set", &format!("strands.mask_size={}", 8 * t)]),
+        };
+        let base_t = match p.strands.model {
+            StrandModel::Cells {
+                texels_per_cell, ..
+            } => texels_per_cell,
+            StrandModel::Noise { .. } => p.strands.mask_size / 8,
+        };
+        let unit = match p.strands.model {
+            StrandModel::Cells { .. } => "",
+            StrandModel::Noise { .. } => " (noise law: mask side / 8)",
+        };
+        KnobPlan {
+            points: self.sweep(&[2, 4, 8, 16], &[4, 8], base_t, &model),
+            reference: Some(model(32)),
+            reference_text: format!("the runtime technique at 32 texels per strand cell{unit}"),
         }
-        "bits" | "uv-bits" => {
-            let (key, base_bits) = if knob == "bits" {
-                ("pack.position_bits", p.pack.position_bits)
-            } else {
-                ("pack.texcoord_bits", p.pack.texcoord_bits)
-            };
-            let fast: &[u32] = if knob == "bits" { &[10, 14] } else { &[10, 16] };
-            let flags = |b: u32| strs(&["--set", &format!("{key}={b}")]);
-            KnobPlan {
-                points: sweep(&[8, 10, 12, 14, 16], fast, base_bits, &flags),
-                reference: None,
-                reference_text: exact,
-            }
+    }
+
+    /// `bits` and `uv-bits`: position or texture coordinate bits, against the exact bake.
+    fn bits(&self, knob: &str) -> KnobPlan {
+        let p = self.params();
+        let (key, base_bits) = if knob == "bits" {
+            ("pack.position_bits", p.pack.position_bits)
+        } else {
+            ("pack.texcoord_bits", p.pack.texcoord_bits)
+        };
+        let fast: &[u32] = if knob == "bits" { &[10, 14] } else { &[10, 16] };
+        let flags = |b: u32| strs(&["--set", &format!("{key}={b}")]);
+        KnobPlan {
+            points: self.sweep(&[8, 10, 12, 14, 16], fast, base_bits, &flags),
+            reference: None,
+            reference_text: against_exact(),
         }
-        "lod" => {
-            let mut points = vec![point("off".into(), strs(&["--no-lod"]), !has(Effect::Lod))];
-            for e in pick(&[0.5, 1.0, 2.0, 4.0, 8.0], &[1.0]) {
-                let base = has(Effect::Lod) && (p.lod.error_pixels as f64 - e).abs() < 1e-6;
-                let flags = strs(&["--lod", "--set", &format!("lod.error_pixels={e}")]);
-                points.push(point(format!("{e} px"), flags, base));
-            }
-            KnobPlan {
-                points,
-                reference: None,
-                reference_text: exact,
-            }
+    }
+
+    /// `lod`: off, then error budgets in pixels, against the exact bake.
+    fn lod(&self) -> KnobPlan {
+        let p = self.params();
+        let mut points = vec![point(
+            "off".into(),
+            strs(&["--no-lod"]),
+            !self.has(Effect::Lod),
+        )];
+        for e in self.pick(&[0.5, 1.0, 2.0, 4.0, 8.0], &[1.0]) {
+            let base = self.has(Effect::Lod) && (p.lod.error_pixels as f64 - e).abs() < 1e-6;
+            let flags = strs(&["--lod", "--set", &format!("lod.error_pixels={e}")]);
+            points.push(point(format!("{e} px"), flags, base));
         }
-        "cull" => KnobPlan {
+        KnobPlan {
+            points,
+            reference: None,
+            reference_text: against_exact(),
+        }
+    }
+
+    /// `cull`: on and off, against the exact bake.
+    fn cull(&self) -> KnobPlan {
+        KnobPlan {
             points: vec![
-                point("on".into(), strs(&["--cull"]), has(Effect::Cull)),
-                point("off".into(), strs(&["--no-cull"]), !has(Effect::Cull)),
+                point("on".into(), strs(&["--cull"]), self.has(Effect::Cull)),
+                point("off".into(), strs(&["--no-cull"]), !self.has(Effect::Cull)),
             ],
             reference: None,
-            reference_text: exact,
-        },
-        "clamp" => {
-            let mut points = vec![point(
-                "off".into(),
-                strs(&["--no-clamp"]),
-                !has(Effect::Collision),
-            )];
-            for k in pick(&[0.25, 0.45, 0.7], &[0.45]) {
-                let base = has(Effect::Collision) && (p.clamp.ray_keep as f64 - k).abs() < 1e-6;
-                let flags = strs(&["--clamp", "--set", &format!("clamp.ray_keep={k}")]);
-                points.push(point(format!("ray {k}"), flags, base));
-            }
-            KnobPlan {
-                points,
-                reference: Some(strs(&["--no-clamp"])),
-                reference_text: "the runtime technique without the clamp (which has none)".into(),
-            }
+            reference_text: against_exact(),
         }
-        "occlusion" => KnobPlan {
-            points: sweep(
+    }
+
+    /// `clamp`: off, then ray fractions, against the technique without the clamp.
+    fn clamp(&self) -> KnobPlan {
+        let p = self.params();
+        let mut points = vec![point(
+            "off".into(),
+            strs(&["--no-clamp"]),
+            !self.has(Effect::Collision),
+        )];
+        for k in self.pick(&[0.25, 0.45, 0.7], &[0.45]) {
+            let base = self.has(Effect::Collision) && (p.clamp.ray_keep as f64 - k).abs() < 1e-6;
+            let flags = strs(&["--clamp", "--set", &format!("clamp.ray_keep={k}")]);
+            points.push(point(format!("ray {k}"), flags, base));
+        }
+        KnobPlan {
+            points,
+            reference: Some(strs(&["--no-clamp"])),
+            reference_text: "the runtime technique without the clamp (which has none)".into(),
+        }
+    }
+
+    /// `occlusion`: sample counts, against occlusion of 256 samples.
+    fn occlusion(&self) -> KnobPlan {
+        KnobPlan {
+            points: self.sweep(
                 &[4, 8, 16, 32, 64],
                 &[8, 32],
                 // no point is the base when the base has no occlusion
-                if has(Effect::Occlusion) {
-                    p.occlusion.samples
+                if self.has(Effect::Occlusion) {
+                    self.params().occlusion.samples
                 } else {
                     0
                 },
@@ -297,34 +351,42 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
             ),
             reference: Some(strs(&["--occlusion", "--set", "occlusion.samples=256"])),
             reference_text: "the runtime technique with occlusion of 256 samples".into(),
-        },
-        "compress" => {
-            let c = scene.output.compress;
-            KnobPlan {
-                points: shellbake::output::compress::Compression::ALL
-                    .iter()
-                    .map(|&k| point(k.name().into(), strs(&["--compress", k.name()]), k == c))
-                    .collect(),
-                reference: None,
-                reference_text: exact,
-            }
         }
-        "tess" => {
-            // (a base tessellated to an edge length has no factor of its own to mark)
-            let base = match (has(Effect::Tessellation), p.tessellation.edge_length) {
-                (false, _) => 1,
-                (true, None) => p.tessellation.factor,
-                (true, Some(_)) => 0,
-            };
-            let flags =
-                |n: u32| strs(&["--tessellate", "--set", &format!("tessellation.factor={n}")]);
-            KnobPlan {
-                points: sweep(&[1, 2, 3, 4], &[1, 2], base, &flags),
-                reference: Some(flags(8)),
-                reference_text: "the runtime technique on the base tessellated at factor 8".into(),
-            }
+    }
+
+    /// `compress`: every compression, against the exact bake.
+    fn compress(&self) -> KnobPlan {
+        let c = self.scene.output.compress;
+        KnobPlan {
+            points: shellbake::output::compress::Compression::ALL
+                .iter()
+                .map(|&k| point(k.name().into(), strs(&["--compress", k.name()]), k == c))
+                .collect(),
+            reference: None,
+            reference_text: against_exact(),
         }
-        "quality" => KnobPlan {
+    }
+
+    /// `tess`: tessellation factors, against the base tessellated at factor 8.
+    fn tess(&self) -> KnobPlan {
+        let p = self.params();
+        // (a base tessellated to an edge length has no factor of its own to mark)
+        let base = match (self.has(Effect::Tessellation), p.tessellation.edge_length) {
+            (false, _) => 1,
+            (true, None) => p.tessellation.factor,
+            (true, Some(_)) => 0,
+        };
+        let flags = |n: u32| strs(&["--tessellate", "--set", &format!("tessellation.factor={n}")]);
+        KnobPlan {
+            points: self.sweep(&[1, 2, 3, 4], &[1, 2], base, &flags),
+            reference: Some(flags(8)),
+            reference_text: "the runtime technique on the base tessellated at factor 8".into(),
+        }
+    }
+
+    /// `quality`: every quality preset, against the exact bake.
+    fn quality(&self) -> KnobPlan {
+        KnobPlan {
             points: shellbake::scene::Quality::ALL
                 .iter()
                 .map(|q| {
@@ -333,8 +395,29 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
                 })
                 .collect(),
             reference: None,
-            reference_text: exact,
-        },
+            reference_text: against_exact(),
+        }
+    }
+}
+
+/// The points of `knob` and its reference, drawn from the one surface of `scene`.
+fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
+    let planner = Planner {
+        scene,
+        surface: &scene.surfaces[0],
+        quick,
+    };
+    match knob {
+        "layers" => planner.layers(),
+        "mask" => planner.mask(),
+        "bits" | "uv-bits" => planner.bits(knob),
+        "lod" => planner.lod(),
+        "cull" => planner.cull(),
+        "clamp" => planner.clamp(),
+        "occlusion" => planner.occlusion(),
+        "compress" => planner.compress(),
+        "tess" => planner.tess(),
+        "quality" => planner.quality(),
         other => unreachable!("knob {other} is checked"),
     }
 }
@@ -374,25 +457,179 @@ fn bake(tokens: &[String], runs: usize) -> anyhow::Result<Baked> {
     })
 }
 
+/// The knobs `--knobs` names, in its order (all of them when it names none).
+fn chosen_knobs(flags: &StudyFlags) -> anyhow::Result<Vec<&'static str>> {
+    if flags.knobs.is_empty() {
+        return Ok(KNOBS.iter().map(|k| k.0).collect());
+    }
+    let knobs = flags
+        .knobs
+        .iter()
+        .map(|k| {
+            KNOBS.iter().map(|k| k.0).find(|n| n == k).ok_or_else(|| {
+                let names: Vec<&str> = KNOBS.iter().map(|k| k.0).collect();
+                shellbake::Error::Params(format!(
+                    "--knobs: no knob '{k}' (knobs: {})",
+                    names.join(", ")
+                ))
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(knobs)
+}
+
+/// How much the study measures: bake runs per point, the error pictures' side, and the frames
+/// and picture size of the GPU time.
+struct Settings {
+    runs: usize,
+    size: u32,
+    frames: u32,
+    gpu_size: (u32, u32),
+}
+
+impl Settings {
+    /// The flags' settings, with the defaults of the full or the quick mode.
+    fn of(flags: &StudyFlags) -> Settings {
+        let quick = flags.quick;
+        Settings {
+            runs: flags.runs.unwrap_or(if quick { 1 } else { 3 }),
+            size: flags.size.unwrap_or(if quick { 128 } else { 256 }),
+            frames: flags.frames.unwrap_or(if quick { 2 } else { 50 }),
+            gpu_size: flags
+                .gpu_size
+                .unwrap_or(if quick { (320, 180) } else { (1920, 1080) }),
+        }
+    }
+}
+
+/// A progress bar of `total` steps.
+fn progress_bar(total: usize) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::new(total as u64);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").expect("template"),
+    );
+    pb
+}
+
+/// `base` then `a` then `b`: the tokens of a bake.
+fn joined(base: &[String], a: &[String], b: &[String]) -> Vec<String> {
+    base.iter().chain(a).chain(b).cloned().collect()
+}
+
+/// A study under way: the GPU, the cameras placed on the exact bake, the base's bake flags
+/// and the exact setting's, and the progress bar (`None` when quiet).
+struct Study {
+    gpu: Gpu,
+    cameras: Cameras,
+    settings: Settings,
+    base_tokens: Vec<String>,
+    exact_flags: Vec<String>,
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl Study {
+    /// The shell line that bakes the base with `extra` flags.
+    fn command(&self, extra: &[String]) -> String {
+        let mut all = strs(&["shellbake", "bake"]);
+        all.extend(self.base_tokens.iter().cloned());
+        all.extend(extra.iter().cloned());
+        shell_line(&all)
+    }
+
+    /// Advances the progress bar by one step, showing `msg`.
+    fn tick(&self, msg: String) {
+        if let Some(pb) = &self.bar {
+            pb.set_message(msg);
+            pb.inc(1);
+        }
+    }
+
+    /// The reference pictures of bake `b` from every camera.
+    fn reference_of(&self, b: &Baked) -> Vec<image::RgbaImage> {
+        study::reference_pictures(
+            &self.gpu,
+            ReferenceInput::from_baked(&b.baked.surfaces[0], &b.scene.surfaces[0].params),
+            &self.cameras,
+            self.settings.size,
+        )
+    }
+
+    /// Point `plan` of `knob`, baked as `b`: its error against `reference`, its frame cost,
+    /// bake time and size.
+    fn measure(
+        &self,
+        knob: &str,
+        plan: &Plan,
+        b: &Baked,
+        reference: &[image::RgbaImage],
+    ) -> anyhow::Result<Point> {
+        let (error, _) = study::image_error(&self.gpu, &b.baked.glb, reference, &self.cameras)?;
+        let s = &self.settings;
+        let cost = study::frame_cost(&self.gpu, &b.baked.glb, &self.cameras, s.gpu_size, s.frames)?;
+        Ok(Point {
+            knob: knob.into(),
+            value: plan.value.clone(),
+            base: plan.base,
+            command: self.command(&plan.flags),
+            error,
+            bake_ms: b.ms,
+            bytes: b.baked.glb.len(),
+            cost,
+        })
+    }
+
+    /// Bakes and measures the points of `knob` (against its own reference, or the exact bake's
+    /// `exact_reference`) onto `points`; returns the knob's description for the header.
+    fn measure_knob(
+        &self,
+        knob: &str,
+        k: &KnobPlan,
+        exact_reference: &[image::RgbaImage],
+        points: &mut Vec<Point>,
+    ) -> anyhow::Result<(String, String, String)> {
+        let own;
+        let reference = match &k.reference {
+            Some(r) => {
+                let tokens = joined(&self.base_tokens, &self.exact_flags, r);
+                own = self.reference_of(&bake(&tokens, 1)?);
+                self.tick(format!("{knob}: reference"));
+                &own
+            }
+            None => exact_reference,
+        };
+        for p in &k.points {
+            let b = bake(
+                &joined(&self.base_tokens, &p.flags, &[]),
+                self.settings.runs,
+            )?;
+            points.push(self.measure(knob, p, &b, reference)?);
+            self.tick(format!("{knob} {}", p.value));
+        }
+        let what = KNOBS.iter().find(|n| n.0 == knob).map_or("", |n| n.1);
+        Ok((knob.to_string(), what.to_string(), k.reference_text.clone()))
+    }
+}
+
+/// Prints the study's summary line (the exact anchor's error) and the files it wrote.
+fn print_summary(header: &Header, points: &[Point], written: &[PathBuf]) {
+    let anchor = &points[0];
+    println!(
+        "study {} on {}: {} points; exact anchor FLIP {:.5}, {} differing pixels of {}",
+        crate::printable(&header.input, false),
+        crate::printable(&header.adapter, false),
+        points.len(),
+        anchor.error.flip_mean,
+        anchor.error.differing,
+        anchor.error.pixels
+    );
+    for w in written {
+        println!("  {}", crate::printable(&w.display().to_string(), false));
+    }
+}
+
 /// Runs the study: `tokens` are the arguments after `study` as given, `base` their parse.
 pub fn run(tokens: &[String], base: &BakeArgs, flags: &StudyFlags) -> anyhow::Result<()> {
-    let knobs: Vec<&'static str> = if flags.knobs.is_empty() {
-        KNOBS.iter().map(|k| k.0).collect()
-    } else {
-        flags
-            .knobs
-            .iter()
-            .map(|k| {
-                KNOBS.iter().map(|k| k.0).find(|n| n == k).ok_or_else(|| {
-                    let names: Vec<&str> = KNOBS.iter().map(|k| k.0).collect();
-                    shellbake::Error::Params(format!(
-                        "--knobs: no knob '{k}' (knobs: {})",
-                        names.join(", ")
-                    ))
-                })
-            })
-            .collect::<Result<_, _>>()?
-    };
+    let knobs = chosen_knobs(flags)?;
     let scene = base.scene()?;
     if scene.surfaces.len() != 1 {
         anyhow::bail!(
@@ -401,143 +638,56 @@ pub fn run(tokens: &[String], base: &BakeArgs, flags: &StudyFlags) -> anyhow::Re
             scene.surfaces.len()
         );
     }
-    let quick = flags.quick;
-    let runs = flags.runs.unwrap_or(if quick { 1 } else { 3 });
-    let size = flags.size.unwrap_or(if quick { 128 } else { 256 });
-    let frames = flags.frames.unwrap_or(if quick { 2 } else { 50 });
-    let gpu_size = flags
-        .gpu_size
-        .unwrap_or(if quick { (320, 180) } else { (1920, 1080) });
+    let settings = Settings::of(flags);
     let base_tokens = bake_tokens(tokens);
-    let command = |extra: &[String]| {
-        let mut all = strs(&["shellbake", "bake"]);
-        all.extend(base_tokens.iter().cloned());
-        all.extend(extra.iter().cloned());
-        shell_line(&all)
-    };
     let plans: Vec<(&'static str, KnobPlan)> = knobs
         .iter()
-        .map(|&k| (k, plan_knob(k, &scene, quick)))
+        .map(|&k| (k, plan_knob(k, &scene, flags.quick)))
         .collect();
     let exact_flags = strs(&["--quantize", "none", "--compress", "none", "--no-lod"]);
-    let with = |a: &[String], b: &[String]| -> Vec<String> {
-        base_tokens.iter().chain(a).chain(b).cloned().collect()
-    };
     let total = 1 + plans
         .iter()
         .map(|(_, k)| k.points.len() + k.reference.is_some() as usize)
         .sum::<usize>();
-    let bar = (!base.quiet).then(|| {
-        let pb = indicatif::ProgressBar::new(total as u64);
-        pb.set_style(
-            indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
-                .expect("template"),
-        );
-        pb
-    });
-    let tick = |msg: String| {
-        if let Some(pb) = &bar {
-            pb.set_message(msg);
-            pb.inc(1);
-        }
-    };
+    let bar = (!base.quiet).then(|| progress_bar(total));
 
     let gpu = Gpu::new()?;
-    let exact = bake(&with(&exact_flags, &[]), runs)?;
-    let cameras = Cameras::for_glb(&gpu, &exact.baked.glb, gpu_size)?;
-    let reference_of = |b: &Baked| {
-        study::reference_pictures(
-            &gpu,
-            ReferenceInput::from_baked(&b.baked.surfaces[0], &b.scene.surfaces[0].params),
-            &cameras,
-            size,
-        )
+    let exact = bake(&joined(&base_tokens, &exact_flags, &[]), settings.runs)?;
+    let cameras = Cameras::for_glb(&gpu, &exact.baked.glb, settings.gpu_size)?;
+    let exact_plan = point("exact".into(), exact_flags.clone(), false);
+    let mut runner = Study {
+        gpu,
+        cameras,
+        settings,
+        base_tokens,
+        exact_flags,
+        bar,
     };
-    let exact_reference = reference_of(&exact);
-    let measure = |knob: &str,
-                   value: String,
-                   flags: &[String],
-                   b: &Baked,
-                   base: bool,
-                   reference: &[image::RgbaImage]|
-     -> anyhow::Result<Point> {
-        let (error, _) = study::image_error(&gpu, &b.baked.glb, reference, &cameras)?;
-        let cost = study::frame_cost(&gpu, &b.baked.glb, &cameras, gpu_size, frames)?;
-        Ok(Point {
-            knob: knob.into(),
-            value,
-            base,
-            command: command(flags),
-            error,
-            bake_ms: b.ms,
-            bytes: b.baked.glb.len(),
-            cost,
-        })
-    };
-    let mut points = vec![measure(
-        "exact",
-        "exact".into(),
-        &exact_flags,
-        &exact,
-        false,
-        &exact_reference,
-    )?];
-    tick("exact".into());
+    let exact_reference = runner.reference_of(&exact);
+    let mut points = vec![runner.measure("exact", &exact_plan, &exact, &exact_reference)?];
+    runner.tick("exact".into());
     let mut described = Vec::new();
     for (knob, k) in &plans {
-        let own;
-        let reference = match &k.reference {
-            Some(r) => {
-                own = reference_of(&bake(&with(&exact_flags, r), 1)?);
-                tick(format!("{knob}: reference"));
-                &own
-            }
-            None => &exact_reference,
-        };
-        for p in &k.points {
-            let b = bake(&with(&p.flags, &[]), runs)?;
-            points.push(measure(
-                knob,
-                p.value.clone(),
-                &p.flags,
-                &b,
-                p.base,
-                reference,
-            )?);
-            tick(format!("{knob} {}", p.value));
-        }
-        let what = KNOBS.iter().find(|n| n.0 == *knob).map_or("", |n| n.1);
-        described.push((knob.to_string(), what.to_string(), k.reference_text.clone()));
+        described.push(runner.measure_knob(knob, k, &exact_reference, &mut points)?);
     }
-    if let Some(pb) = bar {
+    if let Some(pb) = runner.bar.take() {
         pb.finish_and_clear();
     }
+    let s = &runner.settings;
     let header = Header {
         input: base.input.display().to_string(),
-        base_command: command(&[]),
-        adapter: gpu.adapter_name(),
-        size,
-        timing_size: gpu_size,
-        frames,
-        runs,
+        base_command: runner.command(&[]),
+        adapter: runner.gpu.adapter_name(),
+        size: s.size,
+        timing_size: s.gpu_size,
+        frames: s.frames,
+        runs: s.runs,
         threads: rayon::current_num_threads(),
         knobs: described,
     };
     let written = study::write(&flags.out, &header, &points)?;
     if !base.quiet {
-        let anchor = &points[0];
-        println!(
-            "study {} on {}: {} points; exact anchor FLIP {:.5}, {} differing pixels of {}",
-            crate::printable(&header.input, false),
-            crate::printable(&header.adapter, false),
-            points.len(),
-            anchor.error.flip_mean,
-            anchor.error.differing,
-            anchor.error.pixels
-        );
-        for w in written {
-            println!("  {}", crate::printable(&w.display().to_string(), false));
-        }
+        print_summary(&header, &points, &written);
     }
     Ok(())
 }

@@ -482,6 +482,20 @@ impl<'a> Fields<'a> {
         }
     }
 
+    /// The objects of the array `key`, each named `{name} {i}` in errors.
+    fn elements(
+        &self,
+        key: &str,
+        name: &'static str,
+    ) -> Result<impl Iterator<Item = Result<Fields<'a>>> + 'a> {
+        let path = self.path;
+        Ok(self
+            .array(key)?
+            .iter()
+            .enumerate()
+            .map(move |(i, v)| Fields::of(path, format!("{name} {i}"), v)))
+    }
+
     /// An object mapping names to accessor indices (a primitive's attributes, a morph target).
     fn attributes(&self, accessors: usize) -> Result<Vec<(String, usize)>> {
         self.map
@@ -550,6 +564,236 @@ struct Counts {
     skins: usize,
 }
 
+impl Counts {
+    /// The length of each top-level array of `root` (checking that each is an array).
+    fn of(root: &Fields) -> Result<Counts> {
+        let len = |key: &str| root.array(key).map(<[Value]>::len);
+        Ok(Counts {
+            buffers: len("buffers")?,
+            views: len("bufferViews")?,
+            accessors: len("accessors")?,
+            meshes: len("meshes")?,
+            nodes: len("nodes")?,
+            materials: len("materials")?,
+            textures: len("textures")?,
+            images: len("images")?,
+            samplers: len("samplers")?,
+            cameras: len("cameras")?,
+            skins: len("skins")?,
+        })
+    }
+}
+
+/// Refuses a document whose `extensionsRequired` lists an extension shellbake cannot read
+/// (Draco with a message on how to decode it).
+fn check_required_extensions(root: &Fields) -> Result<()> {
+    let path = root.path;
+    for (i, e) in root.array("extensionsRequired")?.iter().enumerate() {
+        let name = e.as_str().ok_or_else(|| {
+            Error::invalid(
+                path,
+                "extensionsRequired",
+                format!("entry {i} is not a string"),
+            )
+        })?;
+        if name == "KHR_draco_mesh_compression" {
+            return Err(Error::invalid(
+                path,
+                "extensionsRequired",
+                "the geometry is Draco-compressed (KHR_draco_mesh_compression), which shellbake \
+                 does not decode: not supported; refused. Decode it first (`npx gltf-pipeline \
+                 -i in.glb -o out.glb` writes it without Draco) or export the asset without \
+                 Draco (Blender: glTF export, Data > Compression off), then bake that file",
+            ));
+        }
+        if !SUPPORTED_EXTENSIONS.contains(&name) && !PASSED_THROUGH_EXTENSIONS.contains(&name) {
+            return Err(Error::invalid(
+                path,
+                "extensionsRequired",
+                format!(
+                    "extension '{}' is required but not supported (supported: {}; passed \
+                     through: {}); refused",
+                    escape(name),
+                    SUPPORTED_EXTENSIONS.join(", "),
+                    PASSED_THROUGH_EXTENSIONS.join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The document's buffers (URI, length, and whether a meshopt extension marks them fallback).
+fn read_buffers(root: &Fields, n: &Counts) -> Result<Vec<Buffer>> {
+    let mut buffers = Vec::with_capacity(n.buffers);
+    for f in root.elements("buffers", "buffer")? {
+        let f = f?;
+        let fallback = match f.meshopt()? {
+            Some(e) => e.boolean("fallback")?.unwrap_or(false),
+            None => false,
+        };
+        buffers.push(Buffer {
+            uri: f.string("uri")?.map(str::to_string),
+            byte_length: f.required_count("byteLength")?,
+            fallback,
+        });
+    }
+    Ok(buffers)
+}
+
+/// The document's buffer views, each with its meshopt compression (if any) checked.
+fn read_views(root: &Fields, n: &Counts) -> Result<Vec<BufferView>> {
+    let mut views = Vec::with_capacity(n.views);
+    for f in root.elements("bufferViews", "buffer view")? {
+        let f = f?;
+        let byte_stride = f.count("byteStride")?;
+        if let Some(s) = byte_stride.filter(|s| !(4..=252).contains(s)) {
+            return Err(f.err(format!("byteStride {s} is outside 4..=252")));
+        }
+        let meshopt = match f.meshopt()? {
+            Some(e) => Some(meshopt_view(&e, n)?),
+            None => None,
+        };
+        views.push(BufferView {
+            buffer: f
+                .index("buffer", "buffer", n.buffers)?
+                .ok_or_else(|| f.err("buffer is missing"))?,
+            byte_offset: f.count("byteOffset")?.unwrap_or(0),
+            byte_length: f.required_count("byteLength")?,
+            byte_stride,
+            meshopt,
+        });
+    }
+    Ok(views)
+}
+
+/// A buffer view's meshopt extension object `e`, read into the decoder's description.
+fn meshopt_view(e: &Fields, n: &Counts) -> Result<crate::output::compress::MeshoptView> {
+    let mode = e.string("mode")?.ok_or_else(|| e.err("mode is missing"))?;
+    let mode = crate::output::compress::Mode::from_name(mode)
+        .ok_or_else(|| e.err(format!("unknown mode '{}'", escape(mode))))?;
+    let filter = match e.string("filter")? {
+        None => crate::output::compress::Filter::None,
+        Some(s) => crate::output::compress::Filter::from_name(s)
+            .ok_or_else(|| e.err(format!("unknown filter '{}'", escape(s))))?,
+    };
+    Ok(crate::output::compress::MeshoptView {
+        buffer: e
+            .index("buffer", "buffer", n.buffers)?
+            .ok_or_else(|| e.err("buffer is missing"))?,
+        byte_offset: e.count("byteOffset")?.unwrap_or(0),
+        byte_length: e.required_count("byteLength")?,
+        byte_stride: e.required_count("byteStride")?,
+        count: e.required_count("count")?,
+        mode,
+        filter,
+    })
+}
+
+/// The document's accessors, with component type, element type and sparse views checked.
+fn read_accessors(root: &Fields, n: &Counts) -> Result<Vec<Accessor>> {
+    let mut accessors = Vec::with_capacity(n.accessors);
+    for f in root.elements("accessors", "accessor")? {
+        let f = f?;
+        let component_type = f.required_count("componentType")? as u64;
+        if accessor::component_size(component_type).is_none() {
+            return Err(f.err(format!(
+                "componentType {component_type} is not a glTF component type"
+            )));
+        }
+        let kind = f.string("type")?.ok_or_else(|| f.err("type is missing"))?;
+        let kind = Kind::parse(kind).ok_or_else(|| {
+            f.err(format!(
+                "type '{}' is not a glTF accessor type",
+                escape(kind)
+            ))
+        })?;
+        let sparse = f.object("sparse", format!("{}: sparse", f.element))?;
+        if let Some(s) = &sparse {
+            for key in ["indices", "values"] {
+                if let Some(part) = s.object(key, format!("{}.{key}", s.element))? {
+                    part.index("bufferView", "buffer view", n.views)?;
+                }
+            }
+        }
+        accessors.push(Accessor {
+            buffer_view: f.index("bufferView", "buffer view", n.views)?,
+            byte_offset: f.count("byteOffset")?.unwrap_or(0),
+            component_type,
+            normalized: f.boolean("normalized")?.unwrap_or(false),
+            count: f.required_count("count")?,
+            kind,
+            sparse: sparse.is_some(),
+        });
+    }
+    Ok(accessors)
+}
+
+/// The document's meshes, each with its primitives.
+fn read_meshes(root: &Fields, n: &Counts) -> Result<Vec<Mesh>> {
+    let mut meshes = Vec::with_capacity(n.meshes);
+    for (m, f) in root.elements("meshes", "mesh")?.enumerate() {
+        let f = f?;
+        let mut primitives = Vec::new();
+        for (k, p) in f.array("primitives")?.iter().enumerate() {
+            let p = Fields::of(root.path, format!("mesh {m} primitive {k}"), p)?;
+            primitives.push(read_primitive(&p, n)?);
+        }
+        if f.get("primitives").is_none() {
+            return Err(f.err("primitives is missing"));
+        }
+        meshes.push(Mesh {
+            primitives,
+            weights: f.numbers("weights", 0)?.unwrap_or_default(),
+        });
+    }
+    Ok(meshes)
+}
+
+/// One primitive `p` of a mesh: its attributes, morph targets, indices, material and mode.
+fn read_primitive(p: &Fields, n: &Counts) -> Result<Primitive> {
+    let attributes = p
+        .object("attributes", p.element.clone())?
+        .ok_or_else(|| p.err("attributes is missing"))?
+        .attributes(n.accessors)?;
+    let mut targets = Vec::new();
+    for (t, target) in p.array("targets")?.iter().enumerate() {
+        let target = Fields::of(p.path, format!("{}: target {t}", p.element), target)?;
+        targets.push(target.attributes(n.accessors)?);
+    }
+    let mode = p.count("mode")?.unwrap_or(4) as u64;
+    if mode > 6 {
+        return Err(p.err(format!("mode {mode} is not a glTF primitive mode")));
+    }
+    Ok(Primitive {
+        attributes,
+        indices: p.index("indices", "accessor", n.accessors)?,
+        material: p.index("material", "material", n.materials)?,
+        mode,
+        targets,
+    })
+}
+
+/// The document's nodes, each with its local matrix and its indices checked.
+fn read_nodes(root: &Fields, n: &Counts) -> Result<Vec<Node>> {
+    let mut nodes = Vec::with_capacity(n.nodes);
+    for f in root.elements("nodes", "node")? {
+        let f = f?;
+        f.index("camera", "camera", n.cameras)?;
+        let (local, trs) = node_matrix(&f)?;
+        nodes.push(Node {
+            local,
+            trs,
+            name: f.string("name")?.map(str::to_string),
+            skin: f.index("skin", "skin", n.skins)?,
+            mesh: f.index("mesh", "mesh", n.meshes)?,
+            children: f.indices("children", "node", n.nodes)?,
+            weights: f.numbers("weights", 0)?,
+        });
+    }
+    Ok(nodes)
+}
+
 impl Document {
     /// Parses GLB or `.gltf` bytes (see the module doc); `path` names the file in errors and
     /// resolves relative URIs.
@@ -568,197 +812,13 @@ impl Document {
     /// Checks a parsed JSON document whose GLB binary chunk (if any) is `bin`.
     pub fn from_json(path: &Path, json: Value, bin: Option<Vec<u8>>) -> Result<Document> {
         let root = Fields::of(path, "document".into(), &json)?;
-        for (i, e) in root.array("extensionsRequired")?.iter().enumerate() {
-            let name = e.as_str().ok_or_else(|| {
-                Error::invalid(
-                    path,
-                    "extensionsRequired",
-                    format!("entry {i} is not a string"),
-                )
-            })?;
-            if name == "KHR_draco_mesh_compression" {
-                return Err(Error::invalid(
-                    path,
-                    "extensionsRequired",
-                    "the geometry is Draco-compressed (KHR_draco_mesh_compression), which shellbake \
-                     does not decode: not supported; refused. Decode it first (`npx gltf-pipeline \
-                     -i in.glb -o out.glb` writes it without Draco) or export the asset without \
-                     Draco (Blender: glTF export, Data > Compression off), then bake that file",
-                ));
-            }
-            if !SUPPORTED_EXTENSIONS.contains(&name) && !PASSED_THROUGH_EXTENSIONS.contains(&name) {
-                return Err(Error::invalid(
-                    path,
-                    "extensionsRequired",
-                    format!(
-                        "extension '{}' is required but not supported (supported: {}; passed \
-                         through: {}); refused",
-                        escape(name),
-                        SUPPORTED_EXTENSIONS.join(", "),
-                        PASSED_THROUGH_EXTENSIONS.join(", ")
-                    ),
-                ));
-            }
-        }
-        let len = |key: &str| root.array(key).map(<[Value]>::len);
-        let n = Counts {
-            buffers: len("buffers")?,
-            views: len("bufferViews")?,
-            accessors: len("accessors")?,
-            meshes: len("meshes")?,
-            nodes: len("nodes")?,
-            materials: len("materials")?,
-            textures: len("textures")?,
-            images: len("images")?,
-            samplers: len("samplers")?,
-            cameras: len("cameras")?,
-            skins: len("skins")?,
-        };
-        let each = |key: &'static str, name: &'static str| {
-            let root = &root;
-            root.array(key).map(move |list| {
-                list.iter()
-                    .enumerate()
-                    .map(move |(i, v)| Fields::of(root.path, format!("{name} {i}"), v))
-            })
-        };
-
-        let mut buffers = Vec::with_capacity(n.buffers);
-        for f in each("buffers", "buffer")? {
-            let f = f?;
-            let fallback = match f.meshopt()? {
-                Some(e) => e.boolean("fallback")?.unwrap_or(false),
-                None => false,
-            };
-            buffers.push(Buffer {
-                uri: f.string("uri")?.map(str::to_string),
-                byte_length: f.required_count("byteLength")?,
-                fallback,
-            });
-        }
-        let mut views = Vec::with_capacity(n.views);
-        for f in each("bufferViews", "buffer view")? {
-            let f = f?;
-            let byte_stride = f.count("byteStride")?;
-            if let Some(s) = byte_stride.filter(|s| !(4..=252).contains(s)) {
-                return Err(f.err(format!("byteStride {s} is outside 4..=252")));
-            }
-            let mut meshopt = None;
-            if let Some(e) = f.meshopt()? {
-                let mode = e.string("mode")?.ok_or_else(|| e.err("mode is missing"))?;
-                let mode = crate::output::compress::Mode::from_name(mode)
-                    .ok_or_else(|| e.err(format!("unknown mode '{}'", escape(mode))))?;
-                let filter = match e.string("filter")? {
-                    None => crate::output::compress::Filter::None,
-                    Some(s) => crate::output::compress::Filter::from_name(s)
-                        .ok_or_else(|| e.err(format!("unknown filter '{}'", escape(s))))?,
-                };
-                meshopt = Some(crate::output::compress::MeshoptView {
-                    buffer: e
-                        .index("buffer", "buffer", n.buffers)?
-                        .ok_or_else(|| e.err("buffer is missing"))?,
-                    byte_offset: e.count("byteOffset")?.unwrap_or(0),
-                    byte_length: e.required_count("byteLength")?,
-                    byte_stride: e.required_count("byteStride")?,
-                    count: e.required_count("count")?,
-                    mode,
-                    filter,
-                });
-            }
-            views.push(BufferView {
-                buffer: f
-                    .index("buffer", "buffer", n.buffers)?
-                    .ok_or_else(|| f.err("buffer is missing"))?,
-                byte_offset: f.count("byteOffset")?.unwrap_or(0),
-                byte_length: f.required_count("byteLength")?,
-                byte_stride,
-                meshopt,
-            });
-        }
-        let mut accessors = Vec::with_capacity(n.accessors);
-        for f in each("accessors", "accessor")? {
-            let f = f?;
-            let component_type = f.required_count("componentType")? as u64;
-            if accessor::component_size(component_type).is_none() {
-                return Err(f.err(format!(
-                    "componentType {component_type} is not a glTF component type"
-                )));
-            }
-            let kind = f.string("type")?.ok_or_else(|| f.err("type is missing"))?;
-            let kind = Kind::parse(kind).ok_or_else(|| {
-                f.err(format!(
-                    "type '{}' is not a glTF accessor type",
-                    escape(kind)
-                ))
-            })?;
-            let sparse = f.object("sparse", format!("{}: sparse", f.element))?;
-            if let Some(s) = &sparse {
-                for key in ["indices", "values"] {
-                    if let Some(part) = s.object(key, format!("{}.{key}", s.element))? {
-                        part.index("bufferView", "buffer view", n.views)?;
-                    }
-                }
-            }
-            accessors.push(Accessor {
-                buffer_view: f.index("bufferView", "buffer view", n.views)?,
-                byte_offset: f.count("byteOffset")?.unwrap_or(0),
-                component_type,
-                normalized: f.boolean("normalized")?.unwrap_or(false),
-                count: f.required_count("count")?,
-                kind,
-                sparse: sparse.is_some(),
-            });
-        }
-        let mut meshes = Vec::with_capacity(n.meshes);
-        for (m, f) in each("meshes", "mesh")?.enumerate() {
-            let f = f?;
-            let mut primitives = Vec::new();
-            for (k, p) in f.array("primitives")?.iter().enumerate() {
-                let p = Fields::of(path, format!("mesh {m} primitive {k}"), p)?;
-                let attributes = p
-                    .object("attributes", p.element.clone())?
-                    .ok_or_else(|| p.err("attributes is missing"))?
-                    .attributes(n.accessors)?;
-                let mut targets = Vec::new();
-                for (t, target) in p.array("targets")?.iter().enumerate() {
-                    let target = Fields::of(path, format!("{}: target {t}", p.element), target)?;
-                    targets.push(target.attributes(n.accessors)?);
-                }
-                let mode = p.count("mode")?.unwrap_or(4) as u64;
-                if mode > 6 {
-                    return Err(p.err(format!("mode {mode} is not a glTF primitive mode")));
-                }
-                primitives.push(Primitive {
-                    attributes,
-                    indices: p.index("indices", "accessor", n.accessors)?,
-                    material: p.index("material", "material", n.materials)?,
-                    mode,
-                    targets,
-                });
-            }
-            if f.get("primitives").is_none() {
-                return Err(f.err("primitives is missing"));
-            }
-            meshes.push(Mesh {
-                primitives,
-                weights: f.numbers("weights", 0)?.unwrap_or_default(),
-            });
-        }
-        let mut nodes = Vec::with_capacity(n.nodes);
-        for f in each("nodes", "node")? {
-            let f = f?;
-            f.index("camera", "camera", n.cameras)?;
-            let (local, trs) = node_matrix(&f)?;
-            nodes.push(Node {
-                local,
-                trs,
-                name: f.string("name")?.map(str::to_string),
-                skin: f.index("skin", "skin", n.skins)?,
-                mesh: f.index("mesh", "mesh", n.meshes)?,
-                children: f.indices("children", "node", n.nodes)?,
-                weights: f.numbers("weights", 0)?,
-            });
-        }
+        check_required_extensions(&root)?;
+        let n = Counts::of(&root)?;
+        let buffers = read_buffers(&root, &n)?;
+        let views = read_views(&root, &n)?;
+        let accessors = read_accessors(&root, &n)?;
+        let meshes = read_meshes(&root, &n)?;
+        let nodes = read_nodes(&root, &n)?;
         check_materials_and_textures(&root, &n)?;
         check_skins_and_animations(&root, &n)?;
         let scene = root.index("scene", "scene", root.array("scenes")?.len())?;

@@ -187,108 +187,142 @@ pub(crate) fn triangle_list(mode: u64, indices: &[u32]) -> Vec<u32> {
     }
 }
 
-pub(super) fn read_primitive(
-    doc: &Document,
-    element: &str,
-    prim: &Primitive,
-    buffers: &[Vec<u8>],
-    (world, joints): (DMat4, usize),
-) -> Result<Mesh> {
-    let path = doc.path.as_path();
-    let attribute = |name: &str, kind: Kind| -> Result<Option<Vec<f64>>> {
-        let Some(a) = prim.attribute(name) else {
+/// A primitive as the loader reads it: the document, the element its errors name, the
+/// primitive and the document's loaded buffers.
+struct PrimitiveData<'a> {
+    doc: &'a Document,
+    element: &'a str,
+    prim: &'a Primitive,
+    buffers: &'a [Vec<u8>],
+}
+
+impl PrimitiveData<'_> {
+    /// The error `message` about the primitive.
+    fn err(&self, message: impl Into<String>) -> Error {
+        Error::invalid(&self.doc.path, self.element, message)
+    }
+
+    /// The values of attribute `name` (of element type `kind`), if the primitive has it.
+    fn attribute(&self, name: &str, kind: Kind) -> Result<Option<Vec<f64>>> {
+        let Some(a) = self.prim.attribute(name) else {
             return Ok(None);
         };
-        read_checked(doc, element, a, buffers, (name, kind, ATTRIBUTE_TYPES)).map(Some)
-    };
-    let Some(local) = attribute("POSITION", Kind::Vec3)? else {
-        return Err(Error::invalid(path, element, "no POSITION attribute"));
-    };
-    let nv = local.len() / 3;
-    let mut world_pos = Vec::with_capacity(nv);
-    for (i, p) in local.chunks_exact(3).enumerate() {
-        if !p.iter().all(|v| v.is_finite()) {
-            return Err(Error::invalid(
-                path,
-                element.to_string(),
-                format!("vertex {i} has a non-finite coordinate"),
-            ));
-        }
-        world_pos.push(world.transform_point3(DVec3::new(p[0], p[1], p[2])));
-    }
-    super::check_range(path, element, &world_pos)?;
-    let indices: Vec<u32> = match prim.indices {
-        Some(a) => read_checked(
-            doc,
-            element,
+        read_checked(
+            self.doc,
+            self.element,
             a,
-            buffers,
-            ("indices", Kind::Scalar, INDEX_TYPES),
-        )?
-        .into_iter()
-        .map(|i| i as u32)
-        .collect(),
-        None => (0..nv as u32).collect(),
-    };
-    if let Some((k, &i)) = indices.iter().enumerate().find(|(_, &i)| i as usize >= nv) {
-        return Err(Error::invalid(
-            path,
-            element,
-            format!("index {k} = {i} is out of range ({nv} vertices)"),
-        ));
+            self.buffers,
+            (name, kind, ATTRIBUTE_TYPES),
+        )
+        .map(Some)
     }
-    let mut indices = triangle_list(prim.mode, &indices);
-    let normal_matrix: DMat3 = DMat3::from_mat4(world).inverse().transpose();
-    let normals = attribute("NORMAL", Kind::Vec3)?.map(|n| {
-        n.chunks_exact(3)
-            .map(|n| {
-                let v = normal_matrix * DVec3::new(n[0], n[1], n[2]);
-                v.as_vec3().normalize_or(Vec3::ZERO)
-            })
-            .collect::<Vec<_>>()
-    });
-    let normals = normals.filter(|n| n.len() == nv);
-    let uvs = attribute("TEXCOORD_0", Kind::Vec2)?.map(|t| {
-        t.chunks_exact(2)
-            .map(|t| Vec2::new(t[0] as f32, t[1] as f32))
-            .collect::<Vec<_>>()
-    });
-    let uvs = uvs.filter(|u| u.len() == nv);
-    if uvs
-        .as_ref()
-        .is_some_and(|u| u.iter().any(|t| !t.is_finite()))
-    {
-        return Err(Error::invalid(path, element, "non-finite TEXCOORD_0"));
-    }
-    // COLOR_0: VEC3 or VEC4 (float, or normalized unsigned byte/short), linear values in [0, 1]
-    let colors = match prim.attribute("COLOR_0") {
-        Some(a) => {
-            let kind = if doc.accessors[a].kind == Kind::Vec3 {
-                Kind::Vec3
-            } else {
-                Kind::Vec4
-            };
-            let n = if kind == Kind::Vec3 { 3 } else { 4 };
-            let values = read_checked(
-                doc,
-                element,
-                a,
-                buffers,
-                ("COLOR_0", kind, &[5126, 5121, 5123]),
-            )?;
-            let colors: Vec<[u8; 4]> = values
-                .chunks_exact(n)
-                .map(|c| {
-                    let at = |k: usize| c.get(k).map_or(255, |&v| crate::mesh::color_byte(v));
-                    [at(0), at(1), at(2), at(3)]
-                })
-                .collect();
-            (colors.len() == nv).then_some(colors)
+
+    /// The positions placed by `world`, each coordinate checked finite and in range.
+    fn world_positions(&self, world: DMat4) -> Result<Vec<DVec3>> {
+        let Some(local) = self.attribute("POSITION", Kind::Vec3)? else {
+            return Err(self.err("no POSITION attribute"));
+        };
+        let mut world_pos = Vec::with_capacity(local.len() / 3);
+        for (i, p) in local.chunks_exact(3).enumerate() {
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(self.err(format!("vertex {i} has a non-finite coordinate")));
+            }
+            world_pos.push(world.transform_point3(DVec3::new(p[0], p[1], p[2])));
         }
-        None => None,
-    };
-    // JOINTS_0 / WEIGHTS_0 of a skinned primitive (`joints` > 0: the skin's joint count)
-    let skin = if joints > 0 {
+        super::check_range(&self.doc.path, self.element, &world_pos)?;
+        Ok(world_pos)
+    }
+
+    /// The triangle list over `nv` vertices (every index checked in range).
+    fn triangles(&self, nv: usize) -> Result<Vec<u32>> {
+        let indices: Vec<u32> = match self.prim.indices {
+            Some(a) => read_checked(
+                self.doc,
+                self.element,
+                a,
+                self.buffers,
+                ("indices", Kind::Scalar, INDEX_TYPES),
+            )?
+            .into_iter()
+            .map(|i| i as u32)
+            .collect(),
+            None => (0..nv as u32).collect(),
+        };
+        if let Some((k, &i)) = indices.iter().enumerate().find(|(_, &i)| i as usize >= nv) {
+            return Err(self.err(format!("index {k} = {i} is out of range ({nv} vertices)")));
+        }
+        Ok(triangle_list(self.prim.mode, &indices))
+    }
+
+    /// The normals turned by `world` (none when missing or not one per each of `nv` vertices).
+    fn normals(&self, world: DMat4, nv: usize) -> Result<Option<Vec<Vec3>>> {
+        let normal_matrix: DMat3 = DMat3::from_mat4(world).inverse().transpose();
+        let normals = self.attribute("NORMAL", Kind::Vec3)?.map(|n| {
+            n.chunks_exact(3)
+                .map(|n| {
+                    let v = normal_matrix * DVec3::new(n[0], n[1], n[2]);
+                    v.as_vec3().normalize_or(Vec3::ZERO)
+                })
+                .collect::<Vec<_>>()
+        });
+        Ok(normals.filter(|n| n.len() == nv))
+    }
+
+    /// The texture coordinates `TEXCOORD_0` (none when missing or not one per each of `nv`
+    /// vertices; non-finite ones are an error).
+    fn uvs(&self, nv: usize) -> Result<Option<Vec<Vec2>>> {
+        let uvs = self.attribute("TEXCOORD_0", Kind::Vec2)?.map(|t| {
+            t.chunks_exact(2)
+                .map(|t| Vec2::new(t[0] as f32, t[1] as f32))
+                .collect::<Vec<_>>()
+        });
+        let uvs = uvs.filter(|u| u.len() == nv);
+        if uvs
+            .as_ref()
+            .is_some_and(|u| u.iter().any(|t| !t.is_finite()))
+        {
+            return Err(self.err("non-finite TEXCOORD_0"));
+        }
+        Ok(uvs)
+    }
+
+    /// The vertex colours `COLOR_0` as bytes: VEC3 or VEC4 (float, or normalized unsigned
+    /// byte/short), linear values in [0, 1] (none when missing or not one per each of `nv`
+    /// vertices).
+    fn colors(&self, nv: usize) -> Result<Option<Vec<[u8; 4]>>> {
+        let Some(a) = self.prim.attribute("COLOR_0") else {
+            return Ok(None);
+        };
+        let kind = if self.doc.accessors[a].kind == Kind::Vec3 {
+            Kind::Vec3
+        } else {
+            Kind::Vec4
+        };
+        let n = if kind == Kind::Vec3 { 3 } else { 4 };
+        let values = read_checked(
+            self.doc,
+            self.element,
+            a,
+            self.buffers,
+            ("COLOR_0", kind, &[5126, 5121, 5123]),
+        )?;
+        let colors: Vec<[u8; 4]> = values
+            .chunks_exact(n)
+            .map(|c| {
+                let at = |k: usize| c.get(k).map_or(255, |&v| crate::mesh::color_byte(v));
+                [at(0), at(1), at(2), at(3)]
+            })
+            .collect();
+        Ok((colors.len() == nv).then_some(colors))
+    }
+
+    /// `JOINTS_0` / `WEIGHTS_0` of a skinned primitive over `nv` vertices, for a skin of
+    /// `joints` joints (`0`: not skinned, none), each vertex's influences normalized.
+    fn skin(&self, nv: usize, joints: usize) -> Result<Option<crate::mesh::VertexSkin>> {
+        if joints == 0 {
+            return Ok(None);
+        }
+        let (doc, element, prim, buffers) = (self.doc, self.element, self.prim, self.buffers);
         let j = attribute_of(doc, element, prim, buffers, ("JOINTS_0", &[5121, 5123]))?;
         let w = attribute_of(
             doc,
@@ -298,11 +332,7 @@ pub(super) fn read_primitive(
             ("WEIGHTS_0", &[5126, 5121, 5123]),
         )?;
         if j.len() != 4 * nv || w.len() != 4 * nv {
-            return Err(Error::invalid(
-                path,
-                element,
-                "JOINTS_0 / WEIGHTS_0 count differs from POSITION's",
-            ));
+            return Err(self.err("JOINTS_0 / WEIGHTS_0 count differs from POSITION's"));
         }
         let mut skin = crate::mesh::VertexSkin::default();
         for (v, (j, w)) in j.chunks_exact(4).zip(w.chunks_exact(4)).enumerate() {
@@ -312,11 +342,9 @@ pub(super) fn read_primitive(
                 .find(|&(&j, &w)| w != 0.0 && j as usize >= joints)
                 .map(|(j, _)| j)
             {
-                return Err(Error::invalid(
-                    path,
-                    element,
-                    format!("vertex {v} names joint {bad}; the skin has {joints}"),
-                ));
+                return Err(self.err(format!(
+                    "vertex {v} names joint {bad}; the skin has {joints}"
+                )));
             }
             let (j, w) = crate::stages::skin::normalize_influences(
                 [0, 1, 2, 3].map(|k| {
@@ -331,10 +359,33 @@ pub(super) fn read_primitive(
             skin.joints.push(j);
             skin.weights.push(w);
         }
-        Some(skin)
-    } else {
-        None
+        Ok(Some(skin))
+    }
+}
+
+/// The mesh of primitive `prim` (the document's `element`) placed by `world`, skinned when
+/// `joints` (its skin's joint count) is not 0: positions relative to the first, triangles
+/// facing out also under a mirroring `world`.
+pub(super) fn read_primitive(
+    doc: &Document,
+    element: &str,
+    prim: &Primitive,
+    buffers: &[Vec<u8>],
+    (world, joints): (DMat4, usize),
+) -> Result<Mesh> {
+    let data = PrimitiveData {
+        doc,
+        element,
+        prim,
+        buffers,
     };
+    let world_pos = data.world_positions(world)?;
+    let nv = world_pos.len();
+    let mut indices = data.triangles(nv)?;
+    let normals = data.normals(world, nv)?;
+    let uvs = data.uvs(nv)?;
+    let colors = data.colors(nv)?;
+    let skin = data.skin(nv, joints)?;
     if DMat3::from_mat4(world).determinant() < 0.0 {
         for t in indices.chunks_exact_mut(3) {
             t.swap(1, 2);

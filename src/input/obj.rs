@@ -22,6 +22,7 @@
 use std::path::Path;
 
 use glam::{DVec3, Vec2, Vec3};
+use serde_json::{json, Value};
 
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, Scene};
@@ -30,27 +31,38 @@ use crate::mesh::{Mesh, Scene};
 /// count on adversarial shapes); larger ones are fanned with a warning.
 pub const MAX_EAR_CLIP: usize = 64;
 
-pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
-    let bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
-    let parse = |text: &[u8]| {
-        let options = tobj::LoadOptions {
-            triangulate: false,
-            single_index: true,
-            ignore_points: true,
-            ignore_lines: true,
-        };
-        let mut reader = std::io::BufReader::new(text);
-        tobj::load_obj_buf(&mut reader, &options, |_| {
-            // Materials do not affect shells; a missing .mtl must not fail the bake.
-            Ok((Vec::new(), Default::default()))
-        })
-        .map(|(models, _)| models)
-    };
+/// `bytes` without a leading UTF-8 byte-order mark.
+fn without_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes)
+}
+
+/// How tobj reads a file here: polygons kept (triangulated by [`triangulate`]), one index per
+/// corner, points and lines left out.
+fn load_options() -> tobj::LoadOptions {
+    tobj::LoadOptions {
+        triangulate: false,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+    }
+}
+
+/// tobj's objects of `text`, without materials.
+fn parse(text: &[u8]) -> tobj::LoadResult {
+    let mut reader = std::io::BufReader::new(text);
+    tobj::load_obj_buf(&mut reader, &load_options(), |_| {
+        // Materials do not affect shells; a missing .mtl must not fail the bake.
+        Ok((Vec::new(), Default::default()))
+    })
+}
+
+/// The objects of the file, checked first by [`prescan`]; `l` statements are left out, with a
+/// warning added to `scene`.
+fn models(path: &Path, bytes: &[u8], scene: &mut Scene) -> Result<Vec<tobj::Model>> {
     // the check (which names the line of any error) and the parse run side by side; the
     // check's verdict comes first, and a file with `l` statements is parsed again without them
     let (lines, parsed) = rayon::join(|| prescan(path, bytes), || parse(bytes));
     let lines = lines?;
-    let mut scene = Scene::default();
     let parsed = match lines {
         0 => parsed,
         n => {
@@ -61,87 +73,23 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             parse(&without_lines(bytes))
         }
     };
-    let models = parsed.map_err(|e| {
+    parsed.map(|(models, _)| models).map_err(|e| {
         Error::invalid(
             path,
             "obj",
             format!("{e} (at a line the parser does not name)"),
         )
-    })?;
+    })
+}
 
+/// The meshes of OBJ `bytes`, one per object, with warnings for what was left out or fanned.
+pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
+    let bytes = without_bom(bytes);
+    let mut scene = Scene::default();
+    let models = models(path, bytes, &mut scene)?;
     let mut fanned = 0usize;
     for (k, model) in models.iter().enumerate() {
-        let m = &model.mesh;
-        let nv = m.positions.len() / 3;
-        let element = || format!("object {k} ('{}')", super::escape(&model.name));
-        if let Some(&i) = m.indices.iter().find(|&&i| i as usize >= nv) {
-            return Err(Error::invalid(
-                path,
-                element(),
-                format!("index {i} out of range ({nv} vertices)"),
-            ));
-        }
-        let world: Vec<DVec3> = m
-            .positions
-            .chunks_exact(3)
-            .map(|p| DVec3::new(p[0], p[1], p[2]))
-            .collect();
-        super::check_range(path, &element(), &world)?;
-        let origin = world.first().copied().unwrap_or_default();
-        let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
-        let normals = (m.normals.len() == nv * 3 && nv > 0).then(|| {
-            m.normals
-                .chunks_exact(3)
-                .map(|n| Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32).normalize_or(Vec3::ZERO))
-                .collect()
-        });
-        // OBJ's v points up the image, glTF's down.
-        let uvs = (m.texcoords.len() == nv * 2 && nv > 0).then(|| {
-            m.texcoords
-                .chunks_exact(2)
-                .map(|t| Vec2::new(t[0] as f32, 1.0 - t[1] as f32))
-                .collect()
-        });
-        // `v x y z r g b`: colours in [0, 1]
-        let colors = (m.vertex_color.len() == nv * 3 && nv > 0).then(|| {
-            m.vertex_color
-                .chunks_exact(3)
-                .map(|c| {
-                    let b = |v: f64| crate::mesh::color_byte(v);
-                    [b(c[0]), b(c[1]), b(c[2]), 255]
-                })
-                .collect()
-        });
-        let mut mesh = Mesh {
-            origin,
-            positions,
-            normals,
-            uvs,
-            colors,
-            albedo: None,
-            indices: triangulate(&world, &m.indices, &m.face_arities, &mut fanned),
-            skin: None,
-        };
-        if mesh
-            .uvs
-            .as_ref()
-            .is_some_and(|u: &Vec<Vec2>| u.iter().any(|t| !t.is_finite()))
-        {
-            return Err(Error::invalid(
-                path,
-                element(),
-                "non-finite texture coordinate",
-            ));
-        }
-        if mesh
-            .normals
-            .as_ref()
-            .is_some_and(|n: &Vec<Vec3>| n.iter().any(|t| !t.is_finite()))
-        {
-            mesh.normals = None;
-        }
-        mesh.recentre();
-        scene.meshes.push(mesh);
+        scene.meshes.push(object_mesh(path, k, model, &mut fanned)?);
     }
     if fanned > 0 {
         scene.warnings.push(format!(
@@ -151,6 +99,94 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
         ));
     }
     Ok(scene)
+}
+
+/// The mesh of object `k` of the file: indices and coordinates checked, positions relative to
+/// its first vertex, polygons triangulated (`fanned` counts the fallbacks).
+fn object_mesh(path: &Path, k: usize, model: &tobj::Model, fanned: &mut usize) -> Result<Mesh> {
+    let m = &model.mesh;
+    let nv = m.positions.len() / 3;
+    let element = || format!("object {k} ('{}')", super::escape(&model.name));
+    if let Some(&i) = m.indices.iter().find(|&&i| i as usize >= nv) {
+        return Err(Error::invalid(
+            path,
+            element(),
+            format!("index {i} out of range ({nv} vertices)"),
+        ));
+    }
+    let world: Vec<DVec3> = m
+        .positions
+        .chunks_exact(3)
+        .map(|p| DVec3::new(p[0], p[1], p[2]))
+        .collect();
+    super::check_range(path, &element(), &world)?;
+    let origin = world.first().copied().unwrap_or_default();
+    let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
+    let mut mesh = Mesh {
+        origin,
+        positions,
+        normals: normals(m, nv),
+        uvs: uvs(m, nv),
+        colors: colors(m, nv),
+        albedo: None,
+        indices: triangulate(&world, &m.indices, &m.face_arities, fanned),
+        skin: None,
+    };
+    if mesh
+        .uvs
+        .as_ref()
+        .is_some_and(|u: &Vec<Vec2>| u.iter().any(|t| !t.is_finite()))
+    {
+        return Err(Error::invalid(
+            path,
+            element(),
+            "non-finite texture coordinate",
+        ));
+    }
+    if mesh
+        .normals
+        .as_ref()
+        .is_some_and(|n: &Vec<Vec3>| n.iter().any(|t| !t.is_finite()))
+    {
+        mesh.normals = None;
+    }
+    mesh.recentre();
+    Ok(mesh)
+}
+
+/// The object's normals, normalized (none unless one per each of its `nv` vertices).
+fn normals(m: &tobj::Mesh, nv: usize) -> Option<Vec<Vec3>> {
+    (m.normals.len() == nv * 3 && nv > 0).then(|| {
+        m.normals
+            .chunks_exact(3)
+            .map(|n| Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32).normalize_or(Vec3::ZERO))
+            .collect()
+    })
+}
+
+/// The object's texture coordinates, v flipped: OBJ's v points up the image, glTF's down
+/// (none unless one per each of its `nv` vertices).
+fn uvs(m: &tobj::Mesh, nv: usize) -> Option<Vec<Vec2>> {
+    (m.texcoords.len() == nv * 2 && nv > 0).then(|| {
+        m.texcoords
+            .chunks_exact(2)
+            .map(|t| Vec2::new(t[0] as f32, 1.0 - t[1] as f32))
+            .collect()
+    })
+}
+
+/// The object's vertex colours (`v x y z r g b`: colours in [0, 1]) as bytes (none unless one
+/// per each of its `nv` vertices).
+fn colors(m: &tobj::Mesh, nv: usize) -> Option<Vec<[u8; 4]>> {
+    (m.vertex_color.len() == nv * 3 && nv > 0).then(|| {
+        m.vertex_color
+            .chunks_exact(3)
+            .map(|c| {
+                let b = |v: f64| crate::mesh::color_byte(v);
+                [b(c[0]), b(c[1]), b(c[2]), 255]
+            })
+            .collect()
+    })
 }
 
 /// `bytes` with every `l` statement replaced by an empty line (line numbers are kept).
@@ -363,6 +399,126 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
     Ok(lines)
 }
 
+/// Whether the OBJ names a material library (`mtllib`); most do not.
+fn names_mtl(bytes: &[u8]) -> bool {
+    bytes.split(|&b| b == b'\n').any(|line| {
+        let line = line.trim_ascii_start();
+        line.starts_with(b"mtllib") && line.get(6).is_some_and(u8::is_ascii_whitespace)
+    })
+}
+
+/// tobj's objects of the file and its materials (`None`: none could be read), each `.mtl`
+/// read only inside the OBJ's folder.
+fn load_with_materials(
+    path: &Path,
+    bytes: &[u8],
+) -> Result<(Vec<tobj::Model>, Option<Vec<tobj::Material>>)> {
+    let (models, materials) = tobj::load_obj_buf(
+        &mut std::io::BufReader::new(without_bom(bytes)),
+        &load_options(),
+        |name| {
+            let name = name.to_string_lossy();
+            let target = super::document::confined_path(path, &name)
+                .ok_or(tobj::LoadError::OpenFileFailed)?;
+            let text = super::read_regular_file(&target, super::MAX_INPUT_BYTES)
+                .map_err(|_| tobj::LoadError::OpenFileFailed)?;
+            tobj::load_mtl_buf(&mut std::io::BufReader::new(text.as_slice()))
+        },
+    )
+    .map_err(|e| Error::invalid(path, "obj", e.to_string()))?;
+    Ok((models, materials.ok().filter(|m| !m.is_empty())))
+}
+
+/// The asset's binary chunk, its buffer views and accessors, filled as arrays are added.
+#[derive(Default)]
+struct Chunk {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Chunk {
+    /// Appends `bytes` (4-byte aligned) as a buffer view for `target` and an accessor of
+    /// `fields` on it; returns the accessor's index.
+    fn push(&mut self, bytes: &[u8], fields: Value, target: u32) -> usize {
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        self.views.push(json!({ "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len(), "target": target }));
+        self.bin.extend_from_slice(bytes);
+        let mut a = fields;
+        a["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+
+    /// A vertex attribute of floats `v` with accessor `fields`; returns the accessor's index.
+    fn floats(&mut self, v: &[f32], fields: Value) -> usize {
+        let bytes: Vec<u8> = v.iter().flat_map(|f| f.to_le_bytes()).collect();
+        self.push(&bytes, fields, 34962)
+    }
+
+    /// The primitive of `mesh` (as loaded), its arrays appended; its material is the object's
+    /// when that is one of the `materials` materials.
+    fn primitive(&mut self, model: &tobj::Model, mesh: &Mesh, materials: usize) -> Value {
+        let n = mesh.vertex_count();
+        let p: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
+        let (lo, hi) = mesh.bounds();
+        let position = self.floats(
+            &p,
+            json!({ "componentType": 5126, "count": n, "type": "VEC3", "min": lo.to_array(), "max": hi.to_array() }),
+        );
+        let mut attributes = json!({ "POSITION": position });
+        if let Some(normals) = &mesh.normals {
+            let v: Vec<f32> = normals.iter().flat_map(|p| p.to_array()).collect();
+            attributes["NORMAL"] = json!(self.floats(
+                &v,
+                json!({ "componentType": 5126, "count": n, "type": "VEC3" })
+            ));
+        }
+        if let Some(uvs) = &mesh.uvs {
+            let v: Vec<f32> = uvs.iter().flat_map(|p| p.to_array()).collect();
+            attributes["TEXCOORD_0"] = json!(self.floats(
+                &v,
+                json!({ "componentType": 5126, "count": n, "type": "VEC2" })
+            ));
+        }
+        let ix: Vec<u8> = mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+        let indices = self.push(
+            &ix,
+            json!({ "componentType": 5125, "count": mesh.indices.len(), "type": "SCALAR" }),
+            34963,
+        );
+        let mut primitive = json!({ "attributes": attributes, "indices": indices });
+        if let Some(m) = model.mesh.material_id.filter(|&m| m < materials) {
+            primitive["material"] = json!(m);
+        }
+        primitive
+    }
+}
+
+/// The glTF material of `.mtl` material `m`: `Kd` and `d` as the base colour factor, `map_Kd`
+/// as the base colour texture (its image and texture appended to `images` and `textures`).
+fn material(m: &tobj::Material, images: &mut Vec<Value>, textures: &mut Vec<Value>) -> Value {
+    let kd = m.diffuse.unwrap_or([1.0; 3]);
+    let alpha = m.dissolve.unwrap_or(1.0).clamp(0.0, 1.0);
+    let mut pbr = json!({
+        "baseColorFactor": [kd[0].clamp(0.0, 1.0), kd[1].clamp(0.0, 1.0), kd[2].clamp(0.0, 1.0), alpha],
+        "metallicFactor": 0.0,
+        "roughnessFactor": 1.0,
+    });
+    if let Some(map) = m.diffuse_texture.as_deref().filter(|t| !t.is_empty()) {
+        // the map's file name, which may follow options (`-s 1 1 1 name.png`)
+        let file = map
+            .split_whitespace()
+            .last()
+            .unwrap_or(map)
+            .replace('\\', "/");
+        images.push(json!({ "uri": file }));
+        textures.push(json!({ "sampler": 0, "source": images.len() - 1 }));
+        pbr["baseColorTexture"] = json!({ "index": textures.len() - 1 });
+    }
+    json!({ "name": m.name, "pbrMetallicRoughness": pbr })
+}
+
 /// An OBJ with materials as a glTF asset (DESIGN §10): one node and mesh per OBJ object (its
 /// name kept; positions relative to the object's origin, which the node's translation holds in
 /// `f64`), the triangles as loaded here, and one glTF material per `.mtl` material — `Kd` as the
@@ -370,118 +526,32 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
 /// (an image naming the file beside the OBJ, embedded when the asset is written). `None` when
 /// the file names no `.mtl` or none can be read (a plain mesh). The `.mtl` is read only inside the
 /// OBJ's folder, as a glTF's buffers are.
-pub(super) fn asset_document(
-    path: &Path,
-    bytes: &[u8],
-) -> Result<Option<(serde_json::Value, Vec<u8>)>> {
-    use serde_json::{json, Value};
+pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<(Value, Vec<u8>)>> {
     // most OBJ files name no material library: find out before parsing anything
-    let names_mtl = bytes.split(|&b| b == b'\n').any(|line| {
-        let line = line.trim_ascii_start();
-        line.starts_with(b"mtllib") && line.get(6).is_some_and(u8::is_ascii_whitespace)
-    });
-    if !names_mtl {
+    if !names_mtl(bytes) {
         return Ok(None);
     }
     let scene = load(path, bytes)?;
-    let bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
-    let options = tobj::LoadOptions {
-        triangulate: false,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let (models, materials) =
-        tobj::load_obj_buf(&mut std::io::BufReader::new(bytes), &options, |name| {
-            let name = name.to_string_lossy();
-            let target = super::document::confined_path(path, &name)
-                .ok_or(tobj::LoadError::OpenFileFailed)?;
-            let text = super::read_regular_file(&target, super::MAX_INPUT_BYTES)
-                .map_err(|_| tobj::LoadError::OpenFileFailed)?;
-            tobj::load_mtl_buf(&mut std::io::BufReader::new(text.as_slice()))
-        })
-        .map_err(|e| Error::invalid(path, "obj", e.to_string()))?;
-    let materials = match materials {
-        Ok(m) if !m.is_empty() => m,
-        _ => return Ok(None),
+    let (models, materials) = load_with_materials(path, bytes)?;
+    let Some(materials) = materials else {
+        return Ok(None);
     };
     if models.len() != scene.meshes.len() {
         return Ok(None);
     }
-    let mut bin: Vec<u8> = Vec::new();
-    let (mut views, mut accessors) = (Vec::<Value>::new(), Vec::<Value>::new());
-    let mut push = |bytes: &[u8], fields: Value, target: u32| {
-        bin.resize(bin.len().next_multiple_of(4), 0);
-        views.push(json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len(), "target": target }));
-        bin.extend_from_slice(bytes);
-        let mut a = fields;
-        a["bufferView"] = json!(views.len() - 1);
-        accessors.push(a);
-        accessors.len() - 1
-    };
-    let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
+    let mut chunk = Chunk::default();
     let (mut nodes, mut meshes) = (Vec::new(), Vec::new());
     for (model, mesh) in models.iter().zip(&scene.meshes) {
-        let n = mesh.vertex_count();
-        let p: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
-        let (lo, hi) = mesh.bounds();
-        let position = push(
-            &floats(&p),
-            json!({ "componentType": 5126, "count": n, "type": "VEC3", "min": lo.to_array(), "max": hi.to_array() }),
-            34962,
-        );
-        let mut attributes = json!({ "POSITION": position });
-        if let Some(normals) = &mesh.normals {
-            let v: Vec<f32> = normals.iter().flat_map(|p| p.to_array()).collect();
-            attributes["NORMAL"] = json!(push(
-                &floats(&v),
-                json!({ "componentType": 5126, "count": n, "type": "VEC3" }),
-                34962
-            ));
-        }
-        if let Some(uvs) = &mesh.uvs {
-            let v: Vec<f32> = uvs.iter().flat_map(|p| p.to_array()).collect();
-            attributes["TEXCOORD_0"] = json!(push(
-                &floats(&v),
-                json!({ "componentType": 5126, "count": n, "type": "VEC2" }),
-                34962
-            ));
-        }
-        let ix: Vec<u8> = mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
-        let indices = push(
-            &ix,
-            json!({ "componentType": 5125, "count": mesh.indices.len(), "type": "SCALAR" }),
-            34963,
-        );
-        let mut primitive = json!({ "attributes": attributes, "indices": indices });
-        if let Some(m) = model.mesh.material_id.filter(|&m| m < materials.len()) {
-            primitive["material"] = json!(m);
-        }
+        let primitive = chunk.primitive(model, mesh, materials.len());
         meshes.push(json!({ "name": model.name, "primitives": [primitive] }));
         nodes.push(json!({ "name": model.name, "mesh": meshes.len() - 1, "translation": mesh.origin.to_array() }));
     }
     let (mut images, mut textures) = (Vec::<Value>::new(), Vec::<Value>::new());
     let materials: Vec<Value> = materials
         .iter()
-        .map(|m| {
-            let kd = m.diffuse.unwrap_or([1.0; 3]);
-            let alpha = m.dissolve.unwrap_or(1.0).clamp(0.0, 1.0);
-            let mut pbr = json!({
-                "baseColorFactor": [kd[0].clamp(0.0, 1.0), kd[1].clamp(0.0, 1.0), kd[2].clamp(0.0, 1.0), alpha],
-                "metallicFactor": 0.0,
-                "roughnessFactor": 1.0,
-            });
-            if let Some(map) = m.diffuse_texture.as_deref().filter(|t| !t.is_empty()) {
-                // the map's file name, which may follow options (`-s 1 1 1 name.png`)
-                let file = map.split_whitespace().last().unwrap_or(map).replace('\\', "/");
-                images.push(json!({ "uri": file }));
-                textures.push(json!({ "sampler": 0, "source": images.len() - 1 }));
-                pbr["baseColorTexture"] = json!({ "index": textures.len() - 1 });
-            }
-            json!({ "name": m.name, "pbrMetallicRoughness": pbr })
-        })
+        .map(|m| material(m, &mut images, &mut textures))
         .collect();
-    bin.resize(bin.len().next_multiple_of(4), 0);
+    chunk.bin.resize(chunk.bin.len().next_multiple_of(4), 0);
     let mut doc = json!({
         "asset": { "version": "2.0", "generator": "shellbake (from OBJ)" },
         "scene": 0,
@@ -489,16 +559,16 @@ pub(super) fn asset_document(
         "nodes": nodes,
         "meshes": meshes,
         "materials": materials,
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{ "byteLength": bin.len() }],
+        "accessors": chunk.accessors,
+        "bufferViews": chunk.views,
+        "buffers": [{ "byteLength": chunk.bin.len() }],
     });
     if !images.is_empty() {
         doc["images"] = json!(images);
         doc["textures"] = json!(textures);
         doc["samplers"] = json!([{ "wrapS": 10497, "wrapT": 10497 }]);
     }
-    Ok(Some((doc, bin)))
+    Ok(Some((doc, chunk.bin)))
 }
 
 #[cfg(test)]

@@ -60,6 +60,136 @@ struct Base {
 
 const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"];
 
+impl Base {
+    /// The number of each kind of object `out` holds.
+    fn of(out: &Value) -> Base {
+        let count = |k: &str| out[k].as_array().map_or(0, Vec::len);
+        Base {
+            nodes: count("nodes"),
+            meshes: count("meshes"),
+            materials: count("materials"),
+            textures: count("textures"),
+            images: count("images"),
+            samplers: count("samplers"),
+            accessors: count("accessors"),
+            views: count("bufferViews"),
+            skins: count("skins"),
+        }
+    }
+}
+
+/// The output's buffers (buffer 0, the binary chunk, to be sized last; then the fur's fallback
+/// buffers, which compressed views decode into) and, for each of the fur file's buffers, the
+/// output buffer it becomes.
+fn fur_buffers(fur_json: &Value) -> (Vec<Value>, Vec<usize>) {
+    let mut buffers = vec![json!({})];
+    let mut fur_buffers = Vec::new();
+    for (b, declared) in fur_json["buffers"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .enumerate()
+    {
+        if b == 0 {
+            fur_buffers.push(0);
+        } else {
+            buffers.push(declared.clone());
+            fur_buffers.push(buffers.len() - 1);
+        }
+    }
+    (buffers, fur_buffers)
+}
+
+/// Where the fur goes: the asset, the fur's packing, the shifts of the fur's indices in the
+/// output, and the scene that takes fur roots.
+struct Placing<'a> {
+    asset: &'a Asset,
+    packed: &'a Packed,
+    base: Base,
+    scene: usize,
+}
+
+impl Placing<'_> {
+    /// Attaches the fur of surface `s` to part `p` of the asset in `out`, each fur root marked
+    /// with the part; returns a warning when the fur cannot follow the part's node.
+    fn attach(&self, out: &mut Value, s: usize, p: usize) -> Option<String> {
+        let part = &self.asset.parts[p];
+        let root = self.base.nodes + self.packed.surfaces[s].root;
+        let marker = json!({
+            "node": part.node,
+            "mesh": part.mesh,
+            "primitive": part.primitive,
+        });
+        out["nodes"][root]["extras"]["shellbake_fur"] = marker.clone();
+        match part.skin {
+            Some(skin) => {
+                self.attach_skinned(out, s, skin, &marker);
+                None
+            }
+            None => self.attach_rigid(out, s, p),
+        }
+    }
+
+    /// Binds the layer nodes of surface `s` to `skin` (marked as the root is) and makes them
+    /// and the surface's root roots of the scene.
+    fn attach_skinned(&self, out: &mut Value, s: usize, skin: usize, marker: &Value) {
+        let (packed, base) = (self.packed, self.base);
+        let surface = &packed.surfaces[s];
+        let root = base.nodes + surface.root;
+        // the layer nodes: roots of the fur file with a mesh, of this surface
+        let layers: Vec<usize> = packed
+            .roots
+            .iter()
+            .copied()
+            .filter(|&n| packed.nodes[n].tag.surface == s && n != surface.root)
+            .collect();
+        for &n in &layers {
+            let node = &mut out["nodes"][base.nodes + n];
+            node["skin"] = json!(skin);
+            node["extras"]["shellbake_fur"] = marker.clone();
+        }
+        let roots = std::iter::once(root).chain(layers.iter().map(|&n| base.nodes + n));
+        add_to_scene(out, self.scene, roots);
+    }
+
+    /// Makes the root of surface `s` a child of part `p`'s node, its transform the
+    /// dequantization relative to the node; a transform that is no TRS leaves the root in the
+    /// scene where it was baked, with the warning returned.
+    fn attach_rigid(&self, out: &mut Value, s: usize, p: usize) -> Option<String> {
+        let part = &self.asset.parts[p];
+        let surface = &self.packed.surfaces[s];
+        let root = self.base.nodes + surface.root;
+        let dequantize = DMat4::from_scale_rotation_translation(
+            DVec3::splat(surface.scale),
+            DQuat::IDENTITY,
+            surface.translation,
+        );
+        let local = part.world.inverse() * dequantize;
+        let Some((t, r, sc)) = trs_of(local) else {
+            add_to_scene(out, self.scene, std::iter::once(root));
+            return Some(format!(
+                "node '{}' has a non-uniform scale under a rotation: its fur is a scene root \
+                 placed where it was baked and does not follow the node's animation",
+                crate::input::escape(&part.names.node)
+            ));
+        };
+        let node = out["nodes"][root].as_object_mut().expect("a node");
+        node.insert("translation".into(), json!([t.x, t.y, t.z]));
+        if r != DQuat::IDENTITY {
+            node.insert("rotation".into(), json!([r.x, r.y, r.z, r.w]));
+        }
+        node.insert("scale".into(), json!([sc.x, sc.y, sc.z]));
+        let parent = out["nodes"][part.node].as_object_mut().expect("a node");
+        let children = parent
+            .entry("children")
+            .or_insert_with(|| json!([]))
+            .as_array_mut()
+            .expect("children");
+        children.push(json!(root));
+        None
+    }
+}
+
 /// Writes `asset` with the fur of `fur` (the fur-only file's JSON and binary chunk, and its
 /// packing) grafted on: surface `s` of the fur grows on part `parts[s]` of the asset.
 pub fn graft(
@@ -75,103 +205,27 @@ pub fn graft(
     );
     let mut out = asset.doc.json.clone();
     let mut bin: Vec<u8> = Vec::new();
-    let mut warnings = Vec::new();
     carry_buffers(asset, &mut out, &mut bin);
     embed_images(asset, &mut out, &mut bin)?;
-    let count = |k: &str| out[k].as_array().map_or(0, Vec::len);
-    let base = Base {
-        nodes: count("nodes"),
-        meshes: count("meshes"),
-        materials: count("materials"),
-        textures: count("textures"),
-        images: count("images"),
-        samplers: count("samplers"),
-        accessors: count("accessors"),
-        views: count("bufferViews"),
-        skins: count("skins"),
-    };
+    let base = Base::of(&out);
     // the fur's binary chunk, after the input's
     align(&mut bin);
     let fur_offset = bin.len();
     bin.extend_from_slice(fur_bin);
-    let mut buffers = vec![json!({})];
     // the fur's fallback buffers (compressed views decode into them) follow the input's
-    let mut fur_buffers = Vec::new();
-    for (b, declared) in fur_json["buffers"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .enumerate()
-    {
-        if b == 0 {
-            fur_buffers.push(0);
-        } else {
-            buffers.push(declared.clone());
-            fur_buffers.push(buffers.len() - 1);
-        }
-    }
+    let (mut buffers, fur_buffers) = fur_buffers(fur_json);
     append_fur(&mut out, fur_json, base, (fur_offset, &fur_buffers));
 
     // attach each surface's fur to its part
-    let default_scene = out["scene"].as_u64().unwrap_or(0) as usize;
+    let placing = Placing {
+        asset,
+        packed,
+        base,
+        scene: out["scene"].as_u64().unwrap_or(0) as usize,
+    };
+    let mut warnings = Vec::new();
     for (s, &p) in parts.iter().enumerate() {
-        let part = &asset.parts[p];
-        let surface = &packed.surfaces[s];
-        let root = base.nodes + surface.root;
-        let marker = json!({
-            "node": part.node,
-            "mesh": part.mesh,
-            "primitive": part.primitive,
-        });
-        out["nodes"][root]["extras"]["shellbake_fur"] = marker.clone();
-        if let Some(skin) = part.skin {
-            // the layer nodes: roots of the fur file with a mesh, of this surface
-            let layers: Vec<usize> = packed
-                .roots
-                .iter()
-                .copied()
-                .filter(|&n| packed.nodes[n].tag.surface == s && n != surface.root)
-                .collect();
-            for &n in &layers {
-                let node = &mut out["nodes"][base.nodes + n];
-                node["skin"] = json!(skin);
-                node["extras"]["shellbake_fur"] = marker.clone();
-            }
-            let roots = std::iter::once(root).chain(layers.iter().map(|&n| base.nodes + n));
-            add_to_scene(&mut out, default_scene, roots);
-            continue;
-        }
-        let dequantize = DMat4::from_scale_rotation_translation(
-            DVec3::splat(surface.scale),
-            DQuat::IDENTITY,
-            surface.translation,
-        );
-        let local = part.world.inverse() * dequantize;
-        match trs_of(local) {
-            Some((t, r, sc)) => {
-                let node = out["nodes"][root].as_object_mut().expect("a node");
-                node.insert("translation".into(), json!([t.x, t.y, t.z]));
-                if r != DQuat::IDENTITY {
-                    node.insert("rotation".into(), json!([r.x, r.y, r.z, r.w]));
-                }
-                node.insert("scale".into(), json!([sc.x, sc.y, sc.z]));
-                let parent = out["nodes"][part.node].as_object_mut().expect("a node");
-                let children = parent
-                    .entry("children")
-                    .or_insert_with(|| json!([]))
-                    .as_array_mut()
-                    .expect("children");
-                children.push(json!(root));
-            }
-            None => {
-                warnings.push(format!(
-                    "node '{}' has a non-uniform scale under a rotation: its fur is a scene root \
-                     placed where it was baked and does not follow the node's animation",
-                    crate::input::escape(&part.names.node)
-                ));
-                add_to_scene(&mut out, default_scene, std::iter::once(root));
-            }
-        }
+        warnings.extend(placing.attach(&mut out, s, p));
     }
     merge_extensions(&mut out, fur_json);
     align(&mut bin);
@@ -275,42 +329,49 @@ fn embed_images(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) -> Result<()>
     Ok(())
 }
 
-/// Appends the fur file's objects to `out`, every index shifted by `base`; its buffer views
-/// read the fur's chunk at `offset` (buffer 0) or the fallback buffers `buffers` maps to.
-fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usize, &[usize])) {
-    // shifts the index at `pointer` inside `v`, when there is one
-    let shift = |v: &mut Value, pointer: &str, by: usize| {
-        if let Some(x) = v.pointer_mut(pointer) {
-            if let Some(i) = x.as_u64() {
-                *x = json!(i as usize + by);
-            }
+/// Shifts the index at `pointer` inside `v` by `by`, when there is one.
+fn shift(v: &mut Value, pointer: &str, by: usize) {
+    if let Some(x) = v.pointer_mut(pointer) {
+        if let Some(i) = x.as_u64() {
+            *x = json!(i as usize + by);
         }
-    };
-    let shift_all = |v: &mut Value, pointer: &str, by: usize| {
-        for x in v
-            .pointer_mut(pointer)
-            .and_then(Value::as_array_mut)
-            .into_iter()
-            .flatten()
-        {
-            if let Some(i) = x.as_u64() {
-                *x = json!(i as usize + by);
-            }
-        }
-    };
-    let push = |out: &mut Value, kind: &str, items: Vec<Value>| {
-        if items.is_empty() {
-            return;
-        }
-        match out.get_mut(kind).and_then(Value::as_array_mut) {
-            Some(list) => list.extend(items),
-            None => out[kind] = Value::Array(items),
-        }
-    };
-    let list = |kind: &str| fur[kind].as_array().cloned().unwrap_or_default();
+    }
+}
 
-    let mut views = list("bufferViews");
-    // a view (or its compression extension) on buffer 0 reads the fur's chunk at `offset`
+/// Shifts each index of the list at `pointer` inside `v` by `by`.
+fn shift_all(v: &mut Value, pointer: &str, by: usize) {
+    for x in v
+        .pointer_mut(pointer)
+        .and_then(Value::as_array_mut)
+        .into_iter()
+        .flatten()
+    {
+        if let Some(i) = x.as_u64() {
+            *x = json!(i as usize + by);
+        }
+    }
+}
+
+/// Appends `items` to the list `kind` of `out` (made when missing; nothing when empty).
+fn push_items(out: &mut Value, kind: &str, items: Vec<Value>) {
+    if items.is_empty() {
+        return;
+    }
+    match out.get_mut(kind).and_then(Value::as_array_mut) {
+        Some(list) => list.extend(items),
+        None => out[kind] = Value::Array(items),
+    }
+}
+
+/// A copy of the fur file's list `kind` (empty when missing).
+fn fur_list(fur: &Value, kind: &str) -> Vec<Value> {
+    fur[kind].as_array().cloned().unwrap_or_default()
+}
+
+/// The fur's buffer views, each view (and its compression extension) on the output buffer
+/// `buffers` maps its buffer to; those on buffer 0 read the fur's chunk at `offset`.
+fn fur_views(fur: &Value, (offset, buffers): (usize, &[usize])) -> Vec<Value> {
+    let mut views = fur_list(fur, "bufferViews");
     let rebase = |v: &mut Value| {
         let b = v["buffer"].as_u64().unwrap_or(0) as usize;
         v["buffer"] = json!(buffers[b]);
@@ -327,10 +388,16 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
             }
         }
     }
-    push(out, "bufferViews", views);
+    views
+}
 
-    // the indices each kind holds, by JSON pointer: one (`shift`) or a list (`shift_all`)
-    type Pointers<'a> = &'a [(&'a str, usize)];
+/// The indices each kind holds, by JSON pointer, with what they are shifted by: one index
+/// ([`shift`]) or a list ([`shift_all`]).
+type Pointers<'a> = &'a [(&'a str, usize)];
+
+/// Appends the fur's accessors, images, samplers, textures, skins and nodes to `out`, their
+/// indices shifted by `base`.
+fn append_shifted(out: &mut Value, fur: &Value, base: Base) {
     let rules: [(&str, Pointers, Pointers); 6] = [
         ("accessors", &[("/bufferView", base.views)], &[]),
         ("images", &[("/bufferView", base.views)], &[]),
@@ -358,7 +425,7 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
         ),
     ];
     for (kind, one, all) in rules {
-        let mut items = list(kind);
+        let mut items = fur_list(fur, kind);
         for item in &mut items {
             for &(pointer, by) in one {
                 shift(item, pointer, by);
@@ -367,16 +434,14 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
                 shift_all(item, pointer, by);
             }
         }
-        push(out, kind, items);
+        push_items(out, kind, items);
     }
+}
 
-    let mut materials = list("materials");
-    for m in &mut materials {
-        shift_texture_indices(m, base.textures);
-    }
-    push(out, "materials", materials);
-
-    let mut meshes = list("meshes");
+/// The fur's meshes, their primitives' accessors (attributes, morph targets, indices) and
+/// materials shifted by `base`.
+fn fur_meshes(fur: &Value, base: Base) -> Vec<Value> {
+    let mut meshes = fur_list(fur, "meshes");
     for m in &mut meshes {
         let primitives = m.get_mut("primitives").and_then(Value::as_array_mut);
         for p in primitives.into_iter().flatten() {
@@ -394,9 +459,12 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
             shift(p, "/material", base.materials);
         }
     }
-    push(out, "meshes", meshes);
+    meshes
+}
 
-    let mut animations = list("animations");
+/// The fur's animations, their target nodes and sampler accessors shifted by `base`.
+fn fur_animations(fur: &Value, base: Base) -> Vec<Value> {
+    let mut animations = fur_list(fur, "animations");
     for a in &mut animations {
         let channels = a.get_mut("channels").and_then(Value::as_array_mut);
         for c in channels.into_iter().flatten() {
@@ -408,7 +476,21 @@ fn append_fur(out: &mut Value, fur: &Value, base: Base, (offset, buffers): (usiz
             shift(s, "/output", base.accessors);
         }
     }
-    push(out, "animations", animations);
+    animations
+}
+
+/// Appends the fur file's objects to `out`, every index shifted by `base`; its buffer views
+/// read the fur's chunk at `offset` (buffer 0) or the fallback buffers `buffers` maps to.
+fn append_fur(out: &mut Value, fur: &Value, base: Base, chunk: (usize, &[usize])) {
+    push_items(out, "bufferViews", fur_views(fur, chunk));
+    append_shifted(out, fur, base);
+    let mut materials = fur_list(fur, "materials");
+    for m in &mut materials {
+        shift_texture_indices(m, base.textures);
+    }
+    push_items(out, "materials", materials);
+    push_items(out, "meshes", fur_meshes(fur, base));
+    push_items(out, "animations", fur_animations(fur, base));
 }
 
 /// Shifts every texture index in a material (its `textureInfo`s, those of its extensions too).

@@ -115,13 +115,18 @@ pub fn gltf_json(packed: &Packed) -> (Value, usize) {
     gltf_json_with(packed, &[], MeshoptExtension::default())
 }
 
-/// [`gltf_json`] with the streams `compressed` holds (empty: none) stored compressed in buffer
-/// 0 under extension `ext`, their views placed in the fallback buffer 1.
-pub fn gltf_json_with(
-    packed: &Packed,
-    compressed: &[Option<Encoded>],
-    ext: MeshoptExtension,
-) -> (Value, usize) {
+/// The buffer views of a file and where its buffers end: the binary chunk's length (buffer 0)
+/// and the fallback buffer's (buffer 1, for compressed views), neither padded at the end.
+struct Views {
+    views: Vec<Value>,
+    len: usize,
+    fallback: usize,
+}
+
+/// The buffer views of `packed`'s streams, stream *i* as view *i*: in order in buffer 0, each
+/// on a 4-byte boundary, or, where `compressed` holds the stream, its bytes in buffer 0 under
+/// extension `ext` and its view in the fallback buffer 1.
+fn views_json(packed: &Packed, compressed: &[Option<Encoded>], ext: MeshoptExtension) -> Views {
     let mut len = 0usize;
     let mut fallback = 0usize;
     let mut views = Vec::new();
@@ -130,26 +135,7 @@ pub fn gltf_json_with(
         match compressed.get(i).and_then(|c| c.as_ref()) {
             Some(c) => {
                 fallback = fallback.next_multiple_of(4);
-                let mut view = view_json(v, fallback);
-                view["buffer"] = json!(1);
-                if c.mode != Mode::Attributes {
-                    // the codec's element size, not a vertex stride
-                    view.as_object_mut().unwrap().remove("byteStride");
-                }
-                let mut e = Map::new();
-                e.insert("buffer".into(), json!(0));
-                if len != 0 {
-                    e.insert("byteOffset".into(), json!(len));
-                }
-                e.insert("byteLength".into(), json!(c.bytes.len()));
-                e.insert("byteStride".into(), json!(c.stride));
-                e.insert("count".into(), json!(v.count));
-                e.insert("mode".into(), json!(c.mode.name()));
-                if c.filter != Filter::None {
-                    e.insert("filter".into(), json!(c.filter.name()));
-                }
-                view["extensions"] = json!({ ext.extension(): e });
-                views.push(view);
+                views.push(compressed_view_json(v, c, [len, fallback], ext));
                 fallback += v.bytes.len();
                 len += c.bytes.len();
             }
@@ -159,20 +145,47 @@ pub fn gltf_json_with(
             }
         }
     }
-    let len = len.next_multiple_of(4);
-    let accessors: Vec<Value> = packed.accessors.iter().map(accessor_json).collect();
-    let meshes: Vec<Value> = packed.meshes.iter().map(mesh_json).collect();
-    let materials: Vec<Value> = packed.materials.iter().map(material_json).collect();
-    let nodes: Vec<Value> = packed.nodes.iter().map(node_json).collect();
-    let textures: Vec<Value> = (0..packed.textures.len())
-        .map(|i| json!({ "sampler": 0, "source": i }))
-        .collect();
-    let images: Vec<Value> = packed
-        .textures
-        .iter()
-        .map(|t| json!({ "bufferView": t.image, "mimeType": "image/png" }))
-        .collect();
-    // each extension only where the file uses it (`--quantize none` needs neither)
+    Views {
+        views,
+        len,
+        fallback,
+    }
+}
+
+/// The view of stream `v` stored compressed as `c`: the plain view at `fallback` in buffer 1,
+/// with extension `ext` placing the compressed bytes at `offset` in buffer 0.
+fn compressed_view_json(
+    v: &Stream,
+    c: &Encoded,
+    [offset, fallback]: [usize; 2],
+    ext: MeshoptExtension,
+) -> Value {
+    let mut view = view_json(v, fallback);
+    view["buffer"] = json!(1);
+    if c.mode != Mode::Attributes {
+        // the codec's element size, not a vertex stride
+        view.as_object_mut().unwrap().remove("byteStride");
+    }
+    let mut e = Map::new();
+    e.insert("buffer".into(), json!(0));
+    if offset != 0 {
+        e.insert("byteOffset".into(), json!(offset));
+    }
+    e.insert("byteLength".into(), json!(c.bytes.len()));
+    e.insert("byteStride".into(), json!(c.stride));
+    e.insert("count".into(), json!(v.count));
+    e.insert("mode".into(), json!(c.mode.name()));
+    if c.filter != Filter::None {
+        e.insert("filter".into(), json!(c.filter.name()));
+    }
+    view["extensions"] = json!({ ext.extension(): e });
+    view
+}
+
+/// The extensions `packed` uses of [`EXTENSIONS`]: quantization where a position, normal or
+/// texture coordinate is not float, texture transforms where a material's is not the identity
+/// (`--quantize none` needs neither).
+fn present_extensions(packed: &Packed) -> Vec<&'static str> {
     let quantized = packed.meshes.iter().any(|m| {
         m.primitives.iter().any(|p| {
             p.attributes
@@ -191,44 +204,16 @@ pub fn gltf_json_with(
         .iter()
         .any(|m| m.texture.is_some_and(|t| !t.is_identity()));
     let [quantization, transform] = EXTENSIONS;
-    let present: Vec<&str> = [(quantization, quantized), (transform, transformed)]
+    [(quantization, quantized), (transform, transformed)]
         .into_iter()
         .filter_map(|(e, on)| on.then_some(e))
-        .collect();
-    let mut used = present.clone();
-    let mut required = present;
-    let mut buffers = vec![json!({ "byteLength": len })];
-    if compressed.iter().any(|c| c.is_some()) {
-        used.push(ext.extension());
-        // the fallback buffer has no data: clients must decode
-        required.push(ext.extension());
-        buffers.push(json!({
-            "byteLength": fallback.next_multiple_of(4),
-            "extensions": { ext.extension(): { "fallback": true } },
-        }));
-    }
-    if packed.nodes.iter().any(|n| n.lod.is_some()) {
-        used.push("MSFT_lod");
-    }
-    let doc = json!({
-        "asset": { "version": "2.0", "generator": concat!("shellbake ", env!("CARGO_PKG_VERSION")) },
-        "extensionsUsed": used,
-        "extensionsRequired": required,
-        "scene": 0,
-        "scenes": [{ "nodes": packed.roots }],
-        "nodes": nodes,
-        "meshes": meshes,
-        "materials": materials,
-        "textures": textures,
-        "images": images,
-        // LINEAR / LINEAR_MIPMAP_LINEAR, REPEAT (the default): round strands up close, no
-        // shimmer far away; clients build the mips (`strands.rs`, "Sampling and mipmaps").
-        "samplers": [{ "magFilter": 9729, "minFilter": 9987 }],
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": buffers,
-    });
-    let mut doc = doc;
+        .collect()
+}
+
+/// Adds to `doc` what only some files have: animations, skins, and the material extensions
+/// (sheen, unlit) in `extensionsUsed`; then drops an empty `extensionsUsed` or
+/// `extensionsRequired`.
+fn add_optional_parts(doc: &mut Value, packed: &Packed) {
     if !packed.animations.is_empty() {
         doc["animations"] = packed.animations.iter().map(animation_json).collect();
     }
@@ -261,6 +246,69 @@ pub fn gltf_json_with(
             doc.as_object_mut().unwrap().remove(key);
         }
     }
+}
+
+/// [`gltf_json`] with the streams `compressed` holds (empty: none) stored compressed in buffer
+/// 0 under extension `ext`, their views placed in the fallback buffer 1.
+pub fn gltf_json_with(
+    packed: &Packed,
+    compressed: &[Option<Encoded>],
+    ext: MeshoptExtension,
+) -> (Value, usize) {
+    let Views {
+        views,
+        len,
+        fallback,
+    } = views_json(packed, compressed, ext);
+    let len = len.next_multiple_of(4);
+    let accessors: Vec<Value> = packed.accessors.iter().map(accessor_json).collect();
+    let meshes: Vec<Value> = packed.meshes.iter().map(mesh_json).collect();
+    let materials: Vec<Value> = packed.materials.iter().map(material_json).collect();
+    let nodes: Vec<Value> = packed.nodes.iter().map(node_json).collect();
+    let textures: Vec<Value> = (0..packed.textures.len())
+        .map(|i| json!({ "sampler": 0, "source": i }))
+        .collect();
+    let images: Vec<Value> = packed
+        .textures
+        .iter()
+        .map(|t| json!({ "bufferView": t.image, "mimeType": "image/png" }))
+        .collect();
+    // each extension only where the file uses it
+    let present = present_extensions(packed);
+    let mut used = present.clone();
+    let mut required = present;
+    let mut buffers = vec![json!({ "byteLength": len })];
+    if compressed.iter().any(|c| c.is_some()) {
+        used.push(ext.extension());
+        // the fallback buffer has no data: clients must decode
+        required.push(ext.extension());
+        buffers.push(json!({
+            "byteLength": fallback.next_multiple_of(4),
+            "extensions": { ext.extension(): { "fallback": true } },
+        }));
+    }
+    if packed.nodes.iter().any(|n| n.lod.is_some()) {
+        used.push("MSFT_lod");
+    }
+    let mut doc = json!({
+        "asset": { "version": "2.0", "generator": concat!("shellbake ", env!("CARGO_PKG_VERSION")) },
+        "extensionsUsed": used,
+        "extensionsRequired": required,
+        "scene": 0,
+        "scenes": [{ "nodes": packed.roots }],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": materials,
+        "textures": textures,
+        "images": images,
+        // LINEAR / LINEAR_MIPMAP_LINEAR, REPEAT (the default): round strands up close, no
+        // shimmer far away; clients build the mips (`strands.rs`, "Sampling and mipmaps").
+        "samplers": [{ "magFilter": 9729, "minFilter": 9987 }],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": buffers,
+    });
+    add_optional_parts(&mut doc, packed);
     (doc, len)
 }
 

@@ -143,24 +143,57 @@ fn phong(p: [Vec3; 3], n: [Vec3; 3], w: [f32; 3], alpha: f32) -> Vec3 {
     flat * (1.0 - alpha) + curved * alpha
 }
 
-/// Subdivides `mesh` in place (see the module notes); returns what it did.
-pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
-    let n = params.factor_for(mesh);
-    let before = mesh.triangle_count();
-    if n <= 1 {
-        return Tessellated {
-            factor: 1,
-            triangles_before: before,
-            triangles_after: before,
-        };
+/// The points made inside each edge `(i, j)`, `i < j`, from `i` to `j` (`n − 1` of them),
+/// shared by every triangle on the edge.
+type EdgePoints = std::collections::HashMap<(u32, u32), Vec<u32>>;
+
+/// A subdivision by factor `n`: the mesh before it, its position ids as the weld tells
+/// positions apart (-0 is 0) and the angle-weighted normals per position, and the Phong shape
+/// factor.
+struct Subdivision {
+    src: Mesh,
+    ids: Vec<u32>,
+    normals: Vec<Vec3>,
+    n: u32,
+    alpha: f32,
+}
+
+/// A triangle of the mesh before the subdivision: its corners, their positions and their
+/// per-position normals.
+struct Corners {
+    c: [u32; 3],
+    p: [Vec3; 3],
+    nn: [Vec3; 3],
+}
+
+/// Index of grid point `(a, b)` of a triangle cut by factor `n`, row by row.
+fn grid_slot(n: u32, a: u32, b: u32) -> usize {
+    (b * (n + 1) - b * (b.saturating_sub(1)) / 2 + a) as usize
+}
+
+impl Subdivision {
+    /// The subdivision of `mesh` by factor `n` with Phong factor `alpha`.
+    fn new(mesh: &Mesh, n: u32, alpha: f32) -> Subdivision {
+        let (ids, unique) = crate::stages::weld::position_ids(&mesh.positions);
+        let normals = position_normals(mesh, &ids, unique.len());
+        Subdivision {
+            src: mesh.clone(),
+            ids,
+            normals,
+            n,
+            alpha,
+        }
     }
-    // positions as the weld tells them apart (-0 is 0)
-    let (ids, unique) = crate::stages::weld::position_ids(&mesh.positions);
-    let normals = position_normals(mesh, &ids, unique.len());
-    let src = mesh.clone();
-    let nf = n as f32;
-    // a new vertex: position, and attributes from corners `c` at barycentrics `w`
-    let push = |m: &mut Mesh, position: Vec3, c: [u32; 3], w: [f32; 3]| -> u32 {
+
+    /// Vertex `v`'s position id.
+    fn key(&self, v: u32) -> u32 {
+        self.ids[v as usize]
+    }
+
+    /// Adds a vertex to `m` at `position`, its attributes from corners `c` at barycentrics
+    /// `w`; returns its index.
+    fn push(&self, m: &mut Mesh, position: Vec3, c: [u32; 3], w: [f32; 3]) -> u32 {
+        let src = &self.src;
         let id = m.positions.len() as u32;
         m.positions.push(position);
         let at = |v: u32| v as usize;
@@ -192,86 +225,122 @@ pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
             out.weights.push(inn.weights[at(c[near])]);
         }
         id
-    };
-    let key = |v: u32| ids[v as usize];
-    // the n − 1 points inside edge (i, j), i < j, from i to j
-    let mut edges: std::collections::HashMap<(u32, u32), Vec<u32>> =
-        std::collections::HashMap::new();
-    let mut indices = Vec::with_capacity(src.indices.len() * (n * n) as usize);
-    for t in src.indices.chunks_exact(3) {
-        let c = [t[0], t[1], t[2]];
-        let p = c.map(|v| src.positions[v as usize]);
-        let nn = c.map(|v| normals[v as usize]);
-        if (0..3).any(|k| key(c[k]) == key(c[(k + 1) % 3])) {
+    }
+
+    /// Point `k` of `n` from corner `i` to corner `j` of `t`. The edge's points are made once,
+    /// from its lower-numbered vertex, kept in `edges` and shared by every triangle on the edge.
+    fn edge_point(
+        &self,
+        m: &mut Mesh,
+        edges: &mut EdgePoints,
+        t: &Corners,
+        [i, j]: [usize; 2],
+        k: u32,
+    ) -> u32 {
+        let (n, nf) = (self.n, self.n as f32);
+        let (c, p, nn) = (t.c, t.p, t.nn);
+        let (lo, hi) = if c[i] < c[j] { (i, j) } else { (j, i) };
+        let k_lo = if lo == i { k } else { n - k };
+        let list = edges.entry((c[lo], c[hi])).or_default();
+        if list.is_empty() {
+            // positions from the corners in the order of their position ids: both sides
+            // of a seam agree
+            let (a, b) = if self.key(c[lo]) <= self.key(c[hi]) {
+                (lo, hi)
+            } else {
+                (hi, lo)
+            };
+            for s in 1..n {
+                let from_a = if a == lo { s } else { n - s };
+                let f = from_a as f32 / nf;
+                let q = phong(
+                    [p[a], p[b], p[a]],
+                    [nn[a], nn[b], nn[a]],
+                    [1.0 - f, f, 0.0],
+                    self.alpha,
+                );
+                let mut w = [0.0; 3];
+                w[lo] = 1.0 - s as f32 / nf;
+                w[hi] = s as f32 / nf;
+                list.push(self.push(m, q, c, w));
+            }
+        }
+        list[k_lo as usize - 1]
+    }
+
+    /// Cuts triangle `c` of the mesh before into `n²`, its new vertices added to `m` and its
+    /// triangles to `indices`; a triangle with two corners at one position is kept whole.
+    fn cut(&self, m: &mut Mesh, edges: &mut EdgePoints, c: [u32; 3], indices: &mut Vec<u32>) {
+        let n = self.n;
+        let nf = n as f32;
+        let t = Corners {
+            c,
+            p: c.map(|v| self.src.positions[v as usize]),
+            nn: c.map(|v| self.normals[v as usize]),
+        };
+        if (0..3).any(|k| self.key(c[k]) == self.key(c[(k + 1) % 3])) {
             // two corners at one position: the weld drops the triangle; cut, its points would
             // differ from its neighbours' by rounding and leave slivers
             indices.extend(c);
-            continue;
+            return;
         }
         // grid point (a, b): barycentrics ((n − a − b)/n, a/n, b/n)
         let mut grid = vec![u32::MAX; ((n + 1) * (n + 2) / 2) as usize];
-        let slot = |a: u32, b: u32| (b * (n + 1) - b * (b.saturating_sub(1)) / 2 + a) as usize;
-        let mut edge_point = |m: &mut Mesh, i: usize, j: usize, k: u32| -> u32 {
-            // point k of n from corner i to corner j; the edge's points are made once, from its
-            // lower-numbered vertex, and shared by every triangle on the edge
-            let (lo, hi) = if c[i] < c[j] { (i, j) } else { (j, i) };
-            let k_lo = if lo == i { k } else { n - k };
-            let list = edges.entry((c[lo], c[hi])).or_default();
-            if list.is_empty() {
-                // positions from the corners in the order of their position ids: both sides
-                // of a seam agree
-                let (a, b) = if key(c[lo]) <= key(c[hi]) {
-                    (lo, hi)
-                } else {
-                    (hi, lo)
-                };
-                for s in 1..n {
-                    let from_a = if a == lo { s } else { n - s };
-                    let f = from_a as f32 / nf;
-                    let q = phong(
-                        [p[a], p[b], p[a]],
-                        [nn[a], nn[b], nn[a]],
-                        [1.0 - f, f, 0.0],
-                        params.alpha,
-                    );
-                    let mut w = [0.0; 3];
-                    w[lo] = 1.0 - s as f32 / nf;
-                    w[hi] = s as f32 / nf;
-                    list.push(push(m, q, c, w));
-                }
-            }
-            list[k_lo as usize - 1]
-        };
         for b in 0..=n {
             for a in 0..=(n - b) {
                 let v = match (a, b) {
                     (0, 0) => c[0],
                     (a, 0) if a == n => c[1],
                     (0, b) if b == n => c[2],
-                    (a, 0) => edge_point(mesh, 0, 1, a),
-                    (0, b) => edge_point(mesh, 0, 2, b),
-                    (a, b) if a + b == n => edge_point(mesh, 1, 2, b),
+                    (a, 0) => self.edge_point(m, edges, &t, [0, 1], a),
+                    (0, b) => self.edge_point(m, edges, &t, [0, 2], b),
+                    (a, b) if a + b == n => self.edge_point(m, edges, &t, [1, 2], b),
                     (a, b) => {
                         let w = [(n - a - b) as f32 / nf, a as f32 / nf, b as f32 / nf];
-                        let q = phong(p, nn, w, params.alpha);
-                        push(mesh, q, c, w)
+                        let q = phong(t.p, t.nn, w, self.alpha);
+                        self.push(m, q, c, w)
                     }
                 };
-                grid[slot(a, b)] = v;
+                grid[grid_slot(n, a, b)] = v;
             }
         }
-        for b in 0..n {
-            for a in 0..(n - b) {
-                indices.extend([grid[slot(a, b)], grid[slot(a + 1, b)], grid[slot(a, b + 1)]]);
-                if a + b + 1 < n {
-                    indices.extend([
-                        grid[slot(a + 1, b)],
-                        grid[slot(a + 1, b + 1)],
-                        grid[slot(a, b + 1)],
-                    ]);
-                }
+        grid_triangles(n, &grid, indices);
+    }
+}
+
+/// Appends to `indices` the triangles of a grid of factor `n` (two per cell, winding kept).
+fn grid_triangles(n: u32, grid: &[u32], indices: &mut Vec<u32>) {
+    let slot = |a: u32, b: u32| grid_slot(n, a, b);
+    for b in 0..n {
+        for a in 0..(n - b) {
+            indices.extend([grid[slot(a, b)], grid[slot(a + 1, b)], grid[slot(a, b + 1)]]);
+            if a + b + 1 < n {
+                indices.extend([
+                    grid[slot(a + 1, b)],
+                    grid[slot(a + 1, b + 1)],
+                    grid[slot(a, b + 1)],
+                ]);
             }
         }
+    }
+}
+
+/// Subdivides `mesh` in place (see the module notes); returns what it did.
+pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
+    let n = params.factor_for(mesh);
+    let before = mesh.triangle_count();
+    if n <= 1 {
+        return Tessellated {
+            factor: 1,
+            triangles_before: before,
+            triangles_after: before,
+        };
+    }
+    let cut = Subdivision::new(mesh, n, params.alpha);
+    let mut edges = EdgePoints::new();
+    let mut indices = Vec::with_capacity(cut.src.indices.len() * (n * n) as usize);
+    for t in cut.src.indices.chunks_exact(3) {
+        cut.cut(mesh, &mut edges, [t[0], t[1], t[2]], &mut indices);
     }
     mesh.indices = indices;
     Tessellated {
