@@ -598,23 +598,15 @@ struct Job<'a> {
 /// order, one line each (shape: merge … frames; heights: smooth … occlusion; look: strands …
 /// outline; levels: lod, cull; then pack).
 fn bake_surface(job: Job, packed: &mut Packed, masks: &mut MaskCache) -> BakedSurface {
-    let Job {
-        plan,
-        i,
-        surface,
-        scene,
-        maps,
-        part,
-        load_ms,
-        several,
-    } = job;
+    let (surface, scene) = (job.surface, job.scene);
     let params = &surface.params;
     if let Err(e) = params.check() {
         panic!("bake called with unchecked parameters: {e}");
     }
     let start = Instant::now();
-    let report = Report::begin(&surface.name, &surface.mesh, &scene.warnings, load_ms);
+    let report = Report::begin(&surface.name, &surface.mesh, &scene.warnings, job.load_ms);
     let skinned = scene.skeleton.is_some();
+    let (plan, i) = (job.plan, job.i);
     let mut run = Run {
         plan,
         i,
@@ -625,7 +617,7 @@ fn bake_surface(job: Job, packed: &mut Packed, masks: &mut MaskCache) -> BakedSu
     if let Some(k) = &scene.skeleton {
         run.report.tell(Stage::Load, k);
     }
-    let colour = match part {
+    let colour = match job.part {
         Some(p) => merge::FurColour::Asset {
             paint: p.paint.as_ref(),
             color: params.shade.color,
@@ -633,12 +625,13 @@ fn bake_surface(job: Job, packed: &mut Packed, masks: &mut MaskCache) -> BakedSu
         None => merge::FurColour::Preset,
     };
     let mut shape = shape(&mut run, scene, colour);
-    let mut heights = heights(&mut run, &mut shape, maps);
+    let mut heights = heights(&mut run, &mut shape, job.maps);
     let look = look(&mut run, &shape, &mut heights, masks);
     let chain = levels(&mut run, &shape, &heights, &look);
-    let grafted = part.is_some_and(|p| p.graft);
+    let grafted = job.part.is_some_and(|p| p.graft);
     let parts = (&shape, &heights, &look, &chain);
-    let surface_packed = pack_surface(&mut run, (surface, scene, grafted), parts, several, packed);
+    let placing = (surface, scene, grafted);
+    let surface_packed = pack_surface(&mut run, placing, parts, job.several, packed);
     let mut report = run.report;
     report.lods = (chain.levels.iter().zip(&surface_packed.lod_triangles))
         .map(|(l, &triangles)| report::LodEntry::of(l, triangles, chain.mask_of(l).size))
