@@ -338,8 +338,43 @@ impl Ordering {
     }
 }
 
-/// Triangles `tris` by the number of layers they show in (`top`), most first, so that every
-/// layer draws a prefix of one index buffer; meshopt's vertex cache order within each group.
+/// Entries of the vertex cache the ordering is judged by (a FIFO, as meshoptimizer's analyzer
+/// models the post-transform cache).
+const CACHE: u32 = 32;
+/// How much a layer's vertex shader runs per triangle may exceed the unculled order's before
+/// culling stops paying (the bound is 10 %; this keeps a margin).
+const ACMR_SLACK: f32 = 1.08;
+
+/// Vertex shader runs after each triangle of `indices` through a [`CACHE`]-entry FIFO cache:
+/// `out[k] / (k + 1)` is the ACMR of the first `k + 1` triangles.
+fn fifo_misses(indices: &[u32], vertices: usize) -> Vec<u32> {
+    // a vertex is in the FIFO while fewer than CACHE misses came after its own
+    let mut stamp = vec![u32::MAX; vertices];
+    let mut misses = 0u32;
+    let mut out = Vec::with_capacity(indices.len() / 3);
+    for tri in indices.chunks_exact(3) {
+        for &v in tri {
+            let s = stamp[v as usize];
+            if s == u32::MAX || misses - s >= CACHE {
+                stamp[v as usize] = misses;
+                misses += 1;
+            }
+        }
+        out.push(misses);
+    }
+    out
+}
+
+/// Triangles `tris` ordered so that every layer draws a prefix of one index buffer, culled as
+/// finely as the vertex cache allows. The triangles go in meshopt's vertex cache order, cut
+/// into clusters of consecutive triangles; each cluster shows in the layers its highest
+/// triangle does (`top`), and the clusters go by that, most first (stable). Culling whole
+/// clusters keeps the cache order's locality; the cluster size is the smallest power of two
+/// (1 to 256, else no culling; found by bisection, taking the vertex shader's runs to fall as
+/// clusters grow) at which every layer's prefix runs the vertex shader at most [`ACMR_SLACK`]
+/// times as often per triangle as the unculled cache order. Sorting single
+/// triangles by `top` scattered them: on the Stanford dragon, ACMR 1.38 against 0.72 (62 %
+/// more vertex shader runs for 15 % fewer triangles), slower on the GPU than no culling.
 fn order_triangles(
     indices: &[u32],
     vertices: usize,
@@ -347,35 +382,77 @@ fn order_triangles(
     top: &[u32],
     layers: usize,
 ) -> Ordering {
-    let mut tris = tris.to_vec();
-    tris.sort_by_key(|&t| std::cmp::Reverse(top[t as usize]));
-    let mut out = Vec::with_capacity(tris.len() * 3);
-    let mut order = Vec::with_capacity(tris.len());
+    let cache_order = cache_order(indices, vertices, tris);
+    let whole = cache_order.len().max(1);
+    let unculled = clustered(indices, &cache_order, top, layers, whole);
+    let misses = fifo_misses(&unculled.indices, vertices);
+    let bound = misses.last().map_or(0.0, |&m| m as f32 / tris.len() as f32) * ACMR_SLACK;
+    let pays = |ordering: &Ordering| {
+        let misses = fifo_misses(&ordering.indices, vertices);
+        (ordering.kept.iter().filter(|&&n| n > 0))
+            .all(|&n| misses[n - 1] as f32 / n as f32 <= bound)
+    };
+    // the smallest size that pays, by bisection (larger clusters keep more locality); the
+    // whole list, one cluster, always does
+    let sizes: Vec<usize> = (0..=8).map(|k| 1usize << k).chain([whole]).collect();
+    let (mut lo, mut hi) = (0, sizes.len() - 1);
+    let mut best = unculled;
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        let ordering = clustered(indices, &cache_order, top, layers, sizes[mid]);
+        if pays(&ordering) {
+            best = ordering;
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    best
+}
+
+/// The triangles `tris` in meshopt's vertex cache order.
+fn cache_order(indices: &[u32], vertices: usize, tris: &[u32]) -> Vec<u32> {
+    let ix: Vec<u32> = (tris.iter())
+        .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
+        .collect();
+    let optimized = meshopt::optimize_vertex_cache(&ix, vertices);
+    // which triangle each optimized one is (the cache order keeps corners in place)
+    let mut at: std::collections::HashMap<[u32; 3], Vec<u32>> = Default::default();
+    for (k, &t) in tris.iter().enumerate() {
+        at.entry([ix[3 * k], ix[3 * k + 1], ix[3 * k + 2]])
+            .or_default()
+            .push(t);
+    }
+    (optimized.chunks_exact(3))
+        .map(|tri| {
+            (at.get_mut(&[tri[0], tri[1], tri[2]]).and_then(|v| v.pop()))
+                .expect("the cache order keeps each triangle's corners")
+        })
+        .collect()
+}
+
+/// `cache_order` cut into clusters of `size` triangles, sorted by the layers they show in.
+fn clustered(
+    indices: &[u32],
+    cache_order: &[u32],
+    top: &[u32],
+    layers: usize,
+    size: usize,
+) -> Ordering {
+    let mut clusters: Vec<(u32, &[u32])> = (cache_order.chunks(size))
+        .map(|c| (c.iter().map(|&t| top[t as usize]).max().unwrap_or(0), c))
+        .collect();
+    clusters.sort_by_key(|&(top, _)| std::cmp::Reverse(top));
+    let mut out = Vec::with_capacity(cache_order.len() * 3);
+    let mut order = Vec::with_capacity(cache_order.len());
     let mut kept = vec![0usize; layers];
-    for group in tris.chunk_by(|&a, &b| top[a as usize] == top[b as usize]) {
-        let ix: Vec<u32> = group
-            .iter()
-            .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
-            .collect();
-        let optimized = meshopt::optimize_vertex_cache(&ix, vertices);
-        // which triangle each optimized one is (the cache order keeps corners in place)
-        let mut at: std::collections::HashMap<[u32; 3], Vec<u32>> = Default::default();
-        for (k, &t) in group.iter().enumerate() {
-            at.entry([ix[3 * k], ix[3 * k + 1], ix[3 * k + 2]])
-                .or_default()
-                .push(t);
+    for (top, cluster) in clusters {
+        for &t in cluster {
+            out.extend_from_slice(&indices[3 * t as usize..3 * t as usize + 3]);
         }
-        for tri in optimized.chunks_exact(3) {
-            let t = at
-                .get_mut(&[tri[0], tri[1], tri[2]])
-                .and_then(|v| v.pop())
-                .expect("the cache order keeps each triangle's corners");
-            order.push(t);
-        }
-        out.extend(optimized);
-        let top = (top[group[0] as usize] as usize).min(layers);
-        for k in &mut kept[..top] {
-            *k += group.len();
+        order.extend_from_slice(cluster);
+        for k in &mut kept[..(top as usize).min(layers)] {
+            *k += cluster.len();
         }
     }
     Ordering {
