@@ -27,102 +27,19 @@ fn bytes_since(out: &Packed, first: usize) -> usize {
     out.streams[first..].iter().map(|s| s.bytes.len()).sum()
 }
 
+/// The surface's extras, as its effects ask: the fins' node, then the outline's.
 pub(super) fn extras(b: &mut Builder, g: &Geometry, input: &PackInput) -> Extras {
     let mut nodes = Vec::new();
     let mut fin_bytes = 0;
     let mut outline_bytes = 0;
-    let stored = |p: &[Vec3]| p.iter().map(|&p| g.stored(p)).collect::<Vec<_>>();
     if let Some(f) = input.fins {
         let first = b.out.streams.len();
-        let m = f.mesh(input.mesh, input.delta);
-        let position = b.positions("fin_position", &stored(&m.positions), &g.grid);
-        let normal = b.normals(&m.normals);
-        // normalized u16 over [0, u_max] × [0, 1], the scale in the texture transform (exact
-        // floats under `--quantize none`)
-        let u_max = m.uvs.iter().fold(f32::MIN_POSITIVE, |a, p| a.max(p.x));
-        let mut uv = Bytes::default();
-        let (stride, kind, scale) = if b.float {
-            for p in &m.uvs {
-                uv.f32s(&p.to_array());
-            }
-            (8, component::FLOAT, Vec2::ONE)
-        } else {
-            let scale = Vec2::new(u_max, 1.0);
-            for p in &m.uvs {
-                let q = (*p / scale * 65535.0).round();
-                uv.u16s(&[q.x as u16, q.y as u16], 4);
-            }
-            (4, component::UNSIGNED_SHORT, scale)
-        };
-        let n = m.uvs.len();
-        let v = b.stream(
-            "fin_texcoord",
-            Semantic::TexCoord(0),
-            None,
-            uv.0,
-            Some(stride),
-            n,
-        );
-        let uv = b.out.accessor(v, kind, !b.float, "VEC2", None);
-        let indices = b.indices("fin_indices", &m.indices, m.positions.len());
-        let png = crate::effects::fins::encode_strip_png(&f.strip);
-        let image = b.stream("fin_strip", Semantic::Image, None, png, None, 0);
-        let texture = Packed::push(&mut b.out.textures, Texture { image });
-        let material = Packed::push(
-            &mut b.out.materials,
-            Material {
-                name: format!("{}fins", input.prefix),
-                base_color: [1.0; 4],
-                alpha: Alpha::Mask(0.5),
-                texture: Some(TextureRef {
-                    texture,
-                    offset: Vec2::ZERO,
-                    scale,
-                }),
-                roughness: input.roughness,
-                sheen: None,
-                unlit: false,
-            },
-        );
-        let attributes = vec![
-            (Semantic::Position, position),
-            (Semantic::Normal, normal),
-            (Semantic::TexCoord(0), uv),
-        ];
-        let name = format!("{}fins", input.prefix);
-        let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
-        nodes.push(node(b, name, mesh));
+        nodes.push(fins(b, g, input, f));
         fin_bytes = bytes_since(b.out, first);
     }
     if let Some(o) = input.outline {
         let first = b.out.streams.len();
-        let hull: Vec<Vec3> = input
-            .mesh
-            .positions
-            .iter()
-            .zip(&o.offset)
-            .map(|(&p, &d)| p + d)
-            .collect();
-        let position = b.positions("outline_position", &stored(&hull), &g.grid);
-        let reversed = crate::effects::outline::reversed(&input.mesh.indices);
-        let indices = b.indices("outline_indices", &reversed, hull.len());
-        let c = o.color;
-        let material = Packed::push(
-            &mut b.out.materials,
-            Material {
-                name: format!("{}outline", input.prefix),
-                base_color: [c[0], c[1], c[2], 1.0],
-                alpha: Alpha::Opaque,
-                texture: None,
-                roughness: 1.0,
-                sheen: None,
-                unlit: true,
-            },
-        );
-        let name = format!("{}outline", input.prefix);
-        let attributes = vec![(Semantic::Position, position)];
-        let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
-        nodes.push(node(b, name, mesh));
+        nodes.push(outline(b, g, input, o));
         outline_bytes = bytes_since(b.out, first);
     }
     Extras {
@@ -132,6 +49,115 @@ pub(super) fn extras(b: &mut Builder, g: &Geometry, input: &PackInput) -> Extras
     }
 }
 
+/// Positions `p` as the POSITION stream stores them.
+fn stored(g: &Geometry, p: &[Vec3]) -> Vec<Vec3> {
+    p.iter().map(|&p| g.stored(p)).collect()
+}
+
+/// The `fins` effect's node: one mesh of fin quads (positions, normals, strip texture
+/// coordinates, indices) under a masked material that samples the fin strip. Returns the node.
+fn fins(b: &mut Builder, g: &Geometry, input: &PackInput, f: &crate::effects::fins::Fins) -> usize {
+    let m = f.mesh(input.mesh, input.delta);
+    let position = b.positions("fin_position", &stored(g, &m.positions), &g.grid);
+    let normal = b.normals(&m.normals);
+    let (uv, scale) = fin_texcoords(b, &m.uvs);
+    let indices = b.indices("fin_indices", &m.indices, m.positions.len());
+    let png = crate::effects::fins::encode_strip_png(&f.strip);
+    let image = b.stream("fin_strip", Semantic::Image, None, png, None, 0);
+    let texture = Packed::push(&mut b.out.textures, Texture { image });
+    let material = Packed::push(
+        &mut b.out.materials,
+        Material {
+            name: format!("{}fins", input.prefix),
+            base_color: [1.0; 4],
+            alpha: Alpha::Mask(0.5),
+            texture: Some(TextureRef {
+                texture,
+                offset: Vec2::ZERO,
+                scale,
+            }),
+            roughness: input.roughness,
+            sheen: None,
+            unlit: false,
+        },
+    );
+    let attributes = vec![
+        (Semantic::Position, position),
+        (Semantic::Normal, normal),
+        (Semantic::TexCoord(0), uv),
+    ];
+    let name = format!("{}fins", input.prefix);
+    let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
+    node(b, name, mesh)
+}
+
+/// The fins' texture coordinates `uvs`: normalized u16 over [0, u_max] × [0, 1] (exact floats
+/// under `--quantize none`). Returns the accessor and the scale for the texture transform.
+fn fin_texcoords(b: &mut Builder, uvs: &[Vec2]) -> (usize, Vec2) {
+    let u_max = uvs.iter().fold(f32::MIN_POSITIVE, |a, p| a.max(p.x));
+    let mut uv = Bytes::default();
+    let (stride, kind, scale) = if b.float {
+        for p in uvs {
+            uv.f32s(&p.to_array());
+        }
+        (8, component::FLOAT, Vec2::ONE)
+    } else {
+        let scale = Vec2::new(u_max, 1.0);
+        for p in uvs {
+            let q = (*p / scale * 65535.0).round();
+            uv.u16s(&[q.x as u16, q.y as u16], 4);
+        }
+        (4, component::UNSIGNED_SHORT, scale)
+    };
+    let v = b.stream(
+        "fin_texcoord",
+        Semantic::TexCoord(0),
+        None,
+        uv.0,
+        Some(stride),
+        uvs.len(),
+    );
+    (b.out.accessor(v, kind, !b.float, "VEC2", None), scale)
+}
+
+/// The `outline` effect's node: the inverted hull (the surface pushed out by the outline's
+/// offsets, its winding reversed) under an unlit opaque material. Returns the node.
+fn outline(
+    b: &mut Builder,
+    g: &Geometry,
+    input: &PackInput,
+    o: &crate::effects::outline::Outline,
+) -> usize {
+    let hull: Vec<Vec3> = input
+        .mesh
+        .positions
+        .iter()
+        .zip(&o.offset)
+        .map(|(&p, &d)| p + d)
+        .collect();
+    let position = b.positions("outline_position", &stored(g, &hull), &g.grid);
+    let reversed = crate::effects::outline::reversed(&input.mesh.indices);
+    let indices = b.indices("outline_indices", &reversed, hull.len());
+    let c = o.color;
+    let material = Packed::push(
+        &mut b.out.materials,
+        Material {
+            name: format!("{}outline", input.prefix),
+            base_color: [c[0], c[1], c[2], 1.0],
+            alpha: Alpha::Opaque,
+            texture: None,
+            roughness: 1.0,
+            sheen: None,
+            unlit: true,
+        },
+    );
+    let name = format!("{}outline", input.prefix);
+    let attributes = vec![(Semantic::Position, position)];
+    let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
+    node(b, name, mesh)
+}
+
+/// A node holding mesh `mesh`.
 fn node(b: &mut Builder, name: String, mesh: usize) -> usize {
     let node = Node {
         name,

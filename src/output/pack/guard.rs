@@ -63,39 +63,19 @@ pub fn guard(
     indices: &[u32],
     check: &impl Check,
 ) -> usize {
-    let varied = |d: &[Vec3], l: &[Vec3], v: usize| match vary {
-        Vary::Deltas => d[v],
-        Vary::Leans => l[v],
-    };
-    let mut group_of: crate::stages::weld::IdMap<([u32; 3], [u32; 3]), u32> = Default::default();
-    let group: Vec<u32> = base
-        .iter()
-        .enumerate()
-        .map(|(v, p)| (p, varied(deltas, leans, v)))
-        .map(|(p, d)| {
-            let key = (
-                p.to_array().map(f32::to_bits),
-                d.to_array().map(f32::to_bits),
-            );
-            let next = group_of.len() as u32;
-            *group_of.entry(key).or_insert(next)
-        })
-        .collect();
+    let (group, groups) = vertex_groups(base, (deltas, leans), vary);
     let members = Adjacency::build(
-        group_of.len(),
+        groups,
         group.iter().enumerate().map(|(v, &g)| (g, v as u32)),
     );
     let around = Adjacency::build(
-        group_of.len(),
+        groups,
         indices
             .iter()
             .enumerate()
             .map(|(i, &v)| (group[v as usize], (i / 3) as u32)),
     );
-    let tri = |t: u32| {
-        let i = 3 * t as usize;
-        [indices[i], indices[i + 1], indices[i + 2]]
-    };
+    let tri = |t: u32| corners(indices, t);
     let mut shortened = vec![false; base.len()];
     let mut check_list: Vec<u32> = (0..(indices.len() / 3) as u32).collect();
     for round in 0.. {
@@ -116,14 +96,8 @@ pub fn guard(
         if bad.is_empty() {
             break;
         }
-        let mut factor: Vec<(u32, f32)> = bad
-            .iter()
-            .flat_map(|&(t, f)| tri(t).map(|v| (group[v as usize], f)))
-            .collect();
-        factor.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
-        factor.dedup_by_key(|x| x.0);
         check_list.clear();
-        for &(g, f) in &factor {
+        for (g, f) in group_factors(&bad, indices, &group) {
             for &v in members.of(g) {
                 match vary {
                     Vary::Deltas => deltas[v as usize] *= f,
@@ -141,6 +115,52 @@ pub fn guard(
         check_list.dedup();
     }
     shortened.iter().filter(|&&s| s).count()
+}
+
+/// The groups of vertices that must move together: one per distinct stored base position and
+/// varied value (delta or lean, as `vary` says). Returns each vertex's group and the count.
+fn vertex_groups(
+    base: &[Vec3],
+    (deltas, leans): (&[Vec3], &[Vec3]),
+    vary: Vary,
+) -> (Vec<u32>, usize) {
+    let varied = |v: usize| match vary {
+        Vary::Deltas => deltas[v],
+        Vary::Leans => leans[v],
+    };
+    let mut group_of: crate::stages::weld::IdMap<([u32; 3], [u32; 3]), u32> = Default::default();
+    let group: Vec<u32> = base
+        .iter()
+        .enumerate()
+        .map(|(v, p)| (p, varied(v)))
+        .map(|(p, d)| {
+            let key = (
+                p.to_array().map(f32::to_bits),
+                d.to_array().map(f32::to_bits),
+            );
+            let next = group_of.len() as u32;
+            *group_of.entry(key).or_insert(next)
+        })
+        .collect();
+    (group, group_of.len())
+}
+
+/// The corners of triangle `t` of `indices`.
+fn corners(indices: &[u32], t: u32) -> [u32; 3] {
+    let i = 3 * t as usize;
+    [indices[i], indices[i + 1], indices[i + 2]]
+}
+
+/// The shortening of each group touched by the offending triangles `bad` (triangle, factor):
+/// the smallest factor among its triangles, by group.
+fn group_factors(bad: &[(u32, f32)], indices: &[u32], group: &[u32]) -> Vec<(u32, f32)> {
+    let mut factor: Vec<(u32, f32)> = bad
+        .iter()
+        .flat_map(|&(t, f)| corners(indices, t).map(|v| (group[v as usize], f)))
+        .collect();
+    factor.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    factor.dedup_by_key(|x| x.0);
+    factor
 }
 
 /// Compact layout: layer `j` is `base + t_j · delta` in float (a morph target), so a triangle is

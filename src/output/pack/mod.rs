@@ -1191,6 +1191,32 @@ fn skeleton(
     layers: &[usize],
     name: &str,
 ) -> usize {
+    let (first, wrapper) = skeleton_nodes(b, k, name);
+    let skin = skeleton_skin(b, k, (first, dequantize), name);
+    for &l in layers {
+        b.out.nodes[l].skin = Some(skin);
+    }
+    for clip in &k.clips {
+        let channels = clip
+            .channels
+            .iter()
+            .map(|c| clip_channel(b, c, first))
+            .collect();
+        b.out.animations.push(Animation {
+            name: clip.name.clone(),
+            channels,
+        });
+    }
+    wrapper
+}
+
+/// The skeleton's joint nodes (names and rest poses kept) and the wrapper node above its roots
+/// that carries the placement. Returns the first joint node and the wrapper.
+fn skeleton_nodes(
+    b: &mut Builder,
+    k: &crate::stages::skin::Skeleton,
+    name: &str,
+) -> (usize, usize) {
     let first = b.out.nodes.len();
     for n in &k.nodes {
         let node = Node {
@@ -1217,6 +1243,17 @@ fn skeleton(
             ..Node::default()
         },
     );
+    (first, wrapper)
+}
+
+/// The skin over the joint nodes from `first` on: its joints and inverse bind matrices
+/// (`IBM · P⁻¹ · R`, with `R` = `dequantize`). Returns the skin.
+fn skeleton_skin(
+    b: &mut Builder,
+    k: &crate::stages::skin::Skeleton,
+    (first, dequantize): (usize, glam::DMat4),
+    name: &str,
+) -> usize {
     let unplace = k.placement.inverse() * dequantize;
     let ibm: Vec<glam::DMat4> = k.inverse_bind.iter().map(|m| *m * unplace).collect();
     let n = ibm.len();
@@ -1229,70 +1266,59 @@ fn skeleton(
         n,
     );
     let inverse_bind = b.out.accessor(v, component::FLOAT, false, "MAT4", None);
-    let skin = Packed::push(
+    Packed::push(
         &mut b.out.skins,
         Skin {
             name: name.to_string(),
             joints: k.joints.iter().map(|&j| first + j).collect(),
             inverse_bind,
         },
+    )
+}
+
+/// One channel of a skeleton clip, retargeted to the joint nodes from `first` on: its keyframe
+/// times (with their range) and values.
+fn clip_channel(b: &mut Builder, c: &crate::stages::skin::Channel, first: usize) -> Channel {
+    let mut times = Bytes::default();
+    times.f32s(&c.times);
+    let t = b.stream(
+        "skin_times",
+        Semantic::Animation,
+        None,
+        times.0,
+        None,
+        c.times.len(),
     );
-    for &l in layers {
-        b.out.nodes[l].skin = Some(skin);
+    let lo = c.times.first().copied().unwrap_or(0.0) as f64;
+    let hi = c.times.last().copied().unwrap_or(0.0) as f64;
+    let input = b.out.accessor(
+        t,
+        component::FLOAT,
+        false,
+        "SCALAR",
+        Some((vec![lo], vec![hi])),
+    );
+    let mut values = Bytes::default();
+    values.f32s(&c.values);
+    let per = c.path.components();
+    let count = c.values.len() / per;
+    let v = b.stream(
+        "skin_values",
+        Semantic::Animation,
+        None,
+        values.0,
+        None,
+        count,
+    );
+    let kind = if per == 4 { "VEC4" } else { "VEC3" };
+    let output = b.out.accessor(v, component::FLOAT, false, kind, None);
+    Channel {
+        node: first + c.node,
+        input,
+        output,
+        path: Some(c.path),
+        interpolation: c.interpolation,
     }
-    for clip in &k.clips {
-        let channels = clip
-            .channels
-            .iter()
-            .map(|c| {
-                let mut times = Bytes::default();
-                times.f32s(&c.times);
-                let t = b.stream(
-                    "skin_times",
-                    Semantic::Animation,
-                    None,
-                    times.0,
-                    None,
-                    c.times.len(),
-                );
-                let lo = c.times.first().copied().unwrap_or(0.0) as f64;
-                let hi = c.times.last().copied().unwrap_or(0.0) as f64;
-                let input = b.out.accessor(
-                    t,
-                    component::FLOAT,
-                    false,
-                    "SCALAR",
-                    Some((vec![lo], vec![hi])),
-                );
-                let mut values = Bytes::default();
-                values.f32s(&c.values);
-                let per = c.path.components();
-                let count = c.values.len() / per;
-                let v = b.stream(
-                    "skin_values",
-                    Semantic::Animation,
-                    None,
-                    values.0,
-                    None,
-                    count,
-                );
-                let kind = if per == 4 { "VEC4" } else { "VEC3" };
-                let output = b.out.accessor(v, component::FLOAT, false, kind, None);
-                Channel {
-                    node: first + c.node,
-                    input,
-                    output,
-                    path: Some(c.path),
-                    interpolation: c.interpolation,
-                }
-            })
-            .collect();
-        b.out.animations.push(Animation {
-            name: clip.name.clone(),
-            channels,
-        });
-    }
-    wrapper
 }
 
 /// A surface's wind animation as it is built: its channels (LOD 0's, then the coarser levels'),
@@ -1416,97 +1442,14 @@ impl Shared {
         for (new, &old) in order.iter().enumerate() {
             fetch[old as usize] = new as u32;
         }
-        let pick = |v: &[Vec3]| order.iter().map(|&o| v[o as usize]).collect::<Vec<_>>();
-        let q: Vec<Vec3> = pick(g.positions).iter().map(|&p| g.stored(p)).collect();
+        let q: Vec<Vec3> = gather(&order, g.positions)
+            .iter()
+            .map(|&p| g.stored(p))
+            .collect();
         let position = b.positions("position", &q, &g.grid);
-        let normal = b.normals(&pick(g.normals));
+        let normal = b.normals(&gather(&order, g.normals));
         let skin = g.skin.map(|s| b.skin(s, &order));
-        let shells = shells.then(|| {
-            let uvs: Vec<Vec2> = order.iter().map(|&o| g.uvs[o as usize]).collect();
-            let texcoord = b.texcoords(&uvs, g.uv_grid, g.float_uvs, g.tiles);
-            let delta = b.deltas(&pick(&g.deltas), "extrusion", 0);
-            let bend = g.bends.as_ref().map(|v| b.deltas(&pick(v), "bend", 1));
-            let wind = g.winds.as_ref().map(|[sin, cos]| {
-                let first = 1 + bend.is_some() as usize;
-                [
-                    b.deltas(&pick(sin), "wind_sin", first),
-                    b.deltas(&pick(cos), "wind_cos", first + 1),
-                ]
-            });
-            // COLOR_0: the root's occlusion shade `1 − a` (rgb) and the density (alpha); the
-            // extrusion target adds `a` to the rgb, so layer t shows `1 − a + a·t`
-            let n = order.len();
-            let root = |o: u32| {
-                g.occlusion
-                    .map_or(255, |a| color_byte(1.0 - a[o as usize] as f64))
-            };
-            let color = match g.albedo {
-                // the asset's colour at the root, darkened by the occlusion: u16, so that dark
-                // albedos keep their hue
-                Some(albedo) => {
-                    let mut bytes = Bytes::default();
-                    for &o in &order {
-                        let shade = g.occlusion.map_or(1.0, |a| 1.0 - a[o as usize]);
-                        let c = (albedo[o as usize] * shade).clamp(Vec3::ZERO, Vec3::ONE);
-                        let d = g.density.map_or(u16::MAX, |d| d[o as usize] as u16 * 257);
-                        let q = |v: f32| (v * 65535.0).round() as u16;
-                        bytes.u16s(&[q(c.x), q(c.y), q(c.z), d], 8);
-                    }
-                    let v = b.stream("albedo", Semantic::Color(0), None, bytes.0, Some(8), n);
-                    Some(
-                        b.out
-                            .accessor(v, component::UNSIGNED_SHORT, true, "VEC4", None),
-                    )
-                }
-                None => (g.density.is_some() || g.occlusion.is_some()).then(|| {
-                    let mut bytes = Bytes::default();
-                    for &o in &order {
-                        let c = root(o);
-                        let d = g.density.map_or(255, |d| d[o as usize]);
-                        bytes.0.extend_from_slice(&[c, c, c, d]);
-                    }
-                    let name = if g.occlusion.is_some() {
-                        "color"
-                    } else {
-                        "density"
-                    };
-                    let v = b.stream(name, Semantic::Color(0), None, bytes.0, Some(4), n);
-                    b.out
-                        .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
-                }),
-            };
-            let color_delta = g.occlusion.map(|a| {
-                let mut bytes = Bytes::default();
-                for &o in &order {
-                    // what brings the stored root colour to the full colour at t = 1
-                    let rgb = match g.albedo {
-                        Some(albedo) => albedo[o as usize] * a[o as usize],
-                        None => Vec3::splat(1.0 - root(o) as f32 / 255.0),
-                    };
-                    let [r, gr, bl] = rgb
-                        .to_array()
-                        .map(|v| (v.clamp(0.0, 1.0) * 127.0).round() as i8 as u8);
-                    bytes.0.extend_from_slice(&[r, gr, bl, 0]);
-                }
-                let v = b.stream(
-                    "color_delta",
-                    Semantic::Color(0),
-                    Some(0),
-                    bytes.0,
-                    Some(4),
-                    n,
-                );
-                b.out.accessor(v, component::BYTE, true, "VEC4", None)
-            });
-            ShellStreams {
-                texcoord,
-                delta,
-                bend,
-                wind,
-                color,
-                color_delta,
-            }
-        });
+        let shells = shells.then(|| ShellStreams::new(b, g, &order));
         Shared {
             order,
             fetch,
@@ -1516,6 +1459,113 @@ impl Shared {
             shells,
         }
     }
+}
+
+/// The per-vertex values `v` of the input vertices, in fetch order `order`.
+fn gather<T: Copy>(order: &[u32], v: &[T]) -> Vec<T> {
+    order.iter().map(|&o| v[o as usize]).collect()
+}
+
+impl ShellStreams {
+    /// A chunk's shell streams in fetch order `order`: texture coordinates, the extrusion
+    /// target, the gravity and wind targets, and the root colours with the occlusion's delta.
+    fn new(b: &mut Builder, g: &Geometry, order: &[u32]) -> ShellStreams {
+        let pick = |v: &[Vec3]| gather(order, v);
+        let texcoord = b.texcoords(&gather(order, g.uvs), g.uv_grid, g.float_uvs, g.tiles);
+        let delta = b.deltas(&pick(&g.deltas), "extrusion", 0);
+        let bend = g.bends.as_ref().map(|v| b.deltas(&pick(v), "bend", 1));
+        let wind = g.winds.as_ref().map(|[sin, cos]| {
+            let first = 1 + bend.is_some() as usize;
+            [
+                b.deltas(&pick(sin), "wind_sin", first),
+                b.deltas(&pick(cos), "wind_cos", first + 1),
+            ]
+        });
+        let color = root_colors(b, g, order);
+        let color_delta = g.occlusion.map(|a| occlusion_deltas(b, g, order, a));
+        ShellStreams {
+            texcoord,
+            delta,
+            bend,
+            wind,
+            color,
+            color_delta,
+        }
+    }
+}
+
+/// The occlusion's shade at the root of input vertex `o` as a colour byte: `1 − a`, or full
+/// without occlusion.
+fn root_shade(g: &Geometry, o: u32) -> u8 {
+    g.occlusion
+        .map_or(255, |a| color_byte(1.0 - a[o as usize] as f64))
+}
+
+/// A chunk's `COLOR_0` in fetch order `order`: the root's occlusion shade `1 − a` (rgb, times the
+/// asset's colour when it has one) and the density (alpha); the extrusion target adds `a` to the
+/// rgb, so layer t shows `1 − a + a·t`. None without colour, density and occlusion.
+fn root_colors(b: &mut Builder, g: &Geometry, order: &[u32]) -> Option<usize> {
+    let n = order.len();
+    match g.albedo {
+        // the asset's colour at the root, darkened by the occlusion: u16, so that dark
+        // albedos keep their hue
+        Some(albedo) => {
+            let mut bytes = Bytes::default();
+            for &o in order {
+                let shade = g.occlusion.map_or(1.0, |a| 1.0 - a[o as usize]);
+                let c = (albedo[o as usize] * shade).clamp(Vec3::ZERO, Vec3::ONE);
+                let d = g.density.map_or(u16::MAX, |d| d[o as usize] as u16 * 257);
+                let q = |v: f32| (v * 65535.0).round() as u16;
+                bytes.u16s(&[q(c.x), q(c.y), q(c.z), d], 8);
+            }
+            let v = b.stream("albedo", Semantic::Color(0), None, bytes.0, Some(8), n);
+            Some(
+                b.out
+                    .accessor(v, component::UNSIGNED_SHORT, true, "VEC4", None),
+            )
+        }
+        None => (g.density.is_some() || g.occlusion.is_some()).then(|| {
+            let mut bytes = Bytes::default();
+            for &o in order {
+                let c = root_shade(g, o);
+                let d = g.density.map_or(255, |d| d[o as usize]);
+                bytes.0.extend_from_slice(&[c, c, c, d]);
+            }
+            let name = if g.occlusion.is_some() {
+                "color"
+            } else {
+                "density"
+            };
+            let v = b.stream(name, Semantic::Color(0), None, bytes.0, Some(4), n);
+            b.out
+                .accessor(v, component::UNSIGNED_BYTE, true, "VEC4", None)
+        }),
+    }
+}
+
+/// The occlusion's `COLOR_0` delta in the extrusion target, in fetch order `order`: what brings
+/// the stored root colour to the full colour at t = 1 (occlusion `a` per input vertex).
+fn occlusion_deltas(b: &mut Builder, g: &Geometry, order: &[u32], a: &[f32]) -> usize {
+    let mut bytes = Bytes::default();
+    for &o in order {
+        let rgb = match g.albedo {
+            Some(albedo) => albedo[o as usize] * a[o as usize],
+            None => Vec3::splat(1.0 - root_shade(g, o) as f32 / 255.0),
+        };
+        let [r, gr, bl] = rgb
+            .to_array()
+            .map(|v| (v.clamp(0.0, 1.0) * 127.0).round() as i8 as u8);
+        bytes.0.extend_from_slice(&[r, gr, bl, 0]);
+    }
+    let v = b.stream(
+        "color_delta",
+        Semantic::Color(0),
+        Some(0),
+        bytes.0,
+        Some(4),
+        order.len(),
+    );
+    b.out.accessor(v, component::BYTE, true, "VEC4", None)
 }
 
 /// Appends one surface's streams to the file, tagged with the surface.
@@ -2017,7 +2067,7 @@ fn single_draw(
     let stack = SingleDrawStack::of(ctx, (order, indices, kept), top_level);
     let (layer_vertices, total) = (&stack.layer_vertices, stack.total);
     let position = b.positions("position", &stack.positions, &g.grid);
-    let pick = |j: usize| order[..layer_vertices[j]].iter().map(|&o| o as usize);
+    let pick = |j: usize| layer_inputs(order, layer_vertices[j]);
     let all_normals: Vec<Vec3> = (0..layers.len())
         .flat_map(|j| pick(j).map(|v| g.normals[v]))
         .collect();
@@ -2039,19 +2089,7 @@ fn single_draw(
         .accessor(cv, component::UNSIGNED_SHORT, true, "VEC4", None);
     let ix = b.indices("indices", &stack.indices, total);
     let name = format!("{}shells", ctx.prefix);
-    let material = b.material(ctx.index, 0, || Material {
-        name: format!("{}shells", ctx.material_prefix),
-        base_color: [1.0; 4],
-        alpha: Alpha::Mask(single_draw_cutoff(ctx.mask)),
-        texture: ctx.texture,
-        roughness: ctx.roughness,
-        // one material for every layer: the sheen of their mean height
-        sheen: g.sheen.and_then(|s| {
-            let mean = layers.iter().map(|l| l.t).sum::<f32>() / layers.len().max(1) as f32;
-            crate::effects::sheen::Sheen::of(s, mean)
-        }),
-        unlit: false,
-    });
+    let material = single_draw_material(b, ctx);
     let mut attributes = vec![
         (Semantic::Position, position),
         (Semantic::Normal, normal),
@@ -2066,29 +2104,68 @@ fn single_draw(
         attributes.extend([(Semantic::Joints(0), j), (Semantic::Weights(0), w)]);
     }
     let mesh = b.single_primitive_mesh(name, attributes, ix, material);
-    // the wind's targets hold each layer's t^k; the animation weighs them sin ωτ and cos ωτ
-    if let (Some(wind), Some(winds)) = (g.wind, &g.winds) {
-        let targets: Vec<usize> = [("wind_sin", 0), ("wind_cos", 1)]
-            .into_iter()
-            .map(|(name, k)| {
-                let v: Vec<Vec3> = (0..layers.len())
-                    .flat_map(|j| {
-                        let w = wind.weights(0.0, layers[j].t)[1];
-                        pick(j).map(move |o| winds[k][o] * w)
-                    })
-                    .collect();
-                b.deltas(&v, name, k)
-            })
-            .collect();
-        let m = &mut b.out.meshes[mesh];
-        m.primitives[0].targets = targets
-            .iter()
-            .map(|&a| vec![(Semantic::Position, a)])
-            .collect();
-        m.weights = vec![0.0, 0.0];
-    }
+    single_draw_wind(b, ctx, (order, layer_vertices), mesh);
     b.out.meshes[mesh].layer_ranges = stack.ranges;
     vec![mesh]
+}
+
+/// The input vertices of a single-draw layer that stores `nv` vertices: the first `nv` of the
+/// fetch order `order`.
+fn layer_inputs(order: &[u32], nv: usize) -> impl Iterator<Item = usize> + '_ {
+    order[..nv].iter().map(|&o| o as usize)
+}
+
+/// The single-draw material of a level, shared by every chunk: the mask texture under the fixed
+/// alpha cutoff, and the sheen of the layers' mean height.
+fn single_draw_material(b: &mut Builder, ctx: &LevelCtx) -> usize {
+    let layers = &ctx.level.layers;
+    b.material(ctx.index, 0, || Material {
+        name: format!("{}shells", ctx.material_prefix),
+        base_color: [1.0; 4],
+        alpha: Alpha::Mask(single_draw_cutoff(ctx.mask)),
+        texture: ctx.texture,
+        roughness: ctx.roughness,
+        // one material for every layer: the sheen of their mean height
+        sheen: ctx.geometry.sheen.and_then(|s| {
+            let mean = layers.iter().map(|l| l.t).sum::<f32>() / layers.len().max(1) as f32;
+            crate::effects::sheen::Sheen::of(s, mean)
+        }),
+        unlit: false,
+    })
+}
+
+/// The `wind` effect's two morph targets on single-draw mesh `mesh` (nothing without wind):
+/// each layer's vertices (the first `layer_vertices[j]` of `order`) carry its `t^k`-weighted
+/// sway; the animation weighs the targets sin ωτ and cos ωτ.
+fn single_draw_wind(
+    b: &mut Builder,
+    ctx: &LevelCtx,
+    (order, layer_vertices): (&[u32], &[usize]),
+    mesh: usize,
+) {
+    let g = ctx.geometry;
+    let (Some(wind), Some(winds)) = (g.wind, &g.winds) else {
+        return;
+    };
+    let layers = &ctx.level.layers;
+    let targets: Vec<usize> = [("wind_sin", 0), ("wind_cos", 1)]
+        .into_iter()
+        .map(|(name, k)| {
+            let v: Vec<Vec3> = (0..layers.len())
+                .flat_map(|j| {
+                    let w = wind.weights(0.0, layers[j].t)[1];
+                    layer_inputs(order, layer_vertices[j]).map(move |o| winds[k][o] * w)
+                })
+                .collect();
+            b.deltas(&v, name, k)
+        })
+        .collect();
+    let m = &mut b.out.meshes[mesh];
+    m.primitives[0].targets = targets
+        .iter()
+        .map(|&a| vec![(Semantic::Position, a)])
+        .collect();
+    m.weights = vec![0.0, 0.0];
 }
 
 /// The single-draw layout's layers, one after another: each layer's vertices (the first its
