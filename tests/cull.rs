@@ -5,6 +5,8 @@
 
 #![cfg(feature = "view")]
 
+mod common;
+
 use std::path::Path;
 
 use shellbake::params::{BakeParams, Layout, Preset};
@@ -68,4 +70,117 @@ fn culling_changes_no_pixel() {
         }
     }
     assert!(removed > 0, "culling removed nothing anywhere");
+}
+
+/// Culling keeps the vertex cache's locality: every LOD 0 layer's index stream runs the vertex
+/// shader (meshoptimizer's analyzer, 32-entry cache) at most 10 % more often per triangle than
+/// the same chunk's unculled cache order, on the fixtures and on the terrain, whose density map
+/// culls in patches; and culling still drops triangles there.
+#[test]
+fn culling_keeps_the_vertex_cache_order() {
+    let dir = common::scratch("cull_acmr");
+    let (code, _, err) = common::shellbake(&["fixtures", dir.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let terrain = dir.join("terrain.toml");
+    let inputs = [
+        common::fixture("bunny.obj"),
+        common::fixture("teapot.obj"),
+        common::fixture("torus.obj"),
+        terrain,
+    ];
+    for input in &inputs {
+        let bake = |cull: bool| {
+            let out = dir.join(format!("baked-{cull}.glb"));
+            let mut args = vec!["bake", input.to_str().unwrap(), "--no-lod", "-q"];
+            args.extend(["-o", out.to_str().unwrap()]);
+            if !cull {
+                args.push("--no-cull");
+            }
+            let (code, _, err) = common::shellbake(&args);
+            assert_eq!(code, Some(0), "{err}");
+            layer_streams(&std::fs::read(out).unwrap())
+        };
+        let (culled, unculled) = (bake(true), bake(false));
+        let drawn = |s: &[LayerStream]| {
+            s.iter()
+                .map(|l| l.counts.iter().sum::<usize>())
+                .sum::<usize>()
+        };
+        assert!(drawn(&culled) <= drawn(&unculled), "{input:?}");
+        for (c, u) in culled.iter().zip(&unculled) {
+            let full = u.indices.len() / 3;
+            let bound = acmr(&u.indices, u.vertices, full) * 1.10;
+            for &n in c.counts.iter().filter(|&&n| n > 0) {
+                let a = acmr(&c.indices, c.vertices, n);
+                assert!(
+                    a <= bound,
+                    "{input:?}: a layer of {n} triangles at ACMR {a} (unculled {bound} / 1.1)"
+                );
+            }
+        }
+        if input.ends_with("terrain.toml") {
+            assert!(
+                drawn(&culled) * 100 < drawn(&unculled) * 97,
+                "{input:?}: culling dropped nothing"
+            );
+        }
+    }
+}
+
+/// One index stream of a file's LOD 0 layers: the stream, its vertex count, and the triangle
+/// count of each layer drawing a prefix of it.
+struct LayerStream {
+    indices: Vec<u32>,
+    vertices: usize,
+    counts: Vec<usize>,
+}
+
+/// The LOD 0 layers' index streams of a GLB, in the order of their buffer views.
+fn layer_streams(glb: &[u8]) -> Vec<LayerStream> {
+    let (json, bin) = shellbake::input::document::split_glb(glb).unwrap();
+    let doc: serde_json::Value = serde_json::from_slice(json).unwrap();
+    let bin = bin.unwrap();
+    let mut streams: std::collections::BTreeMap<u64, LayerStream> = Default::default();
+    for mesh in doc["meshes"].as_array().unwrap() {
+        let name = mesh["name"].as_str().unwrap_or("");
+        if !name.contains("layer_") || (name.contains("lod") && !name.contains("lod0")) {
+            continue;
+        }
+        for p in mesh["primitives"].as_array().unwrap() {
+            let a = &doc["accessors"][p["indices"].as_u64().unwrap() as usize];
+            let view = a["bufferView"].as_u64().unwrap();
+            let v = &doc["bufferViews"][view as usize];
+            let vertices = doc["accessors"][p["attributes"]["POSITION"].as_u64().unwrap() as usize]
+                ["count"]
+                .as_u64()
+                .unwrap() as usize;
+            let entry = streams.entry(view).or_insert_with(|| {
+                let start = (v["byteOffset"].as_u64().unwrap_or(0)
+                    + a["byteOffset"].as_u64().unwrap_or(0)) as usize;
+                let bytes = &bin[start..start + v["byteLength"].as_u64().unwrap() as usize];
+                let indices = match a["componentType"].as_u64().unwrap() {
+                    5123 => bytes
+                        .chunks_exact(2)
+                        .map(|b| u16::from_le_bytes([b[0], b[1]]) as u32)
+                        .collect(),
+                    _ => bytes
+                        .chunks_exact(4)
+                        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                        .collect(),
+                };
+                LayerStream {
+                    indices,
+                    vertices,
+                    counts: Vec::new(),
+                }
+            });
+            entry.counts.push(a["count"].as_u64().unwrap() as usize / 3);
+        }
+    }
+    streams.into_values().collect()
+}
+
+/// Vertex shader runs per triangle of the first `n` triangles of `indices`.
+fn acmr(indices: &[u32], vertices: usize, n: usize) -> f32 {
+    meshopt::analyze_vertex_cache(&indices[..3 * n], vertices, 32, 0, 0).acmr
 }
