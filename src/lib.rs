@@ -970,7 +970,8 @@ fn levels(run: &mut Run, shape: &Shape, heights: &Heights, look: &Look) -> Level
     let levels = run
         .gate(Stage::Lod, || {
             let spacing = 1.0 / heights.density as f64;
-            let texel = spacing * mask.cells_per_tile as f64 / mask.size as f64;
+            let nominal = spacing * mask.cells_per_tile as f64 / mask.size as f64;
+            let texel = look.tiling.texel(mask.size, nominal);
             let base = lod::Base {
                 mesh,
                 chunks: &chunks,

@@ -295,3 +295,22 @@ fn verify_fails_when_distant_levels_thin_the_fur() {
         );
     }
 }
+
+/// Strands far below a pixel at the coarse levels' distances (the bunny at 30× its default
+/// density, as a palette UV layout makes them): LOD 3 read FLIP 0.239 against the 0.16 limit
+/// while its merged layers took their colour from full-resolution coverage; the client samples
+/// the 1×1 mip there, where every layer shows everywhere or nowhere.
+#[test]
+fn verify_passes_with_strands_far_below_a_pixel() {
+    let mut params = BakeParams::preset(Preset::Fur);
+    params.strands.density = Some(487.0);
+    let scene = shellbake::input::load(Path::new("fixtures/bunny.obj")).unwrap();
+    let baked = shellbake::bake(&scene, &params);
+    let v = verify_glb(&baked.glb, &baked, &params);
+    println!("{}", row("bunny-dense", &v));
+    assert!(v.levels.len() >= 4, "{}", lines(&v).join("\n"));
+    if !v.passed() {
+        save_failure(&v, "bunny-dense");
+    }
+    assert!(v.passed(), "{}", lines(&v).join("\n"));
+}

@@ -72,7 +72,7 @@ pub fn fur_uv_box(mesh: &Mesh, mode: FurUv) -> Option<String> {
         FurUv::Mesh => None,
         FurUv::Box => Some("fur_uv = box".into()),
         FurUv::Auto => {
-            let (_, spread) = uv_to_world(mesh)?;
+            let (_, spread, _) = uv_to_world(mesh)?;
             (spread > AUTO_BOX_SPREAD).then(|| {
                 format!(
                     "the mesh's UV-to-world scale spreads {spread:.1}x (10th to 90th percentile \
@@ -94,12 +94,27 @@ pub struct Tiling {
     pub tiles_across: [u32; 2],
     /// 90th / 10th percentile of the UV-to-world scale (1 for an even layout).
     pub spread: f64,
+    /// The UV-to-world scale's median by area (world units per UV unit; `None` without UVs of
+    /// any area): what most of the surface's strands are sized by.
+    pub median_scale: Option<f64>,
 }
 
 impl Tiling {
     /// Relative deviation of the snapped rate from the requested one, per axis.
     pub fn deviation(&self) -> Vec2 {
         self.tiles_per_uv / self.requested - Vec2::ONE
+    }
+
+    /// The world size of one texel of a `mask_size` mask on most of the surface (the median
+    /// UV-to-world scale's), or `nominal` where the mesh gives none. On an even layout the two
+    /// agree; on a palette layout, whose few large UV islands set the tiling for many specks,
+    /// the median texel can be a hundredth of the nominal one.
+    pub fn texel(&self, mask_size: u32, nominal: f64) -> f64 {
+        let tiles = (self.tiles_per_uv.x as f64 * self.tiles_per_uv.y as f64).sqrt();
+        match self.median_scale {
+            Some(s) if s > 0.0 && tiles > 0.0 => s / (tiles * mask_size as f64),
+            _ => nominal,
+        }
     }
 
     /// The warning for a mesh whose strand size varies, if it does.
@@ -116,7 +131,7 @@ impl Tiling {
 
 /// World length of one UV unit along u and v (area-weighted means) and the spread of the
 /// isotropic scale. `None` when no triangle has both world and UV area.
-fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64)> {
+fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64, f64)> {
     let uv = mesh.uvs.as_ref()?;
     let (mut su, mut sv, mut total) = (0.0, 0.0, 0.0);
     let mut scales: Vec<(f64, f64)> = Vec::new();
@@ -152,7 +167,7 @@ fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64)> {
         scales.last().map_or(1.0, |s| s.0)
     };
     let spread = percentile(0.9) / percentile(0.1);
-    Some((DVec2::new(su / total, sv / total), spread))
+    Some((DVec2::new(su / total, sv / total), spread, percentile(0.5)))
 }
 
 /// The tiling for `density` strands per world unit (or `uv_density` per UV unit) with
@@ -164,10 +179,12 @@ pub fn mask_tiling(
     cells_per_tile: u32,
 ) -> Tiling {
     let cells = cells_per_tile as f64;
-    let (requested, spread) = match (uv_density, uv_to_world(mesh)) {
-        (Some(d), found) => (DVec2::splat(d as f64 / cells), found.map_or(1.0, |f| f.1)),
-        (None, Some((world_per_uv, spread))) => (world_per_uv * density as f64 / cells, spread),
-        (None, None) => (DVec2::ONE, 1.0),
+    let found = uv_to_world(mesh);
+    let (median_scale, spread) = (found.map(|f| f.2), found.map_or(1.0, |f| f.1));
+    let requested = match (uv_density, found) {
+        (Some(d), _) => DVec2::splat(d as f64 / cells),
+        (None, Some((world_per_uv, ..))) => world_per_uv * density as f64 / cells,
+        (None, None) => DVec2::ONE,
     };
     let requested = DVec2::new(
         if requested.x.is_finite() && requested.x > 0.0 {
@@ -201,6 +218,7 @@ pub fn mask_tiling(
         requested: requested.as_vec2(),
         tiles_across: across,
         spread: if spread.is_finite() { spread } else { 1.0 },
+        median_scale,
     }
 }
 
