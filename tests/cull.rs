@@ -158,16 +158,12 @@ fn layer_streams(glb: &[u8]) -> Vec<LayerStream> {
                 let start = (v["byteOffset"].as_u64().unwrap_or(0)
                     + a["byteOffset"].as_u64().unwrap_or(0)) as usize;
                 let bytes = &bin[start..start + v["byteLength"].as_u64().unwrap() as usize];
-                let indices = match a["componentType"].as_u64().unwrap() {
-                    5123 => bytes
-                        .chunks_exact(2)
-                        .map(|b| u16::from_le_bytes([b[0], b[1]]) as u32)
-                        .collect(),
-                    _ => bytes
-                        .chunks_exact(4)
-                        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                        .collect(),
+                let size = if a["componentType"].as_u64() == Some(5123) {
+                    2
+                } else {
+                    4
                 };
+                let indices = shellbake::output::compress::index_values(bytes, size);
                 LayerStream {
                     indices,
                     vertices,

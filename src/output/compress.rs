@@ -278,10 +278,9 @@ pub fn encode_vertices(bytes: &[u8], stride: usize, ext: MeshoptExtension) -> Ve
     }
 }
 
-/// An index stream (`index_size` = 2 or 4 bytes) through the index codec: `TRIANGLES` mode for
-/// whole triangles, `INDICES` otherwise.
-pub fn encode_indices(bytes: &[u8], index_size: usize) -> (Vec<u8>, Mode) {
-    let indices: Vec<u32> = match index_size {
+/// The values of a little-endian index stream of `index_size` (2 or 4) bytes per index.
+pub fn index_values(bytes: &[u8], index_size: usize) -> Vec<u32> {
+    match index_size {
         2 => bytes
             .chunks_exact(2)
             .map(|b| u16::from_le_bytes([b[0], b[1]]) as u32)
@@ -290,7 +289,13 @@ pub fn encode_indices(bytes: &[u8], index_size: usize) -> (Vec<u8>, Mode) {
             .chunks_exact(4)
             .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect(),
-    };
+    }
+}
+
+/// An index stream (`index_size` = 2 or 4 bytes) through the index codec: `TRIANGLES` mode for
+/// whole triangles, `INDICES` otherwise.
+pub fn encode_indices(bytes: &[u8], index_size: usize) -> (Vec<u8>, Mode) {
+    let indices = index_values(bytes, index_size);
     let vertices = indices.iter().max().map_or(0, |&m| m as usize + 1);
     if indices.len().is_multiple_of(3) {
         let out = meshopt::encode_index_buffer(&indices, vertices).expect("index codec");
