@@ -345,15 +345,15 @@ const CACHE: u32 = 32;
 /// culling stops paying (the bound is 10 %; this keeps a margin).
 const ACMR_SLACK: f32 = 1.08;
 
-/// Vertex shader runs after each triangle of `indices` through a [`CACHE`]-entry FIFO cache:
-/// `out[k] / (k + 1)` is the ACMR of the first `k + 1` triangles.
-fn fifo_misses(indices: &[u32], vertices: usize) -> Vec<u32> {
+/// Vertex shader runs after each triangle of `tris` (of `indices`) through a [`CACHE`]-entry
+/// FIFO cache: `out[k] / (k + 1)` is the ACMR of the first `k + 1` triangles.
+fn fifo_misses(indices: &[u32], tris: &[u32], vertices: usize) -> Vec<u32> {
     // a vertex is in the FIFO while fewer than CACHE misses came after its own
     let mut stamp = vec![u32::MAX; vertices];
     let mut misses = 0u32;
-    let mut out = Vec::with_capacity(indices.len() / 3);
-    for tri in indices.chunks_exact(3) {
-        for &v in tri {
+    let mut out = Vec::with_capacity(tris.len());
+    for &t in tris {
+        for &v in &indices[3 * t as usize..3 * t as usize + 3] {
             let s = stamp[v as usize];
             if s == u32::MAX || misses - s >= CACHE {
                 stamp[v as usize] = misses;
@@ -372,9 +372,9 @@ fn fifo_misses(indices: &[u32], vertices: usize) -> Vec<u32> {
 /// clusters keeps the cache order's locality; the cluster size is the smallest power of two
 /// (1 to 256, else no culling; found by bisection, taking the vertex shader's runs to fall as
 /// clusters grow) at which every layer's prefix runs the vertex shader at most [`ACMR_SLACK`]
-/// times as often per triangle as the unculled cache order. Sorting single
-/// triangles by `top` scattered them: on the Stanford dragon, ACMR 1.38 against 0.72 (62 %
-/// more vertex shader runs for 15 % fewer triangles), slower on the GPU than no culling.
+/// times as often per triangle as the unculled cache order. Sorting single triangles by `top`
+/// scattered them: on the Stanford dragon, ACMR 1.38 against 0.72 (62 % more vertex shader
+/// runs for 15 % fewer triangles), slower on the GPU than no culling.
 fn order_triangles(
     indices: &[u32],
     vertices: usize,
@@ -383,31 +383,37 @@ fn order_triangles(
     layers: usize,
 ) -> Ordering {
     let cache_order = cache_order(indices, vertices, tris);
-    let whole = cache_order.len().max(1);
-    let unculled = clustered(indices, &cache_order, top, layers, whole);
-    let misses = fifo_misses(&unculled.indices, vertices);
+    let misses = fifo_misses(indices, &cache_order, vertices);
     let bound = misses.last().map_or(0.0, |&m| m as f32 / tris.len() as f32) * ACMR_SLACK;
-    let pays = |ordering: &Ordering| {
-        let misses = fifo_misses(&ordering.indices, vertices);
-        (ordering.kept.iter().filter(|&&n| n > 0))
-            .all(|&n| misses[n - 1] as f32 / n as f32 <= bound)
+    let pays = |(order, kept): &(Vec<u32>, Vec<usize>)| {
+        let misses = fifo_misses(indices, order, vertices);
+        (kept.iter().filter(|&&n| n > 0)).all(|&n| misses[n - 1] as f32 / n as f32 <= bound)
     };
     // the smallest size that pays, by bisection (larger clusters keep more locality); the
     // whole list, one cluster, always does
+    let whole = cache_order.len().max(1);
     let sizes: Vec<usize> = (0..=8).map(|k| 1usize << k).chain([whole]).collect();
     let (mut lo, mut hi) = (0, sizes.len() - 1);
-    let mut best = unculled;
+    let mut best = clustered(&cache_order, top, layers, whole);
     while lo < hi {
         let mid = (lo + hi) / 2;
-        let ordering = clustered(indices, &cache_order, top, layers, sizes[mid]);
-        if pays(&ordering) {
-            best = ordering;
+        let candidate = clustered(&cache_order, top, layers, sizes[mid]);
+        if pays(&candidate) {
+            best = candidate;
             hi = mid;
         } else {
             lo = mid + 1;
         }
     }
-    best
+    let (order, kept) = best;
+    let indices = (order.iter())
+        .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
+        .collect();
+    Ordering {
+        indices,
+        tris: order,
+        kept,
+    }
 }
 
 /// The triangles `tris` in meshopt's vertex cache order.
@@ -416,50 +422,58 @@ fn cache_order(indices: &[u32], vertices: usize, tris: &[u32]) -> Vec<u32> {
         .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
         .collect();
     let optimized = meshopt::optimize_vertex_cache(&ix, vertices);
-    // which triangle each optimized one is (the cache order keeps corners in place)
-    let mut at: std::collections::HashMap<[u32; 3], Vec<u32>> = Default::default();
-    for (k, &t) in tris.iter().enumerate() {
-        at.entry([ix[3 * k], ix[3 * k + 1], ix[3 * k + 2]])
-            .or_default()
-            .push(t);
+    // which triangle each optimized one is (the cache order keeps corners in place): the
+    // triangles listed by their first corner, each taken once
+    let mut first = vec![0u32; vertices + 1];
+    for k in 0..tris.len() {
+        first[ix[3 * k] as usize + 1] += 1;
+    }
+    for v in 0..vertices {
+        first[v + 1] += first[v];
+    }
+    let mut by_corner = vec![u32::MAX; tris.len()];
+    let mut fill = first.clone();
+    for k in 0..tris.len() {
+        let v = ix[3 * k] as usize;
+        by_corner[fill[v] as usize] = k as u32;
+        fill[v] += 1;
     }
     (optimized.chunks_exact(3))
         .map(|tri| {
-            (at.get_mut(&[tri[0], tri[1], tri[2]]).and_then(|v| v.pop()))
-                .expect("the cache order keeps each triangle's corners")
+            let slots = &mut by_corner
+                [first[tri[0] as usize] as usize..first[tri[0] as usize + 1] as usize];
+            let slot = (slots.iter_mut())
+                .find(|k| {
+                    **k != u32::MAX && ix[3 * **k as usize + 1..3 * **k as usize + 3] == tri[1..]
+                })
+                .expect("the cache order keeps each triangle's corners");
+            let k = std::mem::replace(slot, u32::MAX);
+            tris[k as usize]
         })
         .collect()
 }
 
-/// `cache_order` cut into clusters of `size` triangles, sorted by the layers they show in.
+/// `cache_order` cut into clusters of `size` triangles, sorted by the layers they show in:
+/// the triangle order, and the triangles each layer draws (a prefix).
 fn clustered(
-    indices: &[u32],
     cache_order: &[u32],
     top: &[u32],
     layers: usize,
     size: usize,
-) -> Ordering {
+) -> (Vec<u32>, Vec<usize>) {
     let mut clusters: Vec<(u32, &[u32])> = (cache_order.chunks(size))
         .map(|c| (c.iter().map(|&t| top[t as usize]).max().unwrap_or(0), c))
         .collect();
     clusters.sort_by_key(|&(top, _)| std::cmp::Reverse(top));
-    let mut out = Vec::with_capacity(cache_order.len() * 3);
     let mut order = Vec::with_capacity(cache_order.len());
     let mut kept = vec![0usize; layers];
     for (top, cluster) in clusters {
-        for &t in cluster {
-            out.extend_from_slice(&indices[3 * t as usize..3 * t as usize + 3]);
-        }
         order.extend_from_slice(cluster);
         for k in &mut kept[..(top as usize).min(layers)] {
             *k += cluster.len();
         }
     }
-    Ordering {
-        indices: out,
-        tris: order,
-        kept,
-    }
+    (order, kept)
 }
 
 /// Fetch order = first use in the index buffer (what meshopt's optimizeVertexFetchRemap
