@@ -889,7 +889,7 @@ fn effects_a_skinned_part_cannot_take_are_named_in_warnings_and_in_the_plan() {
         "{stdout}"
     );
     assert!(
-        stdout.contains("warning: lod was asked for and did not run: skinned surface"),
+        stdout.contains("warning: lod (on by default) did not run: skinned surface"),
         "{stdout}"
     );
     assert!(
