@@ -634,9 +634,10 @@ fn plan(args: &BakeArgs) -> anyhow::Result<()> {
         for stage in [Stage::Fins, Stage::Outline, Stage::Lod] {
             if let (true, Some(why)) = (plan.runs(stage, i), shellbake::blocked(stage, skinned)) {
                 text += &format!(
-                    "warning: surface {}: {} was asked for and will not run: {why}\n",
+                    "warning: surface {}: {} {} will not run: {why}\n",
                     s.name,
-                    stage.name()
+                    stage.name(),
+                    stage.asked()
                 );
             }
         }

@@ -15,7 +15,7 @@ use crate::facts::{Facts, Reported};
 use crate::mesh::Mesh;
 use crate::output::pack::PackedSurface;
 use crate::params::BakeParams;
-use crate::scene::{Effect, Plan, Stage as PlanStage};
+use crate::scene::{Plan, Stage as PlanStage};
 use crate::stages::lod::Level;
 use crate::stages::shells::ShellStack;
 use crate::stages::tiling::Tiling;
@@ -231,15 +231,9 @@ impl Report {
     ) -> Option<T> {
         let planned = plan.skipped(stage, surface);
         if let (None, Some(why)) = (&planned, blocked) {
-            // an effect on by default (cull, lod) was not asked for by name
-            let default = stage.effect().is_some_and(|e| Effect::DEFAULT.contains(&e));
-            let asked = if default {
-                "(on by default)"
-            } else {
-                "was asked for and"
-            };
+            let (name, asked) = (stage.name(), stage.asked());
             self.warnings
-                .push(format!("{} {asked} did not run: {why}", stage.name()));
+                .push(format!("{name} {asked} did not run: {why}"));
         }
         let why = planned.or(blocked.map(str::to_string));
         match why {

@@ -252,6 +252,15 @@ impl Stage {
     pub fn effect(self) -> Option<Effect> {
         Effect::ALL.into_iter().find(|e| e.stage() == self)
     }
+
+    /// How a warning names this stage when it is planned and cannot run: an effect on by
+    /// default (cull, lod) was not asked for by name.
+    pub fn asked(self) -> &'static str {
+        match self.effect() {
+            Some(e) if Effect::DEFAULT.contains(&e) => "(on by default)",
+            _ => "was asked for and",
+        }
+    }
 }
 
 /// One surface of a scene.
