@@ -949,9 +949,14 @@ struct Levels {
 }
 
 impl Levels {
+    /// The index, in `mips` and `masks`, of the mip level `l` samples.
+    fn mip_of(&self, l: &lod::Level) -> usize {
+        self.mips.iter().position(|&m| m == l.mask_level).unwrap()
+    }
+
     /// The mask level `l` samples.
     fn mask_of(&self, l: &lod::Level) -> &Mask {
-        &self.masks[self.mips.iter().position(|&m| m == l.mask_level).unwrap()]
+        &self.masks[self.mip_of(l)]
     }
 }
 
@@ -1035,12 +1040,7 @@ fn cull_levels(
             if level.bare.is_some() || !cull_runs {
                 return cull::Culled::none(indices.len() / 3, level.layers.len().max(1));
             }
-            let m = chain.mask_of(level);
-            let mip = chain
-                .mips
-                .iter()
-                .position(|&k| k == level.mask_level)
-                .unwrap();
+            let (mip, m) = (chain.mip_of(level), chain.mask_of(level));
             let triangle_bounds =
                 || cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, indices);
             let own;

@@ -312,20 +312,16 @@ pub fn build_lods(
     } else {
         shells.t.get(1).copied().unwrap_or(1.0) as f64
     };
+    // the mip level (fractional) a client samples at distance `d`: log2 of texels per pixel
+    let level_at = |d: f64| (d / f / texel).max(1.0).log2();
+    // a level's mask: the finest that level keeps (its texture stops at a quarter of the size)
     let max_mip = mask.size.trailing_zeros().saturating_sub(2);
-    let mip_at = |d: f64| -> u32 {
-        let texels_per_pixel = d / f / texel;
-        if texels_per_pixel <= 1.0 {
-            0
-        } else {
-            (texels_per_pixel.log2().floor() as u32).min(max_mip)
-        }
-    };
+    let mip_at = |d: f64| (level_at(d).floor() as u32).min(max_mip);
     let coverage = SampledCoverage::new(mask);
     // what a trilinear sample at distance `d` shows of a step: the two mips around its level,
     // blended as the filter does
     let seen_at = |d: f64, step: u32| -> f64 {
-        let level = (d / f / texel).max(1.0).log2();
+        let level = level_at(d);
         let (fine, blend) = (level.floor(), level.fract());
         let top = mask.size.trailing_zeros();
         let at = |l: f64| coverage.at((l as u32).min(top), step);
@@ -406,15 +402,11 @@ impl<'a> SampledCoverage<'a> {
 
     /// The fraction of texels of mip `mip` that reach step `step`'s cutoff.
     fn at(&self, mip: u32, step: u32) -> f64 {
-        let Some(alpha) = mip.checked_sub(1).map(|m| &self.mips[m as usize]) else {
-            return self.mask.coverage(step);
+        let alpha = match mip.checked_sub(1) {
+            Some(m) => &self.mips[m as usize],
+            None => &self.mask.alpha,
         };
-        let cutoff = self.mask.cutoff(step);
-        let n = alpha
-            .iter()
-            .filter(|&&a| a as f32 / 255.0 >= cutoff)
-            .count();
-        n as f64 / alpha.len() as f64
+        strands::alpha_coverage(alpha, self.mask.cutoff(step))
     }
 }
 

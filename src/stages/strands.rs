@@ -287,14 +287,17 @@ impl Mask {
 
     /// Fraction of texels (at their centres) visible at step `k`.
     pub fn coverage(&self, k: u32) -> f64 {
-        let cutoff = self.cutoff(k);
-        let n = self
-            .alpha
-            .iter()
-            .filter(|&&a| a as f32 / 255.0 >= cutoff)
-            .count();
-        n as f64 / self.alpha.len() as f64
+        alpha_coverage(&self.alpha, self.cutoff(k))
     }
+}
+
+/// Fraction of the texels of `alpha` (a mask or one of its mips) that reach `cutoff`.
+pub fn alpha_coverage(alpha: &[u8], cutoff: f32) -> f64 {
+    let n = alpha
+        .iter()
+        .filter(|&&a| a as f32 / 255.0 >= cutoff)
+        .count();
+    n as f64 / alpha.len() as f64
 }
 
 /// Noise law: the `alphaCutoff` `c/(1 − t)` under which `n >= cutoff ⇔ n·(1 − t) >= c`.
