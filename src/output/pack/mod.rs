@@ -394,18 +394,18 @@ fn order_triangles(
     let whole = cache_order.len().max(1);
     let sizes: Vec<usize> = (0..=8).map(|k| 1usize << k).chain([whole]).collect();
     let (mut lo, mut hi) = (0, sizes.len() - 1);
-    let mut best = clustered(&cache_order, top, layers, whole);
+    let mut best = None;
     while lo < hi {
         let mid = (lo + hi) / 2;
         let candidate = clustered(&cache_order, top, layers, sizes[mid]);
         if pays(&candidate) {
-            best = candidate;
+            best = Some(candidate);
             hi = mid;
         } else {
             lo = mid + 1;
         }
     }
-    let (order, kept) = best;
+    let (order, kept) = best.unwrap_or_else(|| clustered(&cache_order, top, layers, whole));
     let indices = (order.iter())
         .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
         .collect();
