@@ -1194,3 +1194,90 @@ fn a_rigid_part_s_fur_read_again_is_no_part() {
         .unwrap();
     assert!(ground.furred);
 }
+
+/// Names of the nodes reachable from scene `s` of `doc`.
+fn scene_node_names(doc: &Value, s: usize) -> std::collections::BTreeSet<String> {
+    let mut names = std::collections::BTreeSet::new();
+    let mut stack: Vec<u64> = doc["scenes"][s]["nodes"]
+        .as_array()
+        .map(|a| a.iter().filter_map(Value::as_u64).collect())
+        .unwrap_or_default();
+    while let Some(n) = stack.pop() {
+        let node = &doc["nodes"][n as usize];
+        names.insert(node["name"].as_str().unwrap_or("").to_string());
+        stack.extend(node["children"].as_array().into_iter().flatten().filter_map(Value::as_u64));
+    }
+    names
+}
+
+#[test]
+fn lod_levels_stay_out_of_the_blender_scene_while_babylon_reads_msft_lod() {
+    let dir = scratch("asset-lod-layout");
+    // a plain mesh (the fur file's own layout) and an asset whose rigid ground carries a chain
+    let bunny = bake(&common::fixture("bunny.obj"), &dir, "bunny.glb", &[]).0;
+    let input = critters(
+        &dir,
+        "critters.glb",
+        Critters {
+            count: 1,
+            ground: true,
+            camera_and_light: false,
+        },
+    );
+    let asset = bake(&input, &dir, "critters-fur.glb", &["--only", "node=ground*"]).0;
+    let babylon = node("babylon_bounds.mjs", &[bunny.clone(), asset.clone()]);
+    for (file, babylon) in [bunny, asset].iter().zip(&babylon) {
+        let doc = json_of(file);
+        assert_eq!(doc["scene"], 0, "{}", file.display());
+        let shown = scene_node_names(&doc, 0);
+        let levels = scene_node_names(&doc, 1);
+        assert!(levels.iter().any(|n| n.starts_with("lod1")), "{levels:?}");
+        assert!(shown.is_disjoint(&levels), "{shown:?}");
+        let chains: Vec<usize> = doc["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|n| n.pointer("/extensions/MSFT_lod/ids"))
+            .map(|ids| ids.as_array().unwrap().len() + 1)
+            .collect();
+        assert!(!chains.is_empty());
+
+        // Blender: with "Import Scene as Collection" on (its default) the levels are in an
+        // excluded collection; with it off, in a Blender scene of their own. Either way the view
+        // draws exactly the default scene, and nothing goes to "Orphan Nodes".
+        let out = std::process::Command::new("python3")
+            .arg(common::repo().join("tests/blender_import.py"))
+            .arg(file)
+            .output()
+            .expect("python3 runs (tests/setup.sh installs bpy)");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+        let imports: Vec<Value> = stdout
+            .lines()
+            .filter(|l| l.starts_with('{'))
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(imports.len(), 2, "{stdout}");
+        let set = |v: &Value| -> std::collections::BTreeSet<String> {
+            v.as_array().unwrap().iter().map(|s| s.as_str().unwrap().to_string()).collect()
+        };
+        // Blender renames clashing names and turns joints into bones: compare the fur's levels
+        let lod0: std::collections::BTreeSet<String> =
+            shown.iter().filter(|n| n.starts_with("lod0")).cloned().collect();
+        assert!(!lod0.is_empty(), "{shown:?}");
+        for import in &imports {
+            let visible = set(&import["visible"]);
+            assert!(visible.is_disjoint(&levels), "{import}");
+            assert!(lod0.is_subset(&visible), "{import}");
+            assert_eq!(import["orphan_nodes"], false, "{import}");
+        }
+        let off = &imports[1];
+        assert_eq!(off["as_collection"], false);
+        assert!(set(&off["in_scene"]).is_disjoint(&levels), "{off}");
+
+        // Babylon.js: its MSFT_lod extension loads every level, coarsest first, and ends on LOD 0
+        assert_eq!(babylon["lod"]["enabled"], true, "{babylon}");
+        let most = *chains.iter().max().unwrap();
+        assert!(babylon["lod"]["levels"].as_u64().unwrap() as usize >= most, "{babylon}");
+    }
+}

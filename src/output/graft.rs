@@ -27,6 +27,8 @@
 //!   true bounds from the positions. Each fur root's (and each skinned layer node's)
 //!   `extras.shellbake_fur` names the node, mesh and primitive it grows on; a file read again
 //!   skips those parts (no fur on fur).
+//!   The fur's coarser levels are the roots of a scene of their own, as in a plain bake
+//!   (`write.rs`, "Where the coarser levels live"), and the file's `scene` names the default.
 //! - **Extensions**: `extensionsUsed` and `extensionsRequired` are the union of both files'
 //!   (less meshopt's, as above), in first-seen order.
 
@@ -227,6 +229,7 @@ pub fn graft(
     for (s, &p) in parts.iter().enumerate() {
         warnings.extend(placing.attach(&mut out, s, p));
     }
+    add_lod_scene(&mut out, packed, base, placing.scene);
     merge_extensions(&mut out, fur_json);
     align(&mut bin);
     buffers[0] = json!({ "byteLength": bin.len() });
@@ -510,6 +513,28 @@ fn shift_texture_indices(v: &mut Value, by: usize) {
         Value::Array(a) => a.iter_mut().for_each(|c| shift_texture_indices(c, by)),
         _ => {}
     }
+}
+
+/// Puts the fur's coarser levels (`MSFT_lod` alternatives) in the scene that holds them, as the
+/// fur-only file does (`write.rs`, "Where the coarser levels live"): a scene of that name the
+/// input already has (a re-bake), else a new last scene; and makes `shown`, the scene the fur
+/// grows in, the default one, since Blender draws every scene's nodes when the file names none.
+fn add_lod_scene(out: &mut Value, packed: &Packed, base: Base, shown: usize) {
+    let levels = packed.lod_levels();
+    if levels.is_empty() || out.get("scenes").and_then(Value::as_array).is_none() {
+        return;
+    }
+    out["scene"] = json!(shown);
+    let scenes = out["scenes"].as_array_mut().expect("scenes");
+    let named = |s: &Value| s["name"].as_str() == Some(crate::output::write::LOD_SCENE);
+    let at = match scenes.iter().position(named) {
+        Some(at) => at,
+        None => {
+            scenes.push(json!({ "name": crate::output::write::LOD_SCENE }));
+            scenes.len() - 1
+        }
+    };
+    add_to_scene(out, at, levels.into_iter().map(|n| base.nodes + n));
 }
 
 /// Adds `nodes` to scene `scene`'s roots (when the file has scenes; otherwise a parentless node

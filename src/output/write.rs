@@ -13,6 +13,18 @@
 //! renamed only when both are complete, and a temporary a killed bake left behind is removed by
 //! the next write into that folder. Outputs that would overwrite the input, each other, or
 //! something that is not a regular file are refused before any work ([`check_outputs`]).
+//!
+//! **Where the coarser levels live.** A chunk's node names its coarser levels in `MSFT_lod`;
+//! those level nodes are the roots of a second scene, `shellbake LOD levels`, and `scene` is
+//! always written as 0. Clients draw the default scene only, so every client draws LOD 0, and
+//! Babylon.js's `MSFT_lod` loader finds the levels by node index in any scene. The second scene is
+//! for Blender, whose importer turns every node of the file into an object: nodes in no scene go
+//! to an "Orphan Nodes" collection that is excluded from the view layer only while "Import Scene
+//! as Collection" is on, and *drawn* with it off; the nodes of a second scene go to a collection
+//! of that name excluded from the view layer with the option on, and to a Blender scene of their
+//! own with it off. So the levels are never drawn in Blender, and with the option off the user's
+//! scene holds nothing but what the file's default scene draws. The first scene is named
+//! `Scene`, Blender's own name, since with two scenes Blender gives it a collection of its name.
 
 use std::io::Write as _;
 use std::path::Path;
@@ -295,7 +307,7 @@ pub fn gltf_json_with(
         "extensionsUsed": used,
         "extensionsRequired": required,
         "scene": 0,
-        "scenes": [{ "nodes": packed.roots }],
+        "scenes": scenes_json(packed),
         "nodes": nodes,
         "meshes": meshes,
         "materials": materials,
@@ -311,6 +323,22 @@ pub fn gltf_json_with(
     add_optional_parts(&mut doc, packed);
     (doc, len)
 }
+
+/// The file's scenes: the one clients draw and, when there are coarser levels, the one that holds
+/// them (the module's "Where the coarser levels live").
+fn scenes_json(packed: &Packed) -> Value {
+    let levels = packed.lod_levels();
+    if levels.is_empty() {
+        return json!([{ "nodes": packed.roots }]);
+    }
+    json!([
+        { "name": "Scene", "nodes": packed.roots },
+        { "name": LOD_SCENE, "nodes": levels },
+    ])
+}
+
+/// The name of the scene that holds the coarser levels of detail.
+pub const LOD_SCENE: &str = "shellbake LOD levels";
 
 /// One buffer view: the stream's bytes at `offset` in the binary chunk. A compression extension
 /// (`KHR_meshopt_compression`) describes a view from the stream's kind, stride and count, all of

@@ -39,7 +39,8 @@
 //! centroid); each chunk has its own LOD chain, so distance means something on a terrain.
 //!
 //! **In the file.** A chunk is a node holding LOD 0's layer nodes, with `MSFT_lod` naming the
-//! coarser levels' nodes, which stay outside the scene (plain viewers draw LOD 0) and
+//! coarser levels' nodes, which are the roots of a second scene (clients draw the default
+//! one, so plain viewers draw LOD 0; `write.rs` says why not no scene) and
 //! `MSFT_screencoverage` in its `extras`: per level, the fraction of the viewport height the
 //! chunk's bounding sphere covers at the distance where the next level takes over (0 for the
 //! last). `extras.shellbake_lod` repeats the switch distances (world units), layer counts and

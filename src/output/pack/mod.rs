@@ -982,7 +982,7 @@ fn pack_chunk(
             for (&node, &m) in nodes.iter().zip(&meshes) {
                 let animation = &mut chunks.animation;
                 let channel = wind_channel(b, wind, (node, m), pl.level, animation);
-                // coarser levels (MSFT_lod alternatives, outside the scene) animate apart,
+                // coarser levels (MSFT_lod alternatives, in the second scene) animate apart,
                 // so that a client without MSFT_lod finds every node the clip names
                 animation.channels[(k > 0) as usize].extend(channel);
             }

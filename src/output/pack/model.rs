@@ -230,7 +230,7 @@ pub struct Node {
 /// figures in `extras.shellbake_lod`, one entry per level (LOD 0 first).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct NodeLod {
-    /// Nodes of levels 1.. (outside the scene).
+    /// Nodes of levels 1.. (roots of the second scene, which no client draws by default).
     pub ids: Vec<usize>,
     pub coverage: Vec<f64>,
     /// Distance from which each level is used, world units.
@@ -401,6 +401,17 @@ impl Packed {
             .filter_map(|p| p.indices)
             .map(|a| self.accessors[a].count / 3)
             .sum()
+    }
+
+    /// The coarser levels' nodes that chunk nodes name in `MSFT_lod`, in node order: the roots of
+    /// the file's second scene, the one no client shows by default (`write.rs`, "Where the
+    /// coarser levels live").
+    pub fn lod_levels(&self) -> Vec<usize> {
+        self.nodes
+            .iter()
+            .filter_map(|n| n.lod.as_ref())
+            .flat_map(|l| l.ids.iter().copied())
+            .collect()
     }
 
     /// Nodes of the scene (reachable from the roots; `MSFT_lod` alternatives are not).
