@@ -32,8 +32,9 @@
 //! direction (the Stanford dragon kept 158 inverted outer-shell triangles that way). A float
 //! delta costs 4 more bytes per vertex than an `i16` one; scaling an `i16` delta up and the layer
 //! weights down would keep it at 8 bytes but breaks every client's bounding box (three.js adds
-//! the whole target to the bounds). The floats lie on the exponent filter's grid (16-bit
-//! mantissas, one exponent per component: at most 1/64 of a grid step off, see
+//! the whole target to the bounds). The floats lie on the exponent filter's grid (one exponent
+//! per component, as many mantissa bits as a step of at most a quarter of a position step needs,
+//! up to 16: at most 1/8 of a grid step off, see
 //! [`crate::output::compress::DeltaGrid`]), so `--compress meshopt` stores them exactly with its
 //! `EXPONENTIAL` filter. Then `guard.rs` checks the stored geometry (deltas as rounded onto that
 //! grid), so no layer triangle of the written file inverts.
@@ -617,12 +618,13 @@ fn stored_unit(grid: &PositionGrid, quantize: Quantize) -> (f32, u32) {
     }
 }
 
-/// The grid a target is stored on: the exponent filter's, or none in a plain float file.
+/// The grid a target is stored on: the exponent filter's, to a quarter of a position step (`v`
+/// in the quantized file's stored unit, [`SNORM16`] steps), or none in a plain float file.
 fn delta_grid(exact: bool, v: &[Vec3]) -> crate::output::compress::DeltaGrid {
     if exact {
         crate::output::compress::DeltaGrid::EXACT
     } else {
-        crate::output::compress::DeltaGrid::fit(v)
+        crate::output::compress::DeltaGrid::fit(v, 0.25 / SNORM16)
     }
 }
 
