@@ -13,7 +13,7 @@
 //!
 //! Missing UVs: a **per-face box projection** is generated — each triangle is projected on the
 //! axis plane most facing its normal (then islands are merged into the regions around them,
-//! [`box_axes`]), with coordinates in units of the bounding-box diagonal, and vertices are split
+//! `box_axes`), with coordinates in units of the bounding-box diagonal, and vertices are split
 //! where neighbouring faces pick different planes. It is seamless inside each region, never
 //! stretches more than 2 : 1 (√3 : 1 where no island was merged), and is isotropic in world units, which
 //! is what strands-per-world-unit density needs. Seams between regions show as a break in the

@@ -19,8 +19,8 @@
 //!   and a coarser layer draws the shortest prefix that holds every triangle its own culling
 //!   keeps (the few extra triangles show no strand: culling is conservative either way). A level
 //!   with a simplified base (`lod.simplify`) has its own triangles and its own index stream. A
-//!   chunk of more than [`SCATTER_VERTICES`] vertices also writes its triangles in the unculled
-//!   cache order, which the base and the layers that cull little draw whole ([`DrawStreams`]:
+//!   chunk of more than `SCATTER_VERTICES` (4096) vertices also writes its triangles in the unculled
+//!   cache order, which the base and the layers that cull little draw whole (`DrawStreams`:
 //!   the sorted order scatters over a large surface and costs vertex work in every layer).
 //! - **single-draw**: every layer's vertices explicitly (positions quantized per layer), all in
 //!   one primitive with one material; `COLOR_0` (u16 normalized RGBA) carries the layer's shade
