@@ -574,27 +574,21 @@ fn blender_imports_and_renders_the_furred_creature_with_enough_transparent_bounc
         &["--only", "material=fur_*"],
     );
     let render = |file: &Path, png: &str, bounces: u32| -> (image::RgbImage, Value) {
-        let out = std::process::Command::new("python3")
-            .arg(common::repo().join("tests/blender_render.py"))
-            .args([
+        let png = dir.join(png);
+        let stdout = blender(
+            "blender_render.py",
+            &[
                 file.to_str().unwrap(),
-                dir.join(png).to_str().unwrap(),
+                png.to_str().unwrap(),
                 &bounces.to_string(),
-            ])
-            .output()
-            .expect("python3 runs (tests/setup.sh installs bpy)");
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "Blender failed: {stdout}\n{}",
-            String::from_utf8_lossy(&out.stderr)
+            ],
         );
         let line = stdout
             .lines()
             .rev()
             .find(|l| l.starts_with('{'))
             .expect("a result line");
-        (rgb(&dir.join(png)), serde_json::from_str(line).unwrap())
+        (rgb(&png), serde_json::from_str(line).unwrap())
     };
     let (bare, _) = render(&input, "bare.png", 64);
     let (fur, counts) = render(&glb, "fur-64.png", 64);
@@ -1195,6 +1189,22 @@ fn a_rigid_part_s_fur_read_again_is_no_part() {
     assert!(ground.furred);
 }
 
+/// Runs `tests/<script>` with `args` in Python with Blender's module; returns its standard output.
+fn blender(script: &str, args: &[&str]) -> String {
+    let out = std::process::Command::new("python3")
+        .arg(common::repo().join("tests").join(script))
+        .args(args)
+        .output()
+        .expect("python3 runs (tests/setup.sh installs bpy)");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "Blender failed: {stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
 /// Names of the nodes reachable from scene `s` of `doc`.
 fn scene_node_names(doc: &Value, s: usize) -> std::collections::BTreeSet<String> {
     let mut names = std::collections::BTreeSet::new();
@@ -1205,7 +1215,13 @@ fn scene_node_names(doc: &Value, s: usize) -> std::collections::BTreeSet<String>
     while let Some(n) = stack.pop() {
         let node = &doc["nodes"][n as usize];
         names.insert(node["name"].as_str().unwrap_or("").to_string());
-        stack.extend(node["children"].as_array().into_iter().flatten().filter_map(Value::as_u64));
+        stack.extend(
+            node["children"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(Value::as_u64),
+        );
     }
     names
 }
@@ -1224,7 +1240,13 @@ fn lod_levels_stay_out_of_the_blender_scene_while_babylon_reads_msft_lod() {
             camera_and_light: false,
         },
     );
-    let asset = bake(&input, &dir, "critters-fur.glb", &["--only", "node=ground*"]).0;
+    let asset = bake(
+        &input,
+        &dir,
+        "critters-fur.glb",
+        &["--only", "node=ground*"],
+    )
+    .0;
     let babylon = node("babylon_bounds.mjs", &[bunny.clone(), asset.clone()]);
     for (file, babylon) in [bunny, asset].iter().zip(&babylon) {
         let doc = json_of(file);
@@ -1245,13 +1267,7 @@ fn lod_levels_stay_out_of_the_blender_scene_while_babylon_reads_msft_lod() {
         // Blender: with "Import Scene as Collection" on (its default) the levels are in an
         // excluded collection; with it off, in a Blender scene of their own. Either way the view
         // draws exactly the default scene, and nothing goes to "Orphan Nodes".
-        let out = std::process::Command::new("python3")
-            .arg(common::repo().join("tests/blender_import.py"))
-            .arg(file)
-            .output()
-            .expect("python3 runs (tests/setup.sh installs bpy)");
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+        let stdout = blender("blender_import.py", &[file.to_str().unwrap()]);
         let imports: Vec<Value> = stdout
             .lines()
             .filter(|l| l.starts_with('{'))
@@ -1259,11 +1275,18 @@ fn lod_levels_stay_out_of_the_blender_scene_while_babylon_reads_msft_lod() {
             .collect();
         assert_eq!(imports.len(), 2, "{stdout}");
         let set = |v: &Value| -> std::collections::BTreeSet<String> {
-            v.as_array().unwrap().iter().map(|s| s.as_str().unwrap().to_string()).collect()
+            v.as_array()
+                .unwrap()
+                .iter()
+                .map(|s| s.as_str().unwrap().to_string())
+                .collect()
         };
         // Blender renames clashing names and turns joints into bones: compare the fur's levels
-        let lod0: std::collections::BTreeSet<String> =
-            shown.iter().filter(|n| n.starts_with("lod0")).cloned().collect();
+        let lod0: std::collections::BTreeSet<String> = shown
+            .iter()
+            .filter(|n| n.starts_with("lod0"))
+            .cloned()
+            .collect();
         assert!(!lod0.is_empty(), "{shown:?}");
         for import in &imports {
             let visible = set(&import["visible"]);
@@ -1278,6 +1301,9 @@ fn lod_levels_stay_out_of_the_blender_scene_while_babylon_reads_msft_lod() {
         // Babylon.js: its MSFT_lod extension loads every level, coarsest first, and ends on LOD 0
         assert_eq!(babylon["lod"]["enabled"], true, "{babylon}");
         let most = *chains.iter().max().unwrap();
-        assert!(babylon["lod"]["levels"].as_u64().unwrap() as usize >= most, "{babylon}");
+        assert!(
+            babylon["lod"]["levels"].as_u64().unwrap() as usize >= most,
+            "{babylon}"
+        );
     }
 }

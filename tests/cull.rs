@@ -89,18 +89,10 @@ fn culling_keeps_the_vertex_cache_order() {
         terrain,
     ];
     for input in &inputs {
-        let bake = |cull: bool| {
-            let out = dir.join(format!("baked-{cull}.glb"));
-            let mut args = vec!["bake", input.to_str().unwrap(), "--no-lod", "-q"];
-            args.extend(["-o", out.to_str().unwrap()]);
-            if !cull {
-                args.push("--no-cull");
-            }
-            let (code, _, err) = common::shellbake(&args);
-            assert_eq!(code, Some(0), "{err}");
-            layer_streams(&std::fs::read(out).unwrap())
-        };
-        let (culled, unculled) = (bake(true), bake(false));
+        let (culled, unculled) = (
+            lod0_streams(input, &dir, true),
+            lod0_streams(input, &dir, false),
+        );
         let drawn = |s: &[LayerStream]| {
             s.iter()
                 .map(|l| l.counts.iter().sum::<usize>())
@@ -126,7 +118,12 @@ fn culling_keeps_the_vertex_cache_order() {
                 let report = dir.join(format!("terrain-{cull}.json"));
                 let mut args = vec!["bake", input.to_str().unwrap(), "-q"];
                 let out = dir.join("terrain-chunks.glb");
-                args.extend(["-o", out.to_str().unwrap(), "--report", report.to_str().unwrap()]);
+                args.extend([
+                    "-o",
+                    out.to_str().unwrap(),
+                    "--report",
+                    report.to_str().unwrap(),
+                ]);
                 if !cull {
                     args.push("--no-cull");
                 }
@@ -137,9 +134,26 @@ fn culling_keeps_the_vertex_cache_order() {
                 r["surfaces"][0]["lods"][0]["triangles"].as_u64().unwrap() as usize
             };
             let (culled, unculled) = (lod0(true), lod0(false));
-            assert!(culled * 100 < unculled * 97, "culling dropped {culled} of {unculled}");
+            assert!(
+                culled * 100 < unculled * 97,
+                "culling dropped {culled} of {unculled}"
+            );
         }
     }
+}
+
+/// The LOD 0 layers' index streams of `input` baked with one level of detail, culled or not
+/// (into `dir`).
+fn lod0_streams(input: &Path, dir: &Path, cull: bool) -> Vec<LayerStream> {
+    let out = dir.join(format!("baked-{cull}.glb"));
+    let mut args = vec!["bake", input.to_str().unwrap(), "--no-lod", "-q"];
+    args.extend(["-o", out.to_str().unwrap()]);
+    if !cull {
+        args.push("--no-cull");
+    }
+    let (code, _, err) = common::shellbake(&args);
+    assert_eq!(code, Some(0), "{err}");
+    layer_streams(&std::fs::read(out).unwrap())
 }
 
 /// One index stream of a file's LOD 0 layers: the stream, its vertex count, and the triangle
@@ -207,19 +221,15 @@ fn a_large_surface_draws_the_cache_order_where_culling_saves_little() {
     let sphere = shellbake::fixtures::procedural::sphere(1.0, 96, 192);
     assert!(sphere.vertex_count() > 8192);
     let obj = dir.join("sphere.obj");
-    std::fs::write(&obj, shellbake::fixtures::procedural::to_obj(&sphere, "dense sphere")).unwrap();
-    let bake = |cull: bool| {
-        let out = dir.join(format!("sphere-{cull}.glb"));
-        let mut args = vec!["bake", obj.to_str().unwrap(), "--no-lod", "-q"];
-        args.extend(["-o", out.to_str().unwrap()]);
-        if !cull {
-            args.push("--no-cull");
-        }
-        let (code, _, err) = common::shellbake(&args);
-        assert_eq!(code, Some(0), "{err}");
-        layer_streams(&std::fs::read(out).unwrap())
-    };
-    let (culled, unculled) = (bake(true), bake(false));
+    std::fs::write(
+        &obj,
+        shellbake::fixtures::procedural::to_obj(&sphere, "dense sphere"),
+    )
+    .unwrap();
+    let (culled, unculled) = (
+        lod0_streams(&obj, &dir, true),
+        lod0_streams(&obj, &dir, false),
+    );
     assert_eq!(unculled.len(), 1);
     assert_eq!(culled.len(), 2, "the cache order and the culled order");
     let total = unculled[0].indices.len() / 3;
@@ -227,6 +237,9 @@ fn a_large_surface_draws_the_cache_order_where_culling_saves_little() {
     assert!(culled[0].counts.iter().all(|&n| n == total));
     assert!(!culled[1].counts.is_empty());
     for &n in &culled[1].counts {
-        assert!(n * 5 <= total * 4, "{n} of {total} triangles in the culled order");
+        assert!(
+            n * 5 <= total * 4,
+            "{n} of {total} triangles in the culled order"
+        );
     }
 }

@@ -582,8 +582,14 @@ mod tests {
             .flat_map(|&v| fine.round(v).to_array())
             .flat_map(f32::to_le_bytes)
             .collect();
-        let size = |b: &[u8]| encode_vertices(&exponential_deltas(b).0, 12, MeshoptExtension::Ext).len();
-        assert!(size(&bytes) < size(&fine), "{} {}", size(&bytes), size(&fine));
+        let size =
+            |b: &[u8]| encode_vertices(&exponential_deltas(b).0, 12, MeshoptExtension::Ext).len();
+        assert!(
+            size(&bytes) < size(&fine),
+            "{} {}",
+            size(&bytes),
+            size(&fine)
+        );
     }
 
     #[test]

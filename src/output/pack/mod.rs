@@ -1875,7 +1875,8 @@ impl DrawStreams {
     /// Writes the streams of `ordering` (LOD 0's), renumbered for fetch by `s`. A small
     /// surface has one: the culled order whole, which the base draws and the layers prefixes of.
     fn new(b: &mut Builder, s: &Shared, ordering: &Ordering) -> DrawStreams {
-        let renumber = |ix: &[u32]| -> Vec<u32> { ix.iter().map(|&i| s.fetch[i as usize]).collect() };
+        let renumber =
+            |ix: &[u32]| -> Vec<u32> { ix.iter().map(|&i| s.fetch[i as usize]).collect() };
         let total = ordering.tris.len();
         if !scatters(s.order.len()) {
             let ix = b.indices("indices", &renumber(&ordering.indices), s.order.len());
@@ -1895,7 +1896,11 @@ impl DrawStreams {
             .filter(|&n| n > 0 && streams.pays(n, total))
             .max();
         streams.culled = longest.map(|n| {
-            let ix = b.indices("indices", &renumber(&ordering.indices[..3 * n]), s.order.len());
+            let ix = b.indices(
+                "indices",
+                &renumber(&ordering.indices[..3 * n]),
+                s.order.len(),
+            );
             (ix, n)
         });
         streams
@@ -1958,7 +1963,8 @@ fn compact(
     attributes.push((Semantic::TexCoord(0), shells.texcoord));
     attributes.extend(shells.color.map(|d| (Semantic::Color(0), d)));
     // one index accessor per distinct triangle count over the culled stream
-    let mut prefixes: Vec<(usize, usize)> = streams.culled.map(|(ix, n)| (n, ix)).into_iter().collect();
+    let mut prefixes: Vec<(usize, usize)> =
+        streams.culled.map(|(ix, n)| (n, ix)).into_iter().collect();
     let total = ordering.tris.len();
     let meshes = (0..ctx.level.layers.len())
         .filter(|&j| {
