@@ -195,9 +195,11 @@ fn terrain_levels_verify_and_the_camera_path_draws_fewer_triangles() {
             .iter()
             .map(|b| b["triangles"].as_u64().unwrap())
             .collect();
-        // no LOD, no cull: every layer triangle; cull drops the bare patches' and paths'
+        // no LOD, no cull: every layer triangle; cull (the terrain in one piece, whose layers
+        // each drop too little to pay for the culled order: pack's `DrawStreams`) draws no
+        // more; LOD + cull (chunks, culled) far fewer
         assert_eq!(t[0], reference, "{c}");
-        assert!(t[1] < t[0] && t[2] * 3 < reference, "{c}");
+        assert!(t[1] <= t[0] && t[2] * 3 < reference, "{c}");
     }
 }
 

@@ -36,21 +36,19 @@ import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 // MSFT_lod, written here (three.js's GLTFLoader does not read it): each node with the extension
 // becomes a THREE.LOD placed at the centre of its LOD 0 content, with the coarser levels'
 // nodes as further levels at the switch distances of extras.shellbake_lod (world units).
+// Nodes are looked up with parser.getDependency, not parser.associations: GLTFLoader keeps the
+// associations of the last scene it loads only, and the coarser levels are a scene of their own.
 class MsftLod {
   constructor(parser) { this.parser = parser; this.name = 'MSFT_lod'; }
   async afterRoot(result) {
     const parser = this.parser;
-    const objects = new Map();
-    result.scene.traverse((o) => {
-      const a = parser.associations.get(o);
-      if (a && a.nodes !== undefined && !objects.has(a.nodes)) objects.set(a.nodes, o);
-    });
     result.scene.updateMatrixWorld(true);
     for (const [i, node] of (parser.json.nodes || []).entries()) {
       const ext = node.extensions && node.extensions.MSFT_lod;
       const distances = node.extras && node.extras.shellbake_lod && node.extras.shellbake_lod.distances;
-      const obj = objects.get(i);
-      if (!ext || !distances || !obj || !obj.parent) continue;
+      if (!ext || !distances) continue;
+      const obj = await parser.getDependency('node', i);
+      if (!obj.parent) continue;
       const parent = obj.parent;
       const centre = parent.worldToLocal(new THREE.Box3().setFromObject(obj).getCenter(new THREE.Vector3()));
       const lod = new THREE.LOD();
