@@ -10,7 +10,8 @@
 //!   `--layer-weights mesh` and must grow several times, so the size check can fail.
 //!
 //! The tools come from tests/bench (installed by tests/setup.sh). Both drop `MSFT_lod`, so the
-//! views are near ones, where the originals draw LOD 0 as well.
+//! views are near ones, where the originals draw LOD 0 as well. glTF-Transform keeps the
+//! coarser levels' scene and its meshes all the same, no longer named by anything.
 
 #![cfg(feature = "view")]
 
@@ -37,8 +38,10 @@ const MAX_PIXELS: f64 = 0.07;
 /// seen 1.6×).
 const MAX_GROWTH_GLTFPACK: f64 = 2.0;
 /// glTF-Transform writes each layer's index list on its own (the original shares one stream
-/// between layers as prefixes); seen 2.1×.
-const MAX_GROWTH_GLTF_TRANSFORM: f64 = 3.0;
+/// between layers as prefixes), and keeps the coarser levels' scene (without `MSFT_lod`): seen
+/// 3.4× (2.3× on a file baked with one level of detail; 2.1× when the levels were in no scene
+/// and it pruned them).
+const MAX_GROWTH_GLTF_TRANSFORM: f64 = 4.0;
 const SIZE: (u32, u32) = (256, 256);
 
 fn tool(name: &str) -> PathBuf {
