@@ -263,7 +263,8 @@ fn exponent(c: f32) -> i32 {
 /// component: for each component, from its largest exponent down to the lowest set bit of any
 /// value (at least 1, at most 24, the filter's limits).
 fn exponential_bits(data: &[[f32; 3]]) -> i32 {
-    let mut top = [-126i32; 3];
+    // meshoptimizer's floor for a component's exponent (`min_exp`)
+    let mut top = [-100i32; 3];
     let mut low = [i32::MAX; 3];
     for v in data {
         for k in 0..3 {

@@ -521,7 +521,11 @@ fn shift_texture_indices(v: &mut Value, by: usize) {
 /// grows in, the default one, since Blender draws every scene's nodes when the file names none.
 fn add_lod_scene(out: &mut Value, packed: &Packed, base: Base, shown: usize) {
     let levels = packed.lod_levels();
-    if levels.is_empty() || out.get("scenes").and_then(Value::as_array).is_none() {
+    let scenes = out
+        .get("scenes")
+        .and_then(Value::as_array)
+        .map_or(0, Vec::len);
+    if levels.is_empty() || shown >= scenes {
         return;
     }
     out["scene"] = json!(shown);

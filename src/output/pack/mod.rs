@@ -37,7 +37,7 @@
 //! weights down would keep it at 8 bytes but breaks every client's bounding box (three.js adds
 //! the whole target to the bounds). The floats lie on the exponent filter's grid (one exponent
 //! per component, as many mantissa bits as a step of at most a quarter of a position step needs,
-//! up to 16: at most 1/8 of a grid step off, see
+//! up to 16: at most 1/8 of a position step off, see
 //! [`crate::output::compress::DeltaGrid`]), so `--compress meshopt` stores them exactly with its
 //! `EXPONENTIAL` filter. Then `guard.rs` checks the stored geometry (deltas as rounded onto that
 //! grid), so no layer triangle of the written file inverts.
@@ -1051,9 +1051,13 @@ fn pack_level(
                 chunks.vertex_order.extend(s.order.iter().copied());
                 s
             });
-            let (meshes, ix) = compact(b, ctx, shared, &ordering, reuse);
+            let reused = reuse.is_some();
+            let (meshes, streams) = compact(b, ctx, shared, &ordering, reuse);
             if k == 0 {
-                state.lod0 = Some((ordering, ix));
+                state.lod0 = Some((ordering, streams));
+            } else if let (true, Some(lod0)) = (reused, state.lod0.as_mut()) {
+                // a full stream a coarser level wrote is LOD 0's, for the levels after it
+                lod0.1 = streams;
             }
             meshes
         }
@@ -1066,7 +1070,12 @@ fn pack_level(
             single_draw(b, ctx, &order, &indices, &ordering.kept)
         }
         (Layout::SingleDraw, Some(_)) => {
-            let s = Shared::new(b, ctx.geometry, &ordering.indices, nv, false);
+            // vertices in the first-use order of the stream the bare level draws
+            let first_use = match scatters(fetch_order(&ordering.cache, nv).0.len()) {
+                true => &ordering.cache,
+                false => &ordering.indices,
+            };
+            let s = Shared::new(b, ctx.geometry, first_use, nv, false);
             compact(b, ctx, &s, &ordering, None).0
         }
     }
@@ -1825,9 +1834,6 @@ impl Builder<'_> {
     }
 }
 
-/// The compact layout of one level of one chunk: one mesh per layer over the chunk's shared
-/// streams, each with the index prefix its layer keeps (one index stream per level). The bare
-/// level is one opaque, untextured mesh. Returns the meshes in layer order.
 /// On a surface of more vertices than this, a layer draws its prefix of the culled order only
 /// when that drops at least [`CULL_PAYS`] of the level's triangles; otherwise it draws the
 /// unculled cache order whole ([`DrawStreams`]).
@@ -1865,36 +1871,41 @@ fn scatters(vertices: usize) -> bool {
 /// hundred vertices, which keep their culling.
 #[derive(Clone, Copy)]
 struct DrawStreams {
-    full: usize,
+    /// Written when a layer first draws it (an asset's part draws no base of its own, and its
+    /// layers may all cull enough).
+    full: Option<usize>,
     culled: Option<(usize, usize)>,
     /// Most triangles, as a share of the level's, a layer may keep and draw the culled order.
     pays_up_to: f64,
 }
 
 impl DrawStreams {
-    /// Writes the streams of `ordering` (LOD 0's), renumbered for fetch by `s`. A small
-    /// surface has one: the culled order whole, which the base draws and the layers prefixes of.
-    fn new(b: &mut Builder, s: &Shared, ordering: &Ordering) -> DrawStreams {
+    /// Writes the streams of `ordering` (LOD 0's, or a simplified level's), renumbered for fetch
+    /// by `s`; `base` whether the level draws its base layer. A small surface has one stream: the
+    /// culled order whole, which the base draws and the layers prefixes of.
+    fn new(b: &mut Builder, s: &Shared, ordering: &Ordering, base: bool) -> DrawStreams {
         let renumber =
             |ix: &[u32]| -> Vec<u32> { ix.iter().map(|&i| s.fetch[i as usize]).collect() };
         let total = ordering.tris.len();
-        if !scatters(s.order.len()) {
+        // the level's own vertices (a simplified base uses fewer than LOD 0's)
+        if !scatters(fetch_order(&ordering.cache, s.fetch.len()).0.len()) {
             let ix = b.indices("indices", &renumber(&ordering.indices), s.order.len());
             return DrawStreams {
-                full: ix,
+                full: Some(ix),
                 culled: Some((ix, total)),
                 pays_up_to: 1.0,
             };
         }
-        let full = b.indices("indices", &renumber(&ordering.cache), s.order.len());
         let mut streams = DrawStreams {
-            full,
+            full: None,
             culled: None,
             pays_up_to: 1.0 - CULL_PAYS,
         };
-        let longest = (ordering.kept.iter().skip(1).copied())
-            .filter(|&n| n > 0 && streams.pays(n, total))
-            .max();
+        let shells = ordering.kept.iter().skip(1).copied().filter(|&n| n > 0);
+        if base || shells.clone().any(|n| !streams.pays(n, total)) {
+            streams.full(b, s, ordering);
+        }
+        let longest = shells.filter(|&n| streams.pays(n, total)).max();
         streams.culled = longest.map(|n| {
             let ix = b.indices(
                 "indices",
@@ -1912,23 +1923,38 @@ impl DrawStreams {
         kept < total && kept as f64 <= self.pays_up_to * total as f64
     }
 
+    /// The unculled cache order's accessor, written the first time it is asked for
+    /// (`ordering`: the level's, or LOD 0's reused, whose cache order is LOD 0's).
+    fn full(&mut self, b: &mut Builder, s: &Shared, ordering: &Ordering) -> usize {
+        *self.full.get_or_insert_with(|| {
+            let ix: Vec<u32> = (ordering.cache.iter())
+                .map(|&i| s.fetch[i as usize])
+                .collect();
+            b.indices("indices", &ix, s.order.len())
+        })
+    }
+
     /// The index accessor of a layer that draws the first `kept` of the `total` triangles of
-    /// the culled order (`prefixes`: one accessor per distinct count).
+    /// the culled order (`prefixes`: one accessor per distinct count), or the full stream.
     fn layer(
-        &self,
-        b: &mut Builder,
+        &mut self,
+        (b, s, ordering): (&mut Builder, &Shared, &Ordering),
         prefixes: &mut Vec<(usize, usize)>,
-        (kept, total): (usize, usize),
+        kept: usize,
     ) -> usize {
         match self.culled {
-            Some((ix, written)) if kept <= written && self.pays(kept, total) => {
+            Some((ix, written)) if kept <= written && self.pays(kept, ordering.tris.len()) => {
                 prefix_accessor(b, prefixes, ix, kept)
             }
-            _ => self.full,
+            _ => self.full(b, s, ordering),
         }
     }
 }
 
+/// The compact layout of one level of one chunk: one mesh per layer over the chunk's shared
+/// streams, each drawing the index stream its layer keeps ([`DrawStreams`]: LOD 0's, or the
+/// level's own over a simplified base). The bare level is one opaque, untextured mesh. Returns
+/// the meshes in layer order, and the streams.
 fn compact(
     b: &mut Builder,
     ctx: &LevelCtx,
@@ -1936,11 +1962,10 @@ fn compact(
     ordering: &Ordering,
     reuse: Option<DrawStreams>,
 ) -> (Vec<usize>, DrawStreams) {
-    let streams = match reuse {
+    let mut streams = match reuse {
         Some(streams) => streams,
-        None => DrawStreams::new(b, s, ordering),
+        None => DrawStreams::new(b, s, ordering, ctx.base),
     };
-    let ix = streams.full;
     let mut base = vec![
         (Semantic::Position, s.position),
         (Semantic::Normal, s.normal),
@@ -1953,6 +1978,7 @@ fn compact(
             // the asset's own primitive is the bare level
             return (vec![], streams);
         }
+        let ix = streams.full(b, s, ordering);
         return (vec![bare_level(b, ctx, s, (base, ix), colours)], streams);
     }
     let shells = s
@@ -1965,7 +1991,6 @@ fn compact(
     // one index accessor per distinct triangle count over the culled stream
     let mut prefixes: Vec<(usize, usize)> =
         streams.culled.map(|(ix, n)| (n, ix)).into_iter().collect();
-    let total = ordering.tris.len();
     let meshes = (0..ctx.level.layers.len())
         .filter(|&j| {
             if j == 0 {
@@ -1975,7 +2000,7 @@ fn compact(
             }
         })
         .map(|j| {
-            let ix = streams.layer(b, &mut prefixes, (ordering.kept[j], total));
+            let ix = streams.layer((b, s, ordering), &mut prefixes, ordering.kept[j]);
             compact_layer(b, ctx, (shells, &attributes), j, ix)
         })
         .collect();
