@@ -326,6 +326,24 @@ struct Ordering {
 }
 
 impl Ordering {
+    /// Vertices of `nv` the level's triangles use.
+    fn used_vertices(&self, nv: usize) -> usize {
+        let mut used = vec![false; nv];
+        self.cache
+            .iter()
+            .filter(|&&v| !std::mem::replace(&mut used[v as usize], true))
+            .count()
+    }
+
+    /// The triangle list whose first use orders the level's vertices: the one most of its layers
+    /// draw ([`DrawStreams`]), the cache order on a surface that scatters, else the culled order.
+    fn first_use(&self, nv: usize) -> &[u32] {
+        match scatters(self.used_vertices(nv)) {
+            true => &self.cache,
+            false => &self.indices,
+        }
+    }
+
     /// The same triangles in the same order for another level of the same triangle list whose
     /// layers show each triangle up to `top` (that level's culling): each layer draws the
     /// shortest prefix holding every triangle it needs (a few triangles it would have culled
@@ -1041,12 +1059,7 @@ fn pack_level(
     match (params.layout, pl.level.bare) {
         (Layout::Compact, _) => {
             let shared = state.shared.get_or_insert_with(|| {
-                // vertices in the first-use order of the stream most layers draw
-                let first_use = match scatters(fetch_order(&ordering.cache, nv).0.len()) {
-                    true => &ordering.cache,
-                    false => &ordering.indices,
-                };
-                let s = Shared::new(b, ctx.geometry, first_use, nv, true);
+                let s = Shared::new(b, ctx.geometry, ordering.first_use(nv), nv, true);
                 chunks.base_vertices += s.order.len();
                 chunks.vertex_order.extend(s.order.iter().copied());
                 s
@@ -1070,12 +1083,7 @@ fn pack_level(
             single_draw(b, ctx, &order, &indices, &ordering.kept)
         }
         (Layout::SingleDraw, Some(_)) => {
-            // vertices in the first-use order of the stream the bare level draws
-            let first_use = match scatters(fetch_order(&ordering.cache, nv).0.len()) {
-                true => &ordering.cache,
-                false => &ordering.indices,
-            };
-            let s = Shared::new(b, ctx.geometry, first_use, nv, false);
+            let s = Shared::new(b, ctx.geometry, ordering.first_use(nv), nv, false);
             compact(b, ctx, &s, &ordering, None).0
         }
     }
@@ -1498,6 +1506,12 @@ impl Shared {
             shells,
         }
     }
+
+    /// An index stream over these vertices: `indices` (input numbering) renumbered for fetch.
+    fn indices(&self, b: &mut Builder, indices: &[u32]) -> usize {
+        let ix: Vec<u32> = indices.iter().map(|&i| self.fetch[i as usize]).collect();
+        b.indices("indices", &ix, self.order.len())
+    }
 }
 
 /// The per-vertex values `v` of the input vertices, in fetch order `order`.
@@ -1884,12 +1898,10 @@ impl DrawStreams {
     /// by `s`; `base` whether the level draws its base layer. A small surface has one stream: the
     /// culled order whole, which the base draws and the layers prefixes of.
     fn new(b: &mut Builder, s: &Shared, ordering: &Ordering, base: bool) -> DrawStreams {
-        let renumber =
-            |ix: &[u32]| -> Vec<u32> { ix.iter().map(|&i| s.fetch[i as usize]).collect() };
         let total = ordering.tris.len();
         // the level's own vertices (a simplified base uses fewer than LOD 0's)
-        if !scatters(fetch_order(&ordering.cache, s.fetch.len()).0.len()) {
-            let ix = b.indices("indices", &renumber(&ordering.indices), s.order.len());
+        if !scatters(ordering.used_vertices(s.fetch.len())) {
+            let ix = s.indices(b, &ordering.indices);
             return DrawStreams {
                 full: Some(ix),
                 culled: Some((ix, total)),
@@ -1906,14 +1918,7 @@ impl DrawStreams {
             streams.full(b, s, ordering);
         }
         let longest = shells.filter(|&n| streams.pays(n, total)).max();
-        streams.culled = longest.map(|n| {
-            let ix = b.indices(
-                "indices",
-                &renumber(&ordering.indices[..3 * n]),
-                s.order.len(),
-            );
-            (ix, n)
-        });
+        streams.culled = longest.map(|n| (s.indices(b, &ordering.indices[..3 * n]), n));
         streams
     }
 
@@ -1926,12 +1931,9 @@ impl DrawStreams {
     /// The unculled cache order's accessor, written the first time it is asked for
     /// (`ordering`: the level's, or LOD 0's reused, whose cache order is LOD 0's).
     fn full(&mut self, b: &mut Builder, s: &Shared, ordering: &Ordering) -> usize {
-        *self.full.get_or_insert_with(|| {
-            let ix: Vec<u32> = (ordering.cache.iter())
-                .map(|&i| s.fetch[i as usize])
-                .collect();
-            b.indices("indices", &ix, s.order.len())
-        })
+        *self
+            .full
+            .get_or_insert_with(|| s.indices(b, &ordering.cache))
     }
 
     /// The index accessor of a layer that draws the first `kept` of the `total` triangles of
