@@ -61,11 +61,12 @@ pub struct Encoded {
 /// Compresses every vertex and index stream of `packed` as [`crate::output::compress`] describes (images
 /// are left as they are: `None`). Normal streams are replaced by what the octahedral filter
 /// decodes to, so the file (and its uncompressed twin, written from the same `packed`)
-/// declares what a decoder gives back.
+/// declares what a decoder gives back. Streams are compressed in parallel, each on its own.
 pub fn compress_streams(packed: &mut Packed, ext: MeshoptExtension) -> Vec<Option<Encoded>> {
+    use rayon::prelude::*;
     packed
         .streams
-        .iter_mut()
+        .par_iter_mut()
         .map(|s| match (s.kind, s.stride) {
             (StreamKind::Vertex, Some(stride)) if stride % 4 == 0 && stride <= 256 => {
                 let normal = s.semantic == Semantic::Normal && s.target.is_none() && stride == 4;
