@@ -63,7 +63,25 @@ pub fn guard(
     indices: &[u32],
     check: &impl Check,
 ) -> usize {
-    let (group, groups) = vertex_groups(base, (deltas, leans), vary);
+    let tri = |t: u32| corners(indices, t);
+    let offenders = |list: &[u32], deltas: &[Vec3], leans: &[Vec3], round: usize| {
+        (list.par_iter())
+            .filter_map(|&t| {
+                let f = check.check(tri(t), deltas, leans, round)?;
+                Some((t, if round < ROUNDS { f.clamp(0.0, 0.99) } else { 0.0 }))
+            })
+            .collect::<Vec<(u32, f32)>>()
+    };
+    // the first round checks every triangle, and needs no groups: both at once (most
+    // triangles pass, and a file where all do needs no groups at all)
+    let all: Vec<u32> = (0..(indices.len() / 3) as u32).collect();
+    let ((group, groups), mut bad) = rayon::join(
+        || vertex_groups(base, (deltas, leans), vary),
+        || offenders(&all, deltas, leans, 0),
+    );
+    if bad.is_empty() {
+        return 0;
+    }
     let members = Adjacency::build(
         groups,
         group.iter().enumerate().map(|(v, &g)| (g, v as u32)),
@@ -75,24 +93,12 @@ pub fn guard(
             .enumerate()
             .map(|(i, &v)| (group[v as usize], (i / 3) as u32)),
     );
-    let tri = |t: u32| corners(indices, t);
     let mut shortened = vec![false; base.len()];
-    let mut check_list: Vec<u32> = (0..(indices.len() / 3) as u32).collect();
+    let mut check_list: Vec<u32> = Vec::new();
     for round in 0.. {
-        let bad: Vec<(u32, f32)> = check_list
-            .par_iter()
-            .filter_map(|&t| {
-                let f = check.check(tri(t), deltas, leans, round)?;
-                Some((
-                    t,
-                    if round < ROUNDS {
-                        f.clamp(0.0, 0.99)
-                    } else {
-                        0.0
-                    },
-                ))
-            })
-            .collect();
+        if round > 0 {
+            bad = offenders(&check_list, deltas, leans, round);
+        }
         if bad.is_empty() {
             break;
         }
@@ -128,21 +134,25 @@ fn vertex_groups(
         Vary::Deltas => deltas[v],
         Vary::Leans => leans[v],
     };
-    let mut group_of: crate::stages::weld::IdMap<([u32; 3], [u32; 3]), u32> = Default::default();
-    let group: Vec<u32> = base
-        .iter()
-        .enumerate()
-        .map(|(v, p)| (p, varied(v)))
-        .map(|(p, d)| {
-            let key = (
-                p.to_array().map(f32::to_bits),
-                d.to_array().map(f32::to_bits),
-            );
-            let next = group_of.len() as u32;
-            *group_of.entry(key).or_insert(next)
+    // sorted, in parallel: a group's number is its key's rank (the numbering changes nothing
+    // the guard does: each vertex is in one group, and a group's factor is its smallest)
+    let mut keyed: Vec<([u32; 6], u32)> = (base.par_iter().enumerate())
+        .map(|(v, p)| {
+            let (p, d) = (p.to_array(), varied(v).to_array());
+            let key = [p[0], p[1], p[2], d[0], d[1], d[2]].map(f32::to_bits);
+            (key, v as u32)
         })
         .collect();
-    (group, group_of.len())
+    keyed.par_sort_unstable();
+    let mut group = vec![0u32; base.len()];
+    let mut groups = 0;
+    for (i, &(key, v)) in keyed.iter().enumerate() {
+        if i > 0 && keyed[i - 1].0 != key {
+            groups += 1;
+        }
+        group[v as usize] = groups;
+    }
+    (group, groups as usize + !keyed.is_empty() as usize)
 }
 
 /// The corners of triangle `t` of `indices`.
