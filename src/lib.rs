@@ -87,6 +87,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use glam::Vec2;
+use rayon::prelude::*;
 
 use facts::Reported;
 
@@ -500,21 +501,25 @@ fn run_plan(
     let plan = scene::plan(scene);
     let mut packed = Packed::default();
     let several = scene.surfaces.len() > 1;
-    let mut masks = MaskCache::default();
-    let mut surfaces: Vec<BakedSurface> = (scene.surfaces.iter().zip(loaded).enumerate())
-        .map(|(i, (surface, &(scene, maps, load_ms, part)))| {
-            let job = Job {
-                plan: &plan,
-                i,
-                surface,
-                scene,
-                maps,
-                part,
-                load_ms,
-                several,
-            };
-            bake_surface(job, &mut packed, &mut masks)
+    let jobs: Vec<Job> = (scene.surfaces.iter().zip(loaded).enumerate())
+        .map(|(i, (surface, &(scene, maps, load_ms, part)))| Job {
+            plan: &plan,
+            i,
+            surface,
+            scene,
+            maps,
+            part,
+            load_ms,
+            several,
         })
+        .collect();
+    // the surfaces run their stages side by side, then pack one after another, in order
+    let masks = MaskCache::bake(jobs.iter().map(|j| &j.surface.params.strands));
+    let prepared: Vec<Prepared> = (jobs.par_iter())
+        .map(|job| prepare(job, &masks))
+        .collect();
+    let mut surfaces: Vec<BakedSurface> = (jobs.iter().zip(prepared))
+        .map(|(job, prepared)| finish(job, prepared, &mut packed))
         .collect();
     let write_start = Instant::now();
     let ext = scene.output.meshopt_extension;
@@ -564,20 +569,39 @@ fn run_plan(
     }
 }
 
-/// Masks already baked in this scene, by their strand parameters: surfaces with the same
-/// strands (an asset's parts) bake the mask once.
-#[derive(Default)]
-struct MaskCache(Vec<(params::StrandParams, Mask)>);
+/// The masks of a scene, by their strand parameters, baked before the surfaces run (in
+/// parallel, one per distinct set): surfaces with the same strands (an asset's parts) share
+/// one. Each keeps its bake time and the first surface that asks for it, whose report the time
+/// goes to (the others report none: they bake nothing).
+struct MaskCache(Vec<(params::StrandParams, Mask, f64, usize)>);
 
 impl MaskCache {
-    /// The mask `strands` bake to, baked now if no surface before asked for it.
-    fn mask(&mut self, strands: &params::StrandParams) -> Mask {
-        if let Some((_, m)) = self.0.iter().find(|(p, _)| p == strands) {
-            return m.clone();
+    /// The masks of `strands` (one per surface, in order).
+    fn bake<'a>(strands: impl Iterator<Item = &'a params::StrandParams>) -> MaskCache {
+        let mut distinct: Vec<(&params::StrandParams, usize)> = Vec::new();
+        for (i, s) in strands.enumerate() {
+            if !distinct.iter().any(|(p, _)| *p == s) {
+                distinct.push((s, i));
+            }
         }
-        let m = strands::bake_mask(strands);
-        self.0.push((strands.clone(), m.clone()));
-        m
+        MaskCache(
+            (distinct.into_par_iter())
+                .map(|(p, first)| {
+                    let start = Instant::now();
+                    let mask = strands::bake_mask(p);
+                    (p.clone(), mask, start.elapsed().as_secs_f64() * 1e3, first)
+                })
+                .collect(),
+        )
+    }
+
+    /// The mask `strands` bake to, for surface `surface`, and the time its bake took when
+    /// `surface` is the first to ask for it (zero otherwise).
+    fn mask(&self, strands: &params::StrandParams, surface: usize) -> (Mask, f64) {
+        let (_, mask, ms, first) = (self.0.iter())
+            .find(|(p, ..)| p == strands)
+            .expect("every surface's strands are baked");
+        (mask.clone(), if *first == surface { *ms } else { 0.0 })
     }
 }
 
@@ -594,10 +618,10 @@ struct Job<'a> {
     several: bool,
 }
 
-/// One surface through the plan, packed into `packed`: each phase runs its stages in plan
+/// One surface through the plan's stages before pack, each phase running its stages in plan
 /// order, one line each (shape: merge … frames; heights: smooth … occlusion; look: strands …
-/// outline; levels: lod, cull; then pack).
-fn bake_surface(job: Job, packed: &mut Packed, masks: &mut MaskCache) -> BakedSurface {
+/// outline; levels: lod, cull); [`finish`] packs it. Surfaces run this side by side.
+fn prepare<'a>(job: &Job<'a>, masks: &MaskCache) -> Prepared<'a> {
     let (surface, scene) = (job.surface, job.scene);
     let params = &surface.params;
     if let Err(e) = params.check() {
@@ -626,8 +650,40 @@ fn bake_surface(job: Job, packed: &mut Packed, masks: &mut MaskCache) -> BakedSu
     };
     let mut shape = shape(&mut run, scene, colour);
     let mut heights = heights(&mut run, &mut shape, job.maps);
-    let look = look(&mut run, &shape, &mut heights, masks);
+    let look = look(&mut run, &shape, &mut heights, masks.mask(&params.strands, job.i));
     let chain = levels(&mut run, &shape, &heights, &look);
+    Prepared {
+        run,
+        start,
+        shape,
+        heights,
+        look,
+        chain,
+    }
+}
+
+/// A surface through the stages before pack ([`prepare`]).
+struct Prepared<'a> {
+    run: Run<'a>,
+    start: Instant,
+    shape: Shape,
+    heights: Heights,
+    look: Look,
+    chain: Levels,
+}
+
+/// Packs a surface [`prepare`] ran into `packed`.
+fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
+    let (surface, scene) = (job.surface, job.scene);
+    let params = &surface.params;
+    let Prepared {
+        mut run,
+        start,
+        shape,
+        heights,
+        look,
+        chain,
+    } = prepared;
     let grafted = job.part.is_some_and(|p| p.graft);
     let parts = (&shape, &heights, &look, &chain);
     let placing = (surface, scene, grafted);
@@ -861,12 +917,11 @@ struct Look {
 }
 
 /// Strands, tiling, shells, gravity, wind, sheen, fins, outline: what the layers draw.
-fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, masks: &mut MaskCache) -> Look {
+fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, (mask, ms): (Mask, f64)) -> Look {
     let params = run.params;
     let Shape { mesh, welded, .. } = shape;
-    let mask = run
-        .report
-        .run_stage(Stage::Strands, || masks.mask(&params.strands));
+    let mask = run.report.run_stage(Stage::Strands, || mask);
+    run.report.stages.last_mut().expect("just run").ms = ms;
     let tiling = run.report.run(Stage::Tiling.name(), || {
         tiling::mask_tiling(
             mesh,
