@@ -350,12 +350,17 @@ impl Ordering {
     /// shortest prefix holding every triangle it needs (a few triangles it would have culled
     /// come along; none it needs is left out), so the level draws LOD 0's index stream.
     fn reused(&self, top: &[u32], layers: usize) -> Ordering {
-        let mut kept = vec![0usize; layers];
+        // the end of the last triangle that shows in `s` layers, by `s`; layer k keeps up to
+        // the last one that shows in more than k
+        let mut last = vec![0usize; layers + 1];
         for (p, &t) in self.tris.iter().enumerate() {
-            let shows = (top[t as usize] as usize).min(layers);
-            for k in &mut kept[..shows] {
-                *k = p + 1;
-            }
+            last[(top[t as usize] as usize).min(layers)] = p + 1;
+        }
+        let mut kept = vec![0usize; layers];
+        let mut end = 0;
+        for k in (0..layers).rev() {
+            end = end.max(last[k + 1]);
+            kept[k] = end;
         }
         Ordering {
             kept,
