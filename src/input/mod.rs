@@ -122,7 +122,8 @@ pub(crate) fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<
     if !file.metadata()?.is_file() {
         return Err(not_regular());
     }
-    let mut out = Vec::new();
+    // sized up front: a large file is read in a few calls, not doubling from 32 bytes
+    let mut out = Vec::with_capacity(meta.len() as usize + 1);
     file.take(limit + 1).read_to_end(&mut out)?;
     if out.len() as u64 > limit {
         return Err(too_large());

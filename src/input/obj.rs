@@ -910,11 +910,14 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
     Ok(lines)
 }
 
-/// Whether the OBJ names a material library (`mtllib`); most do not.
+/// Whether the OBJ names a material library (`mtllib`); most do not. Finds the word with
+/// `memmem` (a scan line by line took 10 ms on a 10 MB file), then checks that it starts its
+/// line's statement.
 fn names_mtl(bytes: &[u8]) -> bool {
-    bytes.split(|&b| b == b'\n').any(|line| {
-        let line = line.trim_ascii_start();
-        line.starts_with(b"mtllib") && line.get(6).is_some_and(u8::is_ascii_whitespace)
+    memchr::memmem::find_iter(bytes, b"mtllib").any(|at| {
+        let line = bytes[..at].iter().rposition(|&b| b == b'\n').map_or(0, |n| n + 1);
+        bytes[line..at].iter().all(u8::is_ascii_whitespace)
+            && bytes.get(at + 6).is_some_and(u8::is_ascii_whitespace)
     })
 }
 
