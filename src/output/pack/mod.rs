@@ -1886,8 +1886,10 @@ impl Builder<'_> {
             let v = self.stream("normal", Semantic::Normal, None, bytes.0, Some(12), n.len());
             return self.out.accessor(v, component::FLOAT, false, "VEC3", None);
         }
-        for &v in n {
-            bytes.i8s(&quantize_normal(v), 4);
+        // the nearest of eight lattice points, each measured: in parallel
+        let quantized: Vec<[i8; 3]> = n.par_iter().map(|&v| quantize_normal(v)).collect();
+        for q in &quantized {
+            bytes.i8s(q, 4);
         }
         let v = self.stream("normal", Semantic::Normal, None, bytes.0, Some(4), n.len());
         self.out.accessor(v, component::BYTE, true, "VEC3", None)
