@@ -10,6 +10,10 @@
 
 use glam::{DVec3, Vec2, Vec3};
 
+/// Items (vertices, triangles, edges) a parallel loop hands one task at least: below a few
+/// thousand, splitting costs more than it saves, so a small mesh runs on one thread.
+pub const PAR_MIN_LEN: usize = 2048;
+
 /// A triangle mesh. `indices.len()` is a multiple of 3; every index is `< positions.len()`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
