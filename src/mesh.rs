@@ -268,7 +268,11 @@ impl Scene {
             if any_colors && m.colors.is_none() {
                 m.colors = Some(vec![[255; 4]; m.vertex_count()]);
             }
-            out.append(&m);
+            if out.positions.is_empty() && out.indices.is_empty() {
+                out = m; // what `append` would copy
+            } else {
+                out.append(&m);
+            }
         }
         out.recentre();
         out
