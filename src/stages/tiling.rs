@@ -17,17 +17,13 @@
 //!   [`SPREAD_WARNING`] times its 10th (by area), strands will visibly change size across the
 //!   surface, and the bake warns with the figure.
 //!
-//! The per-triangle terms are computed in parallel and summed in triangle order, and the scales
-//! are sorted stably, so the tiling is the same on any thread count.
-//!
 //! With `uv_density` (strands per UV unit) the rate is the user's, the same on both axes, and only
 //! the whole-tile rule applies.
 
 use glam::{DVec2, DVec3, Vec2};
-use rayon::prelude::*;
 
 use crate::facts::Facts;
-use crate::mesh::{Mesh, PAR_MIN_LEN};
+use crate::mesh::Mesh;
 
 /// Spread (90th / 10th percentile of the UV-to-world scale, by area) above which the bake warns.
 pub const SPREAD_WARNING: f64 = 2.0;
@@ -137,44 +133,29 @@ impl Tiling {
 /// isotropic scale. `None` when no triangle has both world and UV area.
 fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64, f64)> {
     let uv = mesh.uvs.as_ref()?;
-    // Each triangle's terms in parallel; summed in triangle order, as one thread would.
-    let terms: Vec<Option<(f64, f64, f64, f64)>> = (mesh.indices.par_chunks_exact(3))
-        .with_min_len(PAR_MIN_LEN)
-        .map(|t| {
-            let [p0, p1, p2] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
-            let [t0, t1, t2] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
-            let (e1, e2) = (p1 - p0, p2 - p0);
-            let (d1, d2) = (t1 - t0, t2 - t0);
-            let det = d1.perp_dot(d2);
-            let area = e1.cross(e2).length() * 0.5;
-            if !(det.abs() > 0.0 && area > 0.0 && det.is_finite() && area.is_finite()) {
-                return None;
-            }
-            let dpdu: DVec3 = (e1 * d2.y - e2 * d1.y) / det;
-            let dpdv: DVec3 = (e2 * d1.x - e1 * d2.x) / det;
-            let scale = (area / (det.abs() * 0.5)).sqrt();
-            Some((dpdu.length() * area, dpdv.length() * area, scale, area))
-        })
-        .collect();
     let (mut su, mut sv, mut total) = (0.0, 0.0, 0.0);
-    let mut scales: Vec<(f64, f64)> = Vec::with_capacity(terms.len());
-    for (u, v, scale, area) in terms.into_iter().flatten() {
-        su += u;
-        sv += v;
+    let mut scales: Vec<(f64, f64)> = Vec::new();
+    for t in mesh.indices.chunks_exact(3) {
+        let [p0, p1, p2] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
+        let [t0, t1, t2] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
+        let (e1, e2) = (p1 - p0, p2 - p0);
+        let (d1, d2) = (t1 - t0, t2 - t0);
+        let det = d1.perp_dot(d2);
+        let area = e1.cross(e2).length() * 0.5;
+        if !(det.abs() > 0.0 && area > 0.0 && det.is_finite() && area.is_finite()) {
+            continue;
+        }
+        let dpdu: DVec3 = (e1 * d2.y - e2 * d1.y) / det;
+        let dpdv: DVec3 = (e2 * d1.x - e1 * d2.x) / det;
+        su += dpdu.length() * area;
+        sv += dpdv.length() * area;
         total += area;
-        scales.push((scale, area));
+        scales.push(((area / (det.abs() * 0.5)).sqrt(), area));
     }
     if !(total > 0.0 && su > 0.0 && sv > 0.0) {
         return None;
     }
-    // stable either way, so equal scales keep triangle order on any thread count; rayon's merge
-    // sort pays off from four threads
-    let by_scale = |a: &(f64, f64), b: &(f64, f64)| a.0.total_cmp(&b.0);
-    if rayon::current_num_threads() >= 4 {
-        scales.par_sort_by(by_scale);
-    } else {
-        scales.sort_by(by_scale);
-    }
+    scales.sort_by(|a, b| a.0.total_cmp(&b.0));
     let percentile = |q: f64| {
         let mut acc = 0.0;
         for &(s, a) in &scales {
