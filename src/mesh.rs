@@ -10,6 +10,10 @@
 
 use glam::{DVec3, Vec2, Vec3};
 
+/// Items (vertices, triangles, edges) a parallel loop hands one task at least: below a few
+/// thousand, splitting costs more than it saves, so a small mesh runs on one thread.
+pub const PAR_MIN_LEN: usize = 2048;
+
 /// A triangle mesh. `indices.len()` is a multiple of 3; every index is `< positions.len()`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
@@ -264,7 +268,11 @@ impl Scene {
             if any_colors && m.colors.is_none() {
                 m.colors = Some(vec![[255; 4]; m.vertex_count()]);
             }
-            out.append(&m);
+            if out.positions.is_empty() && out.indices.is_empty() {
+                out = m; // what `append` would copy
+            } else {
+                out.append(&m);
+            }
         }
         out.recentre();
         out

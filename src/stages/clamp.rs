@@ -43,7 +43,11 @@
 //! 261 120-triangle sphere, 2 cores.
 //!
 //! Rays are cast in parallel (rayon); each vertex's result depends on nothing else, and results
-//! are collected in vertex order, so the output is the same for any thread count. A brute-force
+//! are collected in vertex order, so the output is the same for any thread count. Smoothing and
+//! the inversion rounds test triangles and move vertices in parallel the same way; the sets to
+//! re-examine are read off a table of marks (ascending, no repeats) rather than sorted, and a
+//! vertex's ring is read from its faces (next corner, then previous, face by face: the order
+//! its sums always had) rather than built as a second adjacency. A brute-force
 //! loop over all triangles ([`collision_bound_brute_force`]) is the differential test of the BVH
 //! path.
 //!
@@ -69,7 +73,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
-use crate::mesh::Adjacency;
+use crate::mesh::{Adjacency, PAR_MIN_LEN};
 use crate::stages::frames::Frames;
 use crate::stages::weld::Welded;
 
@@ -272,7 +276,8 @@ fn inversion_scales(
             .iter()
             .flat_map(|&(t, f)| tri(t).map(|v| (v, f)))
             .collect();
-        factor.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        // equal elements are equal values: an unstable sort is deterministic
+        factor.par_sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
         factor.dedup_by_key(|x| x.0);
         let before: Vec<f32> = factor.iter().map(|&(v, _)| scale[v as usize]).collect();
         for &(v, f) in &factor {
@@ -284,7 +289,7 @@ fn inversion_scales(
             .filter(|(&(v, _), b)| scale[v as usize] != *b)
             .flat_map(|(&(v, _), _)| faces.of(v).iter().copied())
             .collect();
-        check.sort_unstable();
+        check.par_sort_unstable();
         check.dedup();
         if check.is_empty() {
             break;
@@ -303,6 +308,20 @@ fn incident_faces(welded: &Welded) -> Adjacency {
     Adjacency::build(welded.positions.len(), corners)
 }
 
+/// The distinct items of `items` (all `< n`), ascending: marked in a table, then read off it,
+/// instead of sorting a list with many repeats.
+fn marked(n: usize, items: impl Iterator<Item = u32>) -> Vec<u32> {
+    let mut mark = vec![false; n];
+    for i in items {
+        mark[i as usize] = true;
+    }
+    (0..n as u32)
+        .into_par_iter()
+        .with_min_len(4 * PAR_MIN_LEN)
+        .filter(|&i| mark[i as usize])
+        .collect()
+}
+
 /// Smallest `d · n_f` a smoothed direction may have against an incident face normal.
 const OUTER_MARGIN: f32 = 0.05;
 
@@ -314,31 +333,18 @@ fn smooth_directions(
     dirs: &[Vec3],
     height: f32,
 ) -> (Vec<Vec3>, usize) {
-    use rayon::prelude::*;
     let n = welded.positions.len();
-    let tris: Vec<[u32; 3]> = welded
-        .indices
-        .chunks_exact(3)
+    let tris: Vec<[u32; 3]> = (welded.indices.par_chunks_exact(3))
+        .with_min_len(PAR_MIN_LEN)
         .map(|t| [t[0], t[1], t[2]])
         .collect();
-    let normals: Vec<Vec3> = tris
-        .iter()
+    let normals: Vec<Vec3> = (tris.par_iter())
+        .with_min_len(PAR_MIN_LEN)
         .map(|t| {
             let [a, b, c] = t.map(|v| welded.positions[v as usize]);
             crate::mesh::face_normal(a, b, c).0
         })
         .collect();
-    let edges = tris.iter().flat_map(|t| {
-        [
-            (t[0], t[1]),
-            (t[1], t[2]),
-            (t[2], t[0]),
-            (t[1], t[0]),
-            (t[2], t[1]),
-            (t[0], t[2]),
-        ]
-    });
-    let ring = Adjacency::build(n, edges);
     let inverts = |d: &[Vec3], t: usize| {
         let tri = tris[t];
         let g = tri.map(|v| d[v as usize] * height);
@@ -349,27 +355,35 @@ fn smooth_directions(
     let mut changed = vec![false; n];
     let mut check: Vec<u32> = (0..tris.len() as u32).collect();
     for _ in 0..SMOOTH_ITERATIONS {
-        let bad: Vec<u32> = check
-            .par_iter()
-            .copied()
+        let bad: Vec<u32> = (check.par_iter().copied())
+            .with_min_len(PAR_MIN_LEN)
             .filter(|&t| inverts(&dirs, t as usize))
             .collect();
-        let mut verts: Vec<u32> = bad.iter().flat_map(|&t| tris[t as usize]).collect();
-        verts.sort_unstable();
-        verts.dedup();
+        let verts = marked(n, bad.iter().flat_map(|&t| tris[t as usize]));
         if verts.is_empty() {
             break;
         }
-        let moved: Vec<(u32, Vec3)> = verts
-            .par_iter()
+        let moved: Vec<(u32, Vec3)> = (verts.par_iter())
+            .with_min_len(PAR_MIN_LEN / 8)
             .filter_map(|&v| {
                 let own = dirs[v as usize];
-                let sum = ring.of(v).iter().fold(own, |s, &u| s + dirs[u as usize]);
+                let incident = faces.of(v);
+                // the ring in the order of the faces around `v`: per face the next corner,
+                // then the previous one
+                let mut sum = own;
+                for &f in incident {
+                    let t = tris[f as usize];
+                    let k = t
+                        .iter()
+                        .position(|&u| u == v)
+                        .expect("a corner of its face");
+                    sum += dirs[t[(k + 1) % 3] as usize];
+                    sum += dirs[t[(k + 2) % 3] as usize];
+                }
                 let mut d = sum.normalize_or_zero();
                 if d == Vec3::ZERO {
                     return None;
                 }
-                let incident = faces.of(v);
                 for _ in 0..4 {
                     for &f in incident {
                         let nf = normals[f as usize];
@@ -393,12 +407,10 @@ fn smooth_directions(
             dirs[v as usize] = d;
             changed[v as usize] = true;
         }
-        check = moved
-            .iter()
-            .flat_map(|&(v, _)| faces.of(v).iter().copied())
-            .collect();
-        check.sort_unstable();
-        check.dedup();
+        check = marked(
+            tris.len(),
+            moved.iter().flat_map(|&(v, _)| faces.of(v).iter().copied()),
+        );
     }
     let count = changed.iter().filter(|&&c| c).count();
     (dirs, count)

@@ -34,6 +34,9 @@
 //! a clamp scale of 0) lies on the base in every layer; the base, drawn first under a `LESS`
 //! depth test, hides it, so it is dropped from the layers above.
 //!
+//! Triangles are bounded and given their layers in parallel (each depends on its own triangle
+//! only); the kept counts per layer are read off a histogram of the tops after.
+//!
 //! Known limit: anisotropic filtering takes taps along the pixel's footprint, which can reach
 //! past the triangle's UV box by up to half a pixel's footprint; the bound covers isotropic
 //! trilinear filtering (the glTF sampler's, and every client's default).
@@ -42,6 +45,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::facts::{Facts, Reported};
+use crate::mesh::PAR_MIN_LEN;
 use crate::stages::strands;
 
 /// Widening of every footprint, in level-0 texels, for UV quantization.
@@ -260,22 +264,27 @@ pub fn layer_tops(
         "layer cutoffs rise with the layer"
     );
     let layers = cutoffs.len();
-    let mut kept = vec![0usize; layers];
-    let top = indices
-        .chunks_exact(3)
-        .zip(bounds)
+    let top: Vec<u32> = (indices.par_chunks_exact(3).zip(bounds))
+        .with_min_len(PAR_MIN_LEN)
         .map(|(t, &b)| {
             let moves = t.iter().any(|&v| delta[v as usize] != Vec3::ZERO);
             let d = density.map_or(255, |d| t.iter().map(|&v| d[v as usize]).max().unwrap());
             let reach = b as f64 / 255.0 * (d as f64 / 255.0);
             let shows = |j: usize| moves && reach >= cutoffs[j] as f64 * (1.0 - SLACK);
-            let top = 1 + (1..layers).take_while(|&j| shows(j)).count();
-            for k in &mut kept[..top] {
-                *k += 1;
-            }
-            top as u32
+            (1 + (1..layers).take_while(|&j| shows(j)).count()) as u32
         })
         .collect();
+    // kept[j] = triangles whose top is above j
+    let mut at = vec![0usize; layers + 1];
+    for &t in &top {
+        at[t as usize] += 1;
+    }
+    let mut kept = vec![0usize; layers];
+    let mut above = 0;
+    for j in (0..layers).rev() {
+        above += at[j + 1];
+        kept[j] = above;
+    }
     Culled { top, kept }
 }
 

@@ -15,13 +15,18 @@
 //! The result is always a finite unit vector. "Vanishes" means shorter than 1e-4 of the summed
 //! weights: a sum that cancelled to rounding noise must not pick a random direction.
 //!
+//! Faces and vertices are visited in parallel: each vertex gathers its corners in triangle order,
+//! the order a serial loop over the triangles would add them, so the sums (and the bytes) are
+//! the same on any thread count.
+//!
 //! Corner angles use `libm::acosf`, not the platform's `acos`, so directions (and so the baked
 //! bytes) are the same on every OS and C library.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::face_normal;
+use crate::mesh::{face_normal, Adjacency, PAR_MIN_LEN};
 use crate::stages::weld::Welded;
 
 /// Which rule produced a welded vertex's direction; the report counts each.
@@ -73,32 +78,26 @@ const VANISH: f32 = 1e-4;
 /// fallback 3 only.
 pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Frames {
     let n = welded.positions.len();
-    let mut angle_sum = vec![Vec3::ZERO; n];
-    let mut angle_w = vec![0.0f32; n];
-    let mut area_sum = vec![Vec3::ZERO; n];
-    let mut area_w = vec![0.0f32; n];
-    let mut largest = vec![(0.0f32, Vec3::ZERO); n];
-    for tri in welded.indices.chunks_exact(3) {
-        let p = [0, 1, 2].map(|k| welded.positions[tri[k] as usize]);
-        let (fnrm, area2) = face_normal(p[0], p[1], p[2]);
-        if area2 == 0.0 {
-            continue;
-        }
-        for k in 0..3 {
-            let v = tri[k] as usize;
-            let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
-            let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
-            // libm, not the platform's acos: the same bits on every OS.
-            let angle = libm::acosf(e1.dot(e2).clamp(-1.0, 1.0));
-            angle_sum[v] += fnrm * angle;
-            angle_w[v] += angle;
-            area_sum[v] += fnrm * area2;
-            area_w[v] += area2;
-            if area2 > largest[v].0 {
-                largest[v] = (area2, fnrm);
-            }
-        }
-    }
+    // Per triangle its normal and doubled area, per corner its angle (in parallel); then per
+    // vertex the sums over its corners in triangle order, the order a serial scatter adds them.
+    let faces: Vec<(Vec3, f32, [f32; 3])> = (welded.indices.par_chunks_exact(3))
+        .with_min_len(PAR_MIN_LEN)
+        .map(|tri| {
+            let p = [0, 1, 2].map(|k| welded.positions[tri[k] as usize]);
+            let (fnrm, area2) = face_normal(p[0], p[1], p[2]);
+            let angles = [0, 1, 2].map(|k| {
+                let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+                let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+                // libm, not the platform's acos: the same bits on every OS.
+                libm::acosf(e1.dot(e2).clamp(-1.0, 1.0))
+            });
+            (fnrm, area2, angles)
+        })
+        .collect();
+    let corners = Adjacency::build(
+        n,
+        (welded.indices.iter().enumerate()).map(|(c, &v)| (v, c as u32)),
+    );
     let mut input_sum = vec![Vec3::ZERO; n];
     if let Some(ns) = input_normals {
         for (v, &w) in welded.remap.iter().enumerate() {
@@ -107,30 +106,53 @@ pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Fram
             }
         }
     }
+    let picked: Vec<(Vec3, Fallback)> = (0..n as u32)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(|v| {
+            let (mut angle_sum, mut angle_w) = (Vec3::ZERO, 0.0f32);
+            let (mut area_sum, mut area_w) = (Vec3::ZERO, 0.0f32);
+            let mut largest = (0.0f32, Vec3::ZERO);
+            for &c in corners.of(v) {
+                let (fnrm, area2, angles) = faces[c as usize / 3];
+                if area2 == 0.0 {
+                    continue;
+                }
+                let angle = angles[c as usize % 3];
+                angle_sum += fnrm * angle;
+                angle_w += angle;
+                area_sum += fnrm * area2;
+                area_w += area2;
+                if area2 > largest.0 {
+                    largest = (area2, fnrm);
+                }
+            }
+            let input = input_sum[v as usize];
+            let usable = |s: Vec3, w: f32| s.is_finite() && w > 0.0 && s.length() > VANISH * w;
+            let (dir, rule) = if usable(angle_sum, angle_w) {
+                (angle_sum, Fallback::AngleWeighted)
+            } else if usable(area_sum, area_w) {
+                (area_sum, Fallback::AreaWeighted)
+            } else if largest.0 > 0.0 {
+                (largest.1, Fallback::LargestFace)
+            } else if input.length() > VANISH {
+                (input, Fallback::InputNormal)
+            } else {
+                (Vec3::Y, Fallback::PlusY)
+            };
+            (dir.normalize_or(Vec3::Y), rule)
+        })
+        .collect();
     let mut frames = Frames {
         welded: Vec::with_capacity(n),
         ..Default::default()
     };
-    for v in 0..n {
-        let usable = |s: Vec3, w: f32| s.is_finite() && w > 0.0 && s.length() > VANISH * w;
-        let (dir, rule) = if usable(angle_sum[v], angle_w[v]) {
-            (angle_sum[v], Fallback::AngleWeighted)
-        } else if usable(area_sum[v], area_w[v]) {
-            (area_sum[v], Fallback::AreaWeighted)
-        } else if largest[v].0 > 0.0 {
-            (largest[v].1, Fallback::LargestFace)
-        } else if input_sum[v].length() > VANISH {
-            (input_sum[v], Fallback::InputNormal)
-        } else {
-            (Vec3::Y, Fallback::PlusY)
-        };
-        let dir = dir.normalize_or(Vec3::Y);
+    for (dir, rule) in picked {
         frames.fallbacks[rule as usize] += 1;
         frames.welded.push(dir);
     }
-    frames.direction = welded
-        .remap
-        .iter()
+    frames.direction = (welded.remap.par_iter())
+        .with_min_len(PAR_MIN_LEN)
         .map(|&w| frames.welded[w as usize])
         .collect();
     debug_assert!(frames

@@ -27,6 +27,13 @@
 //! corners on one position) are dropped. Welded ids are given in first-use order, so the result
 //! is deterministic.
 //!
+//! **Threads.** The per-edge work runs in parallel and gives the same result on any count:
+//! edges are bucketed by ranges of their lower end (one range per thread, joined in order), each
+//! edge's continuations are found on its own and joined after (a class's root is its smallest
+//! corner, whatever the order of the joins), and position ids are hashed on up to three threads
+//! and sorted in parallel on more (both give first-occurrence ids). What stays serial is the
+//! join and the first-use numbering, a pass over the corners.
+//!
 //! Rejected: welding by position alone (the sheet defect above), and grouping corners by the
 //! angle between their face normals (splits sharp cone tips and needles into pieces).
 
@@ -34,9 +41,10 @@ use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, PAR_MIN_LEN};
 
 /// The welded topology of a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -107,6 +115,46 @@ fn key(p: Vec3) -> [u32; 3] {
 /// Exact-position ids: for each vertex its position id (first-occurrence order), and the
 /// position of each id.
 pub fn position_ids(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
+    if positions.len() < PARALLEL_IDS || rayon::current_num_threads() < 4 {
+        position_ids_hashed(positions)
+    } else {
+        position_ids_sorted(positions)
+    }
+}
+
+/// [`position_ids`] by a parallel sort.
+fn position_ids_sorted(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
+    // Sorted by (key, vertex): each run of one key starts at its first occurrence.
+    let mut order: Vec<([u32; 3], u32)> = (positions.par_iter().enumerate())
+        .with_min_len(PAR_MIN_LEN)
+        .map(|(i, &p)| (key(p), i as u32))
+        .collect();
+    order.par_sort_unstable();
+    let mut first = vec![0u32; positions.len()];
+    for run in order.chunk_by(|x, y| x.0 == y.0) {
+        for &(_, v) in run {
+            first[v as usize] = run[0].1;
+        }
+    }
+    let mut ids = vec![0u32; positions.len()];
+    let mut unique = Vec::new();
+    for (v, &f) in first.iter().enumerate() {
+        ids[v] = if f as usize == v {
+            unique.push(positions[v]);
+            unique.len() as u32 - 1
+        } else {
+            ids[f as usize]
+        };
+    }
+    (ids, unique)
+}
+
+/// Vertices from which [`position_ids`] sorts in parallel instead of hashing (with four threads
+/// or more: below that, hashing on one thread is as fast).
+const PARALLEL_IDS: usize = 1 << 15;
+
+/// [`position_ids`] through a hash map: the faster way on one thread.
+fn position_ids_hashed(positions: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
     let mut ids: IdMap<[u32; 3], u32> = IdMap::default();
     ids.reserve(positions.len());
     let mut unique = Vec::new();
@@ -151,56 +199,36 @@ pub struct Topology {
 impl Topology {
     pub fn new(positions: &[Vec3], indices: &[u32]) -> Topology {
         let (ids, unique) = position_ids(positions);
+        let tris = on_ids(&ids, indices);
         // Bucketed by the lower end (a counting sort), then each small bucket sorted: the same
-        // order as sorting the whole list, in linear time.
+        // order as sorting the whole list, in linear time. Ranges of lower ends (one per thread)
+        // are bucketed in parallel, each scanning every triangle for its own edges, and joined
+        // in order.
         let n = unique.len();
-        let mut start = vec![0u32; n + 1];
-        let corners = |f: &mut dyn FnMut(u32, u32, u32)| {
-            for (t, tri) in indices.chunks_exact(3).enumerate() {
-                let w = [0, 1, 2].map(|k| ids[tri[k] as usize]);
-                if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
-                    continue;
-                }
-                for k in 0..3 {
-                    let (p, q) = (w[k], w[(k + 1) % 3]);
-                    f(p.min(q), p.max(q), t as u32);
-                }
-            }
-        };
-        corners(&mut |a, _, _| start[a as usize + 1] += 1);
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        let mut fill = start.clone();
-        let mut edges = vec![(0u64, 0u32); start[n] as usize];
-        corners(&mut |a, b, t| {
-            edges[fill[a as usize] as usize] = ((a as u64) << 32 | b as u64, t);
-            fill[a as usize] += 1;
-        });
-        for a in 0..n {
-            edges[start[a] as usize..start[a + 1] as usize].sort_unstable();
-        }
+        let ranges = (n / EDGE_RANGE_MIN).clamp(1, rayon::current_num_threads());
+        let bound = |r: usize| (r * n / ranges) as u32;
+        let parts: Vec<Vec<(u64, u32)>> = (0..ranges)
+            .into_par_iter()
+            .map(|r| bucket_edges(&tris, bound(r)..bound(r + 1)))
+            .collect();
         Topology {
             ids,
             positions: unique,
-            edges,
+            edges: parts.concat(),
         }
     }
 
     /// The triangles of `indices` on position ids.
     pub fn tris(&self, indices: &[u32]) -> Vec<[u32; 3]> {
-        indices
-            .chunks_exact(3)
-            .map(|t| [0, 1, 2].map(|k| self.ids[t[k] as usize]))
-            .collect()
+        on_ids(&self.ids, indices)
     }
 
     /// Every edge side, sorted so that the sides of one edge are adjacent (group them with
     /// `chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))`), directions read from `tris` (the current
     /// winding of the triangles the topology was built on).
     pub fn sides(&self, tris: &[[u32; 3]]) -> Vec<EdgeSide> {
-        self.edges
-            .iter()
+        (self.edges.par_iter())
+            .with_min_len(PAR_MIN_LEN)
             .map(|&(key, t)| {
                 let (a, b) = ((key >> 32) as u32, key as u32);
                 let tri = tris[t as usize];
@@ -220,6 +248,52 @@ impl Topology {
             })
             .collect()
     }
+}
+
+/// Lower ends per range of [`Topology::new`]'s parallel bucketing at least.
+const EDGE_RANGE_MIN: usize = 1 << 13;
+
+/// The triangles of `indices` on the ids `ids` gives their vertices.
+fn on_ids(ids: &[u32], indices: &[u32]) -> Vec<[u32; 3]> {
+    (indices.par_chunks_exact(3))
+        .with_min_len(PAR_MIN_LEN)
+        .map(|t| [0, 1, 2].map(|k| ids[t[k] as usize]))
+        .collect()
+}
+
+/// `(a << 32 | b, triangle)` for each edge `a < b` of each non-collapsed triangle of `tris` whose
+/// lower end `a` lies in `lower`, sorted.
+fn bucket_edges(tris: &[[u32; 3]], lower: std::ops::Range<u32>) -> Vec<(u64, u32)> {
+    let n = (lower.end - lower.start) as usize;
+    let mut start = vec![0u32; n + 1];
+    let corners = |f: &mut dyn FnMut(u32, u32, u32)| {
+        for (t, w) in tris.iter().enumerate() {
+            if w[0] == w[1] || w[1] == w[2] || w[0] == w[2] {
+                continue;
+            }
+            for k in 0..3 {
+                let (p, q) = (w[k], w[(k + 1) % 3]);
+                let a = p.min(q);
+                if lower.contains(&a) {
+                    f(a - lower.start, p.max(q), t as u32);
+                }
+            }
+        }
+    };
+    corners(&mut |a, _, _| start[a as usize + 1] += 1);
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut edges = vec![(0u64, 0u32); start[n] as usize];
+    corners(&mut |a, b, t| {
+        edges[fill[a as usize] as usize] = (((a + lower.start) as u64) << 32 | b as u64, t);
+        fill[a as usize] += 1;
+    });
+    for a in 0..n {
+        edges[start[a] as usize..start[a + 1] as usize].sort_unstable();
+    }
+    edges
 }
 
 /// Two triangles across an edge closer than this (radians, measured around the edge) lie on
@@ -250,24 +324,30 @@ fn third(tris: &[[u32; 3]], e: &EdgeSide) -> u32 {
     tris[e.t as usize][(e.k as usize + 2) % 3]
 }
 
-/// Pairs of sides (indices into `m`, the sides of one edge) whose triangles continue into each
-/// other across the edge.
-fn continuations(m: &[EdgeSide], tris: &[[u32; 3]], pos: &[Vec3]) -> Vec<(usize, usize)> {
+/// Calls `each` with the pairs of sides (indices into `m`, the sides of one edge) whose triangles
+/// continue into each other across the edge.
+fn continuations(
+    m: &[EdgeSide],
+    tris: &[[u32; 3]],
+    pos: &[Vec3],
+    each: &mut impl FnMut(usize, usize),
+) {
     let p = |i: u32| pos[i as usize].as_dvec3();
     let (pa, pb): (DVec3, DVec3) = (p(m[0].a), p(m[0].b));
     if m.len() == 2 {
         // One neighbour: continue unless the two are folded onto each other (a sheet's rim). The
         // same direction on both sides means a surface the orient stage could not make agree
         // (non-orientable); it continues too.
-        let fold = folded(pa, pb, p(third(tris, &m[0])), p(third(tris, &m[1])));
-        return if fold { vec![] } else { vec![(0, 1)] };
+        if !folded(pa, pb, p(third(tris, &m[0])), p(third(tris, &m[1]))) {
+            each(0, 1);
+        }
+        return;
     }
     let phi: Vec<f64> = m
         .iter()
         .map(|e| angle_around(pa, pb, p(third(tris, e))))
         .collect();
     let tau = std::f64::consts::TAU;
-    let mut out = Vec::new();
     for i in 0..m.len() {
         let mut best: Option<(f64, usize)> = None;
         for j in 0..m.len() {
@@ -290,11 +370,10 @@ fn continuations(m: &[EdgeSide], tris: &[[u32; 3]], pos: &[Vec3]) -> Vec<(usize,
         }
         if let Some((d, j)) = best {
             if d <= tau - FOLD_ANGLE {
-                out.push((i, j));
+                each(i, j);
             }
         }
     }
-    out
 }
 
 fn find(parent: &mut [u32], mut x: u32) -> u32 {
@@ -317,31 +396,35 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
     let tris = topo.tris(indices);
     let kept = |t: &[u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
 
-    // Corners (3 per triangle) joined across continuing edges.
-    let mut parent: Vec<u32> = (0..3 * tris.len() as u32).collect();
+    // Corners (3 per triangle) joined across continuing edges: the pairs found per edge in
+    // parallel, joined after (a class's root is its smallest corner, whatever the order).
     let sides = topo.sides(&tris);
-    for group in sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
-        for (i, j) in continuations(group, &tris, &topo.positions) {
-            let (ti, ki) = (group[i].t, group[i].k);
-            let (tj, kj) = (group[j].t, group[j].k);
-            for end in [group[0].a, group[0].b] {
-                let corner = |t: u32, k: u8| {
-                    let tri = tris[t as usize];
-                    let k = if tri[k as usize] == end {
-                        k
-                    } else {
-                        (k + 1) % 3
+    let pairs: Vec<Vec<(u32, u32)>> = (sides.par_chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)))
+        .fold(Vec::new, |mut out, group| {
+            continuations(group, &tris, &topo.positions, &mut |i, j| {
+                let (ti, ki) = (group[i].t, group[i].k);
+                let (tj, kj) = (group[j].t, group[j].k);
+                for end in [group[0].a, group[0].b] {
+                    let corner = |t: u32, k: u8| {
+                        let tri = tris[t as usize];
+                        let k = if tri[k as usize] == end {
+                            k
+                        } else {
+                            (k + 1) % 3
+                        };
+                        3 * t + k as u32
                     };
-                    3 * t + k as u32
-                };
-                let (x, y) = (
-                    find(&mut parent, corner(ti, ki)),
-                    find(&mut parent, corner(tj, kj)),
-                );
-                if x != y {
-                    parent[x.max(y) as usize] = x.min(y);
+                    out.push((corner(ti, ki), corner(tj, kj)));
                 }
-            }
+            });
+            out
+        })
+        .collect();
+    let mut parent: Vec<u32> = (0..3 * tris.len() as u32).collect();
+    for (x, y) in pairs.into_iter().flatten() {
+        let (x, y) = (find(&mut parent, x), find(&mut parent, y));
+        if x != y {
+            parent[x.max(y) as usize] = x.min(y);
         }
     }
 
@@ -442,6 +525,20 @@ mod tests {
         assert_eq!(w.positions.len(), 4);
         assert_eq!(w.indices, vec![0, 1, 2, 0, 2, 3, 0, 3, 1]);
         assert_eq!(w.split_vertices(), 0);
+    }
+
+    #[test]
+    fn position_ids_sorted_and_hashed_agree() {
+        let p: Vec<Vec3> = (0..5000u32)
+            .map(|i| {
+                let h = i.wrapping_mul(2_654_435_761) >> 20;
+                let x = (h % 97) as f32;
+                Vec3::new(if h % 5 == 0 { -0.0 } else { x }, (h % 7) as f32, 0.0)
+            })
+            .collect();
+        let hashed = position_ids_hashed(&p);
+        assert!(hashed.1.len() < p.len());
+        assert_eq!(position_ids_sorted(&p), hashed);
     }
 
     #[test]
