@@ -129,33 +129,50 @@ impl Tiling {
     }
 }
 
+/// Triangles per block of [`uv_to_world`]'s sums: blocks are summed in parallel, then in order,
+/// so the sums are the same for any thread count.
+const UV_BLOCK: usize = 4096;
+
 /// World length of one UV unit along u and v (area-weighted means) and the spread of the
 /// isotropic scale. `None` when no triangle has both world and UV area.
 fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64, f64)> {
+    use rayon::prelude::*;
     let uv = mesh.uvs.as_ref()?;
-    let (mut su, mut sv, mut total) = (0.0, 0.0, 0.0);
-    let mut scales: Vec<(f64, f64)> = Vec::new();
-    for t in mesh.indices.chunks_exact(3) {
-        let [p0, p1, p2] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
-        let [t0, t1, t2] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
-        let (e1, e2) = (p1 - p0, p2 - p0);
-        let (d1, d2) = (t1 - t0, t2 - t0);
-        let det = d1.perp_dot(d2);
-        let area = e1.cross(e2).length() * 0.5;
-        if !(det.abs() > 0.0 && area > 0.0 && det.is_finite() && area.is_finite()) {
-            continue;
-        }
-        let dpdu: DVec3 = (e1 * d2.y - e2 * d1.y) / det;
-        let dpdv: DVec3 = (e2 * d1.x - e1 * d2.x) / det;
-        su += dpdu.length() * area;
-        sv += dpdv.length() * area;
-        total += area;
-        scales.push(((area / (det.abs() * 0.5)).sqrt(), area));
-    }
+    // per block of triangles: the sums of |dP/du|·area, |dP/dv|·area and area, and each
+    // triangle's isotropic scale with its area
+    let blocks: Vec<([f64; 3], Vec<(f64, f64)>)> = (mesh.indices.par_chunks(3 * UV_BLOCK))
+        .map(|block| {
+            let mut sums = [0.0f64; 3];
+            let mut scales = Vec::with_capacity(block.len() / 3);
+            for t in block.chunks_exact(3) {
+                let [p0, p1, p2] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
+                let [t0, t1, t2] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
+                let (e1, e2) = (p1 - p0, p2 - p0);
+                let (d1, d2) = (t1 - t0, t2 - t0);
+                let det = d1.perp_dot(d2);
+                let area = e1.cross(e2).length() * 0.5;
+                if !(det.abs() > 0.0 && area > 0.0 && det.is_finite() && area.is_finite()) {
+                    continue;
+                }
+                let dpdu: DVec3 = (e1 * d2.y - e2 * d1.y) / det;
+                let dpdv: DVec3 = (e2 * d1.x - e1 * d2.x) / det;
+                sums[0] += dpdu.length() * area;
+                sums[1] += dpdv.length() * area;
+                sums[2] += area;
+                scales.push(((area / (det.abs() * 0.5)).sqrt(), area));
+            }
+            (sums, scales)
+        })
+        .collect();
+    let [su, sv, total] = (blocks.iter()).fold([0.0; 3], |acc, (s, _)| {
+        [acc[0] + s[0], acc[1] + s[1], acc[2] + s[2]]
+    });
     if !(total > 0.0 && su > 0.0 && sv > 0.0) {
         return None;
     }
-    scales.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut scales: Vec<(f64, f64)> = blocks.into_iter().flat_map(|(_, s)| s).collect();
+    // a total order (scale, then area), so ties sort alike whatever the threads
+    scales.par_sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
     let percentile = |q: f64| {
         let mut acc = 0.0;
         for &(s, a) in &scales {
