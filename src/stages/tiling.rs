@@ -133,14 +133,16 @@ impl Tiling {
 /// so the sums are the same for any thread count.
 const UV_BLOCK: usize = 4096;
 
+/// One block's sums (|dP/du|·area, |dP/dv|·area, area) and each triangle's isotropic scale with
+/// its area.
+type UvBlock = ([f64; 3], Vec<(f64, f64)>);
+
 /// World length of one UV unit along u and v (area-weighted means) and the spread of the
 /// isotropic scale. `None` when no triangle has both world and UV area.
 fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64, f64)> {
     use rayon::prelude::*;
     let uv = mesh.uvs.as_ref()?;
-    // per block of triangles: the sums of |dP/du|·area, |dP/dv|·area and area, and each
-    // triangle's isotropic scale with its area
-    let blocks: Vec<([f64; 3], Vec<(f64, f64)>)> = (mesh.indices.par_chunks(3 * UV_BLOCK))
+    let blocks: Vec<UvBlock> = (mesh.indices.par_chunks(3 * UV_BLOCK))
         .map(|block| {
             let mut sums = [0.0f64; 3];
             let mut scales = Vec::with_capacity(block.len() / 3);
