@@ -35,7 +35,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::facts::{Facts, Reported};
 use crate::mesh::{face_normal, Mesh};
-use crate::stages::weld::{folded, Topology};
+use crate::stages::weld::{folded, EdgeSide, Topology};
+use rayon::prelude::*;
 
 /// What the orient stage does.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -152,15 +153,24 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
     let mut links = vec![[(u32::MAX, false); 3]; nt];
     let mut open_edge = vec![false; nt];
     let sides = topo.sides(&tris);
-    for m in sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
-        let third = |i: usize| pos(tris[m[i].t as usize][(m[i].k as usize + 2) % 3]);
-        if m.len() == 2 && !folded(pos(m[0].a), pos(m[0].b), third(0), third(1)) {
+    let edges: Vec<&[EdgeSide]> = sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)).collect();
+    // whether each edge links its two triangles (the fold test, in parallel), then the links
+    // in edge order
+    let linked: Vec<bool> = (edges.par_iter())
+        .with_min_len(1024)
+        .map(|m| {
+            let third = |i: usize| pos(tris[m[i].t as usize][(m[i].k as usize + 2) % 3]);
+            m.len() == 2 && !folded(pos(m[0].a), pos(m[0].b), third(0), third(1))
+        })
+        .collect();
+    for (m, linked) in edges.iter().zip(linked) {
+        if linked {
             // consistent when the two traverse the edge in opposite directions
             let differ = m[0].forward == m[1].forward;
             links[m[0].t as usize][m[0].k as usize] = (m[1].t, differ);
             links[m[1].t as usize][m[1].k as usize] = (m[0].t, differ);
         } else {
-            for e in m {
+            for e in m.iter() {
                 open_edge[e.t as usize] = true;
             }
         }
@@ -170,8 +180,8 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
         a == b || b == c || a == c
     };
 
-    let area: Vec<f64> = tris
-        .iter()
+    let area: Vec<f64> = (tris.par_iter())
+        .with_min_len(1024)
         .map(|t| {
             let [a, b, c] = t.map(pos);
             (b - a).cross(c - a).length()
