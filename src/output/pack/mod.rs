@@ -447,12 +447,23 @@ fn order_triangles(
     // whole list, one cluster, always does
     let whole = cache_order.len().max(1);
     let sizes: Vec<usize> = (0..=8).map(|k| 1usize << k).chain([whole]).collect();
+    let evaluate = |i: usize| {
+        let candidate = clustered(&cache_order, top, layers, sizes[i]);
+        let paid = pays(&candidate);
+        (candidate, paid)
+    };
+    // a large list judges every size at once, in parallel, and the bisection reads the
+    // verdicts (the same choice, in one candidate's time instead of four)
+    let mut judged: Vec<Option<_>> = match tris.len() > 2 * CACHE_PIECE {
+        true => (0..sizes.len() - 1).into_par_iter().map(|i| Some(evaluate(i))).collect(),
+        false => (0..sizes.len() - 1).map(|_| None).collect(),
+    };
     let (mut lo, mut hi) = (0, sizes.len() - 1);
     let mut best = None;
     while lo < hi {
         let mid = (lo + hi) / 2;
-        let candidate = clustered(&cache_order, top, layers, sizes[mid]);
-        if pays(&candidate) {
+        let (candidate, paid) = judged[mid].take().unwrap_or_else(|| evaluate(mid));
+        if paid {
             best = Some(candidate);
             hi = mid;
         } else {
