@@ -576,20 +576,45 @@ struct Span {
 impl File {
     /// The chunks' lists, each put end to end.
     fn concat(pieces: &[Piece]) -> File {
-        fn cat<T: Copy>(pieces: &[Piece], list: impl Fn(&Piece) -> &[T]) -> Vec<T> {
+        fn cat<T: Copy + Send>(pieces: &[Piece], list: impl Fn(&Piece) -> &[T]) -> Vec<T> {
             let mut all = Vec::with_capacity(pieces.iter().map(|p| list(p).len()).sum());
             for p in pieces {
                 all.extend_from_slice(list(p));
             }
             all
         }
+        // the six lists side by side
+        let ((positions, colors), ((texcoords, normals), (corners, arities))) = rayon::join(
+            || {
+                rayon::join(
+                    || cat(pieces, |p| &p.positions),
+                    || cat(pieces, |p| &p.colors),
+                )
+            },
+            || {
+                rayon::join(
+                    || {
+                        rayon::join(
+                            || cat(pieces, |p| &p.texcoords),
+                            || cat(pieces, |p| &p.normals),
+                        )
+                    },
+                    || {
+                        rayon::join(
+                            || cat(pieces, |p| &p.corners),
+                            || cat(pieces, |p| &p.arities),
+                        )
+                    },
+                )
+            },
+        );
         File {
-            positions: cat(pieces, |p| &p.positions),
-            colors: cat(pieces, |p| &p.colors),
-            texcoords: cat(pieces, |p| &p.texcoords),
-            normals: cat(pieces, |p| &p.normals),
-            corners: cat(pieces, |p| &p.corners),
-            arities: cat(pieces, |p| &p.arities),
+            positions,
+            colors,
+            texcoords,
+            normals,
+            corners,
+            arities,
         }
     }
 
@@ -732,11 +757,12 @@ fn triangulate(world: &[DVec3], corners: &[u32], arities: &[u32], fanned: &mut u
         if n < 3 {
             continue;
         }
-        let pts: Vec<DVec3> = poly.iter().map(|&i| world[i as usize]).collect();
-        match (n > 3 && n <= MAX_EAR_CLIP)
-            .then(|| ear_clip(&pts, fanned))
-            .flatten()
-        {
+        // a triangle (most polygons) needs no copy of its corners
+        let clipped = (n > 3 && n <= MAX_EAR_CLIP).then(|| {
+            let pts: Vec<DVec3> = poly.iter().map(|&i| world[i as usize]).collect();
+            ear_clip(&pts, fanned)
+        });
+        match clipped.flatten() {
             Some(tris) => out.extend(tris.iter().flatten().map(|&k| poly[k])),
             None => {
                 if n > MAX_EAR_CLIP {
