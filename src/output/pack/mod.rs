@@ -1592,9 +1592,9 @@ impl Shared {
         for (new, &old) in order.iter().enumerate() {
             fetch[old as usize] = new as u32;
         }
-        let q: Vec<Vec3> = gather(&order, g.positions)
-            .iter()
-            .map(|&p| g.stored(p))
+        let q: Vec<Vec3> = (order.par_iter())
+            .with_min_len(1 << 14)
+            .map(|&o| g.stored(g.positions[o as usize]))
             .collect();
         let position = b.positions("position", &q, &g.grid);
         let normal = b.normals(&gather(&order, g.normals));
@@ -1612,7 +1612,10 @@ impl Shared {
 
     /// An index stream over these vertices: `indices` (input numbering) renumbered for fetch.
     fn indices(&self, b: &mut Builder, indices: &[u32]) -> usize {
-        let ix: Vec<u32> = indices.iter().map(|&i| self.fetch[i as usize]).collect();
+        let ix: Vec<u32> = (indices.par_iter())
+            .with_min_len(1 << 14)
+            .map(|&i| self.fetch[i as usize])
+            .collect();
         b.indices("indices", &ix, self.order.len())
     }
 }
@@ -1925,8 +1928,12 @@ impl Builder<'_> {
             let v = self.stream("texcoord", uv, None, bytes.0, Some(8), uvs.len());
             return self.out.accessor(v, component::FLOAT, false, "VEC2", None);
         }
-        for &uv in uvs {
-            bytes.u16s(&grid.quantize(uv), 4);
+        let quantized: Vec<[u16; 2]> = (uvs.par_iter())
+            .with_min_len(1 << 14)
+            .map(|&uv| grid.quantize(uv))
+            .collect();
+        for q in &quantized {
+            bytes.u16s(q, 4);
         }
         let uv = Semantic::TexCoord(0);
         let v = self.stream("texcoord", uv, None, bytes.0, Some(4), uvs.len());
