@@ -134,7 +134,7 @@ pub(crate) fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<
 /// Opens `path` for reading without waiting for anything: on Unix with `O_NONBLOCK` (a FIFO
 /// opens at once instead of waiting for a writer; on a regular file the flag changes nothing)
 /// and `O_NOCTTY`.
-fn open_without_blocking(path: &Path) -> std::io::Result<std::fs::File> {
+pub(crate) fn open_without_blocking(path: &Path) -> std::io::Result<std::fs::File> {
     let mut options = std::fs::OpenOptions::new();
     options.read(true);
     #[cfg(unix)]

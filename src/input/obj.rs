@@ -947,6 +947,33 @@ fn names_mtl(bytes: &[u8]) -> bool {
     })
 }
 
+/// Whether the OBJ at `path` names a material library, read in blocks (most name none, and the
+/// bake reads the whole file again): `None` where it is not a regular file one can open, which
+/// the full read then reports.
+pub(super) fn file_names_mtl(path: &Path) -> Option<bool> {
+    use std::io::Read;
+    let mut file = super::open_without_blocking(path).ok()?;
+    if !file.metadata().ok()?.is_file() {
+        return None;
+    }
+    // the lines of the blocks so far that no newline has ended yet
+    let mut open = Vec::new();
+    let mut block = vec![0u8; 1 << 20];
+    loop {
+        let n = file.read(&mut block).ok()?;
+        if n == 0 {
+            return Some(names_mtl(&open));
+        }
+        open.extend_from_slice(&block[..n]);
+        if let Some(end) = memchr::memrchr(b'\n', &open) {
+            if names_mtl(&open[..=end]) {
+                return Some(true);
+            }
+            open.drain(..=end);
+        }
+    }
+}
+
 /// tobj's objects of the file and its materials (`None`: none could be read), each `.mtl`
 /// read only inside the OBJ's folder.
 fn load_with_materials(
@@ -1124,6 +1151,26 @@ mod tests {
         let s = load_str("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
         assert_eq!(s.meshes[0].indices.len(), 6);
         assert!(s.meshes[0].normals.is_none() && s.meshes[0].uvs.is_none());
+    }
+
+    #[test]
+    fn a_material_library_is_found_across_read_blocks() {
+        let dir = std::env::temp_dir().join(format!("shellbake-mtl-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("m.obj");
+        // the statement straddles the first 1 MiB block; a mention inside a line does not count
+        for (tail, named) in [("mtllib m.mtl\n", true), ("# no mtllib m.mtl\n", false)] {
+            let mut text = "# padding\n".repeat((1 << 20) / 10);
+            text.truncate((1 << 20) - 4);
+            text.push('\n');
+            text.push_str(tail);
+            text.push_str("v 0 0 0\n");
+            std::fs::write(&path, &text).unwrap();
+            assert_eq!(file_names_mtl(&path), Some(named), "{tail}");
+            assert_eq!(names_mtl(text.as_bytes()), named);
+        }
+        assert_eq!(file_names_mtl(&dir), None, "a folder is not read");
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
