@@ -580,14 +580,24 @@ fn clustered(
     layers: usize,
     size: usize,
 ) -> (Vec<u32>, Vec<usize>) {
-    let mut clusters: Vec<(u32, &[u32])> = (cache_order.chunks(size))
+    let clusters: Vec<(u32, &[u32])> = (cache_order.chunks(size))
         .map(|c| (c.iter().map(|&t| top[t as usize]).max().unwrap_or(0), c))
         .collect();
-    clusters.sort_by_key(|&(top, _)| std::cmp::Reverse(top));
-    let mut order = Vec::with_capacity(cache_order.len());
+    // most layers first, in cache order among equals: a counting sort (tops are layer counts)
+    let highest = clusters.iter().map(|c| c.0).max().unwrap_or(0) as usize;
+    let mut start = vec![0usize; highest + 2];
+    for &(top, cluster) in &clusters {
+        start[highest - top as usize + 1] += cluster.len();
+    }
+    for i in 1..start.len() {
+        start[i] += start[i - 1];
+    }
+    let mut order = vec![0u32; cache_order.len()];
     let mut kept = vec![0usize; layers];
-    for (top, cluster) in clusters {
-        order.extend_from_slice(cluster);
+    for &(top, cluster) in &clusters {
+        let at = &mut start[highest - top as usize];
+        order[*at..*at + cluster.len()].copy_from_slice(cluster);
+        *at += cluster.len();
         for k in &mut kept[..(top as usize).min(layers)] {
             *k += cluster.len();
         }
