@@ -1001,6 +1001,8 @@ struct Levels {
     mips: Vec<u32>,
     masks: Vec<Mask>,
     culled: Vec<cull::Culled>,
+    /// Pack's cache orders, `[level][chunk]` ([`pack::cache_orders`]).
+    cache: Vec<Vec<Vec<u32>>>,
 }
 
 impl Levels {
@@ -1055,9 +1057,21 @@ fn levels(run: &mut Run, shape: &Shape, heights: &Heights, look: &Look) -> Level
         mips,
         masks,
         culled: Vec::new(),
+        cache: Vec::new(),
     };
+    // pack's cache orders need no culling: they run beside it
     let cull_start = Instant::now();
-    out.culled = cull_levels(run, mesh, look, &out, density_map);
+    let lists: Vec<(&[u32], &[Vec<u32>], bool)> = (out.levels.iter())
+        .map(|l| {
+            let chunks = l.base.as_ref().map_or(&out.chunks, |b| &b.chunks);
+            (level_indices(l, mesh), &chunks[..], l.base.is_some())
+        })
+        .collect();
+    let (culled, cache) = rayon::join(
+        || cull_levels(run, mesh, look, &out, density_map),
+        || pack::cache_orders(&mesh.positions, &lists, params.pack.layout),
+    );
+    (out.culled, out.cache) = (culled, cache);
     if run.runs(Stage::Cull) {
         run.report
             .record(Stage::Cull.name(), cull_start.elapsed().as_secs_f64() * 1e3);
@@ -1130,12 +1144,14 @@ fn pack_surface(
         })
         .collect();
     let pack_levels: Vec<pack::PackLevel> = (chain.levels.iter().zip(&chain.culled))
-        .map(|(level, culled)| pack::PackLevel {
+        .zip(&chain.cache)
+        .map(|((level, culled), cache)| pack::PackLevel {
             level,
             mask: chain.mask_of(level),
             culled,
             indices: level_indices(level, mesh),
             chunks: level.base.as_ref().map_or(&chain.chunks, |b| &b.chunks),
+            cache,
         })
         .collect();
     let prefix = match several {

@@ -208,6 +208,9 @@ pub struct PackLevel<'a> {
     pub indices: &'a [u32],
     /// Triangles of `indices` in each chunk (chunk for chunk as [`PackInput::chunks`]).
     pub chunks: &'a [Vec<u32>],
+    /// Each chunk's triangles in meshopt's cache order, from [`cache_orders`]; empty for a level
+    /// that draws LOD 0's order.
+    pub cache: &'a [Vec<u32>],
 }
 
 /// What `pack` needs besides the parameters.
@@ -396,9 +399,41 @@ fn fifo_misses(indices: &[u32], tris: &[u32], vertices: usize) -> Vec<u32> {
     out
 }
 
+/// Whether level `k` (with a simplified base or not) draws LOD 0's order in `layout`: the
+/// compact layout's levels over LOD 0's triangles ([`Ordering::reused`]).
+pub fn reuses_lod0(k: usize, simplified: bool, layout: Layout) -> bool {
+    k > 0 && layout == Layout::Compact && !simplified
+}
+
+/// The cache order of every chunk of every level that has an order of its own
+/// (`[level][chunk]`, empty for the levels [`reuses_lod0`] names), in parallel: `levels` gives
+/// each level's triangle list over `positions`, its chunks, and whether it has a simplified
+/// base. It needs no culling, so the bake computes it beside the cull and hands it to pack in
+/// [`PackLevel::cache`].
+pub fn cache_orders(
+    positions: &[Vec3],
+    levels: &[(&[u32], &[Vec<u32>], bool)],
+    layout: Layout,
+) -> Vec<Vec<Vec<u32>>> {
+    let jobs: Vec<(usize, usize)> = (levels.iter().enumerate())
+        .filter(|&(k, l)| !reuses_lod0(k, l.2, layout))
+        .flat_map(|(k, l)| (0..l.1.len()).map(move |c| (k, c)))
+        .collect();
+    let mut flat = (jobs.par_iter())
+        .map(|&(k, c)| cache_order((positions, levels[k].0), &levels[k].1[c]))
+        .collect::<Vec<_>>()
+        .into_iter();
+    (levels.iter().enumerate())
+        .map(|(k, l)| match reuses_lod0(k, l.2, layout) {
+            true => Vec::new(),
+            false => flat.by_ref().take(l.1.len()).collect(),
+        })
+        .collect()
+}
+
 /// Each chunk's triangle order at each level (`[chunk][level]`), computed in parallel; `None`
-/// where the level draws LOD 0's order (the compact layout's levels over LOD 0's triangles:
-/// [`Ordering::reused`], cheap, when the chunk is packed).
+/// where the level draws LOD 0's order ([`reuses_lod0`]: [`Ordering::reused`], cheap, when the
+/// chunk is packed).
 fn orderings(input: &PackInput, params: &PackParams) -> Vec<Vec<Option<Ordering>>> {
     let levels = input.levels.len();
     let jobs: Vec<(usize, usize)> = (0..input.chunks.len())
@@ -407,10 +442,13 @@ fn orderings(input: &PackInput, params: &PackParams) -> Vec<Vec<Option<Ordering>
     let mut flat = (jobs.into_par_iter())
         .map(|(c, k)| {
             let pl = &input.levels[k];
-            let reuses = k > 0 && params.layout == Layout::Compact && pl.level.base.is_none();
+            let reuses = reuses_lod0(k, pl.level.base.is_some(), params.layout);
             let layers = pl.level.layers.len().max(1);
             let mesh = (&input.mesh.positions[..], pl.indices);
-            (!reuses).then(|| order_triangles(mesh, &pl.chunks[c], &pl.culled.top, layers))
+            (!reuses).then(|| {
+                let tris = (&pl.chunks[c][..], &pl.cache[c][..]);
+                order_triangles(mesh, tris, &pl.culled.top, layers)
+            })
         })
         .collect::<Vec<_>>()
         .into_iter();
@@ -420,8 +458,8 @@ fn orderings(input: &PackInput, params: &PackParams) -> Vec<Vec<Option<Ordering>
 }
 
 /// Triangles `tris` ordered so that every layer draws a prefix of one index buffer, culled as
-/// finely as the vertex cache allows. The triangles go in meshopt's vertex cache order, cut
-/// into clusters of consecutive triangles; each cluster shows in the layers its highest
+/// finely as the vertex cache allows. The triangles go in meshopt's vertex cache order
+/// (`cache_order`, from [`cache_orders`] before pack), cut into clusters of consecutive triangles; each cluster shows in the layers its highest
 /// triangle does (`top`), and the clusters go by that, most first (stable). Culling whole
 /// clusters keeps the cache order's locality; the cluster size is the smallest power of two
 /// (1 to 256, else no culling; found by bisection, taking the vertex shader's runs to fall as
@@ -431,12 +469,11 @@ fn orderings(input: &PackInput, params: &PackParams) -> Vec<Vec<Option<Ordering>
 /// runs for 15 % fewer triangles), slower on the GPU than no culling.
 fn order_triangles(
     (positions, indices): (&[Vec3], &[u32]),
-    tris: &[u32],
+    (tris, cache_order): (&[u32], &[u32]),
     top: &[u32],
     layers: usize,
 ) -> Ordering {
     let vertices = positions.len();
-    let cache_order = cache_order((positions, indices), tris);
     let misses = fifo_misses(indices, &cache_order, vertices);
     let bound = misses.last().map_or(0.0, |&m| m as f32 / tris.len() as f32) * ACMR_SLACK;
     let pays = |(order, kept): &(Vec<u32>, Vec<usize>)| {
