@@ -1061,7 +1061,7 @@ fn levels(run: &mut Run, shape: &Shape, heights: &Heights, look: &Look) -> Level
     };
     // pack's cache orders need no culling: they run beside it
     let cull_start = Instant::now();
-    let lists: Vec<(&[u32], &[Vec<u32>], bool)> = (out.levels.iter())
+    let lists: Vec<pack::LevelList> = (out.levels.iter())
         .map(|l| {
             let chunks = l.base.as_ref().map_or(&out.chunks, |b| &b.chunks);
             (level_indices(l, mesh), &chunks[..], l.base.is_some())

@@ -399,6 +399,10 @@ fn fifo_misses(indices: &[u32], tris: &[u32], vertices: usize) -> Vec<u32> {
     out
 }
 
+/// A level's triangle list, its chunks (triangles of the list) and whether it has a simplified
+/// base, as [`cache_orders`] takes them.
+pub type LevelList<'a> = (&'a [u32], &'a [Vec<u32>], bool);
+
 /// Whether level `k` (with a simplified base or not) draws LOD 0's order in `layout`: the
 /// compact layout's levels over LOD 0's triangles ([`Ordering::reused`]).
 pub fn reuses_lod0(k: usize, simplified: bool, layout: Layout) -> bool {
@@ -412,7 +416,7 @@ pub fn reuses_lod0(k: usize, simplified: bool, layout: Layout) -> bool {
 /// [`PackLevel::cache`].
 pub fn cache_orders(
     positions: &[Vec3],
-    levels: &[(&[u32], &[Vec<u32>], bool)],
+    levels: &[LevelList],
     layout: Layout,
 ) -> Vec<Vec<Vec<u32>>> {
     let jobs: Vec<(usize, usize)> = (levels.iter().enumerate())
@@ -474,7 +478,7 @@ fn order_triangles(
     layers: usize,
 ) -> Ordering {
     let vertices = positions.len();
-    let misses = fifo_misses(indices, &cache_order, vertices);
+    let misses = fifo_misses(indices, cache_order, vertices);
     let bound = misses.last().map_or(0.0, |&m| m as f32 / tris.len() as f32) * ACMR_SLACK;
     let pays = |(order, kept): &(Vec<u32>, Vec<usize>)| {
         let misses = fifo_misses(indices, order, vertices);
@@ -485,7 +489,7 @@ fn order_triangles(
     let whole = cache_order.len().max(1);
     let sizes: Vec<usize> = (0..=8).map(|k| 1usize << k).chain([whole]).collect();
     let evaluate = |i: usize| {
-        let candidate = clustered(&cache_order, top, layers, sizes[i]);
+        let candidate = clustered(cache_order, top, layers, sizes[i]);
         let paid = pays(&candidate);
         (candidate, paid)
     };
@@ -507,7 +511,7 @@ fn order_triangles(
             lo = mid + 1;
         }
     }
-    let (order, kept) = best.unwrap_or_else(|| clustered(&cache_order, top, layers, whole));
+    let (order, kept) = best.unwrap_or_else(|| clustered(cache_order, top, layers, whole));
     let corners = |order: &[u32]| -> Vec<u32> {
         (order.iter())
             .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
@@ -517,7 +521,7 @@ fn order_triangles(
         indices: corners(&order),
         tris: order,
         kept,
-        cache: corners(&cache_order),
+        cache: corners(cache_order),
     }
 }
 
