@@ -584,30 +584,18 @@ impl File {
             all
         }
         // the six lists side by side
-        let ((positions, colors), ((texcoords, normals), (corners, arities))) = rayon::join(
-            || {
-                rayon::join(
-                    || cat(pieces, |p| &p.positions),
-                    || cat(pieces, |p| &p.colors),
-                )
-            },
-            || {
-                rayon::join(
-                    || {
-                        rayon::join(
-                            || cat(pieces, |p| &p.texcoords),
-                            || cat(pieces, |p| &p.normals),
-                        )
-                    },
-                    || {
-                        rayon::join(
-                            || cat(pieces, |p| &p.corners),
-                            || cat(pieces, |p| &p.arities),
-                        )
-                    },
-                )
-            },
+        let floats: [fn(&Piece) -> &[f64]; 4] = [
+            |p| &p.positions,
+            |p| &p.colors,
+            |p| &p.texcoords,
+            |p| &p.normals,
+        ];
+        let (floats, (corners, arities)) = rayon::join(
+            || (floats.par_iter()).map(|&list| cat(pieces, list)).collect::<Vec<_>>(),
+            || rayon::join(|| cat(pieces, |p| &p.corners), || cat(pieces, |p| &p.arities)),
         );
+        let [positions, colors, texcoords, normals] =
+            <[Vec<f64>; 4]>::try_from(floats).expect("four lists");
         File {
             positions,
             colors,
