@@ -17,9 +17,10 @@
 //! ## The bake
 //!
 //! A bake runs a **plan** ([`scene::plan`]): from a scene file (or the one-surface shortcut, a
-//! mesh path) it decides which stages run for which surface. `bake_surface` reads as the plan:
-//! five phases, each one line per stage, every stage gated by the plan and filing its own
-//! typed facts ([`facts::Reported`], implemented next to each stage's code) in the report:
+//! mesh path) it decides which stages run for which surface. `prepare` (the first four phases)
+//! and `finish` (pack) read as the plan: five phases, each one line per stage, every stage
+//! gated by the plan and filing its own typed facts ([`facts::Reported`], implemented next to
+//! each stage's code) in the report:
 //!
 //! | phase | stage | verb |
 //! |---|---|---|
@@ -45,6 +46,13 @@
 //! | | cull (`cull`, on by default) | [`cull::layer_tops`] |
 //! | pack | pack | [`pack::pack`] |
 //! | (after) | write | [`write::compress_streams`], [`write::gltf_json_with`], [`write::glb_of_packed_with`]; an asset: [`bake_asset`] then [`graft::graft`] |
+//!
+//! **Cores.** The stages are parallel inside (rayon), and a scene's surfaces (an asset's parts)
+//! run the first four phases side by side, each distinct mask baked once before them; then they
+//! pack one after another, in scene order, so the file is the same for any thread count. The
+//! price: a scene holds every surface's phase results until it is packed. Inside the levels
+//! phase, pack's cache orders ([`pack::cache_orders`]) run beside the cull, which they do not
+//! need.
 //!
 //! Skinned fur has no stage of its own: the load stage's facts say what the file keeps
 //! ([`skin`]); [`blocked`] names the stages a skinned surface cannot take.
@@ -605,7 +613,7 @@ impl MaskCache {
     }
 }
 
-/// One surface of a scene, as [`bake_surface`] takes it.
+/// One surface of a scene, as [`prepare`] and [`finish`] take it.
 struct Job<'a> {
     plan: &'a Plan,
     i: usize,
