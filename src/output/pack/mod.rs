@@ -404,7 +404,7 @@ fn fifo_misses(indices: &[u32], tris: &[u32], vertices: usize) -> Vec<u32> {
 pub type LevelList<'a> = (&'a [u32], &'a [Vec<u32>], bool);
 
 /// Whether level `k` (with a simplified base or not) draws LOD 0's order in `layout`: the
-/// compact layout's levels over LOD 0's triangles ([`Ordering::reused`]).
+/// compact layout's levels over LOD 0's triangles (`Ordering::reused`).
 pub fn reuses_lod0(k: usize, simplified: bool, layout: Layout) -> bool {
     k > 0 && layout == Layout::Compact && !simplified
 }
