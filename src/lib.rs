@@ -523,9 +523,7 @@ fn run_plan(
         .collect();
     // the surfaces run their stages side by side, then pack one after another, in order
     let masks = MaskCache::bake(jobs.iter().map(|j| &j.surface.params.strands));
-    let prepared: Vec<Prepared> = (jobs.par_iter())
-        .map(|job| prepare(job, &masks))
-        .collect();
+    let prepared: Vec<Prepared> = (jobs.par_iter()).map(|job| prepare(job, &masks)).collect();
     let mut surfaces: Vec<BakedSurface> = (jobs.iter().zip(prepared))
         .map(|(job, prepared)| finish(job, prepared, &mut packed))
         .collect();
@@ -658,7 +656,12 @@ fn prepare<'a>(job: &Job<'a>, masks: &MaskCache) -> Prepared<'a> {
     };
     let mut shape = shape(&mut run, scene, colour);
     let mut heights = heights(&mut run, &mut shape, job.maps);
-    let look = look(&mut run, &shape, &mut heights, masks.mask(&params.strands, job.i));
+    let look = look(
+        &mut run,
+        &shape,
+        &mut heights,
+        masks.mask(&params.strands, job.i),
+    );
     let chain = levels(&mut run, &shape, &heights, &look);
     Prepared {
         run,

@@ -247,7 +247,10 @@ fn box_axes(mesh: &Mesh) -> Vec<u8> {
             face_normal(a, b, c).0
         })
         .collect();
-    let mut axes: Vec<u8> = normals.par_iter().map(|&n| dominant_axis(n) as u8).collect();
+    let mut axes: Vec<u8> = normals
+        .par_iter()
+        .map(|&n| dominant_axis(n) as u8)
+        .collect();
     let neighbours = edge_neighbours(mesh);
     // a face moves only when a neighbour moved in the pass before: re-examine those alone
     let mut check: Vec<u32> = (0..axes.len() as u32).collect();

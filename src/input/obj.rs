@@ -591,8 +591,17 @@ impl File {
             |p| &p.normals,
         ];
         let (floats, (corners, arities)) = rayon::join(
-            || (floats.par_iter()).map(|&list| cat(pieces, list)).collect::<Vec<_>>(),
-            || rayon::join(|| cat(pieces, |p| &p.corners), || cat(pieces, |p| &p.arities)),
+            || {
+                (floats.par_iter())
+                    .map(|&list| cat(pieces, list))
+                    .collect::<Vec<_>>()
+            },
+            || {
+                rayon::join(
+                    || cat(pieces, |p| &p.corners),
+                    || cat(pieces, |p| &p.arities),
+                )
+            },
         );
         let [positions, colors, texcoords, normals] =
             <[Vec<f64>; 4]>::try_from(floats).expect("four lists");
@@ -929,7 +938,10 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
 /// line's statement.
 fn names_mtl(bytes: &[u8]) -> bool {
     memchr::memmem::find_iter(bytes, b"mtllib").any(|at| {
-        let line = bytes[..at].iter().rposition(|&b| b == b'\n').map_or(0, |n| n + 1);
+        let line = bytes[..at]
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |n| n + 1);
         bytes[line..at].iter().all(u8::is_ascii_whitespace)
             && bytes.get(at + 6).is_some_and(u8::is_ascii_whitespace)
     })

@@ -68,7 +68,14 @@ pub fn guard(
         (list.par_iter())
             .filter_map(|&t| {
                 let f = check.check(tri(t), deltas, leans, round)?;
-                Some((t, if round < ROUNDS { f.clamp(0.0, 0.99) } else { 0.0 }))
+                Some((
+                    t,
+                    if round < ROUNDS {
+                        f.clamp(0.0, 0.99)
+                    } else {
+                        0.0
+                    },
+                ))
             })
             .collect::<Vec<(u32, f32)>>()
     };

@@ -55,9 +55,9 @@ pub use model::{
 
 pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid, SNORM16};
 
-use rayon::prelude::*;
 use glam::{Vec2, Vec3};
 use image::ImageEncoder;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
@@ -496,7 +496,10 @@ fn order_triangles(
     // a large list judges every size at once, in parallel, and the bisection reads the
     // verdicts (the same choice, in one candidate's time instead of four)
     let mut judged: Vec<Option<_>> = match tris.len() > 2 * CACHE_PIECE {
-        true => (0..sizes.len() - 1).into_par_iter().map(|i| Some(evaluate(i))).collect(),
+        true => (0..sizes.len() - 1)
+            .into_par_iter()
+            .map(|i| Some(evaluate(i)))
+            .collect(),
         false => (0..sizes.len() - 1).map(|_| None).collect(),
     };
     let (mut lo, mut hi) = (0, sizes.len() - 1);
@@ -550,7 +553,10 @@ fn cache_order((positions, indices): (&[Vec3], &[u32]), tris: &[u32]) -> Vec<u32
     let scale = 1023.0 / (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
     let mut keyed: Vec<(u32, u32)> = (tris.par_iter().zip(&centroids))
         .map(|(&t, &c)| {
-            let q = ((c - lo) * scale).round().as_uvec3().min(glam::UVec3::splat(1023));
+            let q = ((c - lo) * scale)
+                .round()
+                .as_uvec3()
+                .min(glam::UVec3::splat(1023));
             (morton3(q), t)
         })
         .collect();
@@ -1162,7 +1168,13 @@ fn pack_chunk(
             base: input.base,
         };
         let ordering = orderings[k].take();
-        let meshes = pack_level(b, (input, params), &ctx, (pl, ordering), (&mut state, chunks));
+        let meshes = pack_level(
+            b,
+            (input, params),
+            &ctx,
+            (pl, ordering),
+            (&mut state, chunks),
+        );
         let nodes = layer_nodes(b, &meshes, params.layer_weights);
         if let Some(wind) = input.wind {
             for (&node, &m) in nodes.iter().zip(&meshes) {
@@ -2626,7 +2638,10 @@ mod tests {
             *fifo_misses(&mesh.indices, order, nv).last().unwrap() as f64 / n as f64
         };
         let (split, one) = (acmr(&pieces), acmr(&whole));
-        assert!(split <= one * 1.03, "ACMR {split:.3} in pieces, {one:.3} whole");
+        assert!(
+            split <= one * 1.03,
+            "ACMR {split:.3} in pieces, {one:.3} whole"
+        );
     }
 
     #[test]
