@@ -931,8 +931,9 @@ struct Look {
 fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, (mask, ms): (Mask, f64)) -> Look {
     let params = run.params;
     let Shape { mesh, welded, .. } = shape;
-    let mask = run.report.run_stage(Stage::Strands, || mask);
-    run.report.stages.last_mut().expect("just run").ms = ms;
+    // baked before the surfaces ran ([`MaskCache`]): its time, and its facts
+    run.report.record(Stage::Strands.name(), ms);
+    run.report.tell(Stage::Strands, &mask);
     let tiling = run.report.run(Stage::Tiling.name(), || {
         tiling::mask_tiling(
             mesh,
@@ -1033,6 +1034,12 @@ fn level_indices<'a>(l: &'a lod::Level, mesh: &'a Mesh) -> &'a [u32] {
     l.base.as_ref().map_or(&mesh.indices, |b| &b.indices)
 }
 
+/// Each level's chunks (triangles of [`level_indices`]): the render mesh's `chunks`, or its
+/// simplified base's.
+fn level_chunks<'a>(l: &'a lod::Level, chunks: &'a [Vec<u32>]) -> &'a [Vec<u32>] {
+    l.base.as_ref().map_or(chunks, |b| &b.chunks)
+}
+
 /// Lod, cull: the chain of levels by distance, and the triangles each layer of each keeps.
 fn levels(run: &mut Run, shape: &Shape, heights: &Heights, look: &Look) -> Levels {
     let params = run.params;
@@ -1070,12 +1077,13 @@ fn levels(run: &mut Run, shape: &Shape, heights: &Heights, look: &Look) -> Level
         culled: Vec::new(),
         cache: Vec::new(),
     };
-    // pack's cache orders need no culling: they run beside it
+    // pack's cache orders need no culling: they run beside it (the cull's time in the report
+    // is the wall time of both)
     let cull_start = Instant::now();
     let lists: Vec<pack::LevelList> = (out.levels.iter())
         .map(|l| {
-            let chunks = l.base.as_ref().map_or(&out.chunks, |b| &b.chunks);
-            (level_indices(l, mesh), &chunks[..], l.base.is_some())
+            let chunks = level_chunks(l, &out.chunks);
+            (level_indices(l, mesh), chunks, l.base.is_some())
         })
         .collect();
     let (culled, cache) = rayon::join(
@@ -1161,7 +1169,7 @@ fn pack_surface(
             mask: chain.mask_of(level),
             culled,
             indices: level_indices(level, mesh),
-            chunks: level.base.as_ref().map_or(&chain.chunks, |b| &b.chunks),
+            chunks: level_chunks(level, &chain.chunks),
             cache,
         })
         .collect();

@@ -337,14 +337,23 @@ pub fn uv_bounds(uvs: &[Vec2]) -> (Vec2, Vec2) {
 
 /// Sum of the UV-space areas of the triangles (0 without UVs).
 pub fn uv_area(mesh: &Mesh) -> f64 {
-    let Some(uv) = &mesh.uvs else { return 0.0 };
-    mesh.indices
-        .chunks_exact(3)
-        .map(|t| {
+    uv_areas(mesh).sum()
+}
+
+/// Whether `uv_area(mesh) > 0` (a triangle with UV area, or one whose area is not a number),
+/// stopping at the first such triangle.
+pub fn has_uv_area(mesh: &Mesh) -> bool {
+    uv_areas(mesh).any(|a| !a.le(&0.0))
+}
+
+/// The UV-space area of each triangle (none without UVs).
+fn uv_areas(mesh: &Mesh) -> impl Iterator<Item = f64> + '_ {
+    (mesh.uvs.iter()).flat_map(|uv| {
+        mesh.indices.chunks_exact(3).map(move |t| {
             let [a, b, c] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
             ((b - a).perp_dot(c - a) * 0.5).abs()
         })
-        .sum()
+    })
 }
 
 /// The texture-coordinate frame of every vertex: unit `[T, B]` with `T = ∂P/∂u` and

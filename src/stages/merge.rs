@@ -9,7 +9,7 @@ use glam::Vec3;
 use crate::facts::{Facts, Reported};
 use crate::input::asset::Paint;
 use crate::input::generate_box_uvs;
-use crate::mesh::{Mesh, Scene};
+use crate::mesh::{has_uv_area, Mesh, Scene};
 use crate::stages::tiling::{fur_uv_box, FurUv};
 
 /// Where a surface's fur takes its colour.
@@ -63,16 +63,6 @@ pub fn merge(scene: &Scene, colour: FurColour, fur_uv: FurUv) -> Merged {
         triangles,
         warnings,
     }
-}
-
-/// Whether any triangle of `mesh` has UV area (or an area that is not a number): what
-/// `uv_area(mesh) > 0` says, stopping at the first such triangle.
-fn has_uv_area(mesh: &Mesh) -> bool {
-    let Some(uv) = &mesh.uvs else { return false };
-    mesh.indices.chunks_exact(3).any(|t| {
-        let [a, b, c] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
-        !((b - a).perp_dot(c - a) * 0.5).abs().le(&0.0)
-    })
 }
 
 impl Reported for Merged {

@@ -34,7 +34,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::{face_normal, Mesh};
+use crate::mesh::{face_normal, Mesh, PAR_MIN_LEN};
 use crate::stages::weld::{folded, EdgeSide, Topology};
 use rayon::prelude::*;
 
@@ -157,7 +157,7 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
     // whether each edge links its two triangles (the fold test, in parallel), then the links
     // in edge order
     let linked: Vec<bool> = (edges.par_iter())
-        .with_min_len(1024)
+        .with_min_len(PAR_MIN_LEN)
         .map(|m| {
             let third = |i: usize| pos(tris[m[i].t as usize][(m[i].k as usize + 2) % 3]);
             m.len() == 2 && !folded(pos(m[0].a), pos(m[0].b), third(0), third(1))
@@ -181,7 +181,7 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
     };
 
     let area: Vec<f64> = (tris.par_iter())
-        .with_min_len(1024)
+        .with_min_len(PAR_MIN_LEN)
         .map(|t| {
             let [a, b, c] = t.map(pos);
             (b - a).cross(c - a).length()

@@ -61,7 +61,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
-use crate::mesh::{color_byte, Mesh};
+use crate::mesh::{color_byte, Mesh, PAR_MIN_LEN};
 use crate::stages::lod::{Level, LevelLayer};
 use crate::stages::strands::{Mask, BASE_CODE};
 use guard::Vary;
@@ -463,8 +463,9 @@ fn orderings(input: &PackInput, params: &PackParams) -> Vec<Vec<Option<Ordering>
 
 /// Triangles `tris` ordered so that every layer draws a prefix of one index buffer, culled as
 /// finely as the vertex cache allows. The triangles go in meshopt's vertex cache order
-/// (`cache_order`, from [`cache_orders`] before pack), cut into clusters of consecutive triangles; each cluster shows in the layers its highest
-/// triangle does (`top`), and the clusters go by that, most first (stable). Culling whole
+/// (`cache_order`, from [`cache_orders`] before pack), cut into clusters of consecutive
+/// triangles; each cluster shows in the layers its highest triangle does (`top`), and the
+/// clusters go by that, most first (stable). Culling whole
 /// clusters keeps the cache order's locality; the cluster size is the smallest power of two
 /// (1 to 256, else no culling; found by bisection, taking the vertex shader's runs to fall as
 /// clusters grow) at which every layer's prefix runs the vertex shader at most [`ACMR_SLACK`]
@@ -515,17 +516,19 @@ fn order_triangles(
         }
     }
     let (order, kept) = best.unwrap_or_else(|| clustered(cache_order, top, layers, whole));
-    let corners = |order: &[u32]| -> Vec<u32> {
-        (order.iter())
-            .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
-            .collect()
-    };
     Ordering {
-        indices: corners(&order),
+        indices: corners(indices, &order),
         tris: order,
         kept,
-        cache: corners(cache_order),
+        cache: corners(indices, cache_order),
     }
+}
+
+/// The corners of the triangles `tris` of `indices`, in order: an index buffer.
+fn corners(indices: &[u32], tris: &[u32]) -> Vec<u32> {
+    (tris.iter())
+        .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
+        .collect()
 }
 
 /// Triangles a piece of a large chunk's cache order holds at most ([`cache_order`]).
@@ -584,9 +587,7 @@ fn morton3(q: glam::UVec3) -> u32 {
 
 /// The triangles `tris` in meshopt's vertex cache order, as one list.
 fn cache_piece(indices: &[u32], vertices: usize, tris: &[u32]) -> Vec<u32> {
-    let ix: Vec<u32> = (tris.iter())
-        .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
-        .collect();
+    let ix = corners(indices, tris);
     let optimized = meshopt::optimize_vertex_cache(&ix, vertices);
     // which triangle each optimized one is (the cache order keeps corners in place): the
     // triangles listed by their first corner, each taken once
@@ -1656,7 +1657,7 @@ impl Shared {
             fetch[old as usize] = new as u32;
         }
         let q: Vec<Vec3> = (order.par_iter())
-            .with_min_len(1 << 14)
+            .with_min_len(PAR_MIN_LEN)
             .map(|&o| g.stored(g.positions[o as usize]))
             .collect();
         let position = b.positions("position", &q, &g.grid);
@@ -1676,7 +1677,7 @@ impl Shared {
     /// An index stream over these vertices: `indices` (input numbering) renumbered for fetch.
     fn indices(&self, b: &mut Builder, indices: &[u32]) -> usize {
         let ix: Vec<u32> = (indices.par_iter())
-            .with_min_len(1 << 14)
+            .with_min_len(PAR_MIN_LEN)
             .map(|&i| self.fetch[i as usize])
             .collect();
         b.indices("indices", &ix, self.order.len())
@@ -1992,7 +1993,7 @@ impl Builder<'_> {
             return self.out.accessor(v, component::FLOAT, false, "VEC2", None);
         }
         let quantized: Vec<[u16; 2]> = (uvs.par_iter())
-            .with_min_len(1 << 14)
+            .with_min_len(PAR_MIN_LEN)
             .map(|&uv| grid.quantize(uv))
             .collect();
         for q in &quantized {
