@@ -33,13 +33,14 @@
 //! The extrusion delta has a precision of its own: 32-bit float in grid units, not integers on
 //! the position grid. On the grid, a delta the clamp shortened to a few steps loses its
 //! direction (the Stanford dragon kept 158 inverted outer-shell triangles that way). A float
-//! delta costs 4 more bytes per vertex than an `i16` one; scaling an `i16` delta up and the layer
-//! weights down would keep it at 8 bytes but breaks every client's bounding box (three.js adds
-//! the whole target to the bounds). The floats lie on the exponent filter's grid (one exponent
-//! per component, as many mantissa bits as a step of at most a quarter of a position step needs,
-//! up to 16: at most 1/8 of a position step off, see
-//! [`crate::output::compress::DeltaGrid`]), so `--compress meshopt` stores them exactly with its
-//! `EXPONENTIAL` filter. Then `guard.rs` checks the stored geometry (deltas as rounded onto that
+//! delta costs 4 more bytes per vertex than an `i16` one; scaling an `i16` or `i8` delta up and
+//! the layer weights down would keep it at 8 or 4 bytes but breaks every client's bounding box
+//! (three.js adds the whole target to the bounds: on the dragon an `i8` target scaled to its
+//! range would make the box five times too large, and viewers frame the model by it). The
+//! floats lie on the exponent filter's grid (one exponent per component, as many mantissa bits
+//! as a step of at most one position step needs, up to 16: at most half a position step off, as
+//! the positions themselves, see [`crate::output::compress::DeltaGrid`]), so `--compress
+//! meshopt` stores them exactly with its `EXPONENTIAL` filter. Then `guard.rs` checks the stored geometry (deltas as rounded onto that
 //! grid), so no layer triangle of the written file inverts.
 
 mod extras;
@@ -159,7 +160,8 @@ pub struct PackParams {
     pub position_bits: u32,
     /// Attribute storage: quantized (`KHR_mesh_quantization`) or floats.
     pub quantize: Quantize,
-    /// Texture coordinate bits, 8–16 (see [`UvGrid`]; quantized files only).
+    /// Texture coordinate bits at most, 8–16 (see [`UvGrid`]: each component takes fewer where
+    /// they keep an eighth of a mask texel; quantized files only).
     pub texcoord_bits: u32,
     /// Where layer weights are written.
     pub layer_weights: LayerWeights,
@@ -799,13 +801,13 @@ fn stored_unit(grid: &PositionGrid, quantize: Quantize) -> (f32, u32) {
     }
 }
 
-/// The grid a target is stored on: the exponent filter's, to a quarter of a position step (`v`
+/// The grid a target is stored on: the exponent filter's, to one position step (`v`
 /// in the quantized file's stored unit, [`SNORM16`] steps), or none in a plain float file.
 fn delta_grid(exact: bool, v: &[Vec3]) -> crate::output::compress::DeltaGrid {
     if exact {
         crate::output::compress::DeltaGrid::EXACT
     } else {
-        crate::output::compress::DeltaGrid::fit(v, 0.25 / SNORM16)
+        crate::output::compress::DeltaGrid::fit(v, 1.0 / SNORM16)
     }
 }
 
@@ -1009,16 +1011,15 @@ fn geometry<'a>(
     let (unit, _) = stored_unit(&grid, params.quantize);
     let winds = (input.wind).map(|w| wind_targets(w, params, (unit, exact), &stored));
     let uvs = mesh.uvs.as_deref().unwrap();
-    let uv_grid = UvGrid::fit(uvs, params.texcoord_bits);
     let tiles = input.tiles_per_uv;
-    let texel_error =
-        (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();
+    let texels = tiles * input.levels[0].mask.size as f32;
+    let uv_grid = UvGrid::fit(uvs, params.texcoord_bits, texels);
     let skin = (mesh.skin.as_ref()).zip(input.skeleton.map(|k| k.joints.len()));
     Geometry {
         grid,
         exact,
         uv_grid,
-        float_uvs: texel_error > 0.125,
+        float_uvs: uv_grid.too_coarse(texels),
         tiles,
         positions: &mesh.positions,
         normals: mesh.normals.as_deref().unwrap(),
@@ -1046,7 +1047,7 @@ fn uv_transform(g: &Geometry, float: bool) -> (Vec2, Vec2) {
     } else if g.float_uvs {
         (Vec2::ZERO, g.tiles)
     } else {
-        (g.uv_grid.lo * g.tiles, g.uv_grid.extent * g.tiles)
+        (g.uv_grid.lo * g.tiles, g.uv_grid.scale() * g.tiles)
     }
 }
 
