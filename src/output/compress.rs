@@ -11,13 +11,12 @@
 //! carry the direction, which the codec then stores in about half the bytes. The filter changes
 //! the values a client sees (octahedral 8-bit against our best-of-8 rounding), so the stream the
 //! file *declares* — the fallback, and the uncompressed twin — holds the filter's decoded
-//! normals, and both files draw the same. The extrusion deltas (floats with their length, which
-//! the octahedral filter cannot carry) go through the `EXPONENTIAL` filter with one exponent per
-//! component: pack already stores every delta on that filter's grid ([`DeltaGrid`], a mantissa
-//! of up to [`DELTA_BITS`] bits, as many as a step of one position step needs: at most half a
-//! position step off, as the positions are), and the inversion guard checks the values on the grid, so the
-//! filter changes nothing and no layer triangle inverts. Positions and texture
-//! coordinates are already 16-bit integers: no filter suits them.
+//! normals, and both files draw the same. Morph targets are normalized `i16` (whole position
+//! steps) like positions, and positions and texture coordinates are integers already: no filter
+//! suits them. (The `EXPONENTIAL` filter, which stores floats on a shared-exponent grid, lost
+//! to `i16` on the Stanford dragon's extrusion deltas at the same one-step precision: 0.50
+//! against 0.46 MB, its sign-extension bytes costing about 1.5 bits per component; reading
+//! files with it is supported.)
 //!
 //! **Versions.** `EXT_meshopt_compression` decoders read vertex codec version 0 only, so the EXT
 //! form writes version 0; the KHR form writes version 1 at level 2, which is smaller. Both use
@@ -184,128 +183,6 @@ pub fn octahedral_normals(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
     let mut decoded = encoded.clone();
     meshopt::decode_filter_oct(&mut decoded);
     let flat = |v: &[[i8; 4]]| v.iter().flatten().map(|&c| c as u8).collect::<Vec<u8>>();
-    (flat(&encoded), flat(&decoded))
-}
-
-/// Most mantissa bits of the extrusion deltas ([`DeltaGrid`]).
-pub const DELTA_BITS: i32 = 16;
-
-/// The grid the exponential filter (one exponent per component over a stream) stores float
-/// `VEC3`s on: per component, a step of `2^(e − (bits − 1))` where `2^e` bounds the component's
-/// magnitude (meshoptimizer's `optlog2`) and `bits`, shared by the components, is the fewest
-/// (up to [`DELTA_BITS`]) that make every step at most the resolution asked for. Values rounded
-/// onto it with [`DeltaGrid::round`] (magnitudes below `2^e`, so shortening them never raises
-/// the exponent) go through the filter unchanged, whatever smaller exponent the final values
-/// give ([`exponential_deltas`] finds the bits they need).
-///
-/// Why the resolution, not always 16 bits: the vertex codec stores each byte of a value apart,
-/// so the low byte of a 16-bit mantissa costs a full byte per component however smooth the
-/// deltas are, and each bit fewer saves about a third of a byte per vertex. At one position
-/// step (what pack asks for: the extrusion is as accurate as the positions it moves) the
-/// Stanford dragon's deltas need 11 bits, and its compressed extrusion stream drops from 0.76
-/// MB (16 bits) to 0.50 MB; at a quarter of a step it was 0.57 MB.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DeltaGrid {
-    step: [f32; 3],
-    bits: i32,
-}
-
-impl DeltaGrid {
-    /// No grid: [`DeltaGrid::round`] keeps every value as it is (the plain float files of
-    /// `--quantize none`, whose deltas the filter would change and so does not get).
-    pub const EXACT: DeltaGrid = DeltaGrid {
-        step: [0.0; 3],
-        bits: DELTA_BITS,
-    };
-
-    /// The grid for `values` (and any shortened copy of them) whose steps are at most
-    /// `resolution` (0: the finest, [`DELTA_BITS`] bits).
-    pub fn fit(values: &[glam::Vec3], resolution: f32) -> DeltaGrid {
-        let mut e = [-100i32; 3];
-        for v in values {
-            for (k, &c) in v.to_array().iter().enumerate() {
-                e[k] = e[k].max(exponent(c));
-            }
-        }
-        let top = e.iter().copied().max().unwrap_or(-100);
-        let bits = if resolution > 0.0 {
-            // step 2^(top − (bits − 1)) <= 2^floor(log2 resolution)
-            (top + 1 - resolution.log2().floor() as i32).clamp(2, DELTA_BITS)
-        } else {
-            DELTA_BITS
-        };
-        DeltaGrid {
-            step: e.map(|e| 2f32.powi(e - (bits - 1))),
-            bits,
-        }
-    }
-
-    /// `v` on the grid: each component rounded half away from zero to a multiple of its step,
-    /// its magnitude kept below `2^e`.
-    pub fn round(&self, v: glam::Vec3) -> glam::Vec3 {
-        let max = ((1 << (self.bits - 1)) - 1) as f32;
-        if self.step == DeltaGrid::EXACT.step {
-            return v;
-        }
-        let a = v.to_array();
-        glam::Vec3::from_array([0, 1, 2].map(|k| {
-            let m = (a[k] / self.step[k]).round().clamp(-max, max);
-            // + 0.0: a zero is stored as +0, as the filter's decoder gives it back
-            m * self.step[k] + 0.0
-        }))
-    }
-}
-
-/// `e` with `|c| < 2^e` (meshoptimizer's `optlog2` of the magnitude; -126 for zero).
-fn exponent(c: f32) -> i32 {
-    ((c.to_bits() >> 23) & 0xff) as i32 - 126
-}
-
-/// The mantissa bits the exponential filter needs to store `data` exactly with one exponent per
-/// component: for each component, from its largest exponent down to the lowest set bit of any
-/// value (at least 1, at most 24, the filter's limits).
-fn exponential_bits(data: &[[f32; 3]]) -> i32 {
-    // meshoptimizer's floor for a component's exponent (`min_exp`)
-    let mut top = [-100i32; 3];
-    let mut low = [i32::MAX; 3];
-    for v in data {
-        for k in 0..3 {
-            let c = v[k];
-            top[k] = top[k].max(exponent(c));
-            if c != 0.0 {
-                let b = c.to_bits();
-                let (biased, fraction) = (((b >> 23) & 0xff) as i32, b & 0x7f_ffff);
-                // the value's lowest set bit, as a power of two
-                let (mantissa, scale) = match biased {
-                    0 => (fraction, -149),
-                    _ => (fraction | 0x80_0000, biased - 150),
-                };
-                low[k] = low[k].min(scale + mantissa.trailing_zeros() as i32);
-            }
-        }
-    }
-    (0..3)
-        .filter(|&k| low[k] != i32::MAX)
-        .map(|k| top[k] - low[k] + 1)
-        .max()
-        .unwrap_or(1)
-        .clamp(1, 24)
-}
-
-/// Float `VEC3` deltas (stride 12) as the exponential filter stores them, with the fewest
-/// mantissa bits that keep them (their [`DeltaGrid`]'s or fewer), and the bytes its decoder gives
-/// back (the same bytes when the deltas lie on a grid).
-pub fn exponential_deltas(bytes: &[u8]) -> (Vec<u8>, Vec<u8>) {
-    let data: Vec<[f32; 3]> = bytes
-        .chunks_exact(12)
-        .map(|c| [0, 4, 8].map(|k| f32::from_le_bytes([c[k], c[k + 1], c[k + 2], c[k + 3]])))
-        .collect();
-    let bits = exponential_bits(&data);
-    let encoded =
-        meshopt::encode_filter_exp::<3>(&data, bits, meshopt::EncodeExpMode::SharedComponent);
-    let mut decoded = encoded.clone();
-    meshopt::decode_filter_exp(&mut decoded);
-    let flat = |v: &[[u32; 3]]| v.iter().flatten().flat_map(|u| u.to_le_bytes()).collect();
     (flat(&encoded), flat(&decoded))
 }
 
@@ -506,93 +383,6 @@ mod tests {
         }
         let bad = MeshoptView { count: 89, ..v };
         assert!(decode_view(&bad, &enc, &mut out[..178]).is_err());
-    }
-
-    #[test]
-    fn deltas_on_their_grid_pass_the_exponential_filter_unchanged() {
-        let raw: Vec<glam::Vec3> = (0..500)
-            .map(|i| {
-                let f = i as f32;
-                glam::Vec3::new(
-                    (f * 0.731).sin() * 812.3,
-                    (f * 1.37).cos() * 0.02,
-                    -f * 1.999 + 3.0,
-                )
-            })
-            .collect();
-        let grid = DeltaGrid::fit(&raw, 0.0);
-        // on the grid, then some shortened by arbitrary factors (as the guard does) and rounded
-        let on: Vec<glam::Vec3> = raw
-            .iter()
-            .enumerate()
-            .map(|(i, &v)| grid.round(if i % 3 == 0 { v * 0.37 } else { v }))
-            .collect();
-        for (a, b) in raw.iter().zip(&on).skip(1).step_by(3) {
-            assert!(
-                (*a - *b).abs().max_element() <= 2f32.powi(10 - 15),
-                "{a} {b}"
-            );
-        }
-        let bytes: Vec<u8> = on
-            .iter()
-            .flat_map(|v| v.to_array())
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let (_, decoded) = exponential_deltas(&bytes);
-        assert_eq!(decoded, bytes);
-        // one value rounding up to the power of two would have changed the exponent: kept below
-        let edge = [
-            glam::Vec3::new(1023.9999, 0.0, 0.0),
-            glam::Vec3::new(3.0, 0.0, 0.0),
-        ];
-        let g = DeltaGrid::fit(&edge, 0.0);
-        let on: Vec<u8> = edge
-            .iter()
-            .flat_map(|&v| g.round(v).to_array())
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        assert_eq!(exponential_deltas(&on).1, on);
-    }
-
-    #[test]
-    fn a_coarser_resolution_takes_fewer_mantissa_bits_and_still_round_trips() {
-        // deltas up to 600 position steps (stored unit: 1/32767 of a step), as on the dragon
-        let raw: Vec<glam::Vec3> = (0..500)
-            .map(|i| {
-                let f = i as f32;
-                glam::Vec3::new((f * 0.3).sin(), (f * 0.7).cos(), 0.5 - f / 1000.0) * 600.0
-                    / 32767.0
-            })
-            .collect();
-        let quarter = 0.25 / 32767.0;
-        let grid = DeltaGrid::fit(&raw, quarter);
-        // 2^10 bounds 600 steps; a quarter step is 2^-2: 13 bits (sign included)
-        assert_eq!(grid.bits, 13);
-        let on: Vec<[f32; 3]> = raw
-            .iter()
-            .map(|&v| grid.round(v * 0.71).to_array())
-            .collect();
-        for (a, b) in raw.iter().zip(&on) {
-            let err = (*a * 0.71 - glam::Vec3::from_array(*b)).abs().max_element();
-            assert!(err <= quarter / 2.0 * 1.001, "{err}");
-        }
-        assert!(exponential_bits(&on) <= 13);
-        let bytes: Vec<u8> = on.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
-        assert_eq!(exponential_deltas(&bytes).1, bytes);
-        // fewer bits, fewer bytes through the codec
-        let fine = DeltaGrid::fit(&raw, 0.0);
-        let fine: Vec<u8> = (raw.iter())
-            .flat_map(|&v| fine.round(v).to_array())
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let size =
-            |b: &[u8]| encode_vertices(&exponential_deltas(b).0, 12, MeshoptExtension::Ext).len();
-        assert!(
-            size(&bytes) < size(&fine),
-            "{} {}",
-            size(&bytes),
-            size(&fine)
-        );
     }
 
     #[test]

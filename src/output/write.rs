@@ -70,19 +70,12 @@ pub fn compress_streams(packed: &mut Packed, ext: MeshoptExtension) -> Vec<Optio
         .map(|s| match (s.kind, s.stride) {
             (StreamKind::Vertex, Some(stride)) if stride % 4 == 0 && stride <= 256 => {
                 let normal = s.semantic == Semantic::Normal && s.target.is_none() && stride == 4;
-                let delta = s.semantic == Semantic::Position && s.target.is_some() && stride == 12;
-                let filtered = delta.then(|| compress::exponential_deltas(&s.bytes));
-                let (data, filter) = match filtered {
-                    // pack stores the deltas on the filter's grid: it changes nothing
-                    Some((encoded, decoded)) if decoded == s.bytes => {
-                        (encoded, Filter::Exponential)
-                    }
-                    _ if normal => {
-                        let (encoded, decoded) = compress::octahedral_normals(&s.bytes);
-                        s.bytes = decoded;
-                        (encoded, Filter::Octahedral)
-                    }
-                    _ => (s.bytes.clone(), Filter::None),
+                let (data, filter) = if normal {
+                    let (encoded, decoded) = compress::octahedral_normals(&s.bytes);
+                    s.bytes = decoded;
+                    (encoded, Filter::Octahedral)
+                } else {
+                    (s.bytes.clone(), Filter::None)
                 };
                 Some(Encoded {
                     bytes: compress::encode_vertices(&data, stride, ext),

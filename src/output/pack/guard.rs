@@ -18,6 +18,7 @@ use glam::{DVec3, Vec3};
 
 use crate::effects::gravity::Bend;
 
+use super::Targets;
 use crate::mesh::Adjacency;
 use rayon::prelude::*;
 
@@ -185,25 +186,25 @@ fn group_factors(bad: &[(u32, f32)], indices: &[u32], group: &[u32]) -> Vec<(u32
 pub struct MorphPath<'a> {
     pub base: &'a [Vec3],
     pub top: f32,
-    /// The grid the deltas are stored on, in a unit of that many of `base`'s: the check reads
-    /// each delta as it will be stored.
-    pub grid: Option<(crate::output::compress::DeltaGrid, f32)>,
-    /// The `gravity` effect's second target (derived from each delta, stored on its own grid)
-    /// and the layer heights to check: a bent stack is not a straight path, so each stored layer
-    /// is compared with the base.
-    pub bend: Option<(&'a Bend, crate::output::compress::DeltaGrid, &'a [f32])>,
+    /// How targets are stored, in a unit of that many of `base`'s: the check reads each delta
+    /// as it will be stored.
+    pub stored: (Targets, f32),
+    /// The `gravity` effect's second target (derived from each delta, stored the same way) and
+    /// the layer heights to check: a bent stack is not a straight path, so each stored layer is
+    /// compared with the base.
+    pub bend: Option<(&'a Bend, &'a [f32])>,
 }
 
 impl Check for MorphPath<'_> {
     fn check(&self, c: [u32; 3], deltas: &[Vec3], leans: &[Vec3], _round: usize) -> Option<f32> {
         let p = c.map(|v| self.base[v as usize]);
-        let unit = self.grid.map_or(1.0, |(_, u)| u);
-        let stored = |d: Vec3| self.grid.map_or(d, |(g, unit)| g.round(d / unit) * unit);
-        if let Some((bend, bend_grid, heights)) = &self.bend {
+        let (targets, unit) = self.stored;
+        let stored = |d: Vec3| targets.round(d / unit) * unit;
+        if let Some((bend, heights)) = &self.bend {
             let d = c.map(|v| stored(deltas[v as usize]).as_dvec3());
             let b = c.map(|v| {
                 let (d, m) = (deltas[v as usize], leans[v as usize]);
-                (bend_grid.round(bend.at(v as usize, d, m) / unit) * unit).as_dvec3()
+                stored(bend.at(v as usize, d, m)).as_dvec3()
             });
             let p = p.map(|p| p.as_dvec3());
             // edges at a layer: e(t) = a + t·b + w·c (w = t^k); the layer's normal along the
@@ -471,7 +472,7 @@ mod tests {
             &MorphPath {
                 base: &base,
                 top: 1.0,
-                grid: None,
+                stored: (Targets::Exact, 1.0),
                 bend: None,
             },
         );
@@ -488,7 +489,7 @@ mod tests {
                 &MorphPath {
                     base: &base,
                     top: 1.0,
-                    grid: None,
+                    stored: (Targets::Exact, 1.0),
                     bend: None,
                 }
             ),
@@ -536,7 +537,7 @@ mod tests {
             &MorphPath {
                 base: &base,
                 top: 1.0,
-                grid: None,
+                stored: (Targets::Exact, 1.0),
                 bend: None,
             },
         );

@@ -9,8 +9,8 @@
 //! as `optimizeVertexFetchRemap` does), then quantization. Both are deterministic. Vertices no
 //! triangle uses are dropped.
 //!
-//! - **compact**: one quantized geometry (POSITION u16, NORMAL i8, TEXCOORD_0 u16, morph target 0
-//!   = extrusion delta as float, see below) shared by every layer; layer `j` is a primitive reusing the same
+//! - **compact**: one quantized geometry (POSITION i16, NORMAL i8, TEXCOORD_0 u16, morph target 0
+//!   = extrusion delta i16, see below) shared by every layer; layer `j` is a primitive reusing the same
 //!   accessors with its own material (`MASK`, `alphaCutoff` = the mask's cutoff for the layer's
 //!   step, per-layer colour) and weight `t_j`. The base layer is opaque (still textured: the
 //!   mask's grey carries the strands' shade onto the skin) and has no morph target. Adding a
@@ -30,18 +30,19 @@
 //!   layer (`a_j <= 1`) and every texel, whose alpha is at least `BASE_CODE/255`, passes the base
 //!   layer (`a_0 = 1`): the base stays opaque. Indices run from the inner to the outer layer.
 //!
-//! The extrusion delta has a precision of its own: 32-bit float in grid units, not integers on
-//! the position grid. On the grid, a delta the clamp shortened to a few steps loses its
-//! direction (the Stanford dragon kept 158 inverted outer-shell triangles that way). A float
-//! delta costs 4 more bytes per vertex than an `i16` one; scaling an `i16` or `i8` delta up and
-//! the layer weights down would keep it at 8 or 4 bytes but breaks every client's bounding box
-//! (three.js adds the whole target to the bounds: on the dragon an `i8` target scaled to its
-//! range would make the box five times too large, and viewers frame the model by it). The
-//! floats lie on the exponent filter's grid (one exponent per component, as many mantissa bits
-//! as a step of at most one position step needs, up to 16: at most half a position step off, as
-//! the positions themselves, see [`crate::output::compress::DeltaGrid`]), so `--compress
-//! meshopt` stores them exactly with its `EXPONENTIAL` filter. Then `guard.rs` checks the stored geometry (deltas as rounded onto that
-//! grid), so no layer triangle of the written file inverts.
+//! Morph targets (the extrusion delta, and the bend and sway of the effects) are normalized
+//! `i16` in the stored position unit: whole position steps, within half a step of the exact
+//! value like the positions they move, with layer weights `t_j` in [0, 1] and the targets' true
+//! bounds ([`Targets`]). Rounded to the grid, a delta the clamp shortened to a few steps loses
+//! its direction, so `guard.rs` checks the stored geometry (targets as rounded) and shortens
+//! what would invert: no layer triangle of the written file inverts (the Stanford dragon: 2 199
+//! of 121 004 vertices shortened, against 1 889 with floats to a quarter step). Rejected:
+//! - floats on a finer grid: the dragon's compressed extrusion took 0.57 MB at a quarter step
+//!   (0.50 at one step, through meshopt's `EXPONENTIAL` filter) against 0.46 MB as `i16`;
+//! - `i16` or `i8` scaled up with the layer weights scaled down (`i8`: 0.33 MB): every client's
+//!   bounding box breaks, as three.js adds the whole target to the bounds: on the dragon an
+//!   `i8` target scaled to its range makes the box five times too large, and viewers frame the
+//!   model by it.
 
 mod extras;
 mod guard;
@@ -54,7 +55,7 @@ pub use model::{
     Texture, TextureRef,
 };
 
-pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, UvGrid, SNORM16};
+pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, Targets, UvGrid, SNORM16};
 
 use glam::{Vec2, Vec3};
 use image::ImageEncoder;
@@ -284,7 +285,7 @@ struct Geometry<'a> {
     bends: Option<Vec<Vec3>>,
     bend: Option<&'a crate::effects::gravity::Bend>,
     /// The `wind` effect's two targets per vertex (`s cos φ`, `s sin φ`), stored unit (compact:
-    /// on the exponent filter's grids).
+    /// rounded as stored, [`Targets`]).
     winds: Option<[Vec<Vec3>; 2]>,
     /// Lean axes, guarded (empty without bend and wind).
     lean: Vec<Vec3>,
@@ -801,13 +802,12 @@ fn stored_unit(grid: &PositionGrid, quantize: Quantize) -> (f32, u32) {
     }
 }
 
-/// The grid a target is stored on: the exponent filter's, to one position step (`v`
-/// in the quantized file's stored unit, [`SNORM16`] steps), or none in a plain float file.
-fn delta_grid(exact: bool, v: &[Vec3]) -> crate::output::compress::DeltaGrid {
+/// How the file stores morph targets: whole position steps when quantized.
+fn targets(exact: bool) -> Targets {
     if exact {
-        crate::output::compress::DeltaGrid::EXACT
+        Targets::Exact
     } else {
-        crate::output::compress::DeltaGrid::fit(v, 1.0 / SNORM16)
+        Targets::Steps
     }
 }
 
@@ -898,22 +898,20 @@ impl Guard<'_> {
         }
     }
 
-    /// The compact layout: morph targets checked as stored. Deltas are stored on the exponent
-    /// filter's grid (compressed or not, so a compressed file's twin is the plain file); the
-    /// bend target, derived from each (guarded) delta and lean, on a grid of its own.
+    /// The compact layout: morph targets checked as stored ([`Targets`]: whole position steps
+    /// in a quantized file), the bend target derived from each (guarded) delta and lean.
     fn compact(&self, params: &PackParams, grid: &PositionGrid, mut s: Stored) -> GuardedStack {
         let exact = params.quantize == Quantize::None;
         let (unit, _) = stored_unit(grid, params.quantize);
         let base: Vec<Vec3> = (self.input.mesh.positions.iter())
             .map(|&p| stored_position(grid, exact, p))
             .collect();
-        let as_stored: Vec<Vec3> = s.deltas.iter().map(|&d| d / unit).collect();
-        let stored_grid = delta_grid(exact, &as_stored);
+        let stored_as = targets(exact);
         let top = self.heights.last().copied().unwrap_or(0.0);
         let straight = guard::MorphPath {
             base: &base,
             top,
-            grid: Some((stored_grid, unit)),
+            stored: (stored_as, unit),
             bend: None,
         };
         let both = (&mut s.deltas[..], &mut s.leans[..]);
@@ -923,20 +921,18 @@ impl Guard<'_> {
                 .map(|(v, (&d, &m))| b.at(v, d, m) / unit)
                 .collect::<Vec<Vec3>>()
         };
-        let bend_grid =
-            (self.input.bend).map(|b| (b, delta_grid(exact, &bend_of(&s.deltas, &s.leans, b))));
         let full = guard::MorphPath {
-            bend: bend_grid.map(|(b, g)| (b, g, self.heights.as_slice())),
+            bend: (self.input.bend).map(|b| (b, self.heights.as_slice())),
             ..straight
         };
         let bent_less = self.bent_less(&base, &mut s, &full, None);
-        s.bends = bend_grid.map(|(b, g)| {
+        s.bends = self.input.bend.map(|b| {
             let bends = bend_of(&s.deltas, &s.leans, b);
-            bends.into_iter().map(|x| g.round(x)).collect()
+            bends.into_iter().map(|x| stored_as.round(x)).collect()
         });
         // from here on, compact deltas are in the stored unit
         for d in &mut s.deltas {
-            *d = stored_grid.round(*d / unit);
+            *d = stored_as.round(*d / unit);
         }
         GuardedStack {
             stored: s,
@@ -974,7 +970,7 @@ impl Guard<'_> {
 }
 
 /// The wind's two targets per vertex, from the guarded deltas (compact: `deltas` are stored
-/// already, and the targets go on the exponent filter's grids).
+/// already, and the targets are rounded as stored, [`Targets`]).
 fn wind_targets(
     wind: &crate::effects::wind::Wind,
     params: &PackParams,
@@ -991,10 +987,7 @@ fn wind_targets(
             .collect()
     });
     match params.layout {
-        Layout::Compact => [a, b].map(|v| {
-            let g = delta_grid(exact, &v);
-            v.iter().map(|&x| g.round(x)).collect()
-        }),
+        Layout::Compact => [a, b].map(|v| v.iter().map(|&x| targets(exact).round(x)).collect()),
         Layout::SingleDraw => [a, b],
     }
 }
@@ -1696,13 +1689,14 @@ impl ShellStreams {
     fn new(b: &mut Builder, g: &Geometry, order: &[u32]) -> ShellStreams {
         let pick = |v: &[Vec3]| gather(order, v);
         let texcoord = b.texcoords(&gather(order, g.uvs), g.uv_grid, g.float_uvs, g.tiles);
-        let delta = b.deltas(&pick(&g.deltas), "extrusion", 0);
-        let bend = g.bends.as_ref().map(|v| b.deltas(&pick(v), "bend", 1));
+        let steps = !g.exact;
+        let delta = b.deltas(&pick(&g.deltas), "extrusion", 0, steps);
+        let bend = g.bends.as_ref().map(|v| b.deltas(&pick(v), "bend", 1, steps));
         let wind = g.winds.as_ref().map(|[sin, cos]| {
             let first = 1 + bend.is_some() as usize;
             [
-                b.deltas(&pick(sin), "wind_sin", first),
-                b.deltas(&pick(cos), "wind_cos", first + 1),
+                b.deltas(&pick(sin), "wind_sin", first, steps),
+                b.deltas(&pick(cos), "wind_cos", first + 1, steps),
             ]
         });
         let color = root_colors(b, g, order);
@@ -1931,13 +1925,13 @@ impl Builder<'_> {
         [ja, wa]
     }
 
-    /// Morph target 0: the extrusion delta as float, in the stored position unit, with exact
-    /// bounds.
-    fn deltas(&mut self, deltas: &[Vec3], name: &'static str, target: usize) -> usize {
+    /// A morph target (the extrusion delta, the bend, the wind's), in the stored position unit,
+    /// with its bounds: normalized `i16` when `steps` (the values lie on [`Targets::Steps`]),
+    /// float otherwise.
+    fn deltas(&mut self, deltas: &[Vec3], name: &'static str, target: usize, steps: bool) -> usize {
         let mut bytes = Bytes::default();
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for d in deltas {
-            bytes.f32s(&d.to_array());
             lo = lo.min(*d);
             hi = hi.max(*d);
         }
@@ -1945,15 +1939,22 @@ impl Builder<'_> {
             (lo, hi) = (Vec3::ZERO, Vec3::ZERO);
         }
         let n = deltas.len();
+        let bounds = |v: [f32; 3]| v.map(|x| x as f64).to_vec();
+        if steps {
+            for &d in deltas {
+                bytes.i16s(&Targets::levels(d), 8);
+            }
+            let dv = self.stream(name, Semantic::Position, Some(target), bytes.0, Some(8), n);
+            let level = |v: Vec3| Targets::levels(v).map(|x| x as f32);
+            let range = Some((bounds(level(lo)), bounds(level(hi))));
+            return self.out.accessor(dv, component::SHORT, true, "VEC3", range);
+        }
+        for d in deltas {
+            bytes.f32s(&d.to_array());
+        }
         let dv = self.stream(name, Semantic::Position, Some(target), bytes.0, Some(12), n);
-        let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
-        self.out.accessor(
-            dv,
-            component::FLOAT,
-            false,
-            "VEC3",
-            Some((bounds(lo), bounds(hi))),
-        )
+        let range = Some((bounds(lo.to_array()), bounds(hi.to_array())));
+        self.out.accessor(dv, component::FLOAT, false, "VEC3", range)
     }
 
     fn normals(&mut self, n: &[Vec3]) -> usize {
@@ -2490,7 +2491,8 @@ fn single_draw_wind(
                     layer_inputs(order, layer_vertices[j]).map(move |o| winds[k][o] * w)
                 })
                 .collect();
-            b.deltas(&v, name, k)
+            // single-draw layers are rounded to the grid one by one; their sway stays float
+            b.deltas(&v, name, k, false)
         })
         .collect();
     let m = &mut b.out.meshes[mesh];

@@ -211,6 +211,35 @@ impl UvGrid {
 /// grid steps.
 pub const SNORM16: f32 = 32767.0;
 
+/// How morph targets (extrusion, bend, wind) are stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Targets {
+    /// Quantized files: normalized `i16` in the stored position unit, so a stored 1 is one
+    /// position step and each component is within half a step of the exact value, as positions
+    /// are. Layer weights stay `t_j` (in [0, 1]) and the target's bounds are its true ones.
+    Steps,
+    /// Plain float files: as computed.
+    Exact,
+}
+
+impl Targets {
+    /// `d` (in the stored unit) as it is stored.
+    pub fn round(self, d: Vec3) -> Vec3 {
+        match self {
+            Targets::Exact => d,
+            // + 0.0: a zero is +0, as it reads back
+            Targets::Steps => (d * SNORM16).round().clamp(Vec3::splat(-SNORM16), Vec3::splat(SNORM16))
+                / SNORM16
+                + 0.0,
+        }
+    }
+
+    /// `d` (in the stored unit, on the grid) as the `i16` levels written.
+    pub fn levels(d: Vec3) -> [i16; 3] {
+        (d * SNORM16).round().to_array().map(|x| x.clamp(-SNORM16, SNORM16) as i16)
+    }
+}
+
 /// Little-endian byte writer for interleaved-free, padded attribute streams.
 #[derive(Default)]
 pub struct Bytes(pub Vec<u8>);
@@ -293,6 +322,17 @@ mod tests {
             assert!(q.normalize().dot(n.normalize()) > 0.999);
         }
         assert!(worst < 4e-3, "{worst}");
+    }
+
+    #[test]
+    fn targets_are_whole_position_steps_within_half_a_step() {
+        for d in [Vec3::new(0.3, -0.01, 2e-5), Vec3::new(-1.5 / SNORM16, 0.7 / SNORM16, 0.0)] {
+            let r = Targets::Steps.round(d);
+            assert!(((r - d) * SNORM16).abs().max_element() <= 0.5 + 1e-3);
+            let q = Targets::levels(r);
+            assert_eq!(Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) / SNORM16, r);
+            assert_eq!(Targets::Exact.round(d), d);
+        }
     }
 
     #[test]
