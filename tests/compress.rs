@@ -104,7 +104,10 @@ fn compressed_files_decode_to_their_valid_twins_byte_for_byte() {
                 .filter_map(|v| v["extensions"][name]["filter"].as_str())
                 .collect();
             assert!(filters.contains(&"OCTAHEDRAL"), "{layout:?}");
-            assert!(filters.iter().all(|&f| f == "OCTAHEDRAL" || f == "NONE"), "{filters:?}");
+            assert!(
+                filters.iter().all(|&f| f == "OCTAHEDRAL" || f == "NONE"),
+                "{filters:?}"
+            );
         }
         // filtered normals and rotated index triangles keep every layer triangle facing out
         let (inverted, total) = common::inverted_layer_triangles(&twin);

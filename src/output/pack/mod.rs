@@ -161,8 +161,7 @@ pub struct PackParams {
     pub position_bits: u32,
     /// Attribute storage: quantized (`KHR_mesh_quantization`) or floats.
     pub quantize: Quantize,
-    /// Texture coordinate bits at most, 8–16 (see [`UvGrid`]: each component takes fewer where
-    /// they keep an eighth of a mask texel; quantized files only).
+    /// Texture coordinate bits, 8–16 (see [`UvGrid`]; quantized files only).
     pub texcoord_bits: u32,
     /// Where layer weights are written.
     pub layer_weights: LayerWeights,
@@ -1004,15 +1003,16 @@ fn geometry<'a>(
     let (unit, _) = stored_unit(&grid, params.quantize);
     let winds = (input.wind).map(|w| wind_targets(w, params, (unit, exact), &stored));
     let uvs = mesh.uvs.as_deref().unwrap();
+    let uv_grid = UvGrid::fit(uvs, params.texcoord_bits);
     let tiles = input.tiles_per_uv;
-    let texels = tiles * input.levels[0].mask.size as f32;
-    let uv_grid = UvGrid::fit(uvs, params.texcoord_bits, texels);
+    let texel_error =
+        (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();
     let skin = (mesh.skin.as_ref()).zip(input.skeleton.map(|k| k.joints.len()));
     Geometry {
         grid,
         exact,
         uv_grid,
-        float_uvs: uv_grid.too_coarse(texels),
+        float_uvs: texel_error > 0.125,
         tiles,
         positions: &mesh.positions,
         normals: mesh.normals.as_deref().unwrap(),
@@ -1040,7 +1040,7 @@ fn uv_transform(g: &Geometry, float: bool) -> (Vec2, Vec2) {
     } else if g.float_uvs {
         (Vec2::ZERO, g.tiles)
     } else {
-        (g.uv_grid.lo * g.tiles, g.uv_grid.scale() * g.tiles)
+        (g.uv_grid.lo * g.tiles, g.uv_grid.extent * g.tiles)
     }
 }
 
@@ -1691,7 +1691,10 @@ impl ShellStreams {
         let texcoord = b.texcoords(&gather(order, g.uvs), g.uv_grid, g.float_uvs, g.tiles);
         let steps = !g.exact;
         let delta = b.deltas(&pick(&g.deltas), "extrusion", 0, steps);
-        let bend = g.bends.as_ref().map(|v| b.deltas(&pick(v), "bend", 1, steps));
+        let bend = g
+            .bends
+            .as_ref()
+            .map(|v| b.deltas(&pick(v), "bend", 1, steps));
         let wind = g.winds.as_ref().map(|[sin, cos]| {
             let first = 1 + bend.is_some() as usize;
             [
@@ -1954,7 +1957,8 @@ impl Builder<'_> {
         }
         let dv = self.stream(name, Semantic::Position, Some(target), bytes.0, Some(12), n);
         let range = Some((bounds(lo.to_array()), bounds(hi.to_array())));
-        self.out.accessor(dv, component::FLOAT, false, "VEC3", range)
+        self.out
+            .accessor(dv, component::FLOAT, false, "VEC3", range)
     }
 
     fn normals(&mut self, n: &[Vec3]) -> usize {

@@ -134,76 +134,47 @@ pub fn dequantize_normal(q: [i8; 3]) -> Vec3 {
     Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) / 127.0
 }
 
-/// Normalized `u16` texture coordinates over `[lo, lo + extent]`, on a grid of `levels` steps
-/// across each component, stored as the step number itself (a `u16` `q` reads as `q/65535`; the
-/// texture transform's scale, [`UvGrid::scale`], carries `65535/levels`).
+/// Normalized `u16` texture coordinates over `[lo, lo + extent]`, on a grid of `2^bits − 1`
+/// steps across it, written over the whole `u16` range (16: every `u16`; fewer bits cost
+/// accuracy and save nothing: the vertex codec stores a value's changes, which stay as large).
 ///
-/// Each component takes the fewest bits (8 at least, `bits` at most) whose step spans at most
-/// [`UV_STEP_TEXELS`] of a mask texel. Why not always 16: the vertex codec stores each byte of a
-/// value apart and a value's magnitude decides its cost, so coordinates with two bits fewer cost
-/// about two bits less each (scaling them up to the whole `u16` range would cost as much as 16
-/// bits). On the Stanford dragon (6 × 4 tiles of 256 texels) the coordinates take 14 bits and
-/// its compressed texture coordinates drop from 359 to 313 kB.
+/// Why the whole range, though the codec would store the levels themselves (fewer bits, with
+/// the texture transform scaling by `65535/levels`) in fewer bytes (the Stanford dragon's
+/// coordinates at 14 bits: 314 against 359 kB compressed): general optimizers re-quantize
+/// texture coordinates over [0, 1] (glTF-Transform's `optimize`: 12 bits), so coordinates that
+/// fill a quarter of it lose two more bits there, and strands move by more than a texel
+/// (`tests/optimizers.rs` fails: 8–10 % of pixels differ).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct UvGrid {
     pub lo: Vec2,
     pub extent: Vec2,
-    /// Steps across each component (`2^bits − 1`).
-    pub levels: [u32; 2],
+    pub bits: u32,
 }
 
-/// The widest step of a texture coordinate grid, in mask texels: 1/8, so that a coordinate is
-/// off by at most 1/16 of a texel. Where even 16 bits' step is wider, the coordinates are floats.
-pub const UV_STEP_TEXELS: f32 = 0.125;
-
 impl UvGrid {
-    /// The grid over `uvs` for a mask of `texels` texels per UV unit (per component), with at
-    /// most `bits` bits per component.
-    pub fn fit(uvs: &[Vec2], bits: u32, texels: Vec2) -> UvGrid {
-        assert!((8..=16).contains(&bits));
+    pub fn fit(uvs: &[Vec2], bits: u32) -> UvGrid {
+        assert!((2..=16).contains(&bits));
         let (lo, hi) = crate::mesh::uv_bounds(uvs);
         let extent = (hi - lo).max(Vec2::splat(f32::MIN_POSITIVE));
         let extent = Vec2::new(
             if hi.x > lo.x { extent.x } else { 1.0 },
             if hi.y > lo.y { extent.y } else { 1.0 },
         );
-        let levels = [0, 1].map(|k| {
-            // steps the component needs, then the fewest bits that hold them
-            let needed = (extent[k] * texels[k] / UV_STEP_TEXELS).ceil();
-            let b = (8..bits)
-                .find(|&b| ((1u32 << b) - 1) as f32 >= needed)
-                .unwrap_or(bits);
-            (1u32 << b) - 1
-        });
-        UvGrid { lo, extent, levels }
-    }
-
-    /// Whether even 16 bits' step is wider than [`UV_STEP_TEXELS`] (huge tiling counts): then
-    /// the coordinates are written as floats.
-    pub fn too_coarse(&self, texels: Vec2) -> bool {
-        (self.extent * texels / 65535.0).max_element() > UV_STEP_TEXELS
-    }
-
-    fn levels(&self) -> Vec2 {
-        Vec2::new(self.levels[0] as f32, self.levels[1] as f32)
+        UvGrid { lo, extent, bits }
     }
 
     pub fn quantize(&self, uv: Vec2) -> [u16; 2] {
-        let levels = self.levels();
+        let levels = ((1u32 << self.bits) - 1) as f32;
         let q = ((uv - self.lo) / self.extent * levels)
             .round()
-            .clamp(Vec2::ZERO, levels);
+            .clamp(Vec2::ZERO, Vec2::splat(levels));
+        // the level as a u16 fraction (exact at 16 bits)
+        let q = (q * (65535.0 / levels)).round();
         [q.x as u16, q.y as u16]
     }
 
     pub fn dequantize(&self, q: [u16; 2]) -> Vec2 {
-        self.lo + Vec2::new(q[0] as f32, q[1] as f32) / self.levels() * self.extent
-    }
-
-    /// The UV per unit of a stored coordinate as read (`q/65535`): the texture transform's
-    /// scale before the tiling.
-    pub fn scale(&self) -> Vec2 {
-        self.extent * 65535.0 / self.levels()
+        self.lo + Vec2::new(q[0] as f32, q[1] as f32) / 65535.0 * self.extent
     }
 }
 
@@ -228,15 +199,22 @@ impl Targets {
         match self {
             Targets::Exact => d,
             // + 0.0: a zero is +0, as it reads back
-            Targets::Steps => (d * SNORM16).round().clamp(Vec3::splat(-SNORM16), Vec3::splat(SNORM16))
-                / SNORM16
-                + 0.0,
+            Targets::Steps => {
+                (d * SNORM16)
+                    .round()
+                    .clamp(Vec3::splat(-SNORM16), Vec3::splat(SNORM16))
+                    / SNORM16
+                    + 0.0
+            }
         }
     }
 
     /// `d` (in the stored unit, on the grid) as the `i16` levels written.
     pub fn levels(d: Vec3) -> [i16; 3] {
-        (d * SNORM16).round().to_array().map(|x| x.clamp(-SNORM16, SNORM16) as i16)
+        (d * SNORM16)
+            .round()
+            .to_array()
+            .map(|x| x.clamp(-SNORM16, SNORM16) as i16)
     }
 }
 
@@ -326,11 +304,17 @@ mod tests {
 
     #[test]
     fn targets_are_whole_position_steps_within_half_a_step() {
-        for d in [Vec3::new(0.3, -0.01, 2e-5), Vec3::new(-1.5 / SNORM16, 0.7 / SNORM16, 0.0)] {
+        for d in [
+            Vec3::new(0.3, -0.01, 2e-5),
+            Vec3::new(-1.5 / SNORM16, 0.7 / SNORM16, 0.0),
+        ] {
             let r = Targets::Steps.round(d);
             assert!(((r - d) * SNORM16).abs().max_element() <= 0.5 + 1e-3);
             let q = Targets::levels(r);
-            assert_eq!(Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) / SNORM16, r);
+            assert_eq!(
+                Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32) / SNORM16,
+                r
+            );
             assert_eq!(Targets::Exact.round(d), d);
         }
     }
@@ -338,27 +322,15 @@ mod tests {
     #[test]
     fn uv_round_trip_outside_unit_square() {
         let uvs = [Vec2::new(-3.0, 0.5), Vec2::new(5.0, 2.0)];
-        // 10 000 texels per UV unit: 80 000 and 15 000 texels across, 16 and 17 bits asked
-        let g = UvGrid::fit(&uvs, 16, Vec2::splat(10_000.0));
-        assert_eq!(g.levels, [65535, 65535]);
-        assert!(g.too_coarse(Vec2::splat(10_000.0)));
+        let g = UvGrid::fit(&uvs, 16);
         for &uv in &uvs {
             assert!((g.dequantize(g.quantize(uv)) - uv).abs().max_element() < 8.0 / 65535.0);
         }
-        // 100 texels per UV unit: 800 and 150 texels across need 6 400 and 1 200 steps
-        let texels = Vec2::splat(100.0);
-        let g = UvGrid::fit(&uvs, 16, texels);
-        assert_eq!(g.levels, [8191, 2047]);
-        assert!(!g.too_coarse(texels));
+        // 10 bits: within half of one of 1023 steps across the extent (8 and 1.5 units)
+        let g = UvGrid::fit(&uvs, 10);
         let mid = Vec2::new(0.123, 1.234);
-        let err = (g.dequantize(g.quantize(mid)) - mid).abs() * texels;
-        assert!(err.max_element() <= UV_STEP_TEXELS / 2.0 + 1e-3, "{err}");
-        // what a client reads: offset + scale · q/65535
-        let q = g.quantize(mid);
-        let read = g.lo + g.scale() * Vec2::new(q[0] as f32, q[1] as f32) / 65535.0;
-        assert!((read - g.dequantize(q)).abs().max_element() < 1e-5);
-        // 10 bits asked: at most 1023 steps
-        let g = UvGrid::fit(&uvs, 10, texels);
-        assert_eq!(g.levels, [1023, 1023]);
+        let err = (g.dequantize(g.quantize(mid)) - mid).abs();
+        assert!(err.x <= 0.5 * 8.0 / 1023.0 + 1e-5 && err.y <= 0.5 * 1.5 / 1023.0 + 1e-5);
+        assert!(err.max_element() > 8.0 / 65535.0, "coarser than 16 bits");
     }
 }
