@@ -1689,17 +1689,17 @@ impl ShellStreams {
     fn new(b: &mut Builder, g: &Geometry, order: &[u32]) -> ShellStreams {
         let pick = |v: &[Vec3]| gather(order, v);
         let texcoord = b.texcoords(&gather(order, g.uvs), g.uv_grid, g.float_uvs, g.tiles);
-        let steps = !g.exact;
-        let delta = b.deltas(&pick(&g.deltas), "extrusion", 0, steps);
+        let stored = targets(g.exact);
+        let delta = b.deltas(&pick(&g.deltas), "extrusion", 0, stored);
         let bend = g
             .bends
             .as_ref()
-            .map(|v| b.deltas(&pick(v), "bend", 1, steps));
+            .map(|v| b.deltas(&pick(v), "bend", 1, stored));
         let wind = g.winds.as_ref().map(|[sin, cos]| {
             let first = 1 + bend.is_some() as usize;
             [
-                b.deltas(&pick(sin), "wind_sin", first, steps),
-                b.deltas(&pick(cos), "wind_cos", first + 1, steps),
+                b.deltas(&pick(sin), "wind_sin", first, stored),
+                b.deltas(&pick(cos), "wind_cos", first + 1, stored),
             ]
         });
         let color = root_colors(b, g, order);
@@ -1929,9 +1929,15 @@ impl Builder<'_> {
     }
 
     /// A morph target (the extrusion delta, the bend, the wind's), in the stored position unit,
-    /// with its bounds: normalized `i16` when `steps` (the values lie on [`Targets::Steps`]),
-    /// float otherwise.
-    fn deltas(&mut self, deltas: &[Vec3], name: &'static str, target: usize, steps: bool) -> usize {
+    /// with its bounds, as `stored` says: normalized `i16` for [`Targets::Steps`] (the values
+    /// lie on its grid), float for [`Targets::Exact`].
+    fn deltas(
+        &mut self,
+        deltas: &[Vec3],
+        name: &'static str,
+        target: usize,
+        stored: Targets,
+    ) -> usize {
         let mut bytes = Bytes::default();
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for d in deltas {
@@ -1943,7 +1949,7 @@ impl Builder<'_> {
         }
         let n = deltas.len();
         let bounds = |v: [f32; 3]| v.map(|x| x as f64).to_vec();
-        if steps {
+        if stored == Targets::Steps {
             for &d in deltas {
                 bytes.i16s(&Targets::levels(d), 8);
             }
@@ -2496,7 +2502,7 @@ fn single_draw_wind(
                 })
                 .collect();
             // single-draw layers are rounded to the grid one by one; their sway stays float
-            b.deltas(&v, name, k, false)
+            b.deltas(&v, name, k, Targets::Exact)
         })
         .collect();
     let m = &mut b.out.meshes[mesh];

@@ -199,17 +199,11 @@ impl Targets {
         match self {
             Targets::Exact => d,
             // + 0.0: a zero is +0, as it reads back
-            Targets::Steps => {
-                (d * SNORM16)
-                    .round()
-                    .clamp(Vec3::splat(-SNORM16), Vec3::splat(SNORM16))
-                    / SNORM16
-                    + 0.0
-            }
+            Targets::Steps => Vec3::from(Targets::levels(d).map(f32::from)) / SNORM16 + 0.0,
         }
     }
 
-    /// `d` (in the stored unit, on the grid) as the `i16` levels written.
+    /// `d` (in the stored unit) as the `i16` levels written: whole steps, within ±32767.
     pub fn levels(d: Vec3) -> [i16; 3] {
         (d * SNORM16)
             .round()
