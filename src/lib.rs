@@ -1114,30 +1114,40 @@ fn cull_levels(
 ) -> Vec<cull::Culled> {
     let cull_runs = run.runs(Stage::Cull);
     let uvs_in_tiles: Vec<Vec2> = match (cull_runs, &mesh.uvs) {
-        (true, Some(uvs)) => uvs
-            .iter()
+        (true, Some(uvs)) => (uvs.par_iter())
+            .with_min_len(mesh::PAR_MIN_LEN)
             .map(|&uv| uv * look.tiling.tiles_per_uv)
             .collect(),
         _ => Vec::new(),
     };
-    // the render mesh's bounds per mip, made when a level over its triangles first asks
-    let mut mesh_bounds: Vec<Option<Vec<u8>>> = vec![None; chain.masks.len()];
-    (chain.levels.iter())
+    let culls = |level: &lod::Level| level.bare.is_none() && cull_runs;
+    // the render mesh's bounds per mip its levels use, the mips side by side
+    let mut shared: Vec<usize> = (chain.levels.iter())
+        .filter(|l| culls(l) && l.base.is_none())
+        .map(|l| chain.mip_of(l))
+        .collect();
+    shared.sort_unstable();
+    shared.dedup();
+    let bounds_of =
+        |m: &Mask, indices: &[u32]| cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, indices);
+    let mesh_bounds: Vec<(usize, Vec<u8>)> = (shared.into_par_iter())
+        .map(|mip| (mip, bounds_of(&chain.masks[mip], &mesh.indices)))
+        .collect();
+    // then every level's layers side by side
+    (chain.levels.par_iter())
         .map(|level| {
             let indices = level_indices(level, mesh);
-            if level.bare.is_some() || !cull_runs {
+            if !culls(level) {
                 return cull::Culled::none(indices.len() / 3, level.layers.len().max(1));
             }
             let (mip, m) = (chain.mip_of(level), chain.mask_of(level));
-            let triangle_bounds =
-                || cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, indices);
             let own;
             let bounds = match level.base {
                 Some(_) => {
-                    own = triangle_bounds();
+                    own = bounds_of(m, indices);
                     &own
                 }
-                None => &*mesh_bounds[mip].get_or_insert_with(triangle_bounds),
+                None => &mesh_bounds.iter().find(|(k, _)| *k == mip).unwrap().1,
             };
             let cutoffs: Vec<f32> = level.layers.iter().map(|l| m.cutoff(l.step)).collect();
             let delta = &look.shells.delta;

@@ -8,11 +8,42 @@
 //! `Mesh` is the editable type. The GPU-ready, quantized form lives in `pack/` and is never
 //! mixed with this one.
 
+use std::sync::atomic::{AtomicU32, Ordering};
+
 use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
 
 /// Items (vertices, triangles, edges) a parallel loop hands one task at least: below a few
 /// thousand, splitting costs more than it saves, so a small mesh runs on one thread.
 pub const PAR_MIN_LEN: usize = 2048;
+
+/// The first item at which each key occurs, for items `0..items` with keys `key(i)` below `range`
+/// ([`u32::MAX`] for a key that never occurs; items whose key is `range` or more are skipped),
+/// found in parallel. What numbering "in order of first use" needs: item `i` starts a number
+/// exactly when `first[key(i)] == i`.
+pub fn first_occurrences(
+    items: usize,
+    range: usize,
+    key: impl Fn(usize) -> u32 + Sync,
+) -> Vec<u32> {
+    let first: Vec<AtomicU32> = (0..range)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(|_| AtomicU32::new(u32::MAX))
+        .collect();
+    (0..items)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .for_each(|i| {
+            if let Some(f) = first.get(key(i) as usize) {
+                f.fetch_min(i as u32, Ordering::Relaxed);
+            }
+        });
+    (first.into_par_iter())
+        .with_min_len(PAR_MIN_LEN)
+        .map(AtomicU32::into_inner)
+        .collect()
+}
 
 /// A triangle mesh. `indices.len()` is a multiple of 3; every index is `< positions.len()`.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -155,8 +186,11 @@ impl Mesh {
         {
             return;
         }
-        fn pick<T: Copy>(v: &[T], source: &[u32]) -> Vec<T> {
-            source.iter().map(|&s| v[s as usize]).collect()
+        fn pick<T: Copy + Send + Sync>(v: &[T], source: &[u32]) -> Vec<T> {
+            (source.par_iter())
+                .with_min_len(PAR_MIN_LEN)
+                .map(|&s| v[s as usize])
+                .collect()
         }
         self.positions = pick(&self.positions, source);
         self.normals = self.normals.as_deref().map(|n| pick(n, source));

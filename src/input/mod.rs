@@ -39,7 +39,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::mesh::{face_normal, Mesh, Scene};
+use crate::mesh::{face_normal, first_occurrences, Mesh, Scene, PAR_MIN_LEN};
 
 /// Largest accepted world coordinate. Beyond it, squared extents overflow `f32` and no shell
 /// height means anything; 1e15 is far past any real asset (a planet in millimetres is 1.3e10).
@@ -196,30 +196,39 @@ pub fn load_bytes(path: &Path, bytes: &[u8]) -> Result<Scene> {
 /// order.
 pub fn generate_box_uvs(mesh: &mut Mesh) {
     let scale = 1.0 / mesh.diagonal().max(f32::MIN_POSITIVE);
-    let n = mesh.positions.len();
-    // slot[v][axis] = output vertex for (input vertex v, projection axis)
-    let mut slot = vec![[u32::MAX; 3]; n];
-    let mut source: Vec<u32> = Vec::with_capacity(n);
-    let mut uvs = Vec::with_capacity(n);
-    let mut indices = Vec::with_capacity(mesh.indices.len());
-    for (tri, &axis) in mesh.indices.chunks_exact(3).zip(&box_axes(mesh)) {
-        for &v in tri {
-            let axis = axis as usize;
-            let s = &mut slot[v as usize][axis];
-            if *s == u32::MAX {
-                *s = source.len() as u32;
-                source.push(v);
-                let p = mesh.positions[v as usize];
-                let (u, w) = match axis {
-                    0 => (p.z, p.y),
-                    1 => (p.x, p.z),
-                    _ => (p.x, p.y),
-                };
-                uvs.push(Vec2::new(u, -w) * scale);
-            }
-            indices.push(*s);
+    // one output vertex per (input vertex, projection axis), numbered in order of first use
+    let axes = box_axes(mesh);
+    let indices = &mesh.indices;
+    let slot = |c: usize| 3 * indices[c] + axes[c / 3] as u32;
+    let first = first_occurrences(indices.len(), 3 * mesh.positions.len(), slot);
+    let mut number = vec![u32::MAX; first.len()];
+    // the corner each output vertex is first used at
+    let mut starts: Vec<u32> = Vec::with_capacity(mesh.positions.len());
+    for c in 0..indices.len() {
+        let s = slot(c) as usize;
+        if first[s] == c as u32 {
+            number[s] = starts.len() as u32;
+            starts.push(c as u32);
         }
     }
+    let source: Vec<u32> = starts.iter().map(|&c| indices[c as usize]).collect();
+    let uvs: Vec<Vec2> = (starts.par_iter())
+        .with_min_len(PAR_MIN_LEN)
+        .map(|&c| {
+            let p = mesh.positions[indices[c as usize] as usize];
+            let (u, w) = match axes[c as usize / 3] {
+                0 => (p.z, p.y),
+                1 => (p.x, p.z),
+                _ => (p.x, p.y),
+            };
+            Vec2::new(u, -w) * scale
+        })
+        .collect();
+    let indices: Vec<u32> = (0..indices.len())
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(|c| number[slot(c) as usize])
+        .collect();
     mesh.uvs = None;
     mesh.gather_vertices(&source);
     mesh.uvs = Some(uvs);
@@ -286,16 +295,14 @@ fn box_axes(mesh: &Mesh) -> Vec<u8> {
 /// For each triangle, the triangles across its three edges (by exact position, so split normals
 /// or UVs do not cut them apart), where exactly one other triangle shares the edge.
 fn edge_neighbours(mesh: &Mesh) -> Vec<[Option<u32>; 3]> {
-    let topology = crate::stages::weld::Topology::new(&mesh.positions, &mesh.indices);
+    use crate::stages::weld::{Topology, NO_NEIGHBOUR, SAME_DIRECTION};
+    let topology = Topology::new(&mesh.positions, &mesh.indices);
     let sides = topology.sides(&topology.tris(&mesh.indices));
-    let mut out = vec![[None; 3]; mesh.indices.len() / 3];
-    for edge in sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
-        if let [x, y] = edge {
-            out[x.t as usize][x.k as usize] = Some(y.t);
-            out[y.t as usize][y.k as usize] = Some(x.t);
-        }
-    }
-    out
+    (topology.neighbours(&sides, mesh.indices.len() / 3, |_| true))
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(|n| n.map(|n| (n != NO_NEIGHBOUR).then_some(n & !SAME_DIRECTION)))
+        .collect()
 }
 
 fn dominant_axis(n: Vec3) -> usize {

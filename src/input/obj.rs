@@ -4,9 +4,10 @@
 //! them in parallel (rayon): each chunk's `v`, `vt` and `vn` values, its faces' corners as
 //! written, and where `o`/`g` statements start objects. A relative (negative) index depends on
 //! the counts before its line, so relative indices are resolved, and every index is checked,
-//! after a prefix sum of the chunks' counts. The objects are then formed in file order and,
-//! each in parallel, numbered: one vertex per distinct (v, vt, vn) corner, in order of first
-//! use. That is tobj's reading (`single_index`, no triangulation, points and lines ignored),
+//! after a prefix sum of the chunks' counts. The objects are then formed in file order and
+//! numbered: one vertex per distinct (v, vt, vn) corner, in order of first use — the objects
+//! side by side, and within one the first corner of each `v` found in parallel (an atomic
+//! minimum over a table), leaving a counting pass serial. That is tobj's reading (`single_index`, no triangulation, points and lines ignored),
 //! which the reader replaced on this path and reproduces exactly: the same objects and names,
 //! vertex order and bits (numbers are parsed with `str::parse::<f64>`, as tobj parses them),
 //! including tobj's quirks (`v x y z w` divides by w; of a `v x y z r g b` the colours up to the
@@ -48,7 +49,7 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use crate::error::{Error, Result};
-use crate::mesh::{Mesh, Scene};
+use crate::mesh::{first_occurrences, Mesh, Scene, PAR_MIN_LEN};
 
 /// Largest polygon triangulated by ear clipping (its cost grows with the cube of the corner
 /// count on adversarial shapes); larger ones are fanned with a warning.
@@ -576,11 +577,21 @@ struct Span {
 impl File {
     /// The chunks' lists, each put end to end.
     fn concat(pieces: &[Piece]) -> File {
-        fn cat<T: Copy + Send>(pieces: &[Piece], list: impl Fn(&Piece) -> &[T]) -> Vec<T> {
-            let mut all = Vec::with_capacity(pieces.iter().map(|p| list(p).len()).sum());
+        // each piece copied into its place in parallel
+        fn cat<T: Copy + Default + Send + Sync>(
+            pieces: &[Piece],
+            list: impl Fn(&Piece) -> &[T] + Sync,
+        ) -> Vec<T> {
+            let mut all = vec![T::default(); pieces.iter().map(|p| list(p).len()).sum()];
+            let mut places = Vec::with_capacity(pieces.len());
+            let mut rest = &mut all[..];
             for p in pieces {
-                all.extend_from_slice(list(p));
+                let (place, tail) = std::mem::take(&mut rest).split_at_mut(list(p).len());
+                places.push(place);
+                rest = tail;
             }
+            (places.into_par_iter().zip(pieces))
+                .for_each(|(place, p)| place.copy_from_slice(list(p)));
             all
         }
         // the six lists side by side
@@ -619,23 +630,25 @@ impl File {
     /// order of first use (as tobj's `single_index` numbers them); `None` where tobj fails (a
     /// vertex colour past those declared).
     fn object(&self, span: Span) -> Option<Object> {
-        let mut numbering = Numbering::new(
-            &self.corners[span.corner..],
-            &self.arities[span.faces.clone()],
-        );
-        let mut corners = Vec::new();
-        let mut arities = Vec::new();
-        let mut at = span.corner;
-        for &n in &self.arities[span.faces] {
-            let polygon = &self.corners[at..at + n as usize];
-            at += n as usize;
-            if n < 3 {
-                continue; // a point or a line, ignored
+        let faces = &self.arities[span.faces];
+        let total: usize = faces.iter().map(|&n| n as usize).sum();
+        let all = &self.corners[span.corner..span.corner + total];
+        let (corners, keys, arities) = if faces.iter().all(|&n| n >= 3) {
+            let (corners, keys) = number_corners(all);
+            (corners, keys, faces.to_vec())
+        } else {
+            // points and lines are ignored
+            let (mut kept, mut arities, mut at) = (Vec::new(), Vec::new(), 0);
+            for &n in faces {
+                if n >= 3 {
+                    kept.extend_from_slice(&all[at..at + n as usize]);
+                    arities.push(n);
+                }
+                at += n as usize;
             }
-            arities.push(n);
-            corners.extend(polygon.iter().map(|&c| numbering.number(c)));
-        }
-        let keys = numbering.keys;
+            let (corners, keys) = number_corners(&kept);
+            (corners, keys, arities)
+        };
         let every = |slot: usize| !keys.is_empty() && keys.iter().all(|k| k[slot] != ABSENT);
         let colors = match !keys.is_empty() && span.colors > 0 {
             false => None,
@@ -674,55 +687,71 @@ impl File {
     }
 }
 
-/// Numbers (v, vt, vn) corners in order of first use. Most vertices come with one (vt, vn):
-/// the first number given to each `v` sits in a table over the object's range of `v`, the
-/// rest in a hash map.
-struct Numbering {
-    /// The corners numbered, in order.
-    keys: Vec<[u32; 3]>,
-    /// The first number given to each `v` from `low` ([`ABSENT`]: none yet); empty when the
-    /// object's range of `v` is too sparse for a table.
-    first: Vec<u32>,
-    low: u32,
-    others: HashMap<[u32; 3], u32>,
+/// Numbers (v, vt, vn) corners in order of first use: each corner's number and the corner of
+/// each number. Most vertices come with one (vt, vn), and the object's range of `v` is most often
+/// dense: then the first corner of each `v` is found in a table in parallel, and only corners
+/// whose (vt, vn) differ from their `v`'s first go through a hash map, in order. Otherwise every
+/// corner does. The numbers are the same either way.
+fn number_corners(corners: &[[u32; 3]]) -> (Vec<u32>, Vec<[u32; 3]>) {
+    let (low, high) = (corners.par_iter())
+        .with_min_len(PAR_MIN_LEN)
+        .fold(|| (u32::MAX, 0), |(lo, hi), c| (lo.min(c[0]), hi.max(c[0])))
+        .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)));
+    let range = (high as usize + 1).saturating_sub(low as usize);
+    if range > 4 * corners.len() + 1024 {
+        return number_corners_hashed(corners);
+    }
+    let first = first_occurrences(corners.len(), range, |i| corners[i][0] - low);
+    // each corner's first occurrence: its `v`'s first corner when the whole key is the same,
+    // else the first corner with its key among those that differ from their `v`'s first
+    let mut origin: Vec<u32> = (corners.par_iter())
+        .with_min_len(PAR_MIN_LEN)
+        .map(|c| {
+            let f = first[(c[0] - low) as usize];
+            if corners[f as usize] == *c {
+                f
+            } else {
+                ABSENT
+            }
+        })
+        .collect();
+    let mut others: HashMap<[u32; 3], u32> = HashMap::new();
+    for (i, o) in origin.iter_mut().enumerate() {
+        if *o == ABSENT {
+            *o = *others.entry(corners[i]).or_insert(i as u32);
+        }
+    }
+    // numbers in order of first occurrence
+    let mut number = vec![ABSENT; corners.len()];
+    let mut keys = Vec::new();
+    for (i, &o) in origin.iter().enumerate() {
+        if o == i as u32 {
+            number[i] = keys.len() as u32;
+            keys.push(corners[i]);
+        }
+    }
+    let numbers = (origin.par_iter())
+        .with_min_len(PAR_MIN_LEN)
+        .map(|&o| number[o as usize])
+        .collect();
+    (numbers, keys)
 }
 
-impl Numbering {
-    /// A numbering for the polygons `arities` whose corners begin `corners`.
-    fn new(corners: &[[u32; 3]], arities: &[u32]) -> Numbering {
-        let used = &corners[..arities.iter().map(|&n| n as usize).sum::<usize>()];
-        let (low, high) = used
-            .iter()
-            .fold((u32::MAX, 0), |(lo, hi), c| (lo.min(c[0]), hi.max(c[0])));
-        let range = (high as usize + 1).saturating_sub(low as usize);
-        let dense = range <= 4 * used.len() + 1024;
-        Numbering {
-            keys: Vec::new(),
-            first: vec![ABSENT; if dense { range } else { 0 }],
-            low,
-            others: HashMap::new(),
-        }
-    }
-
-    /// The number of corner `c`, a new one if `c` was not seen before.
-    fn number(&mut self, c: [u32; 3]) -> u32 {
-        let next = self.keys.len() as u32;
-        if let Some(first) = self.first.get_mut((c[0] - self.low) as usize) {
-            if *first == ABSENT {
-                *first = next;
-                self.keys.push(c);
-                return next;
+/// [`number_corners`] through a hash map alone (a sparse range of `v`).
+fn number_corners_hashed(corners: &[[u32; 3]]) -> (Vec<u32>, Vec<[u32; 3]>) {
+    let mut ids: HashMap<[u32; 3], u32> = HashMap::new();
+    let mut keys = Vec::new();
+    let numbers = (corners.iter())
+        .map(|&c| {
+            let next = keys.len() as u32;
+            let n = *ids.entry(c).or_insert(next);
+            if n == next {
+                keys.push(c);
             }
-            if self.keys[*first as usize] == c {
-                return *first;
-            }
-        }
-        let n = *self.others.entry(c).or_insert(next);
-        if n == next {
-            self.keys.push(c);
-        }
-        n
-    }
+            n
+        })
+        .collect();
+    (numbers, keys)
 }
 
 /// `bytes` with every `l` statement replaced by an empty line (line numbers are kept).

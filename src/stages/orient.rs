@@ -35,7 +35,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::facts::{Facts, Reported};
 use crate::mesh::{face_normal, Mesh, PAR_MIN_LEN};
-use crate::stages::weld::{folded, EdgeSide, Topology};
+use crate::stages::weld::{folded, Topology, NO_NEIGHBOUR, SAME_DIRECTION};
 use rayon::prelude::*;
 
 /// What the orient stage does.
@@ -149,32 +149,24 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
     let tris = topo.tris(&mesh.indices);
     let pos = |i: u32| topo.positions[i as usize].as_dvec3();
 
-    // Neighbours: (other triangle, must-differ-in-flip), at most one per edge of a triangle.
-    let mut links = vec![[(u32::MAX, false); 3]; nt];
-    let mut open_edge = vec![false; nt];
+    // Neighbours across unfolded two-triangle edges, each with whether the two must differ in
+    // flip (they traverse the edge the same way).
     let sides = topo.sides(&tris);
-    let edges: Vec<&[EdgeSide]> = sides.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)).collect();
-    // whether each edge links its two triangles (the fold test, in parallel), then the links
-    // in edge order
-    let linked: Vec<bool> = (edges.par_iter())
-        .with_min_len(PAR_MIN_LEN)
-        .map(|m| {
+    let links: Vec<[(u32, bool); 3]> = topo
+        .neighbours(&sides, nt, |m| {
             let third = |i: usize| pos(tris[m[i].t as usize][(m[i].k as usize + 2) % 3]);
-            m.len() == 2 && !folded(pos(m[0].a), pos(m[0].b), third(0), third(1))
+            !folded(pos(m[0].a), pos(m[0].b), third(0), third(1))
+        })
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(|n| {
+            n.map(|n| match n {
+                NO_NEIGHBOUR => (u32::MAX, false),
+                n => (n & !SAME_DIRECTION, n & SAME_DIRECTION != 0),
+            })
         })
         .collect();
-    for (m, linked) in edges.iter().zip(linked) {
-        if linked {
-            // consistent when the two traverse the edge in opposite directions
-            let differ = m[0].forward == m[1].forward;
-            links[m[0].t as usize][m[0].k as usize] = (m[1].t, differ);
-            links[m[1].t as usize][m[1].k as usize] = (m[0].t, differ);
-        } else {
-            for e in m.iter() {
-                open_edge[e.t as usize] = true;
-            }
-        }
-    }
+    drop(sides);
     let collapsed = |t: usize| {
         let [a, b, c] = tris[t];
         a == b || b == c || a == c
@@ -228,7 +220,7 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
         // Closed parts face outward.
         if members
             .iter()
-            .all(|&t| !open_edge[t] && links[t].iter().all(|l| l.0 != u32::MAX))
+            .all(|&t| links[t].iter().all(|l| l.0 != u32::MAX))
         {
             out.closed += 1;
             let origin = pos(tris[members[0]][0]);

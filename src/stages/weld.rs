@@ -29,22 +29,25 @@
 //!
 //! **Threads.** The per-edge work runs in parallel and gives the same result on any count:
 //! edges are bucketed by ranges of their lower end (one range per thread, joined in order), each
-//! edge's continuations are found on its own and joined after (a class's root is its smallest
-//! corner, whatever the order of the joins), and position ids are hashed on up to three threads
-//! and sorted in parallel on more (both give first-occurrence ids). What stays serial is the
-//! join and the first-use numbering, a pass over the corners.
+//! edge's continuations are joined into one union-find shared by the threads (a root is linked
+//! only while it is one, always under the smaller root, so a class's root is its smallest corner
+//! whatever the order of the joins), and position ids are hashed on up to three threads and
+//! sorted in parallel on more (both give first-occurrence ids). First use is found in parallel
+//! too (a class is first used at its root; a render vertex's first corner by an atomic minimum).
+//! What stays serial is numbering the first uses, a pass over the corners that only counts.
 //!
 //! Rejected: welding by position alone (the sheet defect above), and grouping corners by the
 //! angle between their face normals (splits sharp cone tips and needles into pieces).
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
+use std::sync::atomic::{AtomicU32, Ordering};
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::{Mesh, PAR_MIN_LEN};
+use crate::mesh::{first_occurrences, Mesh, PAR_MIN_LEN};
 
 /// The welded topology of a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -218,6 +221,41 @@ impl Topology {
         }
     }
 
+    /// The neighbour across each side of each triangle, `[t][k]` for the side from corner `k` to
+    /// corner `k + 1` ([`NO_NEIGHBOUR`] where there is none): the two sides of every edge that
+    /// `joins` accepts are each other's neighbours, [`SAME_DIRECTION`] set where both traverse
+    /// the edge the same way. The edges are examined in parallel; each side belongs to one edge,
+    /// so every slot is written once, whatever the thread count.
+    pub fn neighbours(
+        &self,
+        sides: &[EdgeSide],
+        triangles: usize,
+        joins: impl Fn(&[EdgeSide]) -> bool + Sync,
+    ) -> Vec<[u32; 3]> {
+        let slots: Vec<AtomicU32> = (0..3 * triangles)
+            .into_par_iter()
+            .with_min_len(PAR_MIN_LEN)
+            .map(|_| AtomicU32::new(NO_NEIGHBOUR))
+            .collect();
+        sides
+            .par_chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))
+            .filter(|m| m.len() == 2 && joins(m))
+            .for_each(|m| {
+                let same = if m[0].forward == m[1].forward {
+                    SAME_DIRECTION
+                } else {
+                    0
+                };
+                for (x, y) in [(m[0], m[1]), (m[1], m[0])] {
+                    slots[3 * x.t as usize + x.k as usize].store(y.t | same, Ordering::Relaxed);
+                }
+            });
+        (slots.par_chunks_exact(3))
+            .with_min_len(PAR_MIN_LEN)
+            .map(|s| [0, 1, 2].map(|k| s[k].load(Ordering::Relaxed)))
+            .collect()
+    }
+
     /// The triangles of `indices` on position ids.
     pub fn tris(&self, indices: &[u32]) -> Vec<[u32; 3]> {
         on_ids(&self.ids, indices)
@@ -249,6 +287,13 @@ impl Topology {
             .collect()
     }
 }
+
+/// [`Topology::neighbours`] of a side without one.
+pub const NO_NEIGHBOUR: u32 = u32::MAX;
+
+/// Flag in a [`Topology::neighbours`] entry: the two triangles traverse their edge in the same
+/// direction (they disagree in winding). Triangle numbers stay below it.
+pub const SAME_DIRECTION: u32 = 1 << 31;
 
 /// Lower ends per range of [`Topology::new`]'s parallel bucketing at least.
 const EDGE_RANGE_MIN: usize = 1 << 13;
@@ -376,14 +421,6 @@ fn continuations(
     }
 }
 
-fn find(parent: &mut [u32], mut x: u32) -> u32 {
-    while parent[x as usize] != x {
-        parent[x as usize] = parent[parent[x as usize] as usize];
-        x = parent[x as usize];
-    }
-    x
-}
-
 /// Welds `positions` by position and side, and rewrites `indices` on the welded vertices.
 pub fn weld(positions: &[Vec3], indices: &[u32]) -> Welded {
     weld_on(&Topology::new(positions, indices), indices)
@@ -394,77 +431,108 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
     debug_assert!(indices.len().is_multiple_of(3));
     let nv = topo.ids.len();
     let tris = topo.tris(indices);
-    let kept = |t: &[u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
 
-    // Corners (3 per triangle) joined across continuing edges: the pairs found per edge in
-    // parallel, joined after (a class's root is its smallest corner, whatever the order).
-    let sides = topo.sides(&tris);
-    let pairs: Vec<Vec<(u32, u32)>> = (sides.par_chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)))
-        .fold(Vec::new, |mut out, group| {
-            continuations(group, &tris, &topo.positions, &mut |i, j| {
-                let (ti, ki) = (group[i].t, group[i].k);
-                let (tj, kj) = (group[j].t, group[j].k);
-                for end in [group[0].a, group[0].b] {
-                    let corner = |t: u32, k: u8| {
-                        let tri = tris[t as usize];
-                        let k = if tri[k as usize] == end {
-                            k
-                        } else {
-                            (k + 1) % 3
-                        };
-                        3 * t + k as u32
-                    };
-                    out.push((corner(ti, ki), corner(tj, kj)));
-                }
-            });
-            out
-        })
+    // Corners (3 per triangle) joined across continuing edges, the edges in parallel into one
+    // shared union-find (a class's root is its smallest corner, whatever the order).
+    let corners = 3 * tris.len();
+    let parent: Vec<AtomicU32> = (0..corners as u32)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(AtomicU32::new)
         .collect();
-    let mut parent: Vec<u32> = (0..3 * tris.len() as u32).collect();
-    for (x, y) in pairs.into_iter().flatten() {
-        let (x, y) = (find(&mut parent, x), find(&mut parent, y));
-        if x != y {
-            parent[x.max(y) as usize] = x.min(y);
-        }
-    }
+    let sides = topo.sides(&tris);
+    (sides.par_chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))).for_each(|group| {
+        continuations(group, &tris, &topo.positions, &mut |i, j| {
+            let (ti, ki) = (group[i].t, group[i].k);
+            let (tj, kj) = (group[j].t, group[j].k);
+            for end in [group[0].a, group[0].b] {
+                let corner = |t: u32, k: u8| {
+                    let tri = tris[t as usize];
+                    let k = if tri[k as usize] == end {
+                        k
+                    } else {
+                        (k + 1) % 3
+                    };
+                    3 * t + k as u32
+                };
+                union(&parent, corner(ti, ki), corner(tj, kj));
+            }
+        });
+    });
+    drop(sides);
+    let root: Vec<u32> = (0..corners as u32)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(|c| find(&parent, c))
+        .collect();
+    drop(parent);
+    let kept: Vec<bool> = (tris.par_iter())
+        .with_min_len(PAR_MIN_LEN)
+        .map(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+        .collect();
 
-    // Welded ids in first-use order; render vertices split where their corners disagree.
+    // Welded ids in first-use order: a class is first used at its root, its smallest corner
+    // (the corners of collapsed triangles join nothing).
     let mut out = Welded {
         vertex_source: (0..nv as u32).collect(),
         remap: vec![u32::MAX; nv],
         input_triangles: tris.len(),
         ..Default::default()
     };
-    let mut welded_of_class = vec![u32::MAX; parent.len()];
-    // (render vertex, welded vertex) → output render vertex, for split copies
-    let mut copies: IdMap<(u32, u32), u32> = IdMap::default();
-    for (t, tri) in tris.iter().enumerate() {
-        if !kept(tri) {
-            continue;
-        }
-        out.source_triangle.push(t as u32);
-        for k in 0..3 {
-            let class = find(&mut parent, 3 * t as u32 + k as u32) as usize;
-            if welded_of_class[class] == u32::MAX {
-                welded_of_class[class] = out.positions.len() as u32;
-                out.positions.push(topo.positions[tri[k] as usize]);
-            }
-            let w = welded_of_class[class];
-            let v = indices[3 * t + k];
-            let rv = if out.remap[v as usize] == u32::MAX || out.remap[v as usize] == w {
-                out.remap[v as usize] = w;
-                v
-            } else {
-                *copies.entry((v, w)).or_insert_with(|| {
-                    out.vertex_source.push(v);
-                    out.remap.push(w);
-                    out.remap.len() as u32 - 1
-                })
-            };
-            out.indices.push(w);
-            out.render_indices.push(rv);
+    let mut welded_of_root = vec![u32::MAX; corners];
+    for c in 0..corners {
+        if root[c] == c as u32 && kept[c / 3] {
+            welded_of_root[c] = out.positions.len() as u32;
+            out.positions
+                .push(topo.positions[tris[c / 3][c % 3] as usize]);
         }
     }
+    let welded = |c: usize| welded_of_root[root[c] as usize];
+    // Each render vertex keeps the welded vertex of its first corner; corners on another one
+    // (the other side of a sheet) go to copies, one per (render vertex, welded vertex), numbered
+    // in order of first use.
+    let first_use = first_occurrences(corners, nv, |c| match kept[c / 3] {
+        true => indices[c],
+        false => u32::MAX,
+    });
+    let mut render: Vec<u32> = (0..corners)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(|c| {
+            let v = indices[c];
+            match kept[c / 3] && welded(c) == welded(first_use[v as usize] as usize) {
+                true => v,
+                false => u32::MAX,
+            }
+        })
+        .collect();
+    let mut copies: IdMap<(u32, u32), u32> = IdMap::default();
+    for c in 0..corners {
+        if render[c] == u32::MAX && kept[c / 3] {
+            let (v, w) = (indices[c], welded(c));
+            render[c] = *copies.entry((v, w)).or_insert_with(|| {
+                out.vertex_source.push(v);
+                out.remap.push(w);
+                out.remap.len() as u32 - 1
+            });
+        }
+    }
+    (out.remap[..nv].par_iter_mut().zip(&first_use))
+        .with_min_len(PAR_MIN_LEN)
+        .for_each(|(r, &f)| {
+            if f != u32::MAX {
+                *r = welded(f as usize);
+            }
+        });
+    out.source_triangle = (0..tris.len() as u32)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .filter(|&t| kept[t as usize])
+        .collect();
+    (out.indices, out.render_indices) = (out.source_triangle.par_iter())
+        .with_min_len(PAR_MIN_LEN)
+        .flat_map_iter(|&t| (3 * t as usize..3 * t as usize + 3).map(|c| (welded(c), render[c])))
+        .unzip();
     // Render vertices no kept triangle uses: one welded vertex per position.
     let mut unused_at: IdMap<u32, u32> = IdMap::default();
     for v in 0..nv {
@@ -478,6 +546,41 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
         }
     }
     out
+}
+
+/// The root of `x`'s class in a union-find shared between threads, halving the path on the way.
+/// Every parent is at most its child, so a class's root is its smallest member.
+fn find(parent: &[AtomicU32], mut x: u32) -> u32 {
+    loop {
+        let p = parent[x as usize].load(Ordering::Relaxed);
+        if p == x {
+            return x;
+        }
+        let g = parent[p as usize].load(Ordering::Relaxed);
+        if g != p {
+            // another thread may have moved it on already: then this halving is skipped
+            let _ = parent[x as usize].compare_exchange(p, g, Ordering::Relaxed, Ordering::Relaxed);
+        }
+        x = g;
+    }
+}
+
+/// Joins the classes of `x` and `y`, the larger root under the smaller. A root is linked only
+/// while it is one (compare and swap), so the classes and their roots come out the same in any
+/// order.
+fn union(parent: &[AtomicU32], mut x: u32, mut y: u32) {
+    loop {
+        (x, y) = (find(parent, x), find(parent, y));
+        if x == y {
+            return;
+        }
+        let (lo, hi) = (x.min(y), x.max(y));
+        let linked =
+            parent[hi as usize].compare_exchange(hi, lo, Ordering::Relaxed, Ordering::Relaxed);
+        if linked.is_ok() {
+            return;
+        }
+    }
 }
 
 impl Welded {

@@ -58,7 +58,6 @@ pub use model::{
 pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, Targets, UvGrid, SNORM16};
 
 use glam::{Vec2, Vec3};
-use image::ImageEncoder;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -2606,22 +2605,13 @@ fn single_draw_color(g: &Geometry, (j, l): (usize, &LevelLayer), alpha: u16, o: 
 }
 
 /// The mask as a grey+alpha PNG (grey = the strands' shade, alpha = the noise byte or the
-/// survival code), deflated at the highest level with adaptive filtering. Deterministic.
+/// survival code), deflated at the highest level with adaptive filtering, in bands side by side
+/// ([`crate::output::png`]). Deterministic.
 pub fn encode_mask_png(mask: &Mask) -> Vec<u8> {
-    let mut pixels = Vec::with_capacity(mask.alpha.len() * 2);
-    for (&a, &g) in mask.alpha.iter().zip(&mask.shade) {
-        pixels.push(g);
-        pixels.push(a);
-    }
-    let mut out = Vec::new();
-    let enc = image::codecs::png::PngEncoder::new_with_quality(
-        &mut out,
-        image::codecs::png::CompressionType::Best,
-        image::codecs::png::FilterType::Adaptive,
-    );
-    enc.write_image(&pixels, mask.size, mask.size, image::ExtendedColorType::La8)
-        .expect("encoding a PNG into memory cannot fail");
-    out
+    let pixels: Vec<u8> = (mask.shade.iter().zip(&mask.alpha))
+        .flat_map(|(&g, &a)| [g, a])
+        .collect();
+    crate::output::png::grey_alpha_png(&pixels, mask.size, mask.size)
 }
 
 #[cfg(test)]
