@@ -45,6 +45,77 @@ pub fn first_occurrences(
         .collect()
 }
 
+/// Classes of `0..n` joined from several threads at once: a union-find whose roots are linked
+/// only while they are roots (compare and swap), always under the smaller root, so that each
+/// class's root is its smallest member whatever the order of the joins. Paths are halved on the
+/// way up.
+pub struct Classes {
+    parent: Vec<AtomicU32>,
+}
+
+impl Classes {
+    /// `n` classes of one member each.
+    pub fn new(n: usize) -> Classes {
+        Classes {
+            parent: (0..n as u32)
+                .into_par_iter()
+                .with_min_len(PAR_MIN_LEN)
+                .map(AtomicU32::new)
+                .collect(),
+        }
+    }
+
+    /// The root of `x`'s class (as far as the joins so far go).
+    fn find(&self, mut x: u32) -> u32 {
+        loop {
+            let p = self.parent[x as usize].load(Ordering::Relaxed);
+            if p == x {
+                return x;
+            }
+            let g = self.parent[p as usize].load(Ordering::Relaxed);
+            if g != p {
+                // another thread may have moved it on already: then this halving is skipped
+                let _ = (self.parent[x as usize]).compare_exchange(
+                    p,
+                    g,
+                    Ordering::Relaxed,
+                    Ordering::Relaxed,
+                );
+            }
+            x = g;
+        }
+    }
+
+    /// Joins the classes of `x` and `y`.
+    pub fn join(&self, mut x: u32, mut y: u32) {
+        loop {
+            (x, y) = (self.find(x), self.find(y));
+            if x == y {
+                return;
+            }
+            let (lo, hi) = (x.min(y), x.max(y));
+            let linked = (self.parent[hi as usize]).compare_exchange(
+                hi,
+                lo,
+                Ordering::Relaxed,
+                Ordering::Relaxed,
+            );
+            if linked.is_ok() {
+                return;
+            }
+        }
+    }
+
+    /// Each member's root, its class's smallest member, once every join is done.
+    pub fn roots(self) -> Vec<u32> {
+        (0..self.parent.len() as u32)
+            .into_par_iter()
+            .with_min_len(PAR_MIN_LEN)
+            .map(|x| self.find(x))
+            .collect()
+    }
+}
+
 /// A triangle mesh. `indices.len()` is a multiple of 3; every index is `< positions.len()`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {

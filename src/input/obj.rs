@@ -976,31 +976,12 @@ fn names_mtl(bytes: &[u8]) -> bool {
     })
 }
 
-/// Whether the OBJ at `path` names a material library, read in blocks (most name none, and the
-/// bake reads the whole file again): `None` where it is not a regular file one can open, which
-/// the full read then reports.
+/// Whether the OBJ at `path` names a material library (the whole file read, in parallel; the
+/// bake reads it again when it names none): `None` where it is not a regular file one can read,
+/// which the full read then reports.
 pub(super) fn file_names_mtl(path: &Path) -> Option<bool> {
-    use std::io::Read;
-    let mut file = super::open_without_blocking(path).ok()?;
-    if !file.metadata().ok()?.is_file() {
-        return None;
-    }
-    // the lines of the blocks so far that no newline has ended yet
-    let mut open = Vec::new();
-    let mut block = vec![0u8; 1 << 20];
-    loop {
-        let n = file.read(&mut block).ok()?;
-        if n == 0 {
-            return Some(names_mtl(&open));
-        }
-        open.extend_from_slice(&block[..n]);
-        if let Some(end) = memchr::memrchr(b'\n', &open) {
-            if names_mtl(&open[..=end]) {
-                return Some(true);
-            }
-            open.drain(..=end);
-        }
-    }
+    let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES).ok()?;
+    Some(names_mtl(&bytes))
 }
 
 /// tobj's objects of the file and its materials (`None`: none could be read), each `.mtl`

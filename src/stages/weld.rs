@@ -47,7 +47,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::{first_occurrences, Mesh, PAR_MIN_LEN};
+use crate::mesh::{first_occurrences, Classes, Mesh, PAR_MIN_LEN};
 
 /// The welded topology of a mesh.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -195,8 +195,10 @@ pub struct Topology {
     pub ids: Vec<u32>,
     /// Position of each id.
     pub positions: Vec<Vec3>,
-    /// `(a << 32 | b, triangle)` for each edge `a < b` of each non-collapsed triangle, sorted.
-    edges: Vec<(u64, u32)>,
+    /// `(a << 32 | b, triangle)` for each edge `a < b` of each non-collapsed triangle, sorted,
+    /// in parts (ranges of `a`, in order) as the threads bucketed them: joining them would be a
+    /// serial copy of the largest list here.
+    edges: Vec<Vec<(u64, u32)>>,
 }
 
 impl Topology {
@@ -217,7 +219,7 @@ impl Topology {
         Topology {
             ids,
             positions: unique,
-            edges: parts.concat(),
+            edges: parts,
         }
     }
 
@@ -266,7 +268,7 @@ impl Topology {
     /// winding of the triangles the topology was built on).
     pub fn sides(&self, tris: &[[u32; 3]]) -> Vec<EdgeSide> {
         (self.edges.par_iter())
-            .with_min_len(PAR_MIN_LEN)
+            .flat_map(|part| part.par_iter().with_min_len(PAR_MIN_LEN))
             .map(|&(key, t)| {
                 let (a, b) = ((key >> 32) as u32, key as u32);
                 let tri = tris[t as usize];
@@ -435,11 +437,7 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
     // Corners (3 per triangle) joined across continuing edges, the edges in parallel into one
     // shared union-find (a class's root is its smallest corner, whatever the order).
     let corners = 3 * tris.len();
-    let parent: Vec<AtomicU32> = (0..corners as u32)
-        .into_par_iter()
-        .with_min_len(PAR_MIN_LEN)
-        .map(AtomicU32::new)
-        .collect();
+    let classes = Classes::new(corners);
     let sides = topo.sides(&tris);
     (sides.par_chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))).for_each(|group| {
         continuations(group, &tris, &topo.positions, &mut |i, j| {
@@ -455,17 +453,12 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
                     };
                     3 * t + k as u32
                 };
-                union(&parent, corner(ti, ki), corner(tj, kj));
+                classes.join(corner(ti, ki), corner(tj, kj));
             }
         });
     });
     drop(sides);
-    let root: Vec<u32> = (0..corners as u32)
-        .into_par_iter()
-        .with_min_len(PAR_MIN_LEN)
-        .map(|c| find(&parent, c))
-        .collect();
-    drop(parent);
+    let root = classes.roots();
     let kept: Vec<bool> = (tris.par_iter())
         .with_min_len(PAR_MIN_LEN)
         .map(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
@@ -546,41 +539,6 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
         }
     }
     out
-}
-
-/// The root of `x`'s class in a union-find shared between threads, halving the path on the way.
-/// Every parent is at most its child, so a class's root is its smallest member.
-fn find(parent: &[AtomicU32], mut x: u32) -> u32 {
-    loop {
-        let p = parent[x as usize].load(Ordering::Relaxed);
-        if p == x {
-            return x;
-        }
-        let g = parent[p as usize].load(Ordering::Relaxed);
-        if g != p {
-            // another thread may have moved it on already: then this halving is skipped
-            let _ = parent[x as usize].compare_exchange(p, g, Ordering::Relaxed, Ordering::Relaxed);
-        }
-        x = g;
-    }
-}
-
-/// Joins the classes of `x` and `y`, the larger root under the smaller. A root is linked only
-/// while it is one (compare and swap), so the classes and their roots come out the same in any
-/// order.
-fn union(parent: &[AtomicU32], mut x: u32, mut y: u32) {
-    loop {
-        (x, y) = (find(parent, x), find(parent, y));
-        if x == y {
-            return;
-        }
-        let (lo, hi) = (x.min(y), x.max(y));
-        let linked =
-            parent[hi as usize].compare_exchange(hi, lo, Ordering::Relaxed, Ordering::Relaxed);
-        if linked.is_ok() {
-            return;
-        }
-    }
 }
 
 impl Welded {

@@ -480,35 +480,46 @@ fn order_triangles(
     layers: usize,
 ) -> Ordering {
     let vertices = positions.len();
-    let misses = fifo_misses(indices, cache_order, vertices);
-    let bound = misses.last().map_or(0.0, |&m| m as f32 / tris.len() as f32) * ACMR_SLACK;
-    let pays = |(order, kept): &(Vec<u32>, Vec<usize>)| {
-        let misses = fifo_misses(indices, order, vertices);
-        (kept.iter().filter(|&&n| n > 0)).all(|&n| misses[n - 1] as f32 / n as f32 <= bound)
-    };
     // the smallest size that pays, by bisection (larger clusters keep more locality); the
     // whole list, one cluster, always does
     let whole = cache_order.len().max(1);
     let sizes: Vec<usize> = (0..=8).map(|k| 1usize << k).chain([whole]).collect();
-    let evaluate = |i: usize| {
-        let candidate = clustered(cache_order, top, layers, sizes[i]);
-        let paid = pays(&candidate);
-        (candidate, paid)
+    // each candidate with its cache misses per prefix
+    let candidate = |i: usize| {
+        let (order, kept) = clustered(cache_order, top, layers, sizes[i]);
+        let misses = fifo_misses(indices, &order, vertices);
+        ((order, kept), misses)
     };
-    // a large list judges every size at once, in parallel, and the bisection reads the
-    // verdicts (the same choice, in one candidate's time instead of four)
-    let mut judged: Vec<Option<_>> = match tris.len() > 2 * CACHE_PIECE {
-        true => (0..sizes.len() - 1)
-            .into_par_iter()
-            .map(|i| Some(evaluate(i)))
-            .collect(),
-        false => (0..sizes.len() - 1).map(|_| None).collect(),
+    // a large list makes every candidate at once, in parallel, beside the cache order's own
+    // misses, and the bisection reads them (the same choice, in one candidate's time instead
+    // of four)
+    let (base, mut made): (Vec<u32>, Vec<Option<_>>) = match tris.len() > 2 * CACHE_PIECE {
+        true => rayon::join(
+            || fifo_misses(indices, cache_order, vertices),
+            || {
+                (0..sizes.len() - 1)
+                    .into_par_iter()
+                    .map(|i| Some(candidate(i)))
+                    .collect()
+            },
+        ),
+        false => (
+            fifo_misses(indices, cache_order, vertices),
+            (0..sizes.len() - 1).map(|_| None).collect(),
+        ),
+    };
+    let bound = base.last().map_or(0.0, |&m| m as f32 / tris.len() as f32) * ACMR_SLACK;
+    let evaluate = |i: usize, made: &mut Vec<Option<_>>| {
+        let ((order, kept), misses) = made[i].take().unwrap_or_else(|| candidate(i));
+        let paid = (kept.iter().filter(|&&n| n > 0))
+            .all(|&n: &usize| misses[n - 1] as f32 / n as f32 <= bound);
+        ((order, kept), paid)
     };
     let (mut lo, mut hi) = (0, sizes.len() - 1);
     let mut best = None;
     while lo < hi {
         let mid = (lo + hi) / 2;
-        let (candidate, paid) = judged[mid].take().unwrap_or_else(|| evaluate(mid));
+        let (candidate, paid) = evaluate(mid, &mut made);
         if paid {
             best = Some(candidate);
             hi = mid;
@@ -517,18 +528,23 @@ fn order_triangles(
         }
     }
     let (order, kept) = best.unwrap_or_else(|| clustered(cache_order, top, layers, whole));
+    let (ordered, cache) = rayon::join(
+        || corners(indices, &order),
+        || corners(indices, cache_order),
+    );
     Ordering {
-        indices: corners(indices, &order),
+        indices: ordered,
         tris: order,
         kept,
-        cache: corners(indices, cache_order),
+        cache,
     }
 }
 
 /// The corners of the triangles `tris` of `indices`, in order: an index buffer.
 fn corners(indices: &[u32], tris: &[u32]) -> Vec<u32> {
-    (tris.iter())
-        .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
+    (tris.par_iter())
+        .with_min_len(PAR_MIN_LEN)
+        .flat_map_iter(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
         .collect()
 }
 
