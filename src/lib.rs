@@ -523,9 +523,14 @@ fn run_plan(
         .collect();
     // the surfaces run their stages side by side, then pack one after another, in order
     let masks = MaskCache::bake(jobs.iter().map(|j| &j.surface.params.strands));
-    let prepared: Vec<Prepared> = (jobs.par_iter()).map(|job| prepare(job, &masks)).collect();
+    // the masks' PNGs (the slowest single task of pack) are made beside the stages, which leave
+    // cores idle in their serial parts
+    let (encoded, prepared): (Vec<(Mask, Vec<u8>)>, Vec<Prepared>) = rayon::join(
+        || masks.encoded(),
+        || (jobs.par_iter()).map(|job| prepare(job, &masks)).collect(),
+    );
     let mut surfaces: Vec<BakedSurface> = (jobs.iter().zip(prepared))
-        .map(|(job, prepared)| finish(job, prepared, &mut packed))
+        .map(|(job, prepared)| finish(job, prepared, (&mut packed, &encoded)))
         .collect();
     let write_start = Instant::now();
     let ext = scene.output.meshopt_extension;
@@ -599,6 +604,13 @@ impl MaskCache {
                 })
                 .collect(),
         )
+    }
+
+    /// Each mask with its PNG ([`pack::encode_mask_png`]), in parallel.
+    fn encoded(&self) -> Vec<(Mask, Vec<u8>)> {
+        (self.0.par_iter())
+            .map(|(_, mask, ..)| (mask.clone(), pack::encode_mask_png(mask)))
+            .collect()
     }
 
     /// The mask `strands` bake to, for surface `surface`, and the time its bake took when
@@ -684,7 +696,11 @@ struct Prepared<'a> {
 }
 
 /// Packs a surface [`prepare`] ran into `packed`.
-fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
+fn finish(
+    job: &Job,
+    prepared: Prepared,
+    (packed, encoded): (&mut Packed, &[(Mask, Vec<u8>)]),
+) -> BakedSurface {
     let (surface, scene) = (job.surface, job.scene);
     let params = &surface.params;
     let Prepared {
@@ -698,7 +714,7 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
     let grafted = job.part.is_some_and(|p| p.graft);
     let parts = (&shape, &heights, &look, &chain);
     let placing = (surface, scene, grafted);
-    let surface_packed = pack_surface(&mut run, placing, parts, job.several, packed);
+    let surface_packed = pack_surface(&mut run, placing, parts, job.several, (packed, encoded));
     let mut report = run.report;
     report.lods = (chain.levels.iter().zip(&surface_packed.lod_triangles))
         .map(|(l, &triangles)| report::LodEntry::of(l, triangles, chain.mask_of(l).size))
@@ -1162,7 +1178,7 @@ fn pack_surface(
     (surface, scene, grafted): (&Surface, &Scene, bool),
     (shape, heights, look, chain): (&Shape, &Heights, &Look, &Levels),
     several: bool,
-    packed: &mut Packed,
+    (packed, encoded): (&mut Packed, &[(Mask, Vec<u8>)]),
 ) -> PackedSurface {
     let mesh = &shape.mesh;
     let switches: Vec<lod::ChunkSwitch> = (chain.chunks.iter())
@@ -1193,6 +1209,7 @@ fn pack_surface(
     let fur_weight = heights.fur_weight(mesh.vertex_count());
     let input = pack::PackInput {
         mesh: bind_space.as_ref().unwrap_or(mesh),
+        encoded,
         delta: &shells.delta,
         height: shells.height,
         levels: &pack_levels,

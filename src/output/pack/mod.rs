@@ -66,6 +66,7 @@ use crate::mesh::{color_byte, Mesh, PAR_MIN_LEN};
 use crate::stages::lod::{Level, LevelLayer};
 use crate::stages::strands::{Mask, BASE_CODE};
 use guard::Vary;
+use image::ImageEncoder;
 use quantize::Bytes;
 
 /// Which glTF layout `pack` writes (DESIGN §4).
@@ -217,6 +218,9 @@ pub struct PackLevel<'a> {
 /// What `pack` needs besides the parameters.
 pub struct PackInput<'a> {
     pub mesh: &'a Mesh,
+    /// Masks whose PNG is already made ([`encode_mask_png`]; the bake encodes the strands'
+    /// masks beside the stages before pack, where cores are idle): pack copies those.
+    pub encoded: &'a [(Mask, Vec<u8>)],
     /// Extrusion delta at t = 1 per vertex (world units).
     pub delta: &'a [Vec3],
     /// Shell height at t = 1 (for `extras`).
@@ -1060,7 +1064,7 @@ fn uv_transform(g: &Geometry, float: bool) -> (Vec2, Vec2) {
 }
 
 /// The PNG of each distinct mask the levels draw (LOD 0's, and the mips coarser levels ask
-/// for), by mask level, encoded in parallel.
+/// for), by mask level, encoded in parallel unless [`PackInput::encoded`] has it.
 fn mask_pngs(input: &PackInput) -> Vec<(u32, Vec<u8>)> {
     let mut masks: Vec<(u32, &Mask)> = Vec::new();
     for l in input.levels.iter().filter(|l| l.level.bare.is_none()) {
@@ -1069,7 +1073,13 @@ fn mask_pngs(input: &PackInput) -> Vec<(u32, Vec<u8>)> {
         }
     }
     (masks.into_par_iter())
-        .map(|(m, mask)| (m, encode_mask_png(mask)))
+        .map(|(m, mask)| {
+            let made = input.encoded.iter().find(|(e, _)| e == mask);
+            (
+                m,
+                made.map_or_else(|| encode_mask_png(mask), |(_, png)| png.clone()),
+            )
+        })
         .collect()
 }
 
@@ -2621,13 +2631,22 @@ fn single_draw_color(g: &Geometry, (j, l): (usize, &LevelLayer), alpha: u16, o: 
 }
 
 /// The mask as a grey+alpha PNG (grey = the strands' shade, alpha = the noise byte or the
-/// survival code), deflated at the highest level with adaptive filtering, in bands side by side
-/// ([`crate::output::png`]). Deterministic.
+/// survival code), deflated at the highest level with adaptive filtering. Deterministic.
 pub fn encode_mask_png(mask: &Mask) -> Vec<u8> {
-    let pixels: Vec<u8> = (mask.shade.iter().zip(&mask.alpha))
-        .flat_map(|(&g, &a)| [g, a])
-        .collect();
-    crate::output::png::grey_alpha_png(&pixels, mask.size, mask.size)
+    let mut pixels = Vec::with_capacity(mask.alpha.len() * 2);
+    for (&a, &g) in mask.alpha.iter().zip(&mask.shade) {
+        pixels.push(g);
+        pixels.push(a);
+    }
+    let mut out = Vec::new();
+    let enc = image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Best,
+        image::codecs::png::FilterType::Adaptive,
+    );
+    enc.write_image(&pixels, mask.size, mask.size, image::ExtendedColorType::La8)
+        .expect("encoding a PNG into memory cannot fail");
+    out
 }
 
 #[cfg(test)]
