@@ -7,8 +7,9 @@
 //! after a prefix sum of the chunks' counts. The objects are then formed in file order and
 //! numbered: one vertex per distinct (v, vt, vn) corner, in order of first use — the objects
 //! side by side, and within one the first corner of each `v` found in parallel (an atomic
-//! minimum over a table), leaving a counting pass serial. That is tobj's reading (`single_index`, no triangulation, points and lines ignored),
-//! which the reader replaced on this path and reproduces exactly: the same objects and names,
+//! minimum over a table), leaving a counting pass serial. That is tobj's reading
+//! (`single_index`, no triangulation, points and lines ignored), which the reader replaced on
+//! this path and reproduces exactly: the same objects and names,
 //! vertex order and bits (numbers are parsed with `str::parse::<f64>`, as tobj parses them),
 //! including tobj's quirks (`v x y z w` divides by w; of a `v x y z r g b` the colours up to the
 //! first unreadable one are kept; an object is split at `o` and `g` only once it has faces, and
