@@ -511,6 +511,62 @@ pub fn world_area(mesh: &Mesh) -> f64 {
 mod tests {
     use super::*;
 
+    /// `n` pseudo-random pairs below `m`.
+    fn pairs(n: usize, m: u32) -> Vec<(u32, u32)> {
+        let mut x = 0x2545_f491_u32;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            x % m
+        };
+        (0..n).map(|_| (next(), next())).collect()
+    }
+
+    #[test]
+    fn classes_joined_in_parallel_have_their_smallest_member_as_root() {
+        let (n, joins) = (50_000u32, pairs(30_000, 50_000));
+        // serially: the smallest member of each class, by repeated relaxation
+        let mut least: Vec<u32> = (0..n).collect();
+        loop {
+            let mut changed = false;
+            for &(a, b) in &joins {
+                let m = least[a as usize].min(least[b as usize]);
+                for v in [a, b] {
+                    if least[v as usize] != m {
+                        least[v as usize] = m;
+                        changed = true;
+                    }
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+        for threads in [1, 4] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let roots = pool.install(|| {
+                let classes = Classes::new(n as usize);
+                joins.par_iter().for_each(|&(a, b)| classes.join(a, b));
+                classes.roots()
+            });
+            assert_eq!(roots, least, "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn first_occurrences_are_the_first_items_of_each_key() {
+        let keys: Vec<u32> = pairs(20_000, 3_000).into_iter().map(|p| p.0).collect();
+        let first = first_occurrences(keys.len(), 2_000, |i| keys[i]);
+        for (k, &f) in first.iter().enumerate() {
+            let expected = keys.iter().position(|&x| x == k as u32);
+            assert_eq!(expected.map(|i| i as u32).unwrap_or(u32::MAX), f, "key {k}");
+        }
+    }
+
     #[test]
     fn recentre_keeps_world_positions_far_from_origin() {
         let mut m = Mesh {
