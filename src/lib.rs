@@ -525,7 +525,7 @@ fn run_plan(
     let masks = MaskCache::bake(jobs.iter().map(|j| &j.surface.params.strands));
     // the masks' PNGs (the slowest single task of pack) are made beside the stages, which leave
     // cores idle in their serial parts
-    let (encoded, prepared): (Vec<(Mask, Vec<u8>)>, Vec<Prepared>) = rayon::join(
+    let (encoded, prepared): (Vec<(&Mask, Vec<u8>)>, Vec<Prepared>) = rayon::join(
         || masks.encoded(),
         || (jobs.par_iter()).map(|job| prepare(job, &masks)).collect(),
     );
@@ -607,9 +607,9 @@ impl MaskCache {
     }
 
     /// Each mask with its PNG ([`pack::encode_mask_png`]), in parallel.
-    fn encoded(&self) -> Vec<(Mask, Vec<u8>)> {
+    fn encoded(&self) -> Vec<(&Mask, Vec<u8>)> {
         (self.0.par_iter())
-            .map(|(_, mask, ..)| (mask.clone(), pack::encode_mask_png(mask)))
+            .map(|(_, mask, ..)| (mask, pack::encode_mask_png(mask)))
             .collect()
     }
 
@@ -699,7 +699,7 @@ struct Prepared<'a> {
 fn finish(
     job: &Job,
     prepared: Prepared,
-    (packed, encoded): (&mut Packed, &[(Mask, Vec<u8>)]),
+    (packed, encoded): (&mut Packed, &[(&Mask, Vec<u8>)]),
 ) -> BakedSurface {
     let (surface, scene) = (job.surface, job.scene);
     let params = &surface.params;
@@ -1178,7 +1178,7 @@ fn pack_surface(
     (surface, scene, grafted): (&Surface, &Scene, bool),
     (shape, heights, look, chain): (&Shape, &Heights, &Look, &Levels),
     several: bool,
-    (packed, encoded): (&mut Packed, &[(Mask, Vec<u8>)]),
+    (packed, encoded): (&mut Packed, &[(&Mask, Vec<u8>)]),
 ) -> PackedSurface {
     let mesh = &shape.mesh;
     let switches: Vec<lod::ChunkSwitch> = (chain.chunks.iter())

@@ -321,14 +321,10 @@ fn box_axes(mesh: &Mesh) -> Vec<u8> {
 /// For each triangle, the triangles across its three edges (by exact position, so split normals
 /// or UVs do not cut them apart), where exactly one other triangle shares the edge.
 fn edge_neighbours(mesh: &Mesh) -> Vec<[Option<u32>; 3]> {
-    use crate::stages::weld::{Topology, NO_NEIGHBOUR, SAME_DIRECTION};
-    let topology = Topology::new(&mesh.positions, &mesh.indices);
+    let topology = crate::stages::weld::Topology::new(&mesh.positions, &mesh.indices);
     let sides = topology.sides(&topology.tris(&mesh.indices));
-    (topology.neighbours(&sides, mesh.indices.len() / 3, |_| true))
-        .into_par_iter()
-        .with_min_len(PAR_MIN_LEN)
-        .map(|n| n.map(|n| (n != NO_NEIGHBOUR).then_some(n & !SAME_DIRECTION)))
-        .collect()
+    let triangles = mesh.indices.len() / 3;
+    topology.neighbours(&sides, triangles, |_| true, |l| l.map(|(n, _)| n))
 }
 
 fn dominant_axis(n: Vec3) -> usize {

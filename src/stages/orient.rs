@@ -42,7 +42,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::facts::{Facts, Reported};
 use crate::mesh::{face_normal, Classes, Mesh, PAR_MIN_LEN};
-use crate::stages::weld::{folded, Topology, NO_NEIGHBOUR, SAME_DIRECTION};
+use crate::stages::weld::{folded, EdgeSide, Topology};
 use rayon::prelude::*;
 
 /// What the orient stage does.
@@ -159,20 +159,12 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
     // Neighbours across unfolded two-triangle edges, each with whether the two must differ in
     // flip (they traverse the edge the same way).
     let sides = topo.sides(&tris);
-    let links: Vec<[(u32, bool); 3]> = topo
-        .neighbours(&sides, nt, |m| {
-            let third = |i: usize| pos(tris[m[i].t as usize][(m[i].k as usize + 2) % 3]);
-            !folded(pos(m[0].a), pos(m[0].b), third(0), third(1))
-        })
-        .into_par_iter()
-        .with_min_len(PAR_MIN_LEN)
-        .map(|n| {
-            n.map(|n| match n {
-                NO_NEIGHBOUR => (u32::MAX, false),
-                n => (n & !SAME_DIRECTION, n & SAME_DIRECTION != 0),
-            })
-        })
-        .collect();
+    let unfolded = |m: &[EdgeSide]| {
+        let third = |i: usize| pos(tris[m[i].t as usize][(m[i].k as usize + 2) % 3]);
+        !folded(pos(m[0].a), pos(m[0].b), third(0), third(1))
+    };
+    let links: Vec<[(u32, bool); 3]> =
+        topo.neighbours(&sides, nt, unfolded, |l| l.unwrap_or((u32::MAX, false)));
     drop(sides);
     let collapsed = |t: usize| {
         let [a, b, c] = tris[t];

@@ -223,28 +223,32 @@ impl Topology {
         }
     }
 
-    /// The neighbour across each side of each triangle, `[t][k]` for the side from corner `k` to
-    /// corner `k + 1` ([`NO_NEIGHBOUR`] where there is none): the two sides of every edge that
-    /// `joins` accepts are each other's neighbours, [`SAME_DIRECTION`] set where both traverse
-    /// the edge the same way. The edges are examined in parallel; each side belongs to one edge,
-    /// so every slot is written once, whatever the thread count.
-    pub fn neighbours(
+    /// What lies across each side of each triangle, `[t][k]` for the side from corner `k` to
+    /// corner `k + 1`: `link` of the neighbour and whether both traverse the edge the same way
+    /// (they disagree in winding), or of `None` where there is none. The two sides of every edge
+    /// that `joins` accepts are each other's neighbours. The edges are examined in parallel; each
+    /// side belongs to one edge, so every slot is written once, whatever the thread count.
+    pub fn neighbours<T: Send>(
         &self,
         sides: &[EdgeSide],
         triangles: usize,
         joins: impl Fn(&[EdgeSide]) -> bool + Sync,
-    ) -> Vec<[u32; 3]> {
+        link: impl Fn(Option<(u32, bool)>) -> T + Sync,
+    ) -> Vec<[T; 3]> {
+        // the neighbour, the flag in its top bit (triangle numbers stay below it)
+        const NONE: u32 = u32::MAX;
+        const SAME: u32 = 1 << 31;
         let slots: Vec<AtomicU32> = (0..3 * triangles)
             .into_par_iter()
             .with_min_len(PAR_MIN_LEN)
-            .map(|_| AtomicU32::new(NO_NEIGHBOUR))
+            .map(|_| AtomicU32::new(NONE))
             .collect();
         sides
             .par_chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))
             .filter(|m| m.len() == 2 && joins(m))
             .for_each(|m| {
                 let same = if m[0].forward == m[1].forward {
-                    SAME_DIRECTION
+                    SAME
                 } else {
                     0
                 };
@@ -254,7 +258,12 @@ impl Topology {
             });
         (slots.par_chunks_exact(3))
             .with_min_len(PAR_MIN_LEN)
-            .map(|s| [0, 1, 2].map(|k| s[k].load(Ordering::Relaxed)))
+            .map(|s| {
+                [0, 1, 2].map(|k| match s[k].load(Ordering::Relaxed) {
+                    NONE => link(None),
+                    n => link(Some((n & !SAME, n & SAME != 0))),
+                })
+            })
             .collect()
     }
 
@@ -289,13 +298,6 @@ impl Topology {
             .collect()
     }
 }
-
-/// [`Topology::neighbours`] of a side without one.
-pub const NO_NEIGHBOUR: u32 = u32::MAX;
-
-/// Flag in a [`Topology::neighbours`] entry: the two triangles traverse their edge in the same
-/// direction (they disagree in winding). Triangle numbers stay below it.
-pub const SAME_DIRECTION: u32 = 1 << 31;
 
 /// Lower ends per range of [`Topology::new`]'s parallel bucketing at least.
 const EDGE_RANGE_MIN: usize = 1 << 13;

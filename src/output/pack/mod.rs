@@ -220,7 +220,7 @@ pub struct PackInput<'a> {
     pub mesh: &'a Mesh,
     /// Masks whose PNG is already made ([`encode_mask_png`]; the bake encodes the strands'
     /// masks beside the stages before pack, where cores are idle): pack copies those.
-    pub encoded: &'a [(Mask, Vec<u8>)],
+    pub encoded: &'a [(&'a Mask, Vec<u8>)],
     /// Extrusion delta at t = 1 per vertex (world units).
     pub delta: &'a [Vec3],
     /// Shell height at t = 1 (for `extras`).
@@ -1074,7 +1074,7 @@ fn mask_pngs(input: &PackInput) -> Vec<(u32, Vec<u8>)> {
     }
     (masks.into_par_iter())
         .map(|(m, mask)| {
-            let made = input.encoded.iter().find(|(e, _)| e == mask);
+            let made = input.encoded.iter().find(|(e, _)| *e == mask);
             (
                 m,
                 made.map_or_else(|| encode_mask_png(mask), |(_, png)| png.clone()),
