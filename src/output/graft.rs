@@ -553,7 +553,18 @@ fn add_to_scene(out: &mut Value, scene: usize, nodes: impl Iterator<Item = usize
     }
 }
 
-/// `m` as translation, rotation and scale, when it is one (to within 1e-9 of its size).
+/// Largest difference, relative to the matrix's size, between a part's `W⁻¹ · D` and the
+/// translation-rotation-scale its fur root is given. A file's node transforms are `f32`: an
+/// exporter that writes a uniform scale as three separately rounded values (Blender: one ulp
+/// apart) or a quaternion a few ulps from unit length makes a rotated, uniformly scaled node
+/// shear by about 1e-7, which is no reason to detach its fur. A real non-uniform scale under a
+/// rotation shears by the scales' relative difference, so one of 1e-5 or more is still refused.
+/// The root's TRS moves the fur by at most this fraction of the node's size: a sixtieth of a
+/// 14-bit position step.
+const TRS_TOLERANCE: f64 = 1e-6;
+
+/// `m` as translation, rotation and scale, when it is one (to within [`TRS_TOLERANCE`] of its
+/// size).
 fn trs_of(m: DMat4) -> Option<(DVec3, DQuat, DVec3)> {
     let (s, r, t) = m.to_scale_rotation_translation();
     let back = DMat4::from_scale_rotation_translation(s, r, t);
@@ -566,7 +577,7 @@ fn trs_of(m: DMat4) -> Option<(DVec3, DQuat, DVec3)> {
         .to_cols_array()
         .iter()
         .fold(0.0f64, |a, v| a.max(v.abs()));
-    (err <= 1e-9 * size && s.is_finite() && r.is_finite() && t.is_finite()).then_some((t, r, s))
+    (err <= TRS_TOLERANCE * size && s.is_finite() && r.is_finite() && t.is_finite()).then_some((t, r, s))
 }
 
 /// The union of both files' extension lists, the input's first.
@@ -602,6 +613,37 @@ mod tests {
         // a non-uniform scale after a rotation shears
         let shear = DMat4::from_scale(DVec3::new(1.0, 3.0, 1.0)) * DMat4::from_rotation_z(0.5);
         assert!(trs_of(shear).is_none());
+        // so does a scale 1e-5 apart, however small
+        let slight = DMat4::from_rotation_z(0.5)
+            * DMat4::from_scale(DVec3::new(1.0, 1.00001, 1.0))
+            * DMat4::from_rotation_x(0.8);
+        assert!(trs_of(slight).is_none());
+    }
+
+    #[test]
+    fn an_f32_uniform_scale_under_a_rotation_is_a_trs() {
+        // as Blender exports a rotated rock scaled by 1.368: the scale's y one f32 ulp off, the
+        // quaternion 7e-8 from unit length
+        let s = 1.368_045_3_f32;
+        let scale = glam::Vec3::new(s, f32::from_bits(s.to_bits() - 1), s).as_dvec3();
+        let q = glam::Quat::from_xyzw(0.3, -0.5, 0.7, 0.4);
+        let q = glam::Quat::from_xyzw(q.x * 1.000_000_1, q.y, q.z, q.w) / q.length();
+        let world = DMat4::from_scale_rotation_translation(
+            scale,
+            q.as_dquat(),
+            DVec3::new(3.0, 0.0, -2.0),
+        );
+        // a normalized i16 grid: 32767 steps of a 1.5-unit rock's 14-bit grid
+        let dequantize = DMat4::from_scale_rotation_translation(
+            DVec3::splat(32767.0 * 1.5 / 16383.0),
+            DQuat::IDENTITY,
+            DVec3::new(3.1, 0.2, -2.05),
+        );
+        let local = world.inverse() * dequantize;
+        let (t, r, sc) = trs_of(local).expect("within f32's reach of a TRS");
+        let back = DMat4::from_scale_rotation_translation(sc, r, t);
+        let err = (world * back - dequantize).to_cols_array();
+        assert!(err.iter().all(|e| e.abs() < 1e-6), "{err:?}");
     }
 
     #[test]
