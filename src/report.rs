@@ -392,22 +392,27 @@ impl AssetReport {
                 self.clips.join(", ")
             );
         }
-        s += &format!(
-            "  furred ({}): {}\n",
-            self.furred.len(),
-            self.furred.join("; ")
-        );
+        s += &format!("  furred {}\n", listed(&self.furred));
         if !self.skipped.is_empty() {
-            s += &format!(
-                "  not furred ({}): {}\n",
-                self.skipped.len(),
-                self.skipped.join("; ")
-            );
+            s += &format!("  not furred {}\n", listed(&self.skipped));
         }
         for w in &self.warnings {
             s += &format!("  warning: {w}\n");
         }
         s
+    }
+}
+
+/// Parts the summary names at most; the report (`--report`) lists every one.
+const LISTED_PARTS: usize = 8;
+
+/// `(count): a; b; …` with at most [`LISTED_PARTS`] entries: an asset of a hundred instanced
+/// rocks would otherwise print one line of a hundred.
+fn listed(parts: &[String]) -> String {
+    let shown = parts[..parts.len().min(LISTED_PARTS)].join("; ");
+    match parts.len().saturating_sub(LISTED_PARTS) {
+        0 => format!("({}): {shown}", parts.len()),
+        more => format!("({}): {shown}; and {more} more (--report lists them all)", parts.len()),
     }
 }
 
@@ -505,7 +510,17 @@ pub fn significant(x: f64) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::significant;
+    use super::{listed, significant};
+
+    #[test]
+    fn long_part_lists_are_cut_in_the_summary() {
+        let parts: Vec<String> = (0..10).map(|k| format!("node 'rock_{k}'")).collect();
+        assert_eq!(listed(&parts[..2]), "(2): node 'rock_0'; node 'rock_1'");
+        let line = listed(&parts);
+        assert!(line.starts_with("(10): node 'rock_0'; "), "{line}");
+        assert!(line.contains("node 'rock_7'; and 2 more (--report lists them all)"), "{line}");
+        assert!(!line.contains("rock_8"), "{line}");
+    }
 
     #[test]
     fn tiny_and_large_values_keep_their_digits() {
