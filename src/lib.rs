@@ -524,13 +524,13 @@ fn run_plan(
     // the surfaces run their stages side by side, then pack one after another, in order
     let masks = MaskCache::bake(jobs.iter().map(|j| &j.surface.params.strands));
     // the masks' PNGs (the slowest single task of pack) are made beside the stages, which leave
-    // cores idle in their serial parts
-    let (encoded, prepared): (Vec<(&Mask, Vec<u8>)>, Vec<Prepared>) = rayon::join(
-        || masks.encoded(),
+    // cores idle in their serial parts; every surface's pack then finds them made
+    let ((), prepared): ((), Vec<Prepared>) = rayon::join(
+        || masks.encode(),
         || (jobs.par_iter()).map(|job| prepare(job, &masks)).collect(),
     );
     let mut surfaces: Vec<BakedSurface> = (jobs.iter().zip(prepared))
-        .map(|(job, prepared)| finish(job, prepared, (&mut packed, &encoded)))
+        .map(|(job, prepared)| finish(job, prepared, &mut packed))
         .collect();
     let write_start = Instant::now();
     let ext = scene.output.meshopt_extension;
@@ -606,11 +606,12 @@ impl MaskCache {
         )
     }
 
-    /// Each mask with its PNG ([`pack::encode_mask_png`]), in parallel.
-    fn encoded(&self) -> Vec<(&Mask, Vec<u8>)> {
-        (self.0.par_iter())
-            .map(|(_, mask, ..)| (mask, pack::encode_mask_png(mask)))
-            .collect()
+    /// Makes each mask's PNG ([`Mask::png`], [`pack::encode_mask_png`]), in parallel: the
+    /// surfaces bake with clones of these masks, which share it.
+    fn encode(&self) {
+        (self.0.par_iter()).for_each(|(_, mask, ..)| {
+            mask.png(pack::encode_mask_png);
+        });
     }
 
     /// The mask `strands` bake to, for surface `surface`, and the time its bake took when
@@ -696,11 +697,7 @@ struct Prepared<'a> {
 }
 
 /// Packs a surface [`prepare`] ran into `packed`.
-fn finish(
-    job: &Job,
-    prepared: Prepared,
-    (packed, encoded): (&mut Packed, &[(&Mask, Vec<u8>)]),
-) -> BakedSurface {
+fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
     let (surface, scene) = (job.surface, job.scene);
     let params = &surface.params;
     let Prepared {
@@ -714,7 +711,7 @@ fn finish(
     let grafted = job.part.is_some_and(|p| p.graft);
     let parts = (&shape, &heights, &look, &chain);
     let placing = (surface, scene, grafted);
-    let surface_packed = pack_surface(&mut run, placing, parts, job.several, (packed, encoded));
+    let surface_packed = pack_surface(&mut run, placing, parts, job.several, packed);
     let mut report = run.report;
     report.lods = (chain.levels.iter().zip(&surface_packed.lod_triangles))
         .map(|(l, &triangles)| report::LodEntry::of(l, triangles, chain.mask_of(l).size))
@@ -1144,8 +1141,7 @@ fn cull_levels(
         .collect();
     shared.sort_unstable();
     shared.dedup();
-    let bounds_of =
-        |m: &Mask, indices: &[u32]| cull::triangle_bounds(&m.alpha, m.size, &uvs_in_tiles, indices);
+    let bounds_of = |m: &Mask, indices: &[u32]| cull::triangle_bounds(m, &uvs_in_tiles, indices);
     let mesh_bounds: Vec<(usize, Vec<u8>)> = (shared.into_par_iter())
         .map(|mip| (mip, bounds_of(&chain.masks[mip], &mesh.indices)))
         .collect();
@@ -1178,7 +1174,7 @@ fn pack_surface(
     (surface, scene, grafted): (&Surface, &Scene, bool),
     (shape, heights, look, chain): (&Shape, &Heights, &Look, &Levels),
     several: bool,
-    (packed, encoded): (&mut Packed, &[(&Mask, Vec<u8>)]),
+    packed: &mut Packed,
 ) -> PackedSurface {
     let mesh = &shape.mesh;
     let switches: Vec<lod::ChunkSwitch> = (chain.chunks.iter())
@@ -1209,7 +1205,6 @@ fn pack_surface(
     let fur_weight = heights.fur_weight(mesh.vertex_count());
     let input = pack::PackInput {
         mesh: bind_space.as_ref().unwrap_or(mesh),
-        encoded,
         delta: &shells.delta,
         height: shells.height,
         levels: &pack_levels,

@@ -412,7 +412,10 @@ fn listed(parts: &[String]) -> String {
     let shown = parts[..parts.len().min(LISTED_PARTS)].join("; ");
     match parts.len().saturating_sub(LISTED_PARTS) {
         0 => format!("({}): {shown}", parts.len()),
-        more => format!("({}): {shown}; and {more} more (--report lists them all)", parts.len()),
+        more => format!(
+            "({}): {shown}; and {more} more (--report lists them all)",
+            parts.len()
+        ),
     }
 }
 
@@ -518,7 +521,10 @@ mod tests {
         assert_eq!(listed(&parts[..2]), "(2): node 'rock_0'; node 'rock_1'");
         let line = listed(&parts);
         assert!(line.starts_with("(10): node 'rock_0'; "), "{line}");
-        assert!(line.contains("node 'rock_7'; and 2 more (--report lists them all)"), "{line}");
+        assert!(
+            line.contains("node 'rock_7'; and 2 more (--report lists them all)"),
+            "{line}"
+        );
         assert!(!line.contains("rock_8"), "{line}");
     }
 

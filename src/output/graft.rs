@@ -577,7 +577,8 @@ fn trs_of(m: DMat4) -> Option<(DVec3, DQuat, DVec3)> {
         .to_cols_array()
         .iter()
         .fold(0.0f64, |a, v| a.max(v.abs()));
-    (err <= TRS_TOLERANCE * size && s.is_finite() && r.is_finite() && t.is_finite()).then_some((t, r, s))
+    (err <= TRS_TOLERANCE * size && s.is_finite() && r.is_finite() && t.is_finite())
+        .then_some((t, r, s))
 }
 
 /// The union of both files' extension lists, the input's first.
@@ -628,11 +629,8 @@ mod tests {
         let scale = glam::Vec3::new(s, f32::from_bits(s.to_bits() - 1), s).as_dvec3();
         let q = glam::Quat::from_xyzw(0.3, -0.5, 0.7, 0.4);
         let q = glam::Quat::from_xyzw(q.x * 1.000_000_1, q.y, q.z, q.w) / q.length();
-        let world = DMat4::from_scale_rotation_translation(
-            scale,
-            q.as_dquat(),
-            DVec3::new(3.0, 0.0, -2.0),
-        );
+        let world =
+            DMat4::from_scale_rotation_translation(scale, q.as_dquat(), DVec3::new(3.0, 0.0, -2.0));
         // a normalized i16 grid: 32767 steps of a 1.5-unit rock's 14-bit grid
         let dequantize = DMat4::from_scale_rotation_translation(
             DVec3::splat(32767.0 * 1.5 / 16383.0),

@@ -46,7 +46,7 @@ use rayon::prelude::*;
 
 use crate::facts::{Facts, Reported};
 use crate::mesh::PAR_MIN_LEN;
-use crate::stages::strands;
+use crate::stages::strands::{self, Mask};
 
 /// Widening of every footprint, in level-0 texels, for UV quantization.
 pub const MARGIN_TEXELS: f32 = 0.25;
@@ -134,13 +134,11 @@ fn wrap_ranges((a, b): (i64, i64), s: i64) -> ([(i64, i64); 2], usize) {
 
 /// The values a client's sampler can return at each mip level of a mask alpha channel (see the
 /// module notes): level 0, then `max(box + 1, coverage)` per level.
-pub fn level_values(alpha: &[u8], size: u32) -> Vec<(u32, Vec<u8>)> {
-    let boxes = strands::box_mips(alpha, size, size);
-    let coverage = strands::coverage_mips(alpha, size, size);
-    let mut out = vec![(size, alpha.to_vec())];
-    for ((b, c), (w, _)) in boxes
-        .iter()
-        .zip(&coverage)
+pub fn level_values(mask: &Mask) -> Vec<(u32, Vec<u8>)> {
+    let (size, chains) = (mask.size, mask.chains());
+    let mut out = vec![(size, mask.alpha.clone())];
+    for ((b, c), (w, _)) in (chains.alpha_box.iter())
+        .zip(&chains.coverage)
         .zip(strands::mip_sizes(size, size))
     {
         let v = b
@@ -174,9 +172,9 @@ fn footprints<'a>(uvs: &'a [Vec2], indices: &'a [u32]) -> impl Iterator<Item = (
 
 /// Upper bound of the mask alpha any sample inside each triangle can return, through the
 /// max-pyramids. `uvs` are in mask tiles (texture coordinates × tiles per UV unit).
-pub fn triangle_bounds(alpha: &[u8], size: u32, uvs: &[Vec2], indices: &[u32]) -> Vec<u8> {
-    let margin = MARGIN_TEXELS / size as f32;
-    let pyramids: Vec<MaxPyramid> = level_values(alpha, size)
+pub fn triangle_bounds(mask: &Mask, uvs: &[Vec2], indices: &[u32]) -> Vec<u8> {
+    let margin = MARGIN_TEXELS / mask.size as f32;
+    let pyramids: Vec<MaxPyramid> = level_values(mask)
         .into_iter()
         .map(|(s, v)| MaxPyramid::new(v, s))
         .collect();
@@ -201,9 +199,9 @@ pub fn triangle_bounds(alpha: &[u8], size: u32, uvs: &[Vec2], indices: &[u32]) -
 
 /// [`triangle_bounds`] by visiting every texel of every footprint at every level: the
 /// differential test of the pyramid.
-pub fn brute_force_bounds(alpha: &[u8], size: u32, uvs: &[Vec2], indices: &[u32]) -> Vec<u8> {
-    let margin = MARGIN_TEXELS / size as f32;
-    let levels = level_values(alpha, size);
+pub fn brute_force_bounds(mask: &Mask, uvs: &[Vec2], indices: &[u32]) -> Vec<u8> {
+    let margin = MARGIN_TEXELS / mask.size as f32;
+    let levels = level_values(mask);
     footprints(uvs, indices)
         .map(|(lo, hi)| {
             let mut best = 0u8;
@@ -333,8 +331,8 @@ mod tests {
             };
             let mask = strands::bake_mask(&p);
             let (uvs, ix) = random_triangles(3000, preset as u32, 0.6);
-            let fast = triangle_bounds(&mask.alpha, mask.size, &uvs, &ix);
-            let slow = brute_force_bounds(&mask.alpha, mask.size, &uvs, &ix);
+            let fast = triangle_bounds(&mask, &uvs, &ix);
+            let slow = brute_force_bounds(&mask, &uvs, &ix);
             let mut equal = 0;
             for (t, (&f, &s)) in fast.iter().zip(&slow).enumerate() {
                 assert!(
@@ -377,9 +375,9 @@ mod tests {
             ..BakeParams::preset(Preset::Fur).strands
         };
         let mask = strands::bake_mask(&p);
-        let levels = level_values(&mask.alpha, mask.size);
+        let levels = level_values(&mask);
         let (uvs, ix) = random_triangles(400, 7, 0.3);
-        let bounds = brute_force_bounds(&mask.alpha, mask.size, &uvs, &ix);
+        let bounds = brute_force_bounds(&mask, &uvs, &ix);
         let mut s = 1u32;
         for (t, tri) in ix.chunks_exact(3).enumerate() {
             let [a, b, c] = [0, 1, 2].map(|k| uvs[tri[k] as usize]);

@@ -392,22 +392,20 @@ pub fn build_lods(
 /// palette-mapped duck's LOD 3, and FLIP 0.24 on the bunny at 30× its default density).
 struct SampledCoverage<'a> {
     mask: &'a Mask,
-    mips: Vec<Vec<u8>>,
+    /// Alpha histograms of the mask and of its coverage mips ([`strands::Chains`]).
+    histograms: &'a [[u32; 256]],
 }
 
 impl<'a> SampledCoverage<'a> {
     fn new(mask: &'a Mask) -> SampledCoverage<'a> {
-        let mips = strands::coverage_mips(&mask.alpha, mask.size, mask.size);
-        SampledCoverage { mask, mips }
+        let histograms = &mask.chains().histograms;
+        SampledCoverage { mask, histograms }
     }
 
     /// The fraction of texels of mip `mip` that reach step `step`'s cutoff.
     fn at(&self, mip: u32, step: u32) -> f64 {
-        let alpha = match mip.checked_sub(1) {
-            Some(m) => &self.mips[m as usize],
-            None => &self.mask.alpha,
-        };
-        strands::alpha_coverage(alpha, self.mask.cutoff(step))
+        let histogram = &self.histograms[mip as usize];
+        strands::histogram_coverage(histogram, self.mask.cutoff(step))
     }
 }
 
@@ -469,27 +467,10 @@ fn mean_shade(mask: &Mask) -> f64 {
 }
 
 /// The masks of levels using mips `levels` of `mask` (0: `mask` itself): each mip's
-/// coverage-preserving alpha and box-filtered shade. The mip chains are built once.
+/// coverage-preserving alpha and box-filtered shade ([`Mask::level`], made once per mask and
+/// shared by every surface that uses it).
 pub fn level_masks(mask: &Mask, levels: &[u32]) -> Vec<Mask> {
-    let chains = levels.iter().any(|&l| l > 0).then(|| {
-        (
-            strands::coverage_mips(&mask.alpha, mask.size, mask.size),
-            strands::box_mips(&mask.shade, mask.size, mask.size),
-        )
-    });
-    levels
-        .iter()
-        .map(|&level| match (&chains, level) {
-            (Some((alpha, shade)), 1..) => Mask {
-                size: mask.size >> level,
-                alpha: alpha[level as usize - 1].clone(),
-                shade: shade[level as usize - 1].clone(),
-                cells_per_tile: (mask.cells_per_tile >> level).max(1),
-                model: mask.model,
-            },
-            _ => mask.clone(),
-        })
-        .collect()
+    levels.iter().map(|&level| mask.level(level)).collect()
 }
 
 /// Triangles of `mesh` per chunk of side `size` over the two longest axes of its bounds (by

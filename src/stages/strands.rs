@@ -87,6 +87,8 @@
 //! `NEAREST` and raising the mask resolution (the squares only get smaller, the shimmer stays,
 //! and the PNG grows fourfold per doubling).
 
+use std::sync::OnceLock;
+
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
@@ -252,6 +254,8 @@ impl StrandParams {
 }
 
 /// The baked mask: one tile, `size × size` texels, row 0 at v = 0; the PNG's grey and alpha.
+/// Its texels are not changed once it is made ([`Mask::new`]): what is derived from them is
+/// kept beside them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mask {
     pub size: u32,
@@ -263,9 +267,128 @@ pub struct Mask {
     pub cells_per_tile: u32,
     /// The law the mask encodes; it decides the per-layer cutoff.
     pub model: StrandModel,
+    derived: Derived,
+}
+
+/// The mip chains of a mask's channels ([`Mask::chains`]).
+#[derive(Debug)]
+pub struct Chains {
+    /// [`coverage_mips`] of the alpha.
+    pub coverage: Vec<Vec<u8>>,
+    /// [`box_mips`] of the alpha.
+    pub alpha_box: Vec<Vec<u8>>,
+    /// [`box_mips`] of the shade.
+    pub shade_box: Vec<Vec<u8>>,
+    /// How many texels hold each alpha value: the mask's, then each coverage mip's (index `ℓ`
+    /// for mip `ℓ`), for [`histogram_coverage`].
+    pub histograms: Vec<[u32; 256]>,
+}
+
+/// What is derived from a mask's texels, made on first use and shared by the mask's clones.
+/// Every surface that uses a mask bakes with a clone of it, and LOD (colours, level masks),
+/// culling (texel bounds of every level) and pack (the PNGs) each ask for the same mips:
+/// before, each surface built them again, three times over, which on an asset of 100 instanced
+/// rocks was most of the bake. Equal masks are equal whatever each has derived so far.
+#[derive(Clone, Default)]
+struct Derived(std::sync::Arc<DerivedData>);
+
+#[derive(Default)]
+struct DerivedData {
+    chains: OnceLock<Chains>,
+    /// The mask of each mip level below this one (index `ℓ − 1`).
+    levels: OnceLock<Vec<OnceLock<Mask>>>,
+    png: OnceLock<Vec<u8>>,
+}
+
+impl PartialEq for Derived {
+    fn eq(&self, _: &Derived) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for Derived {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Derived")
+    }
 }
 
 impl Mask {
+    pub fn new(
+        size: u32,
+        (alpha, shade): (Vec<u8>, Vec<u8>),
+        cells_per_tile: u32,
+        model: StrandModel,
+    ) -> Mask {
+        assert_eq!(alpha.len(), (size * size) as usize);
+        assert_eq!(shade.len(), alpha.len());
+        Mask {
+            size,
+            alpha,
+            shade,
+            cells_per_tile,
+            model,
+            derived: Derived::default(),
+        }
+    }
+
+    /// The mip chains of the alpha (coverage-preserving and box) and of the shade, built once.
+    pub fn chains(&self) -> &Chains {
+        self.derived.0.chains.get_or_init(|| {
+            let s = self.size;
+            let ((coverage, alpha_box), shade_box) = rayon::join(
+                || {
+                    rayon::join(
+                        || coverage_mips(&self.alpha, s, s),
+                        || box_mips(&self.alpha, s, s),
+                    )
+                },
+                || box_mips(&self.shade, s, s),
+            );
+            let histograms = (std::iter::once(&self.alpha).chain(&coverage))
+                .map(|level| {
+                    let mut h = [0u32; 256];
+                    for &a in level {
+                        h[a as usize] += 1;
+                    }
+                    h
+                })
+                .collect();
+            Chains {
+                coverage,
+                alpha_box,
+                shade_box,
+                histograms,
+            }
+        })
+    }
+
+    /// The mask a client samples at mip `level` (0: this one): the coverage-preserving alpha and
+    /// the box-filtered shade of that mip, made once and shared by every caller.
+    pub fn level(&self, level: u32) -> Mask {
+        let Some(k) = (level as usize).checked_sub(1) else {
+            return self.clone();
+        };
+        let levels = (self.derived.0.levels).get_or_init(|| {
+            let mips = mip_sizes(self.size, self.size).len();
+            (0..mips).map(|_| OnceLock::new()).collect()
+        });
+        let chains = self.chains();
+        (levels[k].get_or_init(|| {
+            Mask::new(
+                self.size >> level,
+                (chains.coverage[k].clone(), chains.shade_box[k].clone()),
+                (self.cells_per_tile >> level).max(1),
+                self.model,
+            )
+        }))
+        .clone()
+    }
+
+    /// The mask's PNG, encoded by `encode` the first time it is asked for.
+    pub fn png(&self, encode: impl FnOnce(&Mask) -> Vec<u8>) -> &[u8] {
+        self.derived.0.png.get_or_init(|| encode(self))
+    }
+
     /// Alpha byte of texel `(x, y)`.
     pub fn at(&self, x: u32, y: u32) -> u8 {
         self.alpha[(y * self.size + x) as usize]
@@ -298,6 +421,17 @@ pub fn alpha_coverage(alpha: &[u8], cutoff: f32) -> f64 {
         .filter(|&&a| a as f32 / 255.0 >= cutoff)
         .count();
     n as f64 / alpha.len() as f64
+}
+
+/// [`alpha_coverage`] of a level from its histogram of alpha values: the same count of texels,
+/// read from 256 bins instead of every texel.
+pub fn histogram_coverage(histogram: &[u32; 256], cutoff: f32) -> f64 {
+    let total: u64 = histogram.iter().map(|&c| c as u64).sum();
+    let n: u64 = (0..256)
+        .filter(|&a| a as f32 / 255.0 >= cutoff)
+        .map(|a| histogram[a] as u64)
+        .sum();
+    n as f64 / total as f64
 }
 
 /// Noise law: the `alphaCutoff` `c/(1 − t)` under which `n >= cutoff ⇔ n·(1 − t) >= c`.
@@ -472,13 +606,15 @@ pub fn bake_mask(p: &StrandParams) -> Mask {
         })
         .collect();
     let texels = rows.concat();
-    Mask {
+    Mask::new(
         size,
-        alpha: texels.iter().map(|t| t.0).collect(),
-        shade: texels.iter().map(|t| t.1).collect(),
-        cells_per_tile: cells_per_tile(p),
-        model: p.model,
-    }
+        (
+            texels.iter().map(|t| t.0).collect(),
+            texels.iter().map(|t| t.1).collect(),
+        ),
+        cells_per_tile(p),
+        p.model,
+    )
 }
 
 /// Sizes of the mip levels below a `width × height` level 0, down to 1×1 (wgpu's rule:
@@ -855,5 +991,38 @@ mod tests {
             w /= 2;
         }
         assert_eq!(levels, coverage_mips(&fur.alpha, 256, 256), "deterministic");
+    }
+
+    #[test]
+    fn a_mask_derives_its_chains_once_for_all_its_clones() {
+        let grass = bake_mask(&BakeParams::preset(Preset::Grass).strands);
+        let clone = grass.clone();
+        let (a, b) = (grass.chains(), clone.chains());
+        assert!(std::ptr::eq(a, b), "clones share what is derived");
+        let s = grass.size;
+        assert_eq!(a.coverage, coverage_mips(&grass.alpha, s, s));
+        assert_eq!(a.alpha_box, box_mips(&grass.alpha, s, s));
+        assert_eq!(a.shade_box, box_mips(&grass.shade, s, s));
+        // histograms count what `alpha_coverage` counts, at every cutoff of every level
+        for (level, h) in std::iter::once(&grass.alpha)
+            .chain(&a.coverage)
+            .zip(&a.histograms)
+        {
+            for k in (0..HEIGHT_STEPS).step_by(7) {
+                let c = grass.cutoff(k);
+                assert_eq!(histogram_coverage(h, c), alpha_coverage(level, c));
+            }
+        }
+        // a level's mask is the mip's coverage alpha and box shade, the same one every time
+        let two = grass.level(2);
+        assert_eq!(
+            (two.size, &two.alpha, &two.shade),
+            (s / 4, &a.coverage[1], &a.shade_box[1])
+        );
+        assert!(std::ptr::eq(two.level(0).chains(), clone.level(2).chains()));
+        assert_eq!(grass.level(0), grass);
+        // and equal masks are equal whatever each has derived
+        assert_eq!(bake_mask(&BakeParams::preset(Preset::Grass).strands), grass);
+        assert_eq!(grass.png(|_| vec![1]), clone.png(|_| vec![2]));
     }
 }

@@ -218,9 +218,6 @@ pub struct PackLevel<'a> {
 /// What `pack` needs besides the parameters.
 pub struct PackInput<'a> {
     pub mesh: &'a Mesh,
-    /// Masks whose PNG is already made ([`encode_mask_png`]; the bake encodes the strands'
-    /// masks beside the stages before pack, where cores are idle): pack copies those.
-    pub encoded: &'a [(&'a Mask, Vec<u8>)],
     /// Extrusion delta at t = 1 per vertex (world units).
     pub delta: &'a [Vec3],
     /// Shell height at t = 1 (for `extras`).
@@ -1064,7 +1061,9 @@ fn uv_transform(g: &Geometry, float: bool) -> (Vec2, Vec2) {
 }
 
 /// The PNG of each distinct mask the levels draw (LOD 0's, and the mips coarser levels ask
-/// for), by mask level, encoded in parallel unless [`PackInput::encoded`] has it.
+/// for), by mask level, encoded in parallel unless the mask has it already ([`Mask::png`]: the
+/// bake encodes the strands' masks beside the stages, and the surfaces that share a mask
+/// share its levels' PNGs).
 fn mask_pngs(input: &PackInput) -> Vec<(u32, Vec<u8>)> {
     let mut masks: Vec<(u32, &Mask)> = Vec::new();
     for l in input.levels.iter().filter(|l| l.level.bare.is_none()) {
@@ -1073,13 +1072,7 @@ fn mask_pngs(input: &PackInput) -> Vec<(u32, Vec<u8>)> {
         }
     }
     (masks.into_par_iter())
-        .map(|(m, mask)| {
-            let made = input.encoded.iter().find(|(e, _)| *e == mask);
-            (
-                m,
-                made.map_or_else(|| encode_mask_png(mask), |(_, png)| png.clone()),
-            )
-        })
+        .map(|(m, mask)| (m, mask.png(encode_mask_png).to_vec()))
         .collect()
 }
 
