@@ -432,7 +432,7 @@ pub fn fur_colour(shells: &ShellStack, mask: &Mask, seen: &dyn Fn(u32) -> f64) -
         .collect();
     // the weights sum to the base's coverage, 1
     let (c, _) = seen_from_above(&cov, shells.color.iter().copied());
-    let shade = mean_shade(mask);
+    let shade = mask.mean_shade();
     c.map(|v| (v * shade) as f32)
 }
 
@@ -454,16 +454,8 @@ fn seen_from_above(cov: &[f64], colors: impl Iterator<Item = [f32; 3]>) -> ([f64
 
 /// The base layer's colour times the mean strand shade: bare skin seen from afar.
 pub fn skin_colour(shells: &ShellStack, mask: &Mask) -> [f32; 3] {
-    let shade = mean_shade(mask);
+    let shade = mask.mean_shade();
     shells.color[0].map(|c| (c as f64 * shade) as f32)
-}
-
-fn mean_shade(mask: &Mask) -> f64 {
-    mask.shade
-        .iter()
-        .map(|&g| crate::srgb::decode8(g))
-        .sum::<f64>()
-        / mask.shade.len().max(1) as f64
 }
 
 /// The masks of levels using mips `levels` of `mask` (0: `mask` itself): each mip's

@@ -298,6 +298,7 @@ struct DerivedData {
     /// The mask of each mip level below this one (index `ℓ − 1`).
     levels: OnceLock<Vec<OnceLock<Mask>>>,
     png: OnceLock<Vec<u8>>,
+    mean_shade: OnceLock<f64>,
 }
 
 impl PartialEq for Derived {
@@ -382,6 +383,14 @@ impl Mask {
             )
         }))
         .clone()
+    }
+
+    /// The mean of the strands' shade over the tile, in linear light.
+    pub fn mean_shade(&self) -> f64 {
+        *self.derived.0.mean_shade.get_or_init(|| {
+            let sum: f64 = self.shade.iter().map(|&g| crate::srgb::decode8(g)).sum();
+            sum / self.shade.len().max(1) as f64
+        })
     }
 
     /// The mask's PNG, encoded by `encode` the first time it is asked for.
