@@ -470,11 +470,16 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     let doc = json!({
         "asset": { "version": "2.0" },
         "scene": 0,
-        "scenes": [{ "nodes": [0, 2] }],
+        "scenes": [{ "nodes": [0, 2, 3] }],
         "nodes": [
             { "name": "parent", "translation": [2.0, 0.5, -1.0], "children": [1] },
             { "name": "box", "mesh": 0, "rotation": [0.0, 0.38268343, 0.0, 0.92387953], "scale": [1.5, 1.5, 1.5] },
-            { "name": "box_far", "mesh": 0, "translation": [-40.0, 0.0, 0.0], "scale": [0.5, 0.5, 0.5] }
+            { "name": "box_far", "mesh": 0, "translation": [-40.0, 0.0, 0.0], "scale": [0.5, 0.5, 0.5] },
+            // as Blender writes a rotated instance scaled by 1.368: y one f32 ulp off, the
+            // quaternion 6e-8 from unit length
+            { "name": "box_turned", "mesh": 0, "translation": [40.0, 0.0, 0.0],
+              "rotation": [0.30151138, -0.50251895, 0.7035265, 0.40201515],
+              "scale": [1.3680453, 1.3680452, 1.3680453] }
         ],
         "meshes": [{ "name": "box", "primitives": [{ "attributes": { "POSITION": 0 }, "indices": 1, "material": 0 }] }],
         "materials": [{ "name": "fur_box", "pbrMetallicRoughness": { "baseColorFactor": [0.2, 0.4, 0.8, 1.0] } }],
@@ -490,7 +495,7 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     });
     let input = dir.join("box.glb");
     std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
-    let (glb, _) = bake(&input, &dir, "box-fur.glb", &[]);
+    let (glb, report) = bake(&input, &dir, "box-fur.glb", &[]);
     assert_valid(std::slice::from_ref(&glb));
     let after = json_of(&glb);
     assert_kept(&doc, &after);
@@ -501,6 +506,17 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     // the mesh instanced again (elsewhere, smaller) gets fur of its own under its own node
     let far = after["nodes"][2]["children"][0].as_u64().unwrap() as usize;
     assert!(far != root && after["nodes"][far]["extras"]["shellbake_fur"]["node"] == 2);
+    // a rotated instance whose uniform scale f32 rounding makes a ulp uneven keeps its fur
+    // under it, with no warning (it used to be detached as a "non-uniform scale")
+    let turned = after["nodes"][3]["children"][0].as_u64().unwrap() as usize;
+    assert_eq!(after["nodes"][turned]["extras"]["shellbake_fur"]["node"], 3);
+    let warnings = report["asset"]["warnings"].as_array().unwrap();
+    assert!(
+        !warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("scale")),
+        "{warnings:?}"
+    );
     let eye = [4.5, 3.0, 3.0];
     let target = [2.0, 0.5, -1.0];
     let png = |n: &str| dir.join(n);
