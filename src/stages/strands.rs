@@ -284,7 +284,8 @@ pub struct Chains {
     pub histograms: Vec<[u32; 256]>,
 }
 
-/// What is derived from a mask's texels, made on first use and shared by the mask's clones.
+/// What is derived from a mask's texels, made on first use and shared by the mask's clones
+/// (each a `OnceLock`, whose maker must not wait on rayon work: see [`Mask::chains`]).
 /// Every surface that uses a mask bakes with a clone of it, and LOD (colours, level masks),
 /// culling (texel bounds of every level) and pack (the PNGs) each ask for the same mips:
 /// before, each surface built them again, three times over, which on an asset of 100 instanced
@@ -333,18 +334,14 @@ impl Mask {
     }
 
     /// The mip chains of the alpha (coverage-preserving and box) and of the shade, built once.
+    /// On one thread: a rayon join here would let this thread, while it waits, take up another
+    /// surface's work that asks for the same chains, and wait on itself.
     pub fn chains(&self) -> &Chains {
         self.derived.0.chains.get_or_init(|| {
             let s = self.size;
-            let ((coverage, alpha_box), shade_box) = rayon::join(
-                || {
-                    rayon::join(
-                        || coverage_mips(&self.alpha, s, s),
-                        || box_mips(&self.alpha, s, s),
-                    )
-                },
-                || box_mips(&self.shade, s, s),
-            );
+            let coverage = coverage_mips(&self.alpha, s, s);
+            let alpha_box = box_mips(&self.alpha, s, s);
+            let shade_box = box_mips(&self.shade, s, s);
             let histograms = (std::iter::once(&self.alpha).chain(&coverage))
                 .map(|level| {
                     let mut h = [0u32; 256];
