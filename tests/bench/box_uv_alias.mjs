@@ -15,7 +15,8 @@
 // - "texcoord from position, shared": copies that differ only by their coordinates are merged
 //   where glTF's 4-byte attribute alignment allows — (x, y) serves the Z plane, (z, w) the X plane
 //   with w = y and the Y plane with w = x, so only X–Y seam vertices stay apart — and the
-//   position stream carries w.
+//   position stream carries w. The row after it, the same without w (no valid layout), shows
+//   what w costs.
 // Each vertex's plane is found from the file itself: its coordinates are a linear function of two
 // position components, the same for every vertex of a plane.
 import fs from 'fs';
@@ -160,6 +161,8 @@ rows.push(['as written', measure(all, null, indices, true)]);
   const renumbered = merged.map((ix) => Uint32Array.from(ix, (v) => first[v]));
   const w = (v) => (wOf[v] === 1 ? pos[4 * v] : pos[4 * v + 1]);
   rows.push(['texcoord from position, shared (w = y or x)', measure(order, w, renumbered, false)]);
+  // not a layout (the X or Y plane would have no coordinates): what the w column costs
+  rows.push(['the same without w', measure(order, () => 0, renumbered, false)]);
 }
 
 const planes = [0, 1, 2].map((p) => plane.filter((q) => q === p).length);
