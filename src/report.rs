@@ -403,7 +403,7 @@ impl AssetReport {
     }
 }
 
-/// Parts the summary names at most; the report (`--report`) lists every one.
+/// Parts (and surfaces) the summary names at most; the report (`--report`) lists every one.
 const LISTED_PARTS: usize = 8;
 
 /// `(count): a; b; …` with at most [`LISTED_PARTS`] entries: an asset of a hundred instanced
@@ -417,6 +417,37 @@ fn listed(parts: &[String]) -> String {
             parts.len()
         ),
     }
+}
+
+/// The summary's line for the surfaces past the first [`LISTED_PARTS`] (an asset of a hundred
+/// parts printed a block of five lines for each), then their warnings, each text once with how
+/// many surfaces gave it: a warning is never left out of the summary.
+fn more_surfaces(rest: &[Report]) -> String {
+    let Some(first) = rest.first() else {
+        return String::new();
+    };
+    let mut s = format!(
+        " and {} more surfaces, {} to {} (--report has each one's section)\n",
+        rest.len(),
+        first.name,
+        rest[rest.len() - 1].name
+    );
+    let mut warnings: Vec<(&str, &str, usize)> = Vec::new();
+    for r in rest {
+        for w in &r.warnings {
+            match warnings.iter_mut().find(|(text, ..)| text == w) {
+                Some((_, _, n)) => *n += 1,
+                None => warnings.push((w, &r.name, 1)),
+            }
+        }
+    }
+    for (w, name, n) in warnings {
+        s += &match n {
+            1 => format!("  warning ({name}): {w}\n"),
+            _ => format!("  warning ({n} surfaces, {name} first): {w}\n"),
+        };
+    }
+    s
 }
 
 impl SceneReport {
@@ -474,10 +505,12 @@ impl SceneReport {
             self.draw_calls
         );
         s += &asset;
-        for r in &self.surfaces {
+        let shown = self.surfaces.len().min(LISTED_PARTS);
+        for r in &self.surfaces[..shown] {
             s += &format!(" surface {} ({})\n", r.name, r.input);
             s += &r.section();
         }
+        s += &more_surfaces(&self.surfaces[shown..]);
         s + &self.plan_line()
     }
 
@@ -513,7 +546,46 @@ pub fn significant(x: f64) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{listed, significant};
+    use super::{listed, significant, Report, SceneReport};
+
+    #[test]
+    fn many_surfaces_show_eight_blocks_and_every_warning() {
+        let surfaces: Vec<Report> = (0..11)
+            .map(|k| Report {
+                name: format!("rock_{k:03}"),
+                warnings: match k {
+                    9 => vec!["odd one out".into(), "shared".into()],
+                    8 | 10 => vec!["shared".into()],
+                    _ => Vec::new(),
+                },
+                ..Default::default()
+            })
+            .collect();
+        let report = SceneReport {
+            input: "rocks.glb".into(),
+            output: "out.glb".into(),
+            plan: Vec::new(),
+            total_bytes: 0,
+            draw_calls: 0,
+            triangles_drawn: 0,
+            streams: Default::default(),
+            surfaces,
+            total_ms: 0.0,
+            asset: None,
+        };
+        let s = report.summary();
+        assert_eq!(s.matches(" surface rock_").count(), 8, "{s}");
+        assert!(
+            s.contains(" and 3 more surfaces, rock_008 to rock_010 (--report"),
+            "{s}"
+        );
+        assert!(
+            s.contains("  warning (3 surfaces, rock_008 first): shared\n"),
+            "{s}"
+        );
+        assert!(s.contains("  warning (rock_009): odd one out\n"), "{s}");
+        assert_eq!(s.matches("warning").count(), 2, "{s}");
+    }
 
     #[test]
     fn long_part_lists_are_cut_in_the_summary() {
