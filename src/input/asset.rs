@@ -198,9 +198,7 @@ impl Asset {
     /// `.mtl` materials and `map_Kd` textures as glTF's; see `obj.rs`), or `None` when it names
     /// no readable `.mtl` (a plain mesh, baked as such).
     pub fn read_obj(path: &Path) -> Result<Option<Asset>> {
-        if super::obj::file_names_mtl(path) == Some(false) {
-            return Ok(None);
-        }
+        // read once: `asset_document` looks for a material library before parsing anything
         let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES)
             .map_err(|e| Error::io(path, e))?;
         match super::obj::asset_document(path, &bytes)? {

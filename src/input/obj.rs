@@ -977,14 +977,6 @@ fn names_mtl(bytes: &[u8]) -> bool {
     })
 }
 
-/// Whether the OBJ at `path` names a material library (the whole file read, in parallel; the
-/// bake reads it again when it names none): `None` where it is not a regular file one can read,
-/// which the full read then reports.
-pub(super) fn file_names_mtl(path: &Path) -> Option<bool> {
-    let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES).ok()?;
-    Some(names_mtl(&bytes))
-}
-
 /// tobj's objects of the file and its materials (`None`: none could be read), each `.mtl`
 /// read only inside the OBJ's folder.
 fn load_with_materials(
@@ -1177,10 +1169,13 @@ mod tests {
             text.push_str(tail);
             text.push_str("v 0 0 0\n");
             std::fs::write(&path, &text).unwrap();
-            assert_eq!(file_names_mtl(&path), Some(named), "{tail}");
+            // as `Asset::read_obj` reads it: the whole file, in parallel past 4 MiB
+            let read = super::super::read_regular_file(&path, super::super::MAX_INPUT_BYTES);
+            assert_eq!(names_mtl(&read.unwrap()), named, "{tail}");
             assert_eq!(names_mtl(text.as_bytes()), named);
         }
-        assert_eq!(file_names_mtl(&dir), None, "a folder is not read");
+        let folder = super::super::read_regular_file(&dir, super::super::MAX_INPUT_BYTES);
+        assert!(folder.is_err(), "a folder is not read");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
