@@ -290,14 +290,13 @@ pub struct Chains {
 /// culling (texel bounds of every level) and pack (the PNGs) each ask for the same mips:
 /// before, each surface built them again, three times over, which on an asset of 100 instanced
 /// rocks was most of the bake. Equal masks are equal whatever each has derived so far.
-#[derive(Clone, Default)]
+#[derive(Clone)]
 struct Derived(std::sync::Arc<DerivedData>);
 
-#[derive(Default)]
 struct DerivedData {
     chains: OnceLock<Chains>,
     /// The mask of each mip level below this one (index `ℓ − 1`).
-    levels: OnceLock<Vec<OnceLock<Mask>>>,
+    levels: Vec<OnceLock<Mask>>,
     png: OnceLock<Vec<u8>>,
     mean_shade: OnceLock<f64>,
 }
@@ -329,7 +328,14 @@ impl Mask {
             shade,
             cells_per_tile,
             model,
-            derived: Derived::default(),
+            derived: Derived(std::sync::Arc::new(DerivedData {
+                chains: OnceLock::new(),
+                levels: (mip_sizes(size, size).iter())
+                    .map(|_| OnceLock::new())
+                    .collect(),
+                png: OnceLock::new(),
+                mean_shade: OnceLock::new(),
+            })),
         }
     }
 
@@ -366,12 +372,8 @@ impl Mask {
         let Some(k) = (level as usize).checked_sub(1) else {
             return self.clone();
         };
-        let levels = (self.derived.0.levels).get_or_init(|| {
-            let mips = mip_sizes(self.size, self.size).len();
-            (0..mips).map(|_| OnceLock::new()).collect()
-        });
         let chains = self.chains();
-        (levels[k].get_or_init(|| {
+        (self.derived.0.levels[k].get_or_init(|| {
             Mask::new(
                 self.size >> level,
                 (chains.coverage[k].clone(), chains.shade_box[k].clone()),
