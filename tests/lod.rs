@@ -1,4 +1,4 @@
-//! Distance LOD on the terrain fixture (120 m × 120 m, 20 m chunks): the file is valid, every
+//! Distance LOD on the terrain fixture (120 m × 120 m, 10 m chunks): the file is valid, every
 //! chunk carries its chain (`MSFT_lod`, `MSFT_screencoverage`, `extras.shellbake_lod`) with the
 //! coarser levels outside the scene, and two clients switch levels by distance: the wgpu viewer
 //! and three.js in headless Chromium with the tests' `MSFT_lod` plugin. Near the field's edge
@@ -51,7 +51,7 @@ fn terrain_chunks_switch_levels_in_the_viewer_and_in_three_js() {
     let doc = Glb::parse(&glb).json;
     let root = &doc["nodes"][doc["scenes"][0]["nodes"][0].as_u64().unwrap() as usize];
     let chunks = root["children"].as_array().unwrap();
-    assert_eq!(chunks.len(), 36, "6 × 6 chunks of 20 m");
+    assert_eq!(chunks.len(), 144, "12 × 12 chunks of 10 m");
     let r: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     let levels = r["surfaces"][0]["lods"].as_array().unwrap().len();
     assert!(levels >= 4, "{levels} levels");
