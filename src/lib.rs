@@ -784,13 +784,16 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
         .report
         .run_stage(Stage::Merge, || merge::merge(scene, colour, fur_uv));
     let merge::Merged {
-        mut mesh, fur_uv, ..
+        mut mesh,
+        fur_uv,
+        paint,
+        ..
     } = merged;
     let oriented = run.report.run_stage(Stage::Orient, || {
         orient::oriented(&mut mesh, &params.orient)
     });
     let tessellated = run.gate(Stage::Tessellation, || {
-        tessellate::tessellate(&mut mesh, &params.tessellation)
+        tessellate::tessellate(&mut mesh, &params.tessellation, paint)
     });
     let topology = match tessellated {
         Some(t) => {

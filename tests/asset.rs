@@ -758,7 +758,9 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     // The encoding's error: the colour a strand gets (the vertices' colours interpolated over
     // its triangle) against the texture at its root, at 16 x 16 roots per triangle of the
     // critter's body; and what the colour costs in bytes per vertex, against a colour texture
-    // at strand resolution.
+    // at strand resolution. Tessellated (factor 4, 4 x 4 roots per new triangle: the same
+    // roots' density), new vertices sample the texture again; interpolating the corners'
+    // colours instead (the control) keeps the coarse error.
     let asset = shellbake::input::asset::Asset::from_bytes(
         Path::new("critter.glb"),
         &critter_glb(Critters::default()),
@@ -771,27 +773,33 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     let start = std::time::Instant::now();
     let albedo = paint.albedo(mesh);
     let sampled = start.elapsed();
-    let uvs = mesh.uvs.as_ref().unwrap();
-    let (mut sum, mut worst, mut n) = (0.0f64, 0.0f64, 0usize);
-    for t in mesh.indices.chunks_exact(3) {
-        let [a, b, c] = [0, 1, 2].map(|k| t[k] as usize);
-        for i in 0..16 {
-            for j in 0..16 - i {
-                let (u, v) = ((i as f32 + 0.33) / 16.0, (j as f32 + 0.33) / 16.0);
-                let w = 1.0 - u - v;
-                let uv = uvs[a] * w + uvs[b] * u + uvs[c] * v;
-                let exact = texture.sample(uv);
-                let vertex = albedo[a] * w + albedo[b] * u + albedo[c] * v;
-                let (p, q) = (lab_of(exact), lab_of(vertex));
-                let de =
-                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
-                sum += de;
-                worst = worst.max(de);
-                n += 1;
+    // mean and worst ΔE76 over `roots` x `roots` strand roots per triangle of `mesh`
+    let error = |mesh: &shellbake::mesh::Mesh, albedo: &[glam::Vec3], roots: usize| {
+        let uvs = mesh.uvs.as_ref().unwrap();
+        let (mut sum, mut worst, mut n) = (0.0f64, 0.0f64, 0usize);
+        for t in mesh.indices.chunks_exact(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| t[k] as usize);
+            for i in 0..roots {
+                for j in 0..roots - i {
+                    let r = roots as f32;
+                    let (u, v) = ((i as f32 + 0.33) / r, (j as f32 + 0.33) / r);
+                    let w = 1.0 - u - v;
+                    let uv = uvs[a] * w + uvs[b] * u + uvs[c] * v;
+                    let exact = texture.sample(uv);
+                    let vertex = albedo[a] * w + albedo[b] * u + albedo[c] * v;
+                    let (p, q) = (lab_of(exact), lab_of(vertex));
+                    let de =
+                        ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
+                            .sqrt();
+                    sum += de;
+                    worst = worst.max(de);
+                    n += 1;
+                }
             }
         }
-    }
-    let mean = sum / n as f64;
+        (sum / n as f64, worst, n)
+    };
+    let (mean, worst, n) = error(mesh, &albedo, 16);
     println!(
         "critter body: per-vertex colour against the texture at {n} strand roots: mean ΔE76 {mean:.1}, worst {worst:.1}; \
          {} vertices x 8 bytes = {} bytes; sampled in {:.3} ms",
@@ -804,6 +812,53 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     assert!(
         worst > 30.0,
         "the stripes should show as the encoding's worst case: {worst:.1}"
+    );
+
+    let tessellated = |paint: Option<&shellbake::input::asset::Paint>| {
+        let mut m = mesh.clone();
+        m.albedo = Some(albedo.clone());
+        let params = shellbake::stages::tessellate::TessellationParams {
+            factor: 4,
+            ..Default::default()
+        };
+        shellbake::stages::tessellate::tessellate(&mut m, &params, paint);
+        let a = m.albedo.clone().unwrap();
+        let (mean, worst, n) = error(&m, &a, 4);
+        (mean, worst, n, m.vertex_count())
+    };
+    let (t_mean, t_worst, t_n, t_vertices) = tessellated(Some(paint));
+    let (c_mean, _, _, _) = tessellated(None);
+    println!(
+        "tessellated by 4, resampled: mean ΔE76 {t_mean:.1}, worst {t_worst:.1} at {t_n} roots, \
+         {t_vertices} vertices; interpolated: mean {c_mean:.1}"
+    );
+    assert!(
+        t_mean < 0.6 * mean,
+        "resampled {t_mean:.1} against {mean:.1}"
+    );
+    assert!(
+        c_mean > 0.9 * mean,
+        "the control: interpolated {c_mean:.1} against {mean:.1}"
+    );
+
+    // the bake hands tessellation the paint only while the fur keeps the UVs it was sampled at
+    // and takes the asset's colour
+    use shellbake::stages::{merge, tiling::FurUv};
+    let handed = |color: Option<[f32; 3]>, fur_uv: FurUv| {
+        let colour = merge::FurColour::Asset {
+            paint: Some(paint),
+            color,
+        };
+        merge::merge(&part.scene, colour, fur_uv).paint.is_some()
+    };
+    assert!(handed(None, FurUv::Auto) && handed(None, FurUv::Mesh));
+    assert!(
+        !handed(None, FurUv::Box),
+        "box-projected UVs are not the texture's"
+    );
+    assert!(
+        !handed(Some([0.5; 3]), FurUv::Auto),
+        "a shade colour overrides the paint"
     );
 }
 

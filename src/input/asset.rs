@@ -481,20 +481,26 @@ impl Paint {
     /// The linear base colour at each vertex of `mesh` (its `uvs` are the primitive's
     /// `TEXCOORD_0`, its `colors` the primitive's `COLOR_0`).
     pub fn albedo(&self, mesh: &Mesh) -> Vec<Vec3> {
-        let f = Vec3::new(self.factor[0], self.factor[1], self.factor[2]);
         (0..mesh.vertex_count())
             .map(|v| {
-                let mut c = f;
-                if let (Some(t), Some(uvs)) = (&self.texture, &mesh.uvs) {
-                    c *= t.sample(uvs[v]);
-                }
-                if let (true, Some(colors)) = (self.vertex_colors, &mesh.colors) {
-                    let k = colors[v];
-                    c *= Vec3::new(k[0] as f32, k[1] as f32, k[2] as f32) / 255.0;
-                }
-                c.clamp(Vec3::ZERO, Vec3::ONE)
+                self.colour_at(
+                    mesh.uvs.as_ref().map(|u| u[v]),
+                    mesh.colors.as_ref().map(|k| k[v]),
+                )
             })
             .collect()
+    }
+
+    /// The linear base colour at one vertex, given its `TEXCOORD_0` and `COLOR_0`.
+    pub fn colour_at(&self, uv: Option<Vec2>, color: Option<[u8; 4]>) -> Vec3 {
+        let mut c = Vec3::new(self.factor[0], self.factor[1], self.factor[2]);
+        if let (Some(t), Some(uv)) = (&self.texture, uv) {
+            c *= t.sample(uv);
+        }
+        if let (true, Some(k)) = (self.vertex_colors, color) {
+            c *= Vec3::new(k[0] as f32, k[1] as f32, k[2] as f32) / 255.0;
+        }
+        c.clamp(Vec3::ZERO, Vec3::ONE)
     }
 }
 

@@ -25,10 +25,14 @@ pub enum FurColour<'a> {
 }
 
 /// The merged render mesh and what the stage decided.
-pub struct Merged {
+pub struct Merged<'a> {
     pub mesh: Mesh,
     /// Which UVs the strands follow, and why (for the tiling stage's note).
     pub fur_uv: String,
+    /// The paint the fur's colour was sampled from, while the mesh keeps the `TEXCOORD_0` it
+    /// was sampled at (no box projection replaced them, no shade colour overrides it): new
+    /// vertices (tessellation) sample it again.
+    pub paint: Option<&'a Paint>,
     meshes: usize,
     vertices: usize,
     triangles: usize,
@@ -36,7 +40,7 @@ pub struct Merged {
 }
 
 /// Merges `scene`'s meshes, colours the result and gives it the UVs its strands follow.
-pub fn merge(scene: &Scene, colour: FurColour, fur_uv: FurUv) -> Merged {
+pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<'a> {
     let mut mesh = scene.merged();
     let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
     if let FurColour::Asset { paint, color } = colour {
@@ -45,19 +49,26 @@ pub fn merge(scene: &Scene, colour: FurColour, fur_uv: FurUv) -> Merged {
             None => paint.map(|paint| paint.albedo(&mesh)),
         };
     }
+    let mut paint = match colour {
+        FurColour::Asset { paint, color: None } => paint,
+        _ => None,
+    };
     let mut warnings = Vec::new();
     let mut follows = "the mesh's own".to_string();
     if !has_uv_area(&mesh) {
+        paint = None;
         warnings
             .push("texture coordinates have no area; generated a per-face box projection".into());
         generate_box_uvs(&mut mesh);
     } else if let Some(why) = fur_uv_box(&mesh, fur_uv) {
         follows = format!("a box projection: {why}");
+        paint = None;
         generate_box_uvs(&mut mesh);
     }
     Merged {
         mesh,
         fur_uv: follows,
+        paint,
         meshes: scene.meshes.len(),
         vertices,
         triangles,
@@ -65,7 +76,7 @@ pub fn merge(scene: &Scene, colour: FurColour, fur_uv: FurUv) -> Merged {
     }
 }
 
-impl Reported for Merged {
+impl Reported for Merged<'_> {
     fn facts(&self) -> Facts {
         Facts {
             warnings: self.warnings.clone(),

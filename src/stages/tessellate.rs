@@ -27,7 +27,12 @@
 //!
 //! **Attributes.** Texture coordinates, normals (renormalised) and colours are interpolated
 //! barycentrically from the triangle's own corners; a skinned vertex takes the influences of
-//! its nearest corner (joint sets do not interpolate). A triangle with two corners at one
+//! its nearest corner (joint sets do not interpolate). The fur colour of an asset's part
+//! (`albedo`) is sampled again from the part's [`Paint`] at each new vertex's texture
+//! coordinates and colour, when the caller passes it (the fur follows the asset's own UVs):
+//! interpolating the corners' samples would smear every texture detail finer than a coarse
+//! triangle, which is what tessellating such a part is for (the critter's striped body: mean
+//! ΔE76 8.5 against the texture at the strand roots untessellated, `tests/asset.rs`). A triangle with two corners at one
 //! position (a UV sphere's pole) is kept as it is: the weld drops it, and its neighbours' shared
 //! edges are cut the same way from both sides. "One position" is the weld's: equal bits, with
 //! -0 equal to 0.
@@ -37,6 +42,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
+use crate::input::asset::Paint;
 use crate::mesh::Mesh;
 
 /// Largest factor (a triangle becomes at most `MAX_FACTOR²` triangles).
@@ -150,12 +156,14 @@ type EdgePoints = std::collections::HashMap<(u32, u32), Vec<u32>>;
 /// A subdivision by factor `n`: the mesh before it, its position ids as the weld tells
 /// positions apart (-0 is 0) and the angle-weighted normals per position, and the Phong shape
 /// factor.
-struct Subdivision {
+struct Subdivision<'a> {
     src: Mesh,
     ids: Vec<u32>,
     normals: Vec<Vec3>,
     n: u32,
     alpha: f32,
+    /// What new vertices sample their `albedo` from, instead of interpolating it.
+    paint: Option<&'a Paint>,
 }
 
 /// A triangle of the mesh before the subdivision: its corners, their positions and their
@@ -171,9 +179,9 @@ fn grid_slot(n: u32, a: u32, b: u32) -> usize {
     (b * (n + 1) - b * (b.saturating_sub(1)) / 2 + a) as usize
 }
 
-impl Subdivision {
+impl<'a> Subdivision<'a> {
     /// The subdivision of `mesh` by factor `n` with Phong factor `alpha`.
-    fn new(mesh: &Mesh, n: u32, alpha: f32) -> Subdivision {
+    fn new(mesh: &Mesh, n: u32, alpha: f32, paint: Option<&'a Paint>) -> Subdivision<'a> {
         let (ids, unique) = crate::stages::weld::position_ids(&mesh.positions);
         let normals = position_normals(mesh, &ids, unique.len());
         Subdivision {
@@ -182,6 +190,7 @@ impl Subdivision {
             normals,
             n,
             alpha,
+            paint,
         }
     }
 
@@ -205,9 +214,6 @@ impl Subdivision {
             let v: Vec2 = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
             out.push(v);
         }
-        if let (Some(out), Some(inn)) = (m.albedo.as_mut(), src.albedo.as_ref()) {
-            out.push(inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2]);
-        }
         if let (Some(out), Some(inn)) = (m.colors.as_mut(), src.colors.as_ref()) {
             let mix = |k: usize| {
                 let v = inn[at(c[0])][k] as f32 * w[0]
@@ -216,6 +222,20 @@ impl Subdivision {
                 v.round().clamp(0.0, 255.0) as u8
             };
             out.push([mix(0), mix(1), mix(2), mix(3)]);
+        }
+        if let Some(inn) = src.albedo.as_ref() {
+            let colour = match self.paint {
+                // the new vertex's own uv and colour, pushed above
+                Some(paint) => paint.colour_at(
+                    m.uvs.as_ref().and_then(|u| u.last().copied()),
+                    m.colors.as_ref().and_then(|k| k.last().copied()),
+                ),
+                None => inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2],
+            };
+            m.albedo
+                .as_mut()
+                .expect("albedo with the source's")
+                .push(colour);
         }
         if let (Some(out), Some(inn)) = (m.skin.as_mut(), src.skin.as_ref()) {
             let near = (0..3)
@@ -325,8 +345,13 @@ fn grid_triangles(n: u32, grid: &[u32], indices: &mut Vec<u32>) {
     }
 }
 
-/// Subdivides `mesh` in place (see the module notes); returns what it did.
-pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
+/// Subdivides `mesh` in place (see the module notes); returns what it did. New vertices sample
+/// their `albedo` from `paint` when given (its texture read at the mesh's `uvs`).
+pub fn tessellate(
+    mesh: &mut Mesh,
+    params: &TessellationParams,
+    paint: Option<&Paint>,
+) -> Tessellated {
     let n = params.factor_for(mesh);
     let before = mesh.triangle_count();
     if n <= 1 {
@@ -336,7 +361,7 @@ pub fn tessellate(mesh: &mut Mesh, params: &TessellationParams) -> Tessellated {
             triangles_after: before,
         };
     }
-    let cut = Subdivision::new(mesh, n, params.alpha);
+    let cut = Subdivision::new(mesh, n, params.alpha, paint);
     let mut edges = EdgePoints::new();
     let mut indices = Vec::with_capacity(cut.src.indices.len() * (n * n) as usize);
     for t in cut.src.indices.chunks_exact(3) {
@@ -393,6 +418,7 @@ mod tests {
                 factor: 4,
                 ..TessellationParams::default()
             },
+            None,
         );
         assert_eq!((r.triangles_before, r.triangles_after), (8, 128));
         // closed: 6 corners + 12 edges × 3 + 8 triangles × 3 inside
@@ -419,7 +445,7 @@ mod tests {
                 alpha,
                 ..TessellationParams::default()
             };
-            tessellate(&mut m, &p);
+            tessellate(&mut m, &p, None);
             m.positions
                 .iter()
                 .map(|p| p.length())
@@ -448,7 +474,7 @@ mod tests {
             indices: vec![0, 1, 2, 3, 5, 4],
             ..Mesh::default()
         };
-        tessellate(&mut m, &TessellationParams::default());
+        tessellate(&mut m, &TessellationParams::default(), None);
         let on_edge = |v: &Vec3| (v.x + v.y - 1.0).abs() < 1e-3 && v.x > 0.01 && v.y > 0.01;
         let mut points: Vec<[u32; 3]> = m
             .positions
