@@ -45,7 +45,7 @@ pub const EXTENSIONS: [&str; 2] = ["KHR_mesh_quantization", "KHR_texture_transfo
 /// Shortest decimal of an `f32`, as the `f64` JSON number it denotes.
 fn num(x: f32) -> Value {
     let v: f64 = format!("{x}").parse().expect("f32 display parses");
-    json!(v)
+    Value::from(v)
 }
 
 /// A stream as meshopt compressed it ([`compress_streams`]).
@@ -296,24 +296,33 @@ pub fn gltf_json_with(
     if packed.nodes.iter().any(|n| n.lod.is_some()) {
         used.push("MSFT_lod");
     }
-    let mut doc = json!({
-        "asset": { "version": "2.0", "generator": concat!("shellbake ", env!("CARGO_PKG_VERSION")) },
-        "extensionsUsed": used,
-        "extensionsRequired": required,
-        "scene": 0,
-        "scenes": scenes_json(packed),
-        "nodes": nodes,
-        "meshes": meshes,
-        "materials": materials,
-        "textures": textures,
-        "images": images,
-        // LINEAR / LINEAR_MIPMAP_LINEAR, REPEAT (the default): round strands up close, no
-        // shimmer far away; clients build the mips (`strands.rs`, "Sampling and mipmaps").
-        "samplers": [{ "magFilter": 9729, "minFilter": 9987 }],
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": buffers,
-    });
+    // built by moving each list in: `json!` would copy them (it serializes its values), which
+    // took most of the writer's time on files of many nodes
+    let mut doc = Map::new();
+    let mut put = |key: &str, value: Value| doc.insert(key.into(), value);
+    put(
+        "asset",
+        json!({ "version": "2.0", "generator": concat!("shellbake ", env!("CARGO_PKG_VERSION")) }),
+    );
+    put("extensionsUsed", json!(used));
+    put("extensionsRequired", json!(required));
+    put("scene", Value::from(0));
+    put("scenes", scenes_json(packed));
+    put("nodes", Value::Array(nodes));
+    put("meshes", Value::Array(meshes));
+    put("materials", Value::Array(materials));
+    put("textures", Value::Array(textures));
+    put("images", Value::Array(images));
+    // LINEAR / LINEAR_MIPMAP_LINEAR, REPEAT (the default): round strands up close, no
+    // shimmer far away; clients build the mips (`strands.rs`, "Sampling and mipmaps").
+    put(
+        "samplers",
+        json!([{ "magFilter": 9729, "minFilter": 9987 }]),
+    );
+    put("accessors", Value::Array(accessors));
+    put("bufferViews", Value::Array(views));
+    put("buffers", Value::Array(buffers));
+    let mut doc = Value::Object(doc);
     add_optional_parts(&mut doc, packed);
     (doc, len)
 }
@@ -402,7 +411,7 @@ fn attributes_json(list: &[(Semantic, usize)]) -> Value {
         let name = semantic
             .attribute()
             .expect("attributes are vertex semantics");
-        o.insert(name, json!(accessor));
+        o.insert(name, Value::from(*accessor));
     }
     Value::Object(o)
 }
@@ -415,22 +424,22 @@ fn mesh_json(m: &PackedMesh) -> Value {
             let mut prim = Map::new();
             prim.insert("attributes".into(), attributes_json(&p.attributes));
             if let Some(ix) = p.indices {
-                prim.insert("indices".into(), json!(ix));
+                prim.insert("indices".into(), Value::from(ix));
             }
-            prim.insert("material".into(), json!(p.material));
+            prim.insert("material".into(), Value::from(p.material));
             if !p.targets.is_empty() {
                 let targets: Vec<Value> = p.targets.iter().map(|t| attributes_json(t)).collect();
-                prim.insert("targets".into(), json!(targets));
+                prim.insert("targets".into(), Value::Array(targets));
             }
             Value::Object(prim)
         })
         .collect();
     let mut mesh = Map::new();
-    mesh.insert("name".into(), json!(m.name));
-    mesh.insert("primitives".into(), json!(primitives));
+    mesh.insert("name".into(), Value::String(m.name.clone()));
+    mesh.insert("primitives".into(), Value::Array(primitives));
     if !m.weights.is_empty() {
         let weights: Vec<Value> = m.weights.iter().map(|&w| num(w)).collect();
-        mesh.insert("weights".into(), json!(weights));
+        mesh.insert("weights".into(), Value::Array(weights));
     }
     if !m.layer_ranges.is_empty() {
         let r = &m.layer_ranges;
@@ -491,16 +500,16 @@ fn material_json(m: &Material) -> Value {
 
 fn node_json(n: &Node) -> Value {
     let mut o = Map::new();
-    o.insert("name".into(), json!(n.name));
+    o.insert("name".into(), Value::String(n.name.clone()));
     if let Some(m) = n.mesh {
-        o.insert("mesh".into(), json!(m));
+        o.insert("mesh".into(), Value::from(m));
     }
     if !n.weights.is_empty() {
         let weights: Vec<Value> = n.weights.iter().map(|&w| num(w)).collect();
-        o.insert("weights".into(), json!(weights));
+        o.insert("weights".into(), Value::Array(weights));
     }
     if !n.children.is_empty() {
-        o.insert("children".into(), json!(n.children));
+        o.insert("children".into(), Value::from(n.children.clone()));
     }
     if let Some(t) = n.translation {
         o.insert("translation".into(), json!([t.x, t.y, t.z]));
