@@ -52,6 +52,10 @@ pub struct LodEntry {
     pub mask_size: u32,
 }
 
+/// How many times level 1's distance a one-chunk surface's diagonal must be for the summary to
+/// suggest chunks (`Report::lod_line`): a grass field, not a character.
+const LOD_HINT_SIZE: f64 = 8.0;
+
 /// One surface's section of the report.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Report {
@@ -307,6 +311,7 @@ impl Report {
                 n("mean_limited_scale") * 100.0,
             );
         }
+        s += &self.lod_line();
         s += &format!(
             "  {} bytes, {:.2} bytes per base vertex (",
             self.total_bytes, self.bytes_per_base_vertex
@@ -320,6 +325,40 @@ impl Report {
         s += ")\n";
         for w in &self.warnings {
             s += &format!("  warning: {w}\n");
+        }
+        s
+    }
+
+    /// The LOD chain in one line (nothing with one level), and a hint when a surface far larger
+    /// than level 1's distance is one chunk: it keeps LOD 0 until its centre is level 1's
+    /// distance plus its bounding radius away, so near the eye it never sheds a layer.
+    fn lod_line(&self) -> String {
+        if self.lods.len() < 2 {
+            return String::new();
+        }
+        let join = |f: &dyn Fn(&LodEntry) -> String| {
+            self.lods.iter().map(f).collect::<Vec<_>>().join(" / ")
+        };
+        let chunks = self
+            .stage("lod")
+            .and_then(|l| l.counts.get("chunks").copied())
+            .unwrap_or(1.0);
+        let mut s = format!(
+            "  lod: {} levels of {} layers, used from {} units (the nearest point of a chunk), {} chunk(s)\n",
+            self.lods.len(),
+            join(&|l| l.layers.to_string()),
+            join(&|l| significant(l.distance)),
+            chunks,
+        );
+        let first = self.lods[1].distance;
+        let diagonal = self.resolved.get("diagonal").copied().unwrap_or(0.0);
+        if chunks == 1.0 && diagonal > LOD_HINT_SIZE * first {
+            s += &format!(
+                "  lod: in one piece this surface keeps LOD 0 until its centre is {} units away; \
+                 `lod.chunk_size` near {} (twice level 1's distance) sheds layers nearer the eye\n",
+                significant(first + diagonal / 2.0),
+                significant(2.0 * first),
+            );
         }
         s
     }
@@ -546,7 +585,58 @@ pub fn significant(x: f64) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{listed, significant, Report, SceneReport};
+    use super::{listed, significant, LodEntry, Report, SceneReport, Stage};
+
+    #[test]
+    fn the_lod_line_shows_the_chain_and_suggests_chunks_for_a_large_surface() {
+        let lod = |layers: usize, distance: f64| LodEntry {
+            layers,
+            triangles: 0,
+            bytes: 0,
+            distance,
+            error: 0.0,
+            mask_size: 0,
+        };
+        let report = |chunks: f64, diagonal: f64| Report {
+            lods: vec![lod(48, 0.0), lod(25, 4.9), lod(0, 233.8)],
+            resolved: [("diagonal".to_string(), diagonal)].into(),
+            stages: vec![Stage {
+                name: "lod",
+                ran: true,
+                ms: 0.0,
+                skipped: None,
+                note: None,
+                counts: [("chunks".to_string(), chunks)].into(),
+            }],
+            ..Default::default()
+        };
+        let field = report(1.0, 170.0).section();
+        assert!(
+            field.contains(
+                "  lod: 3 levels of 48 / 25 / 0 layers, used from 0 / 4.900 / 233.8 units"
+            ),
+            "{field}"
+        );
+        assert!(
+            field.contains("until its centre is 89.90 units away"),
+            "{field}"
+        );
+        assert!(field.contains("`lod.chunk_size` near 9.800"), "{field}");
+        // chunked, or small against level 1's distance: no hint
+        for quiet in [report(144.0, 170.0), report(1.0, 30.0)] {
+            let s = quiet.section();
+            assert!(
+                s.contains("  lod: 3 levels") && !s.contains("chunk_size"),
+                "{s}"
+            );
+        }
+        // one level: no line
+        let one = Report {
+            lods: vec![lod(48, 0.0)],
+            ..Default::default()
+        };
+        assert!(!one.section().contains("lod:"));
+    }
 
     #[test]
     fn many_surfaces_show_eight_blocks_and_every_warning() {
