@@ -1378,3 +1378,49 @@ fn lod_levels_stay_out_of_the_blender_scene_while_babylon_reads_msft_lod() {
         );
     }
 }
+
+#[test]
+fn the_critters_seam_copies_extrude_together() {
+    // The critter's body is a UV sphere whose seam copies sit a few f32 steps apart (z = 0
+    // against 2.6e-8): unless merge snaps them together they extrude apart, opening a bare
+    // line down the body, and the inversion guard flattens the fur where they meet (it did
+    // at 12 vertices).
+    let dir = scratch("asset-seam");
+    let input = critters(&dir, "critter.glb", Critters::default());
+    let (glb, r) = bake(&input, &dir, "seam.glb", &["--only", "material=fur_body"]);
+    let stage = |name: &str| {
+        r["surfaces"][0]["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["name"] == name)
+            .unwrap()["counts"]
+            .clone()
+    };
+    assert!(stage("merge")["snapped_positions"].as_f64().unwrap() > 0.0);
+    assert_eq!(stage("clamp")["limited_by_inversion"], 0.0);
+    // every fur vertex at one position (to the quantization) moves the same way
+    let doc = Glb::parse(&std::fs::read(&glb).unwrap());
+    let mesh = doc.json["meshes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["primitives"][0]["targets"].is_array())
+        .unwrap();
+    let p = &mesh["primitives"][0];
+    // both `i16` normalized: back to their integers
+    let ints = |i: &Value| -> Vec<[i64; 3]> {
+        doc.accessor(i.as_u64().unwrap() as usize)
+            .iter()
+            .map(|v| [0, 1, 2].map(|k| (v[k] * 32767.0).round() as i64))
+            .collect()
+    };
+    let positions = ints(&p["attributes"]["POSITION"]);
+    let extrusion = ints(&p["targets"][0]["POSITION"]);
+    let mut by_position = std::collections::HashMap::new();
+    for (q, e) in positions.iter().zip(&extrusion) {
+        let seen = by_position.entry(*q).or_insert(*e);
+        assert_eq!(seen, e, "two extrusions at {q:?}");
+    }
+    assert!(extrusion.iter().all(|e| e != &[0, 0, 0]), "a bald vertex");
+}

@@ -11,6 +11,7 @@ use crate::input::asset::Paint;
 use crate::input::generate_box_uvs;
 use crate::mesh::{has_uv_area, Mesh, Scene};
 use crate::stages::tiling::{fur_uv_box, FurUv};
+use crate::stages::weld;
 
 /// Where a surface's fur takes its colour.
 #[derive(Clone, Copy, Debug)]
@@ -36,6 +37,8 @@ pub struct Merged<'a> {
     meshes: usize,
     vertices: usize,
     triangles: usize,
+    /// Vertices moved onto a near twin (`weld::snap_near_twins`).
+    snapped: usize,
     warnings: Vec<String>,
 }
 
@@ -43,6 +46,8 @@ pub struct Merged<'a> {
 pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<'a> {
     let mut mesh = scene.merged();
     let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
+    let diagonal = mesh.diagonal();
+    let snapped = weld::snap_near_twins(&mut mesh.positions, diagonal);
     if let FurColour::Asset { paint, color } = colour {
         mesh.albedo = match color {
             Some(c) => Some(vec![Vec3::from(c); mesh.vertex_count()]),
@@ -72,6 +77,7 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
         meshes: scene.meshes.len(),
         vertices,
         triangles,
+        snapped,
         warnings,
     }
 }
@@ -84,6 +90,7 @@ impl Reported for Merged<'_> {
                 ("meshes", self.meshes as f64),
                 ("vertices", self.vertices as f64),
                 ("triangles", self.triangles as f64),
+                ("snapped_positions", self.snapped as f64),
             ])
         }
     }

@@ -38,6 +38,16 @@
 //!
 //! Rejected: welding by position alone (the sheet defect above), and grouping corners by the
 //! angle between their face normals (splits sharp cone tips and needles into pieces).
+//!
+//! **Near twins.** Not every source writes a seam's copies identically: a UV sphere made with
+//! `sin`/`cos` puts the copy at longitude 2π a few `f32` steps off the one at 0 (the bundled
+//! critter's seam: `z` = 0 against 2.6e-8), and such copies would extrude apart along the seam
+//! and open a bare line in the fur. Before anything compares positions, the merge stage moves
+//! every position within [`SNAP`] of the diagonal (per axis) of another onto it
+//! ([`snap_near_twins`]): the closeness classes are joined in a union-find, so each class takes
+//! the position that occurs first whatever the order of the joins. It is not the rejected
+//! epsilon weld: it only makes positions that no one can tell apart equal, and the exact weld
+//! then decides what joins; nothing moves by more than a millionth of the mesh.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -113,6 +123,80 @@ pub type IdMap<K, V> = HashMap<K, V, BuildHasherDefault<IdHasher>>;
 fn key(p: Vec3) -> [u32; 3] {
     // +0.0 folds -0.0 into 0.0; every other value keeps its bits.
     [p.x + 0.0, p.y + 0.0, p.z + 0.0].map(f32::to_bits)
+}
+
+/// Distance under which two positions count as one, as a fraction of the mesh's diagonal (per
+/// axis; [`snap_near_twins`]): a thousandth of a 14-bit position step, and far above the `f32`
+/// rounding of a seam computed twice (1e-7 of the mesh on the critter).
+pub const SNAP: f32 = 1e-6;
+
+/// Moves each position within `SNAP · diagonal` (per axis) of another onto the first-occurring
+/// position of its class (the module's "Near twins"); returns how many vertices moved.
+pub fn snap_near_twins(positions: &mut [Vec3], diagonal: f32) -> usize {
+    let eps = SNAP * diagonal;
+    if !(eps > 0.0 && eps.is_finite()) {
+        return 0;
+    }
+    let (ids, unique) = position_ids(positions);
+    // cells of 64·eps: the box of ±eps around a point mostly lies in its own cell, and a cell
+    // holds one position but on a mesh finer than a millionth of itself. A cell's key packs
+    // its coordinates into 21 bits each (a collision only costs a distance test); its
+    // positions are chained through `next`, in id order.
+    let size = 64.0 * eps;
+    let cell = |p: Vec3| (p / size).floor().as_ivec3();
+    let key = |c: glam::IVec3| {
+        let bits = |v: i32| (v as u64) & ((1 << 21) - 1);
+        bits(c.x) | bits(c.y) << 21 | bits(c.z) << 42
+    };
+    const END: u32 = u32::MAX;
+    let mut head: IdMap<u64, u32> = IdMap::default();
+    head.reserve(unique.len());
+    let mut next = vec![END; unique.len()];
+    for (i, &p) in unique.iter().enumerate().rev() {
+        if let Some(h) = head.insert(key(cell(p)), i as u32) {
+            next[i] = h;
+        }
+    }
+    let pairs: Vec<(u32, u32)> = (0..unique.len() as u32)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .flat_map_iter(|i| {
+            let p = unique[i as usize];
+            let (lo, hi) = (cell(p - Vec3::splat(eps)), cell(p + Vec3::splat(eps)));
+            let mut near = Vec::new();
+            for x in lo.x..=hi.x {
+                for y in lo.y..=hi.y {
+                    for z in lo.z..=hi.z {
+                        let mut j = head.get(&key(glam::IVec3::new(x, y, z))).copied();
+                        while let Some(k) = j.filter(|&k| k != END) {
+                            if k > i && (unique[k as usize] - p).abs().max_element() <= eps {
+                                near.push((i, k));
+                            }
+                            j = Some(next[k as usize]);
+                        }
+                    }
+                }
+            }
+            near
+        })
+        .collect();
+    if pairs.is_empty() {
+        return 0;
+    }
+    let classes = Classes::new(unique.len());
+    for &(i, j) in &pairs {
+        classes.join(i, j);
+    }
+    let roots = classes.roots();
+    let mut moved = 0;
+    for (p, &id) in positions.iter_mut().zip(&ids) {
+        let root = roots[id as usize];
+        if root != id {
+            *p = unique[root as usize];
+            moved += 1;
+        }
+    }
+    moved
 }
 
 /// Exact-position ids: for each vertex its position id (first-occurrence order), and the
@@ -570,6 +654,48 @@ impl Reported for Welded {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn near_twins_take_the_first_position_of_their_class() {
+        // a seam computed twice (the critter's: z = 0 against 2.6e-8), a chain of twins, and
+        // a neighbour a thousandth of the mesh away that must stay
+        let mut p = vec![
+            Vec3::new(0.275, 0.2598, 2.6e-8),
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(0.275, 0.2598, 0.0),
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(0.5 + 1e-6, 0.0, 0.0),
+            Vec3::new(0.5 + 2e-6, 0.0, 0.0),
+            Vec3::new(0.5, 0.0015, 0.0),
+            Vec3::new(-1.0, -1.0, -1.0),
+        ];
+        let before = p.clone();
+        let diagonal = 2.0 * 3f32.sqrt();
+        assert_eq!(snap_near_twins(&mut p, diagonal), 3);
+        assert_eq!(p[2], before[0], "the seam's copy takes the first position");
+        assert_eq!(
+            (p[4], p[5]),
+            (before[3], before[3]),
+            "a chain joins onto its first"
+        );
+        for k in [0, 1, 3, 6, 7] {
+            assert_eq!(p[k], before[k]);
+        }
+        // the same on any thread count, and nothing to do twice
+        let on = |threads: usize| {
+            let mut q = before.clone();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| snap_near_twins(&mut q, diagonal));
+            q
+        };
+        assert_eq!(on(1), p);
+        assert_eq!(on(3), p);
+        assert_eq!(snap_near_twins(&mut p.clone(), diagonal), 0);
+        assert_eq!(snap_near_twins(&mut p.clone(), 0.0), 0);
+    }
 
     #[test]
     fn split_cube_corner_welds_to_one_vertex() {
