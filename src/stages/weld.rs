@@ -137,42 +137,51 @@ pub fn snap_near_twins(positions: &mut [Vec3], diagonal: f32) -> usize {
     if !(eps > 0.0 && eps.is_finite()) {
         return 0;
     }
-    let (ids, unique) = position_ids(positions);
-    // cells of 64·eps: the box of ±eps around a point mostly lies in its own cell, and a cell
-    // holds one position but on a mesh finer than a millionth of itself. A cell's key packs
-    // its coordinates into 21 bits each (a collision only costs a distance test); its
-    // positions are chained through `next`, in id order.
+    // Cells of 64·eps, each keyed by its coordinates packed into 21 bits apiece (a collision
+    // only costs a distance test), and the vertices sorted by cell: the box of ±eps around a
+    // vertex mostly lies in its own cell, whose vertices are its neighbours in that order, and
+    // the few boxes that cross into another cell find it by binary search. A cell holds one
+    // position but on a mesh finer than a millionth of itself; vertices at one position share
+    // a cell and are not joined (they need no moving).
     let size = 64.0 * eps;
     let cell = |p: Vec3| (p / size).floor().as_ivec3();
-    let key = |c: glam::IVec3| {
+    let pack = |c: glam::IVec3| {
         let bits = |v: i32| (v as u64) & ((1 << 21) - 1);
         bits(c.x) | bits(c.y) << 21 | bits(c.z) << 42
     };
-    const END: u32 = u32::MAX;
-    let mut head: IdMap<u64, u32> = IdMap::default();
-    head.reserve(unique.len());
-    let mut next = vec![END; unique.len()];
-    for (i, &p) in unique.iter().enumerate().rev() {
-        if let Some(h) = head.insert(key(cell(p)), i as u32) {
-            next[i] = h;
-        }
-    }
-    let pairs: Vec<(u32, u32)> = (0..unique.len() as u32)
+    let mut sorted: Vec<(u64, u32)> = (positions.par_iter().enumerate())
+        .with_min_len(PAR_MIN_LEN)
+        .map(|(v, &p)| (pack(cell(p)), v as u32))
+        .collect();
+    sorted.par_sort_unstable();
+    let positions_ref = &*positions;
+    let pairs: Vec<(u32, u32)> = (0..sorted.len())
         .into_par_iter()
         .with_min_len(PAR_MIN_LEN)
-        .flat_map_iter(|i| {
-            let p = unique[i as usize];
+        .flat_map_iter(|at| {
+            let (own, i) = sorted[at];
+            let p = positions_ref[i as usize];
             let (lo, hi) = (cell(p - Vec3::splat(eps)), cell(p + Vec3::splat(eps)));
             let mut near = Vec::new();
+            let mut test = |k: u32| {
+                let q = positions_ref[k as usize];
+                if k > i && q != p && (q - p).abs().max_element() <= eps {
+                    near.push((i, k));
+                }
+            };
             for x in lo.x..=hi.x {
                 for y in lo.y..=hi.y {
                     for z in lo.z..=hi.z {
-                        let mut j = head.get(&key(glam::IVec3::new(x, y, z))).copied();
-                        while let Some(k) = j.filter(|&k| k != END) {
-                            if k > i && (unique[k as usize] - p).abs().max_element() <= eps {
-                                near.push((i, k));
-                            }
-                            j = Some(next[k as usize]);
+                        let key = pack(glam::IVec3::new(x, y, z));
+                        if key == own {
+                            // the run of this vertex's cell, around it
+                            let before = sorted[..at].iter().rev().take_while(|e| e.0 == own);
+                            let after = sorted[at + 1..].iter().take_while(|e| e.0 == own);
+                            before.chain(after).for_each(|e| test(e.1));
+                        } else {
+                            let from = sorted.partition_point(|e| e.0 < key);
+                            let run = sorted[from..].iter().take_while(|e| e.0 == key);
+                            run.for_each(|e| test(e.1));
                         }
                     }
                 }
@@ -183,16 +192,16 @@ pub fn snap_near_twins(positions: &mut [Vec3], diagonal: f32) -> usize {
     if pairs.is_empty() {
         return 0;
     }
-    let classes = Classes::new(unique.len());
+    let classes = Classes::new(positions.len());
     for &(i, j) in &pairs {
         classes.join(i, j);
     }
     let roots = classes.roots();
     let mut moved = 0;
-    for (p, &id) in positions.iter_mut().zip(&ids) {
-        let root = roots[id as usize];
-        if root != id {
-            *p = unique[root as usize];
+    for v in 0..positions.len() {
+        let root = positions[roots[v] as usize];
+        if key(positions[v]) != key(root) {
+            positions[v] = root;
             moved += 1;
         }
     }
