@@ -49,6 +49,7 @@
 //! the chunk's bounding radius, so that no point of the chunk is nearer than `d_k` ([`chunk_switch`]).
 
 use glam::Vec3;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
@@ -227,38 +228,63 @@ impl<'a> Simplifier<'a> {
     /// The base simplified to an absolute error of `target` world units.
     pub fn simplify(&self, target: f64) -> SimplifiedBase {
         let mesh = self.base.mesh;
-        let positions: &[u8] = bytemuck::cast_slice(&mesh.positions);
-        let adapter = meshopt::VertexDataAdapter::new(positions, 12, 0).expect("f32 positions");
-        let locks = vec![false; mesh.vertex_count()];
+        // each chunk on its own vertices (meshopt works in time linear in the vertex count it
+        // is given, so handing it the whole mesh for every chunk made the terrain's 144 chunks
+        // 0.33 s), kept in their order in the mesh; chunks side by side, joined in order
+        let simplified: Vec<(Vec<u32>, f32)> = self
+            .base
+            .chunks
+            .par_iter()
+            .map(|tris| {
+                let global: Vec<u32> = tris
+                    .iter()
+                    .flat_map(|&t| {
+                        mesh.indices[3 * t as usize..3 * t as usize + 3]
+                            .iter()
+                            .copied()
+                    })
+                    .collect();
+                let mut used = global.clone();
+                used.sort_unstable();
+                used.dedup();
+                let local = |v: u32| used.binary_search(&v).expect("a used vertex") as u32;
+                let ix: Vec<u32> = global.iter().map(|&v| local(v)).collect();
+                let positions: Vec<Vec3> =
+                    used.iter().map(|&v| mesh.positions[v as usize]).collect();
+                let attributes: Vec<f32> = (used.iter())
+                    .flat_map(|&v| {
+                        let at = v as usize * Self::STRIDE;
+                        self.attributes[at..at + Self::STRIDE].iter().copied()
+                    })
+                    .collect();
+                let adapter =
+                    meshopt::VertexDataAdapter::new(bytemuck::cast_slice(&positions), 12, 0)
+                        .expect("f32 positions");
+                let locks = vec![false; used.len()];
+                let mut e = 0.0f32;
+                let out = meshopt::simplify_with_attributes_and_locks(
+                    &ix,
+                    &adapter,
+                    &attributes,
+                    &self.weights,
+                    Self::STRIDE * 4,
+                    &locks,
+                    0,
+                    target as f32,
+                    meshopt::SimplifyOptions::LockBorder | meshopt::SimplifyOptions::ErrorAbsolute,
+                    Some(&mut e),
+                );
+                if out.is_empty() {
+                    (global, 0.0)
+                } else {
+                    (out.iter().map(|&v| used[v as usize]).collect(), e)
+                }
+            })
+            .collect();
         let mut indices = Vec::new();
-        let mut chunks = Vec::with_capacity(self.base.chunks.len());
+        let mut chunks = Vec::with_capacity(simplified.len());
         let mut error = 0.0f64;
-        for tris in self.base.chunks {
-            let ix: Vec<u32> = tris
-                .iter()
-                .flat_map(|&t| {
-                    mesh.indices[3 * t as usize..3 * t as usize + 3]
-                        .iter()
-                        .copied()
-                })
-                .collect();
-            let mut e = 0.0f32;
-            let mut out = meshopt::simplify_with_attributes_and_locks(
-                &ix,
-                &adapter,
-                &self.attributes,
-                &self.weights,
-                Self::STRIDE * 4,
-                &locks,
-                0,
-                target as f32,
-                meshopt::SimplifyOptions::LockBorder | meshopt::SimplifyOptions::ErrorAbsolute,
-                Some(&mut e),
-            );
-            if out.is_empty() {
-                out = ix;
-                e = 0.0;
-            }
+        for (out, e) in simplified {
             error = error.max(e as f64);
             let first = (indices.len() / 3) as u32;
             chunks.push((first..first + (out.len() / 3) as u32).collect());
