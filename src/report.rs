@@ -354,7 +354,7 @@ impl Report {
         let diagonal = self.resolved.get("diagonal").copied().unwrap_or(0.0);
         if chunks == 1.0 && diagonal > LOD_HINT_SIZE * first {
             s += &format!(
-                "  lod: in one piece this surface keeps LOD 0 until its centre is {} units away; \
+                "  lod: in one piece this surface keeps LOD 0 until its centre is about {} units away; \
                  `lod.chunk_size` near {} (twice level 1's distance) sheds layers nearer the eye\n",
                 significant(first + diagonal / 2.0),
                 significant(2.0 * first),
@@ -618,7 +618,7 @@ mod tests {
             "{field}"
         );
         assert!(
-            field.contains("until its centre is 89.90 units away"),
+            field.contains("until its centre is about 89.90 units away"),
             "{field}"
         );
         assert!(field.contains("`lod.chunk_size` near 9.800"), "{field}");

@@ -1,7 +1,10 @@
-//! The merge stage: a surface's meshes become one render mesh, which takes the asset's colour
-//! at each strand root (DESIGN §10: sampled here, before any stage splits vertices, so the
-//! colour rides with them from here on) and the UVs its strands follow: the mesh's own, or a
-//! per-face box projection when it has none with area or `--fur-uv` says they cannot carry
+//! The merge stage: a surface's meshes become one render mesh, whose positions within a
+//! millionth of the diagonal of another are first snapped onto it (`weld::snap_near_twins`: a
+//! seam computed twice must not extrude apart), which takes the asset's colour at each strand
+//! root (DESIGN §10: sampled here, before any stage splits vertices, so the colour rides with
+//! them; tessellation alone samples its new vertices again, from the paint merge hands on while
+//! the mesh keeps the UVs it was sampled at) and the UVs its strands follow: the mesh's own, or
+//! a per-face box projection when it has none with area or `--fur-uv` says they cannot carry
 //! strands (an asset keeps its own for its textures; the box is the fur's alone).
 
 use glam::Vec3;

@@ -44,10 +44,13 @@
 //! critter's seam: `z` = 0 against 2.6e-8), and such copies would extrude apart along the seam
 //! and open a bare line in the fur. Before anything compares positions, the merge stage moves
 //! every position within [`SNAP`] of the diagonal (per axis) of another onto it
-//! ([`snap_near_twins`]): the closeness classes are joined in a union-find, so each class takes
-//! the position that occurs first whatever the order of the joins. It is not the rejected
-//! epsilon weld: it only makes positions that no one can tell apart equal, and the exact weld
-//! then decides what joins; nothing moves by more than a millionth of the mesh.
+//! ([`snap_near_twins`]): the closeness classes are joined in a union-find, and each position
+//! within that distance of its class's first-occurring one takes it, whatever the order of the
+//! joins (a chain of twins longer than that keeps the rest in place: nothing moves by more than
+//! a millionth of the mesh). Which copy is first depends on the vertex order, as everything the
+//! weld numbers does; the positions themselves cannot be told apart. It is not the rejected
+//! epsilon weld: it only makes such positions equal, and the exact weld then decides what
+//! joins.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -137,35 +140,35 @@ pub fn snap_near_twins(positions: &mut [Vec3], diagonal: f32) -> usize {
     if !(eps > 0.0 && eps.is_finite()) {
         return 0;
     }
+    // distinct positions only (first-occurrence order): copies at one position need no
+    // moving, and a cone tip's hundreds of copies would make the cell scan below quadratic
+    let (ids, unique) = position_ids(positions);
     // Cells of 64·eps, each keyed by its coordinates packed into 21 bits apiece (a collision
-    // only costs a distance test), and the vertices sorted by cell: the box of ±eps around a
-    // vertex mostly lies in its own cell, whose vertices are its neighbours in that order, and
-    // the few boxes that cross into another cell find it by binary search. A cell holds one
-    // position but on a mesh finer than a millionth of itself; vertices at one position share
-    // a cell and are not joined (they need no moving).
+    // only costs a distance test), and the positions sorted by cell: the box of ±eps around a
+    // position mostly lies in its own cell, whose positions are its neighbours in that order,
+    // and the few boxes that cross into another cell find it by binary search. A cell holds
+    // one position but on a mesh finer than a millionth of itself.
     let size = 64.0 * eps;
     let cell = |p: Vec3| (p / size).floor().as_ivec3();
     let pack = |c: glam::IVec3| {
         let bits = |v: i32| (v as u64) & ((1 << 21) - 1);
         bits(c.x) | bits(c.y) << 21 | bits(c.z) << 42
     };
-    let mut sorted: Vec<(u64, u32)> = (positions.par_iter().enumerate())
+    let mut sorted: Vec<(u64, u32)> = (unique.par_iter().enumerate())
         .with_min_len(PAR_MIN_LEN)
         .map(|(v, &p)| (pack(cell(p)), v as u32))
         .collect();
     sorted.par_sort_unstable();
-    let positions_ref = &*positions;
     let pairs: Vec<(u32, u32)> = (0..sorted.len())
         .into_par_iter()
         .with_min_len(PAR_MIN_LEN)
         .flat_map_iter(|at| {
             let (own, i) = sorted[at];
-            let p = positions_ref[i as usize];
+            let p = unique[i as usize];
             let (lo, hi) = (cell(p - Vec3::splat(eps)), cell(p + Vec3::splat(eps)));
             let mut near = Vec::new();
             let mut test = |k: u32| {
-                let q = positions_ref[k as usize];
-                if k > i && q != p && (q - p).abs().max_element() <= eps {
+                if k > i && (unique[k as usize] - p).abs().max_element() <= eps {
                     near.push((i, k));
                 }
             };
@@ -174,7 +177,7 @@ pub fn snap_near_twins(positions: &mut [Vec3], diagonal: f32) -> usize {
                     for z in lo.z..=hi.z {
                         let key = pack(glam::IVec3::new(x, y, z));
                         if key == own {
-                            // the run of this vertex's cell, around it
+                            // the run of this position's cell, around it
                             let before = sorted[..at].iter().rev().take_while(|e| e.0 == own);
                             let after = sorted[at + 1..].iter().take_while(|e| e.0 == own);
                             before.chain(after).for_each(|e| test(e.1));
@@ -192,16 +195,18 @@ pub fn snap_near_twins(positions: &mut [Vec3], diagonal: f32) -> usize {
     if pairs.is_empty() {
         return 0;
     }
-    let classes = Classes::new(positions.len());
+    let classes = Classes::new(unique.len());
     for &(i, j) in &pairs {
         classes.join(i, j);
     }
     let roots = classes.roots();
+    // a position takes its class's first only from within eps of it: a chain of twins longer
+    // than that (a surface denser than a millionth of itself) keeps the rest where they are
     let mut moved = 0;
-    for v in 0..positions.len() {
-        let root = positions[roots[v] as usize];
-        if key(positions[v]) != key(root) {
-            positions[v] = root;
+    for (p, &id) in positions.iter_mut().zip(&ids) {
+        let root = unique[roots[id as usize] as usize];
+        if roots[id as usize] != id && (root - *p).abs().max_element() <= eps {
+            *p = root;
             moved += 1;
         }
     }
@@ -666,31 +671,45 @@ mod tests {
 
     #[test]
     fn near_twins_take_the_first_position_of_their_class() {
-        // a seam computed twice (the critter's: z = 0 against 2.6e-8), a chain of twins, and
-        // a neighbour a thousandth of the mesh away that must stay
+        let diagonal = 2.0 * 3f32.sqrt();
+        let eps = SNAP * diagonal;
+        let size = 64.0 * eps; // the search's cell
+                               // a seam computed twice (the critter's: z = 0 against 2.6e-8); a pair straddling 0;
+                               // a pair straddling a cell boundary; a chain of twins 0.9 eps apart, whose third is
+                               // 1.8 eps from the first; a neighbour a thousandth of the mesh away, which must stay
+        let edge = 7.0 * size;
         let mut p = vec![
             Vec3::new(0.275, 0.2598, 2.6e-8),
             Vec3::new(1.0, 1.0, 1.0),
             Vec3::new(0.275, 0.2598, 0.0),
-            Vec3::new(0.5, 0.0, 0.0),
-            Vec3::new(0.5 + 1e-6, 0.0, 0.0),
-            Vec3::new(0.5 + 2e-6, 0.0, 0.0),
-            Vec3::new(0.5, 0.0015, 0.0),
+            Vec3::new(-0.1, 0.3, -0.4 * eps),
+            Vec3::new(-0.1, 0.3, 0.4 * eps),
+            Vec3::new(edge - 0.3 * eps, 0.6, 0.2),
+            Vec3::new(edge + 0.3 * eps, 0.6, 0.2),
+            Vec3::new(0.5, -0.5, 0.0),
+            Vec3::new(0.5 + 0.9 * eps, -0.5, 0.0),
+            Vec3::new(0.5 + 1.8 * eps, -0.5, 0.0),
+            Vec3::new(0.5, -0.5 + 0.002, 0.0),
             Vec3::new(-1.0, -1.0, -1.0),
         ];
-        let before = p.clone();
-        let diagonal = 2.0 * 3f32.sqrt();
-        assert_eq!(snap_near_twins(&mut p, diagonal), 3);
-        assert_eq!(p[2], before[0], "the seam's copy takes the first position");
-        assert_eq!(
-            (p[4], p[5]),
-            (before[3], before[3]),
-            "a chain joins onto its first"
+        assert!(
+            (p[5].x / size).floor() != (p[6].x / size).floor(),
+            "across a cell boundary"
         );
-        for k in [0, 1, 3, 6, 7] {
+        let before = p.clone();
+        assert_eq!(snap_near_twins(&mut p, diagonal), 4);
+        assert_eq!(p[2], before[0], "the seam's copy takes the first position");
+        assert_eq!(p[4], before[3], "across zero");
+        assert_eq!(p[6], before[5], "across a cell boundary");
+        assert_eq!(p[8], before[7], "the chain's second");
+        assert_eq!(
+            p[9], before[9],
+            "the chain's third is beyond eps of its first: it stays"
+        );
+        for k in [0, 1, 3, 5, 7, 10, 11] {
             assert_eq!(p[k], before[k]);
         }
-        // the same on any thread count, and nothing to do twice
+        // the same on any thread count; nothing moves by more than eps
         let on = |threads: usize| {
             let mut q = before.clone();
             let pool = rayon::ThreadPoolBuilder::new()
@@ -702,8 +721,15 @@ mod tests {
         };
         assert_eq!(on(1), p);
         assert_eq!(on(3), p);
-        assert_eq!(snap_near_twins(&mut p.clone(), diagonal), 0);
-        assert_eq!(snap_near_twins(&mut p.clone(), 0.0), 0);
+        for (a, b) in p.iter().zip(&before) {
+            assert!((*a - *b).abs().max_element() <= eps);
+        }
+        assert_eq!(snap_near_twins(&mut before.clone(), 0.0), 0);
+        // many copies at one point cost one position, not their square
+        let mut tip = vec![Vec3::ZERO; 200_000];
+        tip.push(Vec3::splat(0.5 * eps));
+        assert_eq!(snap_near_twins(&mut tip, diagonal), 1);
+        assert_eq!(tip[200_000], Vec3::ZERO);
     }
 
     #[test]
