@@ -32,9 +32,10 @@
 //! coordinates and colour, when the caller passes it (the fur follows the asset's own UVs):
 //! interpolating the corners' samples would smear every texture detail finer than a coarse
 //! triangle, which is what tessellating such a part is for (the critter's striped body: mean
-//! ΔE76 8.5 against the texture at the strand roots untessellated, `tests/asset.rs`). A triangle with two corners at one
-//! position (a UV sphere's pole) is kept as it is: the weld drops it, and its neighbours' shared
-//! edges are cut the same way from both sides. "One position" is the weld's: equal bits, with
+//! ΔE76 8.5 against the texture at the strand roots untessellated, `tests/asset.rs`).
+//!
+//! A triangle with two corners at one position (a UV sphere's pole) is kept as it is: the weld
+//! drops it, and its neighbours' shared edges are cut the same way from both sides. "One position" is the weld's: equal bits, with
 //! -0 equal to 0.
 
 use glam::{Vec2, Vec3};
@@ -223,19 +224,15 @@ impl<'a> Subdivision<'a> {
             };
             out.push([mix(0), mix(1), mix(2), mix(3)]);
         }
-        if let Some(inn) = src.albedo.as_ref() {
-            let colour = match self.paint {
+        if let (Some(out), Some(inn)) = (m.albedo.as_mut(), src.albedo.as_ref()) {
+            out.push(match self.paint {
                 // the new vertex's own uv and colour, pushed above
                 Some(paint) => paint.colour_at(
                     m.uvs.as_ref().and_then(|u| u.last().copied()),
                     m.colors.as_ref().and_then(|k| k.last().copied()),
                 ),
                 None => inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2],
-            };
-            m.albedo
-                .as_mut()
-                .expect("albedo with the source's")
-                .push(colour);
+            });
         }
         if let (Some(out), Some(inn)) = (m.skin.as_mut(), src.skin.as_ref()) {
             let near = (0..3)

@@ -129,8 +129,8 @@ fn key(p: Vec3) -> [u32; 3] {
 }
 
 /// Distance under which two positions count as one, as a fraction of the mesh's diagonal (per
-/// axis; [`snap_near_twins`]): a thousandth of a 14-bit position step, and far above the `f32`
-/// rounding of a seam computed twice (1e-7 of the mesh on the critter).
+/// axis; [`snap_near_twins`]): under a thirtieth of a 14-bit position step, and ten times the
+/// `f32` rounding of a seam computed twice (1e-7 of the mesh on the critter).
 pub const SNAP: f32 = 1e-6;
 
 /// Moves each position within `SNAP · diagonal` (per axis) of another onto the first-occurring
