@@ -44,6 +44,12 @@ fn bake(input: &Path, dir: &Path, out: &str, args: &[&str]) -> (PathBuf, Value) 
     (glb, r)
 }
 
+/// Stage `name` of the first surface of a bake's report.
+fn stage<'r>(report: &'r Value, name: &str) -> &'r Value {
+    let stages = report["surfaces"][0]["stages"].as_array().unwrap();
+    stages.iter().find(|s| s["name"] == name).unwrap()
+}
+
 fn json_of(path: &Path) -> Value {
     Glb::parse(&std::fs::read(path).unwrap()).json
 }
@@ -1105,8 +1111,7 @@ fn fur_uvs_a_palette_layout_cannot_carry_become_a_box_projection() {
     let dir = scratch("asset-fur-uv");
     let input = palette_critter(&dir);
     let note = |report: &Value| -> String {
-        let stages = report["surfaces"][0]["stages"].as_array().unwrap();
-        let tiling = stages.iter().find(|s| s["name"] == "tiling").unwrap();
+        let tiling = stage(report, "tiling");
         tiling["note"].as_str().unwrap_or_default().to_string()
     };
     let (glb, report) = bake(&input, &dir, "auto.glb", &["--only", "material=fur_body"]);
@@ -1214,10 +1219,7 @@ fn thin_legs_take_fur_in_proportion_with_clamp_thin() {
     // 0.3 of the thickness (0.048), the legs' strands are shortened
     let dir = scratch("asset-thin");
     let input = common::fixture("critter.glb");
-    let clamp = |report: &Value| {
-        let stages = report["surfaces"][0]["stages"].as_array().unwrap();
-        stages.iter().find(|s| s["name"] == "clamp").unwrap()["counts"].clone()
-    };
+    let clamp = |report: &Value| stage(report, "clamp")["counts"].clone();
     let legs = ["--only", "material=paws", "--height", "0.08"];
     let (_, off) = bake(&input, &dir, "off.glb", &legs);
     let mut thin = legs.to_vec();
@@ -1388,17 +1390,9 @@ fn the_critters_seam_copies_extrude_together() {
     let dir = scratch("asset-seam");
     let input = critters(&dir, "critter.glb", Critters::default());
     let (glb, r) = bake(&input, &dir, "seam.glb", &["--only", "material=fur_body"]);
-    let stage = |name: &str| {
-        r["surfaces"][0]["stages"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .find(|s| s["name"] == name)
-            .unwrap()["counts"]
-            .clone()
-    };
-    assert!(stage("merge")["snapped_positions"].as_f64().unwrap() > 0.0);
-    assert_eq!(stage("clamp")["limited_by_inversion"], 0.0);
+    let counts = |name: &str| &stage(&r, name)["counts"];
+    assert!(counts("merge")["snapped_positions"].as_f64().unwrap() > 0.0);
+    assert_eq!(counts("clamp")["limited_by_inversion"], 0.0);
     // every fur vertex at one position (to the quantization) moves the same way
     let doc = Glb::parse(&std::fs::read(&glb).unwrap());
     let mesh = doc.json["meshes"]
