@@ -190,6 +190,9 @@ pub struct PartOf {
     /// Grafted into the asset ([`bake_asset`]); `false`: baked alone with a base layer in the
     /// fur's colours, as `verify` compares it with the runtime technique.
     pub graft: bool,
+    /// The rest weights of the part's shape keys when grafted (the mesh then carries their
+    /// deltas, [`crate::mesh::Mesh::morphs`]); empty otherwise.
+    pub shape_rest: Vec<f32>,
 }
 
 /// The scene that furs the chosen parts of `asset` (from [`input::asset::Asset::select`]): one
@@ -229,6 +232,14 @@ pub fn asset_scene(
         }
         let mut geometry = part.scene.clone();
         geometry.warnings.clear();
+        // the fur follows the shape keys only in the asset that has them
+        let shape_rest = match (&part.shape_keys, graft) {
+            (Some(keys), true) => keys.rest.clone(),
+            _ => {
+                geometry.meshes.iter_mut().for_each(|m| m.morphs.clear());
+                vec![]
+            }
+        };
         let maps = surface_maps(&s, &geometry)?;
         scene.surfaces.push(s);
         loaded.push(Loaded {
@@ -238,6 +249,7 @@ pub fn asset_scene(
             part: Some(PartOf {
                 paint: part.paint.clone(),
                 graft,
+                shape_rest,
             }),
         });
     }
@@ -397,7 +409,11 @@ fn load_parts(path: &Path, only: &[input::asset::Selector]) -> Result<Scene> {
     }
     for &i in &chosen {
         let part = &asset.parts[i];
-        scene.meshes.extend(part.scene.meshes.iter().cloned());
+        // a scene surface is no asset kept whole: no shape keys to follow
+        scene.meshes.extend(part.scene.meshes.iter().map(|m| Mesh {
+            morphs: vec![],
+            ..m.clone()
+        }));
         if scene.skeleton.is_none() {
             scene.skeleton = part.scene.skeleton.clone();
         }
@@ -710,7 +726,8 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
     } = prepared;
     let grafted = job.part.is_some_and(|p| p.graft);
     let parts = (&shape, &heights, &look, &chain);
-    let placing = (surface, scene, grafted);
+    let morph_rest = job.part.map_or(&[][..], |p| &p.shape_rest[..]);
+    let placing = (surface, scene, grafted, morph_rest);
     let surface_packed = pack_surface(&mut run, placing, parts, job.several, packed);
     let mut report = run.report;
     report.lods = (chain.levels.iter().zip(&surface_packed.lod_triangles))
@@ -1174,7 +1191,7 @@ fn cull_levels(
 /// Pack: the surface's streams, nodes and materials into `packed`.
 fn pack_surface(
     run: &mut Run,
-    (surface, scene, grafted): (&Surface, &Scene, bool),
+    (surface, scene, grafted, morph_rest): (&Surface, &Scene, bool, &[f32]),
     (shape, heights, look, chain): (&Shape, &Heights, &Look, &Levels),
     several: bool,
     packed: &mut Packed,
@@ -1228,6 +1245,7 @@ fn pack_surface(
         skeleton: scene.skeleton.as_ref(),
         fins: look.fins.as_ref(),
         outline: look.outline.as_ref(),
+        morph_rest,
         base: !grafted,
     };
     let params = &run.params.pack;

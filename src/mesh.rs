@@ -139,6 +139,11 @@ pub struct Mesh {
     pub indices: Vec<u32>,
     /// Each vertex's joints and weights, when the input is skinned ([`crate::stages::skin`]).
     pub skin: Option<VertexSkin>,
+    /// The `POSITION` deltas of an asset primitive's morph targets (its shape keys), one list
+    /// per target with one delta per vertex, in the frame of `positions` (world units, or the
+    /// skin's bind space): the fur's layers carry them as targets of their own, so they follow
+    /// the shape keys (`output/graft.rs`). Empty for every other input.
+    pub morphs: Vec<Vec<Vec3>>,
 }
 
 /// Per vertex, four joints of the surface's skin and their weights (summing to 1).
@@ -222,6 +227,7 @@ impl Mesh {
         assert_eq!(self.colors.is_some(), other.colors.is_some());
         assert_eq!(self.albedo.is_some(), other.albedo.is_some());
         assert_eq!(self.skin.is_some(), other.skin.is_some());
+        assert_eq!(self.morphs.len(), other.morphs.len());
         let base = self.positions.len() as u32;
         let shift = other.origin - self.origin;
         self.positions.extend(
@@ -245,6 +251,9 @@ impl Mesh {
         if let (Some(a), Some(b)) = (&mut self.skin, &other.skin) {
             a.joints.extend_from_slice(&b.joints);
             a.weights.extend_from_slice(&b.weights);
+        }
+        for (a, b) in self.morphs.iter_mut().zip(&other.morphs) {
+            a.extend_from_slice(b);
         }
         self.indices.extend(other.indices.iter().map(|i| i + base));
     }
@@ -271,6 +280,9 @@ impl Mesh {
         if let Some(s) = &mut self.skin {
             s.joints = pick(&s.joints, source);
             s.weights = pick(&s.weights, source);
+        }
+        for m in &mut self.morphs {
+            *m = pick(m, source);
         }
     }
 
@@ -333,6 +345,10 @@ impl Mesh {
             assert_eq!(s.joints.len(), self.positions.len(), "joint count");
             assert_eq!(s.weights.len(), self.positions.len(), "weight count");
         }
+        for m in &self.morphs {
+            assert_eq!(m.len(), self.positions.len(), "morph delta count");
+            assert!(m.iter().all(|d| d.is_finite()), "non-finite morph delta");
+        }
     }
 }
 
@@ -361,6 +377,9 @@ impl Scene {
         let all_normals = self.meshes.iter().all(|m| m.normals.is_some());
         let all_uvs = self.meshes.iter().all(|m| m.uvs.is_some());
         let any_colors = self.meshes.iter().any(|m| m.colors.is_some());
+        // shape keys only when every mesh has as many (an asset's part is one mesh)
+        let morphs = self.meshes.first().map_or(0, |m| m.morphs.len());
+        let same_morphs = self.meshes.iter().all(|m| m.morphs.len() == morphs);
         let mut out = Mesh::default();
         for m in &self.meshes {
             let mut m = m.clone();
@@ -372,6 +391,9 @@ impl Scene {
             }
             if any_colors && m.colors.is_none() {
                 m.colors = Some(vec![[255; 4]; m.vertex_count()]);
+            }
+            if !same_morphs {
+                m.morphs.clear();
             }
             if out.positions.is_empty() && out.indices.is_empty() {
                 out = m; // what `append` would copy

@@ -221,6 +221,10 @@ impl BakeParams {
             }
             _ => 1,
         };
+        // an asset part's shape keys: a target each over every vertex, as floats at worst
+        let shape_keys: u64 = (scene.meshes.iter())
+            .map(|m| m.morphs.len() as u64 * 3 * m.triangle_count() as u64 * 12)
+            .sum();
         crate::output::pack::estimate_bytes(
             3 * triangles,
             triangles,
@@ -228,7 +232,7 @@ impl BakeParams {
             self.strands.mask_size as u64,
             self.pack.layout,
             (self.lod.levels.max(1) as u64, chunks),
-        )
+        ) + shape_keys
     }
 
     /// World-unit shell height for a mesh with the given bounding-box diagonal.

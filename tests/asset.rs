@@ -55,7 +55,8 @@ fn json_of(path: &Path) -> Value {
 }
 
 /// The input's objects are in the output at the same indices and unchanged, but for where
-/// bytes live (buffer views) and the children the fur roots were added to.
+/// bytes live (buffer views), the children the fur roots were added to and the channels the
+/// fur's layers follow shape keys with.
 fn assert_kept(input: &Value, output: &Value) {
     for kind in [
         "scenes",
@@ -83,6 +84,16 @@ fn assert_kept(input: &Value, output: &Value) {
         );
         for (i, (x, y)) in a.iter().zip(b).enumerate() {
             let (mut x, mut y) = (x.clone(), y.clone());
+            if kind == "animations" {
+                // the fur's channels on a part's shape keys join the part's animations
+                for key in ["channels", "samplers"] {
+                    let old = x[key].as_array().cloned().unwrap_or_default();
+                    let new = y[key].as_array().cloned().unwrap_or_default();
+                    assert_eq!(&new[..old.len()], &old[..], "{kind} {i}: {key} changed");
+                    x.as_object_mut().unwrap().remove(key);
+                    y.as_object_mut().unwrap().remove(key);
+                }
+            }
             if kind == "nodes" || kind == "scenes" {
                 // fur roots are appended to their node's children, and skinned layer nodes to
                 // the scene's roots
@@ -1417,4 +1428,200 @@ fn the_critters_seam_copies_extrude_together() {
         assert_eq!(seen, e, "two extrusions at {q:?}");
     }
     assert!(extrusion.iter().all(|e| e != &[0, 0, 0]), "a bald vertex");
+}
+
+/// A UV sphere of radius 1 (`rings` × `segments`, the seam and poles as copies), with one
+/// shape key stretching it to an ellipsoid (y × 1.8, x and z × 0.7) and two clips on it: a
+/// `LINEAR` one from 0 to 1 over a second, and a `CUBICSPLINE` one from 0 to 0.5.
+fn shape_key_sphere(dir: &Path) -> (PathBuf, Value) {
+    let (rings, segments) = (16, 32);
+    let mut positions = Vec::new();
+    let mut uvs = Vec::new();
+    for r in 0..=rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for k in 0..=segments {
+            let phi = std::f32::consts::TAU * k as f32 / segments as f32;
+            positions.push([
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            ]);
+            uvs.push([k as f32 / segments as f32, r as f32 / rings as f32]);
+        }
+    }
+    let row = segments + 1;
+    let mut indices: Vec<u16> = Vec::new();
+    for r in 0..rings {
+        for k in 0..segments {
+            let (a, b) = ((r * row + k) as u16, ((r + 1) * row + k) as u16);
+            indices.extend_from_slice(&[a, a + 1, b, a + 1, b + 1, b]);
+        }
+    }
+    let deltas: Vec<[f32; 3]> = positions
+        .iter()
+        .map(|p| [-0.3 * p[0], 0.8 * p[1], -0.3 * p[2]])
+        .collect();
+    let floats =
+        |v: &[[f32; 3]]| -> Vec<u8> { v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect() };
+    let n = positions.len();
+    let mut bin = floats(&positions);
+    bin.extend(floats(&positions)); // a unit sphere's normals are its positions
+    bin.extend(uvs.iter().flatten().flat_map(|x| x.to_le_bytes()));
+    bin.extend(floats(&deltas));
+    let index_at = bin.len();
+    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let anim_at = bin.len();
+    // times [0, 1]; linear weights [0, 1]; cubic (in, value, out) per key: [0, 0, 1], [-1, 0.5, 0]
+    for v in [0.0f32, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0, -1.0, 0.5, 0.0] {
+        bin.extend(v.to_le_bytes());
+    }
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "name": "blob", "mesh": 0 }],
+        "meshes": [{
+            "name": "blob",
+            "primitives": [{
+                "attributes": { "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2 },
+                "targets": [{ "POSITION": 3 }],
+                "indices": 4,
+                "material": 0
+            }],
+            "weights": [0.0],
+            "extras": { "targetNames": ["stretch"] }
+        }],
+        "materials": [{ "name": "coat", "pbrMetallicRoughness": { "baseColorFactor": [0.8, 0.5, 0.2, 1.0] } }],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3", "min": [-1.0, -1.0, -1.0], "max": [1.0, 1.0, 1.0] },
+            { "bufferView": 1, "componentType": 5126, "count": n, "type": "VEC3" },
+            { "bufferView": 2, "componentType": 5126, "count": n, "type": "VEC2" },
+            { "bufferView": 3, "componentType": 5126, "count": n, "type": "VEC3", "min": [-0.3, -0.8, -0.3], "max": [0.3, 0.8, 0.3] },
+            { "bufferView": 4, "componentType": 5123, "count": indices.len(), "type": "SCALAR" },
+            { "bufferView": 5, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0] },
+            { "bufferView": 6, "componentType": 5126, "count": 2, "type": "SCALAR" },
+            { "bufferView": 7, "componentType": 5126, "count": 6, "type": "SCALAR" }
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": 12 * n },
+            { "buffer": 0, "byteOffset": 12 * n, "byteLength": 12 * n },
+            { "buffer": 0, "byteOffset": 24 * n, "byteLength": 8 * n },
+            { "buffer": 0, "byteOffset": 32 * n, "byteLength": 12 * n },
+            { "buffer": 0, "byteOffset": index_at, "byteLength": 2 * indices.len() },
+            { "buffer": 0, "byteOffset": anim_at, "byteLength": 8 },
+            { "buffer": 0, "byteOffset": anim_at + 8, "byteLength": 8 },
+            { "buffer": 0, "byteOffset": anim_at + 16, "byteLength": 24 }
+        ],
+        "animations": [
+            { "name": "stretch", "channels": [{ "sampler": 0, "target": { "node": 0, "path": "weights" } }],
+              "samplers": [{ "input": 5, "output": 6, "interpolation": "LINEAR" }] },
+            { "name": "ease", "channels": [{ "sampler": 0, "target": { "node": 0, "path": "weights" } }],
+              "samplers": [{ "input": 5, "output": 7, "interpolation": "CUBICSPLINE" }] }
+        ],
+        "buffers": [{ "byteLength": bin.len() }]
+    });
+    let input = dir.join("blob.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    (input, doc)
+}
+
+/// World boxes of the furred file's instances at `time`, morph weights applied: the input's
+/// node 0 (the base) and everything else (the fur).
+fn morphed_boxes(file: &Path, time: f32) -> [(glam::DVec3, glam::DVec3); 2] {
+    let mut asset = shellbake::view::glb::Asset::open(file).unwrap();
+    asset.time = Some(time);
+    let mut boxes = [(glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY); 2];
+    for inst in asset.instances(0).unwrap() {
+        for prim in &asset.meshes[inst.mesh].primitives {
+            let pos = asset.floats(prim.position).unwrap();
+            let targets: Vec<_> = prim
+                .targets
+                .iter()
+                .map(|&a| asset.floats(a).unwrap())
+                .collect();
+            let b = &mut boxes[(inst.node != 0) as usize];
+            for i in 0..pos.count() {
+                let mut p = glam::Vec3::from(pos.vec3(i));
+                for (t, d) in targets.iter().enumerate() {
+                    p += glam::Vec3::from(d.vec3(i)) * inst.weights.get(t).copied().unwrap_or(0.0);
+                }
+                let w = inst.world.transform_point3(p.as_dvec3());
+                (b.0, b.1) = (b.0.min(w), b.1.max(w));
+            }
+        }
+    }
+    boxes
+}
+
+#[test]
+fn the_fur_follows_the_asset_s_shape_keys() {
+    let dir = scratch("asset-shape-keys");
+    let (input, doc) = shape_key_sphere(&dir);
+    let (glb, report) = bake(&input, &dir, "blob-fur.glb", &[]);
+    assert_valid(std::slice::from_ref(&glb));
+    let after = json_of(&glb);
+    assert_kept(&doc, &after);
+    let height = report["surfaces"][0]["resolved"]["height"]
+        .as_f64()
+        .unwrap();
+    // every layer mesh carries the shape key after the extrusion, at its rest weight
+    let layers: Vec<usize> = (1..after["nodes"].as_array().unwrap().len())
+        .filter(|&n| after["nodes"][n]["weights"].is_array())
+        .collect();
+    assert!(layers.len() >= 31, "{} layer nodes", layers.len());
+    for &n in &layers {
+        let m = after["nodes"][n]["mesh"].as_u64().unwrap() as usize;
+        assert_eq!(
+            after["meshes"][m]["primitives"][0]["targets"]
+                .as_array()
+                .unwrap()
+                .len(),
+            2
+        );
+        assert_eq!(after["nodes"][n]["weights"][1], 0.0, "node {n}");
+    }
+    // both clips gain one channel per layer node; a key holds the layer's own weight and the
+    // clip's (cubic: the layer's tangents zero, the shape key's the clip's)
+    for (a, per_key) in [(0, 1), (1, 3)] {
+        let animation = &after["animations"][a];
+        let channels = animation["channels"].as_array().unwrap();
+        assert_eq!(channels.len(), 1 + layers.len(), "animation {a}");
+        let fur = shellbake::view::glb::Asset::open(&glb).unwrap();
+        let c = &channels[1];
+        let node = c["target"]["node"].as_u64().unwrap() as usize;
+        let t = after["nodes"][node]["weights"][0].as_f64().unwrap() as f32;
+        let sampler = &animation["samplers"][c["sampler"].as_u64().unwrap() as usize];
+        assert_eq!(sampler["input"], 5);
+        let out = fur
+            .floats(sampler["output"].as_u64().unwrap() as usize)
+            .unwrap();
+        let expected: Vec<f32> = match per_key {
+            1 => vec![t, 0.0, t, 1.0],
+            _ => vec![0.0, 0.0, t, 0.0, 0.0, 1.0, 0.0, -1.0, t, 0.5, 0.0, 0.0],
+        };
+        assert_eq!(out.data, expected, "animation {a}");
+    }
+    // in the viewer, at rest and stretched (the first clip's end; the second, played at the
+    // same time, ends at 0.5 and is taken after it), the fur's box holds the base's and
+    // reaches at most the fur's height past it
+    for (time, stretch) in [(0.0, 0.0), (0.999, 0.5)] {
+        let [base, fur] = morphed_boxes(&glb, time);
+        let y = 1.0 + 0.8 * stretch;
+        assert!(
+            (base.1.y - y).abs() < 0.01,
+            "t {time}: base reaches {}",
+            base.1.y
+        );
+        for k in 0..3 {
+            assert!(
+                fur.0[k] <= base.0[k] + 1e-3 && fur.1[k] >= base.1[k] - 1e-3,
+                "t {time}: fur {fur:?} base {base:?}"
+            );
+            assert!(
+                base.0[k] - fur.0[k] <= height * 1.01 && fur.1[k] - base.1[k] <= height * 1.01,
+                "t {time}: fur {fur:?} base {base:?}"
+            );
+        }
+    }
 }

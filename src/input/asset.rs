@@ -16,6 +16,10 @@
 //!   matching no part is an error listing the names the file has of that kind. Without
 //!   selectors every part is furred. Unnamed objects are matched as `node3`, `mesh2`,
 //!   `material0` (their index); a primitive without a material as `(none)`.
+//! - **Shape keys** ([`ShapeKeys`]): a primitive's morph targets are read as `POSITION` deltas
+//!   placed like its positions ([`Mesh::morphs`]), with the node's rest weights (its own, else
+//!   its mesh's, else zeros) and every animation channel on the node's `weights`, checked, so
+//!   the fur can follow them (`output/graft.rs`).
 //! - **Colour** ([`Paint`]): the base colour of the part's material — `baseColorFactor` × the
 //!   `baseColorTexture` (PNG or JPEG, sRGB decoded to linear, bilinear with the sampler's wrap
 //!   modes and the texture's `KHR_texture_transform`) × `COLOR_0` — at each strand root, the
@@ -29,8 +33,8 @@ use std::path::Path;
 use glam::{DMat4, Vec2, Vec3};
 use serde_json::Value;
 
-use super::document::Document;
-use super::gltf::{is_triangles, read_primitive};
+use super::document::{Document, Kind, Primitive};
+use super::gltf::{is_triangles, morph_deltas, read_primitive};
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, Scene};
 
@@ -151,6 +155,32 @@ pub struct Part {
     pub paint: Option<Paint>,
     /// The node carries shellbake fur already (a baked file read again).
     pub furred: bool,
+    /// The primitive's shape keys (its mesh's morph targets), when it has any: the fur's layers
+    /// carry their `POSITION` deltas ([`Mesh::morphs`]) and follow their weights.
+    pub shape_keys: Option<ShapeKeys>,
+}
+
+/// The morph weights of a part's node: at rest, and as its animations move them. The fur's
+/// layer nodes get the same, after their own weights (`output/graft.rs`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ShapeKeys {
+    /// The node's `weights`, else its mesh's, else zeros: one per target.
+    pub rest: Vec<f32>,
+    /// Every animation channel on the node's `weights`.
+    pub channels: Vec<WeightsChannel>,
+}
+
+/// One animation channel on a part's morph weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightsChannel {
+    /// The animation it belongs to (the fur's channels join it).
+    pub animation: usize,
+    /// The key times' accessor (shared with the fur's channels).
+    pub input: usize,
+    /// `LINEAR`, `STEP` or `CUBICSPLINE`.
+    pub interpolation: String,
+    /// Per key, one value per target (`CUBICSPLINE`: in-tangents, values, out-tangents).
+    pub values: Vec<f32>,
 }
 
 impl Part {
@@ -163,6 +193,85 @@ impl Part {
             self.names.node.clone()
         }
     }
+}
+
+/// The shape keys of `prim`, drawn by `node` with mesh `mesh`: the rest weights and every
+/// animation channel on the node's `weights`, checked (key count × targets values, finite).
+fn shape_keys(
+    doc: &Document,
+    buffers: &[Vec<u8>],
+    (node, mesh): (usize, usize),
+    prim: &Primitive,
+) -> Result<ShapeKeys> {
+    let targets = prim.targets.len();
+    let weights = |v: &Value| {
+        v.as_array()
+            .filter(|w| w.len() == targets)
+            .map(|w| w.iter().map(|x| x.as_f64().unwrap_or(0.0) as f32).collect())
+    };
+    let rest = weights(&doc.json["nodes"][node]["weights"])
+        .or_else(|| weights(&doc.json["meshes"][mesh]["weights"]))
+        .unwrap_or_else(|| vec![0.0; targets]);
+    let mut channels = Vec::new();
+    let empty = Vec::new();
+    let animations = doc.json["animations"].as_array().unwrap_or(&empty);
+    for (a, animation) in animations.iter().enumerate() {
+        let samplers = animation["samplers"].as_array().unwrap_or(&empty);
+        let on_node = (animation["channels"]
+            .as_array()
+            .unwrap_or(&empty)
+            .iter()
+            .enumerate())
+        .filter(|(_, c)| {
+            c["target"]["node"].as_u64() == Some(node as u64)
+                && c["target"]["path"].as_str() == Some("weights")
+        });
+        for (k, c) in on_node {
+            let element = format!("animation {a} channel {k}");
+            let sampler = c["sampler"].as_u64().and_then(|s| samplers.get(s as usize));
+            let (Some(input), Some(output)) = (
+                sampler.and_then(|s| s["input"].as_u64()),
+                sampler.and_then(|s| s["output"].as_u64()),
+            ) else {
+                return Err(Error::invalid(
+                    &doc.path,
+                    element,
+                    "its sampler lacks input or output",
+                ));
+            };
+            let (input, output) = (input as usize, output as usize);
+            let interpolation = sampler
+                .and_then(|s| s["interpolation"].as_str())
+                .unwrap_or("LINEAR")
+                .to_string();
+            let per_key = if interpolation == "CUBICSPLINE" { 3 } else { 1 };
+            let keys = doc.accessors[input].count;
+            let values: Vec<f32> = (doc.read_accessor(buffers, output, &element)?.into_iter())
+                .map(|v| v as f32)
+                .collect();
+            if doc.accessors[output].kind != Kind::Scalar
+                || values.len() != keys * targets * per_key
+                || values.iter().any(|v| !v.is_finite())
+            {
+                return Err(Error::invalid(
+                    &doc.path,
+                    element,
+                    format!(
+                        "morph weights must be {} finite scalars ({keys} keys × {targets} targets{})",
+                        keys * targets * per_key,
+                        if per_key == 3 { " × 3" } else { "" }
+                    ),
+                ));
+            }
+            channels.push(WeightsChannel {
+                animation: a,
+                input,
+                interpolation,
+                values,
+            });
+        }
+    }
+    Ok(ShapeKeys { rest, channels })
 }
 
 /// A glTF asset kept whole, and its parts.
@@ -267,6 +376,12 @@ impl Asset {
                     placed.world
                 };
                 let mut mesh = read_primitive(&doc, &element, prim, &buffers, (world, joints))?;
+                let nv = mesh.vertex_count();
+                mesh.morphs = morph_deltas(&doc, &element, prim, &buffers, (world, nv))?;
+                let shape_keys = match mesh.morphs.is_empty() {
+                    true => None,
+                    false => Some(shape_keys(&doc, &buffers, (placed.node, m), prim)?),
+                };
                 let has_area = mesh.indices.chunks_exact(3).any(|t| {
                     let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
                     crate::mesh::face_normal(a, b, c).1.is_normal()
@@ -299,6 +414,7 @@ impl Asset {
                     scene,
                     paint,
                     furred: furred.contains(&(placed.node, k)),
+                    shape_keys,
                 });
             }
         }

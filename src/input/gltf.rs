@@ -401,12 +401,72 @@ pub(super) fn read_primitive(
         albedo: None,
         indices,
         skin,
+        morphs: Vec::new(),
     };
     mesh.recentre();
     Ok(mesh)
 }
 
 /// A `VEC4` attribute `name` of `prim` with a component type among `types`.
+/// The `POSITION` deltas of each morph target of `prim` over its `nv` vertices, moved by the
+/// linear part of `world` like the positions (a target without `POSITION`, or whose accessor
+/// has no data, moves nothing). `element` names the primitive in errors.
+pub(super) fn morph_deltas(
+    doc: &Document,
+    element: &str,
+    prim: &Primitive,
+    buffers: &[Vec<u8>],
+    (world, nv): (DMat4, usize),
+) -> Result<Vec<Vec<Vec3>>> {
+    let linear = DMat3::from_mat4(world);
+    let mut morphs = Vec::with_capacity(prim.targets.len());
+    for (t, target) in prim.targets.iter().enumerate() {
+        let element = format!("{element} target {t}");
+        let Some(&(_, a)) = target.iter().find(|(n, _)| n == "POSITION") else {
+            morphs.push(vec![Vec3::ZERO; nv]);
+            continue;
+        };
+        let acc = &doc.accessors[a];
+        if acc.kind != Kind::Vec3 || !ATTRIBUTE_TYPES.contains(&acc.component_type) {
+            return Err(Error::invalid(
+                &doc.path,
+                format!("{element}: accessor {a}"),
+                format!(
+                    "POSITION deltas as {} of {} are not glTF's (VEC3 of float, or of \
+                     integers as KHR_mesh_quantization allows)",
+                    acc.kind.name(),
+                    component_name(acc.component_type)
+                ),
+            ));
+        }
+        if acc.count != nv {
+            return Err(Error::invalid(
+                &doc.path,
+                format!("{element}: accessor {a}"),
+                format!("{} POSITION deltas for {nv} vertices", acc.count),
+            ));
+        }
+        let values = match acc.buffer_view.is_some() || acc.sparse {
+            true => doc.read_accessor(buffers, a, &element)?,
+            false => vec![0.0; 3 * nv],
+        };
+        let mut deltas = Vec::with_capacity(nv);
+        for (v, d) in values.chunks_exact(3).enumerate() {
+            let d = linear * DVec3::new(d[0], d[1], d[2]);
+            if !d.is_finite() {
+                return Err(Error::invalid(
+                    &doc.path,
+                    format!("{element}: accessor {a}"),
+                    format!("vertex {v}'s POSITION delta is not finite"),
+                ));
+            }
+            deltas.push(d.as_vec3());
+        }
+        morphs.push(deltas);
+    }
+    Ok(morphs)
+}
+
 fn attribute_of(
     doc: &Document,
     element: &str,

@@ -226,6 +226,7 @@ fn object_mesh(path: &Path, k: usize, object: &Object) -> Result<(Mesh, usize)> 
         albedo: None,
         indices: triangulate(world, &object.corners, &object.arities, &mut fanned),
         skin: None,
+        morphs: Vec::new(),
     };
     if mesh
         .uvs

@@ -27,6 +27,13 @@
 //!   true bounds from the positions. Each fur root's (and each skinned layer node's)
 //!   `extras.shellbake_fur` names the node, mesh and primitive it grows on; a file read again
 //!   skips those parts (no fur on fur).
+//!   A part with shape keys (morph targets) has its layers carry the keys' deltas after their
+//!   own targets (`pack`), and each animation channel on the part's morph weights gets a twin on
+//!   every layer node of the part's fur, in the same animation and keyed at the same times: the
+//!   node's own weights with the keys' replaced by the channel's (`follow_shape_keys`). The
+//!   single-draw layout does not carry them (a warning says so), and a wind clip on the same
+//!   nodes holds the keys at rest while the asset's clips hold the wind at rest (a warning too:
+//!   glTF lets one animation at a time set a node's weights).
 //!   The fur's coarser levels are the roots of a scene of their own, as in a plain bake
 //!   (`write.rs`, "Where the coarser levels live"), and the file's `scene` names the default.
 //! - **Extensions**: `extensionsUsed` and `extensionsRequired` are the union of both files'
@@ -154,6 +161,117 @@ impl Placing<'_> {
         add_to_scene(out, self.scene, roots);
     }
 
+    /// Makes the layer nodes of surface `s` follow the shape keys of part `p`, whose targets
+    /// their meshes carry from [`PackedSurface::shape_keys_at`] on: every animation channel on
+    /// the part's morph weights gets a twin in its animation for each layer node, keyed at the
+    /// same times (the same input accessor), whose values are the node's own weights with the
+    /// shape keys' replaced by the channel's (a `CUBICSPLINE` channel's tangents are zero for
+    /// the node's own). The outputs are written into `bin`. Returns what the fur cannot follow.
+    ///
+    /// [`PackedSurface::shape_keys_at`]: crate::output::pack::PackedSurface::shape_keys_at
+    fn follow_shape_keys(
+        &self,
+        out: &mut Value,
+        bin: &mut Vec<u8>,
+        s: usize,
+        p: usize,
+    ) -> Vec<String> {
+        let (packed, base) = (self.packed, self.base);
+        let part = &self.asset.parts[p];
+        let Some(keys) = &part.shape_keys else {
+            return vec![];
+        };
+        let node_name = crate::input::escape(&part.names.node);
+        let Some(at) = packed.surfaces[s].shape_keys_at else {
+            return vec![format!(
+                "node '{node_name}' has shape keys, which the single-draw layout's fur does not \
+                 follow (the compact layout's does)"
+            )];
+        };
+        let k = keys.rest.len();
+        // the surface's layer nodes (every level): their weights, own and the shape keys'
+        let layers: Vec<(usize, &[f32])> = (packed.nodes.iter().enumerate())
+            .filter(|(_, n)| n.tag.surface == s)
+            .filter_map(|(i, n)| {
+                let mesh = &packed.meshes[n.mesh?];
+                let rest = if n.weights.is_empty() {
+                    &mesh.weights
+                } else {
+                    &n.weights
+                };
+                (rest.len() >= at + k).then_some((i, &rest[..]))
+            })
+            .collect();
+        for c in &keys.channels {
+            let per_key = if c.interpolation == "CUBICSPLINE" {
+                3
+            } else {
+                1
+            };
+            let entries = c.values.len() / k.max(1);
+            for &(n, rest) in &layers {
+                let mut values = Vec::with_capacity(entries * rest.len());
+                for e in 0..entries {
+                    let tangent = per_key == 3 && e % 3 != 1;
+                    values.extend(rest.iter().enumerate().map(|(i, &w)| match i {
+                        i if (at..at + k).contains(&i) => c.values[e * k + i - at],
+                        _ if tangent => 0.0,
+                        _ => w,
+                    }));
+                }
+                align(bin);
+                let offset = bin.len();
+                bin.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+                let view = push_one(
+                    out,
+                    "bufferViews",
+                    json!({
+                        "buffer": 0,
+                        "byteOffset": offset,
+                        "byteLength": 4 * values.len(),
+                        "name": "shape_key_weights",
+                    }),
+                );
+                let accessor = push_one(
+                    out,
+                    "accessors",
+                    json!({
+                        "bufferView": view,
+                        "componentType": 5126,
+                        "count": values.len(),
+                        "type": "SCALAR",
+                    }),
+                );
+                let animation = &mut out["animations"][c.animation];
+                let sampler = push_one(
+                    animation,
+                    "samplers",
+                    json!({
+                        "input": c.input,
+                        "output": accessor,
+                        "interpolation": c.interpolation,
+                    }),
+                );
+                push_one(
+                    animation,
+                    "channels",
+                    json!({
+                        "sampler": sampler,
+                        "target": { "node": base.nodes + n, "path": "weights" },
+                    }),
+                );
+            }
+        }
+        let windy = layers.iter().any(|(_, rest)| rest.len() > at + k);
+        match windy && !keys.channels.is_empty() {
+            true => vec![format!(
+                "node '{node_name}': the wind's clip and the asset's clips on its shape keys both \
+                 set the fur's layer weights, each holding the other's at rest: play one at a time"
+            )],
+            false => vec![],
+        }
+    }
+
     /// Makes the root of surface `s` a child of part `p`'s node, its transform the
     /// dequantization relative to the node; a transform that is no TRS leaves the root in the
     /// scene where it was baked, with the warning returned.
@@ -228,6 +346,7 @@ pub fn graft(
     let mut warnings = Vec::new();
     for (s, &p) in parts.iter().enumerate() {
         warnings.extend(placing.attach(&mut out, s, p));
+        warnings.extend(placing.follow_shape_keys(&mut out, &mut bin, s, p));
     }
     add_lod_scene(&mut out, packed, base, placing.scene);
     merge_extensions(&mut out, fur_json);
@@ -240,6 +359,19 @@ pub fn graft(
         json: out,
         warnings,
     })
+}
+
+/// Appends `item` to the array `kind` of `v` (made when missing); returns its index.
+fn push_one(v: &mut Value, kind: &str, item: Value) -> usize {
+    let list = v
+        .as_object_mut()
+        .expect("an object")
+        .entry(kind)
+        .or_insert_with(|| json!([]))
+        .as_array_mut()
+        .expect("a list");
+    list.push(item);
+    list.len() - 1
 }
 
 fn align(bin: &mut Vec<u8>) {

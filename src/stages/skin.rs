@@ -141,57 +141,76 @@ pub struct Channel {
     pub values: Vec<f32>,
 }
 
+/// A track of `n` components per key (`times`, and `values` per key: three times as many for
+/// `CUBICSPLINE`, in-tangent, value, out-tangent) at `time`, clamped to the keys: glTF's
+/// `STEP`, `LINEAR` (slerped when `rotation`, not normalised) or `CUBICSPLINE` (Appendix C:
+/// Hermite with tangents scaled by the key interval). Node channels and morph weights alike.
+pub fn sample(
+    interpolation: Interpolation,
+    (times, values): (&[f32], &[f32]),
+    n: usize,
+    time: f32,
+    rotation: bool,
+) -> Vec<f32> {
+    let cubic = interpolation == Interpolation::CubicSpline;
+    let stride = if cubic { 3 * n } else { n };
+    let value = |k: usize| {
+        let o = k * stride + if cubic { n } else { 0 };
+        &values[o..o + n]
+    };
+    let keys = times.len();
+    match times.iter().position(|&t| t > time) {
+        _ if keys == 0 => vec![0.0; n],
+        None => value(keys - 1).to_vec(),
+        Some(0) => value(0).to_vec(),
+        Some(k) => {
+            let (t0, t1) = (times[k - 1], times[k]);
+            let dt = t1 - t0;
+            let f = if dt > 0.0 { (time - t0) / dt } else { 0.0 };
+            match interpolation {
+                Interpolation::Step => value(k - 1).to_vec(),
+                Interpolation::Linear if rotation => {
+                    let q = |v: &[f32]| {
+                        DQuat::from_xyzw(v[0] as f64, v[1] as f64, v[2] as f64, v[3] as f64)
+                    };
+                    let r = q(value(k - 1)).slerp(q(value(k)), f as f64);
+                    r.to_array().map(|x| x as f32).to_vec()
+                }
+                Interpolation::Linear => value(k - 1)
+                    .iter()
+                    .zip(value(k))
+                    .map(|(&a, &b)| a + (b - a) * f)
+                    .collect(),
+                Interpolation::CubicSpline => {
+                    let (f2, f3) = (f * f, f * f * f);
+                    let out_tangent = &values[(k - 1) * stride + 2 * n..][..n];
+                    let in_tangent = &values[k * stride..][..n];
+                    (0..n)
+                        .map(|c| {
+                            (2.0 * f3 - 3.0 * f2 + 1.0) * value(k - 1)[c]
+                                + (f3 - 2.0 * f2 + f) * dt * out_tangent[c]
+                                + (-2.0 * f3 + 3.0 * f2) * value(k)[c]
+                                + (f3 - f2) * dt * in_tangent[c]
+                        })
+                        .collect()
+                }
+            }
+        }
+    }
+}
+
 impl Channel {
     /// The value at `time`, clamped to the keys. Rotations are slerped (and normalised).
     pub fn at(&self, time: f32) -> Vec<f32> {
-        let n = self.path.components();
-        let cubic = self.interpolation == Interpolation::CubicSpline;
-        let stride = if cubic { 3 * n } else { n };
-        let value = |k: usize| {
-            let o = k * stride + if cubic { n } else { 0 };
-            &self.values[o..o + n]
-        };
-        let keys = self.times.len();
-        let next = self.times.iter().position(|&t| t > time);
-        let out = match next {
-            _ if keys == 0 => return vec![0.0; n],
-            None => value(keys - 1).to_vec(),
-            Some(0) => value(0).to_vec(),
-            Some(k) => {
-                let (t0, t1) = (self.times[k - 1], self.times[k]);
-                let dt = t1 - t0;
-                let f = if dt > 0.0 { (time - t0) / dt } else { 0.0 };
-                match self.interpolation {
-                    Interpolation::Step => value(k - 1).to_vec(),
-                    Interpolation::Linear if self.path == Path::Rotation => {
-                        let q = |v: &[f32]| {
-                            DQuat::from_xyzw(v[0] as f64, v[1] as f64, v[2] as f64, v[3] as f64)
-                        };
-                        let r = q(value(k - 1)).slerp(q(value(k)), f as f64);
-                        r.to_array().map(|x| x as f32).to_vec()
-                    }
-                    Interpolation::Linear => value(k - 1)
-                        .iter()
-                        .zip(value(k))
-                        .map(|(&a, &b)| a + (b - a) * f)
-                        .collect(),
-                    Interpolation::CubicSpline => {
-                        // glTF Appendix C: Hermite with tangents scaled by the key interval
-                        let (f2, f3) = (f * f, f * f * f);
-                        let out_tangent = &self.values[(k - 1) * stride + 2 * n..][..n];
-                        let in_tangent = &self.values[k * stride..][..n];
-                        (0..n)
-                            .map(|c| {
-                                (2.0 * f3 - 3.0 * f2 + 1.0) * value(k - 1)[c]
-                                    + (f3 - 2.0 * f2 + f) * dt * out_tangent[c]
-                                    + (-2.0 * f3 + 3.0 * f2) * value(k)[c]
-                                    + (f3 - f2) * dt * in_tangent[c]
-                            })
-                            .collect()
-                    }
-                }
-            }
-        };
+        let rotation = self.path == Path::Rotation;
+        let keys = (&self.times[..], &self.values[..]);
+        let out = sample(
+            self.interpolation,
+            keys,
+            self.path.components(),
+            time,
+            rotation,
+        );
         if self.path == Path::Rotation {
             let q = DQuat::from_xyzw(out[0] as f64, out[1] as f64, out[2] as f64, out[3] as f64);
             return q.normalize().to_array().map(|x| x as f32).to_vec();

@@ -25,8 +25,8 @@
 //! order (by the weld's position ids), so the two sides of a UV seam or hard edge compute bit-identical points
 //! and the weld joins them again. Interior points belong to one triangle.
 //!
-//! **Attributes.** Texture coordinates, normals (renormalised) and colours are interpolated
-//! barycentrically from the triangle's own corners; a skinned vertex takes the influences of
+//! **Attributes.** Texture coordinates, normals (renormalised), colours and shape-key deltas
+//! (`morphs`) are interpolated barycentrically from the triangle's own corners; a skinned vertex takes the influences of
 //! its nearest corner (joint sets do not interpolate). The fur colour of an asset's part
 //! (`albedo`) is sampled again from the part's [`Paint`] at each new vertex's texture
 //! coordinates and colour, when the caller passes it (the fur follows the asset's own UVs):
@@ -240,6 +240,9 @@ impl<'a> Subdivision<'a> {
                 .expect("three corners");
             out.joints.push(inn.joints[at(c[near])]);
             out.weights.push(inn.weights[at(c[near])]);
+        }
+        for (out, inn) in m.morphs.iter_mut().zip(&src.morphs) {
+            out.push(inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2]);
         }
         id
     }

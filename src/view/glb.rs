@@ -24,7 +24,8 @@
 //!   `LINEAR_MIPMAP_LINEAR`, as three.js does) and wrap modes.
 //! - **Morph targets**: `POSITION` deltas, at most [`MAX_MORPH_TARGETS`] per primitive, and one
 //!   `COLOR_0` delta (shellbake's occlusion puts one in the extrusion target).
-//! - **Animations** of morph `weights` (`LINEAR` or `STEP`; other paths are ignored): with a
+//! - **Animations** of morph `weights` (`STEP`, `LINEAR` or `CUBICSPLINE`, evaluated as node
+//!   channels are, `stages::skin::sample`; other paths are ignored here): with a
 //!   time set ([`Asset::time`]) each node's weights are its channel's value then, every
 //!   animation looping over its own length, as a player that plays them all would show.
 //! - **`KHR_materials_sheen`** factors (colour, roughness).
@@ -43,9 +44,10 @@ use glam::{DMat4, DVec3};
 use serde_json::Value;
 
 use crate::input::document::{self, Document, Kind};
+use crate::stages::skin::Interpolation;
 
 /// Morph targets per primitive the vertex shader supports.
-pub const MAX_MORPH_TARGETS: usize = 4;
+pub const MAX_MORPH_TARGETS: usize = 8;
 
 /// The name errors give a document parsed from bytes in memory.
 const IN_MEMORY: &str = "GLB in memory";
@@ -277,34 +279,21 @@ pub struct WeightTrack {
     pub node: usize,
     /// Keyframe times, seconds.
     pub times: Vec<f32>,
-    /// Every target's weight per key.
+    /// Every target's weight per key (`CUBICSPLINE`: in-tangents, weights, out-tangents).
     pub values: Vec<f32>,
-    /// `STEP` instead of `LINEAR`.
-    pub step: bool,
+    pub interpolation: Interpolation,
 }
 
 impl WeightTrack {
     /// The weights at `time` (within the keys; clamped at either end).
     pub fn at(&self, time: f32) -> Vec<f32> {
-        let keys = self.times.len();
-        let n = self.values.len() / keys.max(1);
-        let row = |k: usize| &self.values[k * n..(k + 1) * n];
-        let Some(next) = self.times.iter().position(|&t| t > time) else {
-            return row(keys.saturating_sub(1)).to_vec();
+        let per_key = self.values.len() / self.times.len().max(1);
+        let n = match self.interpolation {
+            Interpolation::CubicSpline => per_key / 3,
+            _ => per_key,
         };
-        if next == 0 {
-            return row(0).to_vec();
-        }
-        let (t0, t1) = (self.times[next - 1], self.times[next]);
-        if self.step || t1 <= t0 {
-            return row(next - 1).to_vec();
-        }
-        let f = (time - t0) / (t1 - t0);
-        row(next - 1)
-            .iter()
-            .zip(row(next))
-            .map(|(&a, &b)| a + (b - a) * f)
-            .collect()
+        let keys = (&self.times[..], &self.values[..]);
+        crate::stages::skin::sample(self.interpolation, keys, n, time, false)
     }
 }
 
@@ -488,7 +477,21 @@ impl Asset {
                 };
                 let times = self.floats(input)?.data;
                 let values = self.floats(output)?.data;
-                if times.is_empty() || values.len() % times.len() != 0 {
+                let name = sampler["interpolation"].as_str().unwrap_or("LINEAR");
+                let Some(interpolation) = Interpolation::from_name(name) else {
+                    return Err(self.invalid(
+                        format!("animation {i} sampler {s}"),
+                        format!(
+                            "interpolation '{}' is not glTF's",
+                            crate::input::escape(name)
+                        ),
+                    ));
+                };
+                let per_key = match interpolation {
+                    Interpolation::CubicSpline => 3,
+                    _ => 1,
+                };
+                if times.is_empty() || values.len() % (per_key * times.len()) != 0 {
                     return Err(self.invalid(
                         format!("animation {i} sampler {s}"),
                         format!(
@@ -502,7 +505,7 @@ impl Asset {
                     node,
                     times,
                     values,
-                    step: sampler["interpolation"].as_str() == Some("STEP"),
+                    interpolation,
                 });
             }
             out.push(tracks);

@@ -4,7 +4,8 @@
 //! ## Resources
 //! Every accessor is decoded to `f32` and uploaded once, keyed by accessor index, so the compact
 //! layout's layers (one mesh per layer, all sharing one POSITION/NORMAL/TEXCOORD_0/delta/index
-//! set) cost one upload. Per draw, a 256-byte slot of one uniform buffer (bound with a dynamic offset)
+//! set) cost one upload. Per draw, a slot of one uniform buffer (bound with a dynamic offset,
+//! 512 bytes: the data rounded up to the 256-byte offset alignment every device allows)
 //! holds the model and normal matrices, the material factors, the `KHR_texture_transform` rows
 //! and the morph weights; per material, a bind group holds its base colour texture (`*Srgb`, so
 //! the sampler returns linear colour and untouched alpha) and sampler, or a 1×1 white texture.
@@ -45,10 +46,11 @@ use glam::{DMat3, DMat4, DVec3};
 use wgpu::util::DeviceExt as _;
 
 use super::camera::{Camera, Sphere};
-use super::glb::{AlphaMode, Asset, Material, MipFilter, SamplerDesc, Wrap};
+use super::glb::{AlphaMode, Asset, Material, MipFilter, SamplerDesc, Wrap, MAX_MORPH_TARGETS};
 use super::gpu::{self, Frame, Gpu, Light, Result};
 
-const DRAW_SLOT: u64 = 256;
+/// Bytes of one draw's uniform slot: its data, at an offset every device can bind.
+const DRAW_SLOT: u64 = (std::mem::size_of::<DrawData>() as u64).next_multiple_of(256);
 const WGSL: &str = include_str!("gltf.wgsl");
 
 #[repr(C)]
@@ -59,13 +61,23 @@ struct DrawData {
     base_color: [f32; 4],
     uv_row0: [f32; 4],
     uv_row1: [f32; 4],
-    weights: [f32; 4],
+    weights: [f32; MAX_MORPH_TARGETS],
     material: [f32; 4],
     emissive: [f32; 4],
     /// `KHR_materials_sheen` colour and roughness (zero: none).
     sheen: [f32; 4],
     /// x: the weight of the `COLOR_0` morph target.
     color_weight: [f32; 4],
+}
+
+/// The shader location of morph target `t`: 4–7 for the first four, 11–14 for the rest (8 holds
+/// the `COLOR_0` target, 9 and 10 the skin).
+fn target_location(t: usize) -> u32 {
+    if t < 4 {
+        4 + t as u32
+    } else {
+        7 + t as u32
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -90,7 +102,7 @@ enum Class {
 
 struct DrawCall {
     world: DMat4,
-    weights: [f32; 4],
+    weights: [f32; MAX_MORPH_TARGETS],
     color_weight: f32,
     material: Material,
     material_group: usize,
@@ -571,7 +583,7 @@ impl GltfRenderer {
                     }
                     (None, None) => vertices as u32,
                 };
-                let mut weights = [0.0; 4];
+                let mut weights = [0.0; MAX_MORPH_TARGETS];
                 for (i, w) in weights.iter_mut().enumerate().take(prim.targets.len()) {
                     *w = inst.weights.get(i).copied().unwrap_or(0.0);
                 }
@@ -730,8 +742,10 @@ impl GltfRenderer {
                     inputs.push_str("    @location(3) color: vec4<f32>,\n");
                 }
                 for t in 0..key.targets {
-                    inputs.push_str(&format!("    @location({}) target{t}: vec3<f32>,\n", 4 + t));
-                    morph.push_str(&format!("    p += in.target{t} * draw.weights[{t}];\n"));
+                    let at = target_location(t);
+                    inputs.push_str(&format!("    @location({at}) target{t}: vec3<f32>,\n"));
+                    let (row, k) = (t / 4, t % 4);
+                    morph.push_str(&format!("    p += in.target{t} * draw.weights[{row}][{k}];\n"));
                 }
                 let color = match (key.color, key.color_target) {
                     (true, Some(_)) => {
@@ -785,7 +799,7 @@ impl GltfRenderer {
                 v.push([wgpu::VertexAttribute {
                     format: wgpu::VertexFormat::Float32x3,
                     offset: 0,
-                    shader_location: 4 + t as u32,
+                    shader_location: target_location(t),
                 }]);
             }
             v

@@ -9,7 +9,8 @@ struct Draw {
     base_color: vec4<f32>,
     uv_row0: vec4<f32>,
     uv_row1: vec4<f32>,
-    weights: vec4<f32>,
+    // morph target weights, four to a row
+    weights: array<vec4<f32>, 2>,
     // metallic, roughness, alpha cutoff, alpha mode (0 OPAQUE, 1 MASK, 2 BLEND)
     material: vec4<f32>,
     // emissive rgb, w = 1 when the primitive has no NORMAL (flat shading)

@@ -30,6 +30,10 @@
 //!   layer (`a_j <= 1`) and every texel, whose alpha is at least `BASE_CODE/255`, passes the base
 //!   layer (`a_0 = 1`): the base stays opaque. Indices run from the inner to the outer layer.
 //!
+//! The compact layout's layer targets are, in order: the extrusion (with the occlusion's
+//! `COLOR_0` delta), the `gravity` bend, an asset part's shape keys ([`PackInput::morph_rest`];
+//! the graft animates them) and the `wind`'s two (last, as its channel expects).
+//!
 //! Morph targets (the extrusion delta, and the bend and sway of the effects) are normalized
 //! `i16` in the stored position unit: whole position steps, within half a step of the exact
 //! value like the positions they move, with layer weights `t_j` in [0, 1] and the targets' true
@@ -258,6 +262,10 @@ pub struct PackInput<'a> {
     pub fins: Option<&'a crate::effects::fins::Fins>,
     /// The `outline` effect's hull (a mesh under the root).
     pub outline: Option<&'a crate::effects::outline::Outline>,
+    /// The rest weights of `mesh.morphs` (an asset part's shape keys; empty without): the
+    /// compact layout's layers carry the shape keys as targets after the extrusion and bend,
+    /// at these weights (DESIGN §10: the fur follows them; the graft animates them).
+    pub morph_rest: &'a [f32],
     /// Whether the surface draws its own base layer. `false` for a part of an asset kept whole
     /// (DESIGN §10): the asset's primitive is the base, so no base layer and no bare level are
     /// written, and a skinned surface writes no skeleton of its own (its layer nodes share the
@@ -298,6 +306,11 @@ struct Geometry<'a> {
     albedo: Option<&'a [Vec3]>,
     /// Joints and weights per vertex, and the skin's joint count.
     skin: Option<(&'a crate::mesh::VertexSkin, usize)>,
+    /// The compact layout's shape-key targets in the stored unit, each with how it is stored:
+    /// whole steps like the extrusion, or floats where a delta leaves the `i16` range.
+    morphs: Vec<(Vec<Vec3>, Targets)>,
+    /// Their rest weights ([`PackInput::morph_rest`]).
+    morph_rest: &'a [f32],
 }
 
 impl Geometry<'_> {
@@ -763,6 +776,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         bent_less: stack.bent_less,
         fin_bytes: extras.fin_bytes,
         outline_bytes: extras.outline_bytes,
+        shape_keys_at: (!geometry.morphs.is_empty()).then(|| 1 + geometry.bends.is_some() as usize),
     };
     out.surfaces.push(surface.clone());
     surface
@@ -1024,6 +1038,12 @@ fn geometry<'a>(
     let texel_error =
         (uv_grid.extent * tiles * input.levels[0].mask.size as f32 / 65535.0).max_element();
     let skin = (mesh.skin.as_ref()).zip(input.skeleton.map(|k| k.joints.len()));
+    let morphs = match params.layout {
+        Layout::Compact => (mesh.morphs.iter())
+            .map(|m| shape_key_target(m, &grid, params.quantize))
+            .collect(),
+        Layout::SingleDraw => vec![],
+    };
     Geometry {
         grid,
         exact,
@@ -1045,7 +1065,30 @@ fn geometry<'a>(
         fur_weight: input.fur_weight,
         albedo: mesh.albedo.as_deref(),
         skin,
+        morphs,
+        morph_rest: input.morph_rest,
     }
+}
+
+/// A shape key's deltas (world units) in the stored unit, and how they are stored: whole
+/// position steps as the extrusion is, unless one leaves the `i16` range (a key moving a vertex
+/// further than the grid spans), which is then stored as floats in the same unit.
+fn shape_key_target(
+    deltas: &[Vec3],
+    grid: &PositionGrid,
+    quantize: Quantize,
+) -> (Vec<Vec3>, Targets) {
+    let (unit, _) = stored_unit(grid, quantize);
+    let exact = quantize == Quantize::None;
+    let values: Vec<Vec3> = deltas.iter().map(|&d| d / grid.step / unit).collect();
+    let fits = values
+        .iter()
+        .all(|v| (*v * SNORM16).abs().max_element() <= SNORM16);
+    let stored = if fits { targets(exact) } else { Targets::Exact };
+    (
+        values.into_iter().map(|v| stored.round(v)).collect(),
+        stored,
+    )
 }
 
 /// The mask's texture transform: none when the tiling is in float coordinates; the tiles per
@@ -1659,6 +1702,8 @@ struct ShellStreams {
     color: Option<usize>,
     /// The occlusion's `COLOR_0` delta in the extrusion target (shade 1 at `t` = 1).
     color_delta: Option<usize>,
+    /// The shape keys' targets ([`Geometry::morphs`]).
+    morphs: Vec<usize>,
 }
 
 impl Shared {
@@ -1713,8 +1758,13 @@ impl ShellStreams {
             .bends
             .as_ref()
             .map(|v| b.deltas(&pick(v), "bend", 1, stored));
+        // the shape keys' targets follow the bend, the wind's come last (see `compact_layer`)
+        let first = 1 + bend.is_some() as usize;
+        let morphs: Vec<usize> = (g.morphs.iter().enumerate())
+            .map(|(k, (m, stored))| b.deltas(&pick(m), "shape_key", first + k, *stored))
+            .collect();
         let wind = g.winds.as_ref().map(|[sin, cos]| {
-            let first = 1 + bend.is_some() as usize;
+            let first = first + morphs.len();
             [
                 b.deltas(&pick(sin), "wind_sin", first, stored),
                 b.deltas(&pick(cos), "wind_cos", first + 1, stored),
@@ -1729,6 +1779,7 @@ impl ShellStreams {
             wind,
             color,
             color_delta,
+            morphs,
         }
     }
 }
@@ -2321,6 +2372,8 @@ fn compact_layer(
             extrusion.extend(shells.color_delta.map(|c| (Semantic::Color(0), c)));
             let mut t = vec![extrusion];
             t.extend(shells.bend.map(|b| vec![(Semantic::Position, b)]));
+            // the shape keys before the wind, whose channel takes the last two targets
+            t.extend(shells.morphs.iter().map(|&m| vec![(Semantic::Position, m)]));
             for w in shells.wind.into_iter().flatten() {
                 t.push(vec![(Semantic::Position, w)]);
             }
@@ -2344,6 +2397,12 @@ fn compact_layer(
                 (false, bend) => {
                     let mut w = vec![l.t];
                     w.extend(bend.map(|b| b.weight(l.t)));
+                    if !shells.morphs.is_empty() {
+                        let rest = ctx.geometry.morph_rest;
+                        w.extend(
+                            (0..shells.morphs.len()).map(|k| rest.get(k).copied().unwrap_or(0.0)),
+                        );
+                    }
                     // the wind at rest (the animation moves it)
                     w.extend(shells.wind.map_or(&[][..], |_| &[0.0, 0.0]));
                     w

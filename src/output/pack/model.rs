@@ -312,6 +312,9 @@ pub struct PackedSurface {
     /// and of the `outline` effect's, before compression.
     pub fin_bytes: usize,
     pub outline_bytes: usize,
+    /// Where the shape keys of an asset's part start among each layer mesh's targets (after
+    /// the extrusion and the bend), when its layers carry them; the graft animates them there.
+    pub shape_keys_at: Option<usize>,
 }
 
 impl PackedSurface {
