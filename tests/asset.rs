@@ -1431,8 +1431,9 @@ fn the_critters_seam_copies_extrude_together() {
 }
 
 /// A UV sphere of radius 1 (`rings` × `segments`, the seam and poles as copies), with one
-/// shape key stretching it to an ellipsoid (y × 1.8, x and z × 0.7) and two clips on it: a
-/// `LINEAR` one from 0 to 1 over a second, and a `CUBICSPLINE` one from 0 to 0.5.
+/// shape key stretching it to an ellipsoid (y × 1.8, x and z × 0.7), a sparse accessor without
+/// a buffer view as Blender writes one, and two clips on it: a `LINEAR` one from 0 to 1 over a
+/// second, and a `CUBICSPLINE` one from 0 to 0.5.
 fn shape_key_sphere(dir: &Path) -> (PathBuf, Value) {
     let (rings, segments) = (16, 32);
     let mut positions = Vec::new();
@@ -1476,6 +1477,10 @@ fn shape_key_sphere(dir: &Path) -> (PathBuf, Value) {
     for v in [0.0f32, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0, -1.0, 0.5, 0.0] {
         bin.extend(v.to_le_bytes());
     }
+    // the shape key's sparse indices: every vertex
+    let sparse_at = bin.len();
+    bin.extend((0..n as u16).flat_map(|i| i.to_le_bytes()));
+    bin.resize(bin.len().next_multiple_of(4), 0);
     let doc = json!({
         "asset": { "version": "2.0" },
         "scene": 0,
@@ -1497,7 +1502,8 @@ fn shape_key_sphere(dir: &Path) -> (PathBuf, Value) {
             { "bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3", "min": [-1.0, -1.0, -1.0], "max": [1.0, 1.0, 1.0] },
             { "bufferView": 1, "componentType": 5126, "count": n, "type": "VEC3" },
             { "bufferView": 2, "componentType": 5126, "count": n, "type": "VEC2" },
-            { "bufferView": 3, "componentType": 5126, "count": n, "type": "VEC3", "min": [-0.3, -0.8, -0.3], "max": [0.3, 0.8, 0.3] },
+            { "componentType": 5126, "count": n, "type": "VEC3", "min": [-0.3, -0.8, -0.3], "max": [0.3, 0.8, 0.3],
+              "sparse": { "count": n, "indices": { "bufferView": 8, "componentType": 5123 }, "values": { "bufferView": 3 } } },
             { "bufferView": 4, "componentType": 5123, "count": indices.len(), "type": "SCALAR" },
             { "bufferView": 5, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0] },
             { "bufferView": 6, "componentType": 5126, "count": 2, "type": "SCALAR" },
@@ -1511,7 +1517,8 @@ fn shape_key_sphere(dir: &Path) -> (PathBuf, Value) {
             { "buffer": 0, "byteOffset": index_at, "byteLength": 2 * indices.len() },
             { "buffer": 0, "byteOffset": anim_at, "byteLength": 8 },
             { "buffer": 0, "byteOffset": anim_at + 8, "byteLength": 8 },
-            { "buffer": 0, "byteOffset": anim_at + 16, "byteLength": 24 }
+            { "buffer": 0, "byteOffset": anim_at + 16, "byteLength": 24 },
+            { "buffer": 0, "byteOffset": sparse_at, "byteLength": 2 * n }
         ],
         "animations": [
             { "name": "stretch", "channels": [{ "sampler": 0, "target": { "node": 0, "path": "weights" } }],

@@ -38,7 +38,9 @@
 //!
 //! **Accessors** are read by [`Document::read_accessor`] through `accessor.rs`, which checks the
 //! layout against the spec before reading a byte. An accessor without a buffer view reads as
-//! zeros (the spec), at most [`MAX_ZERO_ELEMENTS`]; sparse accessors are refused.
+//! zeros (the spec), at most [`MAX_ZERO_ELEMENTS`]; a sparse accessor's values are substituted
+//! at its indices (unsigned, strictly increasing, within its count: checked), as Blender writes
+//! shape keys.
 //!
 //! Not checked, because neither reader uses them: `POSITION` `min`/`max` (the spec requires
 //! them; three.js and Blender read files without), attribute names, fields of objects no index
@@ -192,7 +194,21 @@ pub struct Accessor {
     pub normalized: bool,
     pub count: usize,
     pub kind: Kind,
-    pub sparse: bool,
+    /// Values substituted at some elements (`accessor.sparse`), checked on read.
+    pub sparse: Option<Sparse>,
+}
+
+/// An accessor's sparse substitution: `count` element indices (unsigned, increasing) and their
+/// values (the accessor's component and element type, tightly packed).
+#[derive(Clone, Debug)]
+pub struct Sparse {
+    pub count: usize,
+    pub indices_view: usize,
+    pub indices_offset: usize,
+    /// 5121, 5123 or 5125.
+    pub indices_type: u64,
+    pub values_view: usize,
+    pub values_offset: usize,
 }
 
 #[derive(Clone, Debug)]
@@ -708,14 +724,10 @@ fn read_accessors(root: &Fields, n: &Counts) -> Result<Vec<Accessor>> {
                 escape(kind)
             ))
         })?;
-        let sparse = f.object("sparse", format!("{}: sparse", f.element))?;
-        if let Some(s) = &sparse {
-            for key in ["indices", "values"] {
-                if let Some(part) = s.object(key, format!("{}.{key}", s.element))? {
-                    part.index("bufferView", "buffer view", n.views)?;
-                }
-            }
-        }
+        let sparse = match f.object("sparse", format!("{}: sparse", f.element))? {
+            Some(s) => Some(read_sparse(&s, n)?),
+            None => None,
+        };
         accessors.push(Accessor {
             buffer_view: f.index("bufferView", "buffer view", n.views)?,
             byte_offset: f.count("byteOffset")?.unwrap_or(0),
@@ -723,10 +735,37 @@ fn read_accessors(root: &Fields, n: &Counts) -> Result<Vec<Accessor>> {
             normalized: f.boolean("normalized")?.unwrap_or(false),
             count: f.required_count("count")?,
             kind,
-            sparse: sparse.is_some(),
+            sparse,
         });
     }
     Ok(accessors)
+}
+
+/// An accessor's `sparse` object: its count, and the views its indices and values live in.
+fn read_sparse(s: &Fields, n: &Counts) -> Result<Sparse> {
+    let part = |key: &str| {
+        s.object(key, format!("{}.{key}", s.element))?
+            .ok_or_else(|| s.err(format!("{key} is missing")))
+    };
+    let (indices, values) = (part("indices")?, part("values")?);
+    let view = |p: &Fields| {
+        p.index("bufferView", "buffer view", n.views)?
+            .ok_or_else(|| p.err("bufferView is missing"))
+    };
+    let indices_type = indices.required_count("componentType")? as u64;
+    if ![5121, 5123, 5125].contains(&indices_type) {
+        return Err(indices.err(format!(
+            "componentType {indices_type} is not an unsigned integer type"
+        )));
+    }
+    Ok(Sparse {
+        count: s.required_count("count")?,
+        indices_view: view(&indices)?,
+        indices_offset: indices.count("byteOffset")?.unwrap_or(0),
+        indices_type,
+        values_view: view(&values)?,
+        values_offset: values.count("byteOffset")?.unwrap_or(0),
+    })
 }
 
 /// The document's meshes, each with its primitives.
@@ -1068,13 +1107,76 @@ impl Document {
             }
         };
         let acc = &self.accessors[a];
-        if acc.sparse {
+        let components = acc.kind.components();
+        let mut values = self.read_dense(buffers, a, &here)?;
+        let Some(s) = &acc.sparse else {
+            return Ok(values);
+        };
+        let read = |(view, offset, component_type, normalized, n), what: &str| {
+            let bytes = self
+                .view_bytes(buffers, view)
+                .map_err(|m| Error::invalid(&self.path, here(), m))?;
+            let layout = accessor::Layout {
+                component_type,
+                normalized,
+                components: n,
+                count: s.count,
+                offset,
+                stride: None,
+            };
+            accessor::decode(bytes, &layout).map_err(|e| {
+                Error::invalid(
+                    &self.path,
+                    here(),
+                    format!("sparse {what}, buffer view {view}: {e}"),
+                )
+            })
+        };
+        let at = read(
+            (s.indices_view, s.indices_offset, s.indices_type, false, 1),
+            "indices",
+        )?;
+        let with = (
+            s.values_view,
+            s.values_offset,
+            acc.component_type,
+            acc.normalized,
+            components,
+        );
+        let new = read(with, "values")?;
+        if s.count > acc.count {
             return Err(Error::invalid(
                 &self.path,
                 here(),
-                "sparse accessors are not supported",
+                format!("{} sparse values for {} elements", s.count, acc.count),
             ));
         }
+        for (k, &i) in at.iter().enumerate() {
+            if i as usize >= acc.count || (k > 0 && i <= at[k - 1]) {
+                return Err(Error::invalid(
+                    &self.path,
+                    here(),
+                    format!(
+                        "sparse index {i} (entry {k}) is not increasing within {} elements",
+                        acc.count
+                    ),
+                ));
+            }
+            let i = i as usize;
+            values[i * components..(i + 1) * components]
+                .copy_from_slice(&new[k * components..(k + 1) * components]);
+        }
+        Ok(values)
+    }
+
+    /// Accessor `a`'s values before any sparse substitution: its buffer view's, or zeros.
+    fn read_dense(
+        &self,
+        buffers: &[Vec<u8>],
+        a: usize,
+        here: &dyn Fn() -> String,
+    ) -> Result<Vec<f64>> {
+        let acc = &self.accessors[a];
         let components = acc.kind.components();
         let Some(v) = acc.buffer_view else {
             // Zeros, as the spec says; bounded so a one-line accessor cannot ask for terabytes.
@@ -1271,6 +1373,58 @@ mod tests {
         let e = parse(v).expect_err("should be refused");
         for w in words {
             assert!(e.contains(w), "'{w}' missing from: {e}");
+        }
+    }
+
+    #[test]
+    fn sparse_accessors_substitute_their_values_over_a_view_or_zeros() {
+        // view 0: three VEC3 floats (1, 2, …, 9); view 1: indices [0, 2] as u16; view 2: two
+        // VEC3 values (-1, -2, -3) and (-7, -8, -9)
+        let mut bin: Vec<u8> = (1..=9).flat_map(|v| (v as f32).to_le_bytes()).collect();
+        bin.extend([0u16, 2].iter().flat_map(|i| i.to_le_bytes()));
+        bin.extend(
+            [-1.0f32, -2.0, -3.0, -7.0, -8.0, -9.0]
+                .iter()
+                .flat_map(|v| v.to_le_bytes()),
+        );
+        let doc = |view: Option<u64>, indices: [u16; 2]| {
+            let mut bin = bin.clone();
+            bin[36..40]
+                .copy_from_slice(&[indices[0].to_le_bytes(), indices[1].to_le_bytes()].concat());
+            let mut accessor = json!({"componentType": 5126, "count": 3, "type": "VEC3",
+                "sparse": {"count": 2,
+                    "indices": {"bufferView": 1, "componentType": 5123},
+                    "values": {"bufferView": 2}}});
+            if let Some(v) = view {
+                accessor["bufferView"] = json!(v);
+            }
+            let json = json!({
+                "buffers": [{"byteLength": bin.len()}],
+                "bufferViews": [
+                    {"buffer": 0, "byteLength": 36},
+                    {"buffer": 0, "byteOffset": 36, "byteLength": 4},
+                    {"buffer": 0, "byteOffset": 40, "byteLength": 24}
+                ],
+                "accessors": [accessor]
+            });
+            let d = Document::from_json(Path::new("t.glb"), json, Some(bin)).unwrap();
+            let buffers = d.load_buffers().unwrap();
+            d.read_accessor(&buffers, 0, "").map_err(|e| e.to_string())
+        };
+        assert_eq!(
+            doc(Some(0), [0, 2]).unwrap(),
+            [-1.0, -2.0, -3.0, 4.0, 5.0, 6.0, -7.0, -8.0, -9.0]
+        );
+        assert_eq!(
+            doc(None, [0, 2]).unwrap(),
+            [-1.0, -2.0, -3.0, 0.0, 0.0, 0.0, -7.0, -8.0, -9.0]
+        );
+        for bad in [[2, 0], [1, 1], [0, 3]] {
+            let e = doc(Some(0), bad).expect_err("indices must increase within the count");
+            assert!(
+                e.contains("accessor 0") && e.contains("sparse index"),
+                "{e}"
+            );
         }
     }
 

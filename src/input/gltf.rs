@@ -6,8 +6,9 @@
 //! `TEXCOORD_0` is `VEC2`, each as float or (u)int8/16, normalized or not — the quantized forms
 //! `KHR_mesh_quantization` allows, written by shellbake itself and by gltfpack, load like float
 //! ones; their dequantization lives in the node transform, applied in `f64`. Indices are
-//! (u)int8/16/32 `SCALAR`s, each below the vertex count. An accessor without a buffer view (all
-//! zeros) and a sparse accessor are refused for mesh input (base meshes do not use them).
+//! (u)int8/16/32 `SCALAR`s, each below the vertex count. An attribute accessor without a buffer
+//! view and without sparse values (all zeros) is refused (base meshes do not use them); a sparse
+//! one reads with its substitutions. A shape key (`morph_deltas`) may be either.
 //!
 //! The instanced size (vertices and indices of every primitive to read) is summed and bounded by
 //! [`MAX_INSTANCED_ELEMENTS`] before any buffer is resolved or accessor read.
@@ -446,10 +447,8 @@ pub(super) fn morph_deltas(
                 format!("{} POSITION deltas for {nv} vertices", acc.count),
             ));
         }
-        let values = match acc.buffer_view.is_some() || acc.sparse {
-            true => doc.read_accessor(buffers, a, &element)?,
-            false => vec![0.0; 3 * nv],
-        };
+        // no data reads as zeros, and Blender writes shape keys sparse
+        let values = doc.read_accessor(buffers, a, &element)?;
         let mut deltas = Vec::with_capacity(nv);
         for (v, d) in values.chunks_exact(3).enumerate() {
             let d = linear * DVec3::new(d[0], d[1], d[2]);
@@ -512,7 +511,7 @@ fn read_checked(
             ),
         ));
     }
-    if acc.buffer_view.is_none() && !acc.sparse {
+    if acc.buffer_view.is_none() && acc.sparse.is_none() {
         return Err(Error::invalid(
             &doc.path,
             format!("{element}: accessor {a}"),

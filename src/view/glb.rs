@@ -8,9 +8,9 @@
 //! What is added here is what only drawing needs:
 //!
 //! - **Accessors** decoded to `f32` (exact for every integer format, normalized or not, with the
-//!   glTF 2.0 rules); an accessor without a buffer view reads as zeros (the spec); sparse ones are
-//!   refused with an error naming the accessor. Index accessors must be unsigned `SCALAR`s with
-//!   a buffer view.
+//!   glTF 2.0 rules); an accessor without a buffer view reads as zeros (the spec); a sparse one
+//!   with its substitutions (the loader's reader checks them). Index accessors must be unsigned
+//!   `SCALAR`s with a buffer view.
 //! - **Instances**: the reader's walk of the node forest, world matrices composed in `f64` so a
 //!   model placed 1e6 units from the origin keeps its precision until the renderer subtracts the
 //!   camera anchor. Node `weights` override mesh `weights`. `MSFT_lod` is understood: level `k`
