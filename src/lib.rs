@@ -328,9 +328,19 @@ pub fn bake_asset(
         )
     };
     for (s, &i) in chosen.iter().enumerate() {
-        report
-            .furred
-            .push(format!("{} as '{}'", describe(i), scene.surfaces[s].name));
+        let mut line = format!("{} as '{}'", describe(i), scene.surfaces[s].name);
+        // what the fur follows besides the node: the part's shape keys and the clips on them
+        let follows = fur.packed.surfaces[s].shape_keys_at.is_some();
+        if let Some(keys) = asset.parts[i].shape_keys.as_ref().filter(|_| follows) {
+            let clips: std::collections::BTreeSet<usize> =
+                keys.channels.iter().map(|c| c.animation).collect();
+            line += &format!(
+                ", following its {} shape key(s) in {} clip(s)",
+                keys.rest.len(),
+                clips.len()
+            );
+        }
+        report.furred.push(line);
     }
     for i in (0..asset.parts.len()).filter(|i| !chosen.contains(i)) {
         let why = if asset.parts[i].furred {

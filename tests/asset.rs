@@ -1572,6 +1572,11 @@ fn the_fur_follows_the_asset_s_shape_keys() {
     let height = report["surfaces"][0]["resolved"]["height"]
         .as_f64()
         .unwrap();
+    let furred = report["asset"]["furred"][0].as_str().unwrap();
+    assert!(
+        furred.ends_with("following its 1 shape key(s) in 2 clip(s)"),
+        "{furred}"
+    );
     // every layer mesh carries the shape key after the extrusion, at its rest weight
     let layers: Vec<usize> = (1..after["nodes"].as_array().unwrap().len())
         .filter(|&n| after["nodes"][n]["weights"].is_array())
