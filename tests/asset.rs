@@ -1593,26 +1593,46 @@ fn the_fur_follows_the_asset_s_shape_keys() {
         );
         assert_eq!(after["nodes"][n]["weights"][1], 0.0, "node {n}");
     }
-    // both clips gain one channel per layer node; a key holds the layer's own weight and the
-    // clip's (cubic: the layer's tangents zero, the shape key's the clip's)
-    for (a, per_key) in [(0, 1), (1, 3)] {
-        let animation = &after["animations"][a];
-        let channels = animation["channels"].as_array().unwrap();
-        assert_eq!(channels.len(), 1 + layers.len(), "animation {a}");
-        let fur = shellbake::view::glb::Asset::open(&glb).unwrap();
-        let c = &channels[1];
-        let node = c["target"]["node"].as_u64().unwrap() as usize;
-        let t = after["nodes"][node]["weights"][0].as_f64().unwrap() as f32;
-        let sampler = &animation["samplers"][c["sampler"].as_u64().unwrap() as usize];
-        assert_eq!(sampler["input"], 5);
-        let out = fur
-            .floats(sampler["output"].as_u64().unwrap() as usize)
-            .unwrap();
-        let expected: Vec<f32> = match per_key {
-            1 => vec![t, 0.0, t, 1.0],
-            _ => vec![0.0, 0.0, t, 0.0, 0.0, 1.0, 0.0, -1.0, t, 0.5, 0.0, 0.0],
-        };
-        assert_eq!(out.data, expected, "animation {a}");
+    // each clip gains a channel per LOD 0 layer node, and an animation `<clip>_lod` one per
+    // coarser level's (in the second scene, as `wind_lod`): every layer node once; a key holds
+    // the layer's own weight and the clip's (cubic: the layer's tangents zero, the key's the
+    // clip's)
+    let fur = shellbake::view::glb::Asset::open(&glb).unwrap();
+    for (a, name, per_key) in [(0, "stretch", 1), (1, "ease", 3)] {
+        let lod = (after["animations"].as_array().unwrap().iter())
+            .position(|x| x["name"] == format!("{name}_lod"))
+            .unwrap_or_else(|| panic!("no {name}_lod"));
+        let mut targets: Vec<usize> = Vec::new();
+        for (i, animation) in [
+            (a, &after["animations"][a]),
+            (lod, &after["animations"][lod]),
+        ] {
+            let channels = animation["channels"].as_array().unwrap();
+            for c in channels.iter().skip(if i == a { 1 } else { 0 }) {
+                let node = c["target"]["node"].as_u64().unwrap() as usize;
+                targets.push(node);
+                let t = after["nodes"][node]["weights"][0].as_f64().unwrap() as f32;
+                let sampler = &animation["samplers"][c["sampler"].as_u64().unwrap() as usize];
+                assert_eq!(sampler["input"], 5);
+                let out = fur
+                    .floats(sampler["output"].as_u64().unwrap() as usize)
+                    .unwrap();
+                let expected: Vec<f32> = match per_key {
+                    1 => vec![t, 0.0, t, 1.0],
+                    _ => vec![0.0, 0.0, t, 0.0, 0.0, 1.0, 0.0, -1.0, t, 0.5, 0.0, 0.0],
+                };
+                assert_eq!(out.data, expected, "animation {i}, node {node}");
+            }
+            if i == a {
+                assert_eq!(
+                    channels.len(),
+                    1 + 31,
+                    "{name}: its own and LOD 0's 31 layers"
+                );
+            }
+        }
+        targets.sort_unstable();
+        assert_eq!(targets, layers, "{name}: every layer node once");
     }
     // in the viewer, at rest and stretched (the first clip's end; the second, played at the
     // same time, ends at 0.5 and is taken after it), the fur's box holds the base's and

@@ -37,6 +37,7 @@ use super::document::{Document, Kind, Primitive};
 use super::gltf::{is_triangles, morph_deltas, read_primitive};
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, Scene};
+use crate::stages::skin::Interpolation;
 
 /// The kinds of name a selector matches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -177,8 +178,7 @@ pub struct WeightsChannel {
     pub animation: usize,
     /// The key times' accessor (shared with the fur's channels).
     pub input: usize,
-    /// `LINEAR`, `STEP` or `CUBICSPLINE`.
-    pub interpolation: String,
+    pub interpolation: Interpolation,
     /// Per key, one value per target (`CUBICSPLINE`: in-tangents, values, out-tangents).
     pub values: Vec<f32>,
 }
@@ -228,24 +228,13 @@ fn shape_keys(
         });
         for (k, c) in on_node {
             let element = format!("animation {a} channel {k}");
-            let sampler = c["sampler"].as_u64().and_then(|s| samplers.get(s as usize));
-            let (Some(input), Some(output)) = (
-                sampler.and_then(|s| s["input"].as_u64()),
-                sampler.and_then(|s| s["output"].as_u64()),
-            ) else {
-                return Err(Error::invalid(
-                    &doc.path,
-                    element,
-                    "its sampler lacks input or output",
-                ));
+            let (keys, interpolation, output) =
+                super::skin::channel_keys(doc, buffers, (samplers, c), &element)?;
+            let (input, keys) = (keys.accessor, keys.times.len());
+            let per_key = match interpolation {
+                Interpolation::CubicSpline => 3,
+                _ => 1,
             };
-            let (input, output) = (input as usize, output as usize);
-            let interpolation = sampler
-                .and_then(|s| s["interpolation"].as_str())
-                .unwrap_or("LINEAR")
-                .to_string();
-            let per_key = if interpolation == "CUBICSPLINE" { 3 } else { 1 };
-            let keys = doc.accessors[input].count;
             let values: Vec<f32> = (doc.read_accessor(buffers, output, &element)?.into_iter())
                 .map(|v| v as f32)
                 .collect();

@@ -408,7 +408,6 @@ pub(super) fn read_primitive(
     Ok(mesh)
 }
 
-/// A `VEC4` attribute `name` of `prim` with a component type among `types`.
 /// The `POSITION` deltas of each morph target of `prim` over its `nv` vertices, moved by the
 /// linear part of `world` like the positions (a target without `POSITION`, or whose accessor
 /// has no data, moves nothing). `element` names the primitive in errors.
@@ -466,6 +465,7 @@ pub(super) fn morph_deltas(
     Ok(morphs)
 }
 
+/// A `VEC4` attribute `name` of `prim` with a component type among `types`.
 fn attribute_of(
     doc: &Document,
     element: &str,

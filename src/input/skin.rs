@@ -93,40 +93,9 @@ pub fn read_clips(doc: &Document, buffers: &[Vec<u8>]) -> Result<Vec<Clip>> {
             let Some(path) = Path::from_name(path) else {
                 continue; // weights (or an extension's path)
             };
-            let sampler = &samplers[c["sampler"].as_u64().unwrap_or(0) as usize];
-            let name = sampler["interpolation"].as_str().unwrap_or("LINEAR");
-            let interpolation = Interpolation::from_name(name).ok_or_else(|| {
-                Error::invalid(
-                    &doc.path,
-                    &element,
-                    format!("interpolation '{}' is not glTF's", super::escape(name)),
-                )
-            })?;
-            let (Some(input), Some(output)) =
-                (sampler["input"].as_u64(), sampler["output"].as_u64())
-            else {
-                return Err(Error::invalid(
-                    &doc.path,
-                    element,
-                    "its sampler lacks input or output",
-                ));
-            };
-            let (input, output) = (input as usize, output as usize);
-            let times: Vec<f32> = doc
-                .read_accessor(buffers, input, &element)?
-                .into_iter()
-                .map(|t| t as f32)
-                .collect();
-            if doc.accessors[input].kind != Kind::Scalar
-                || times.iter().any(|t| !t.is_finite())
-                || times.windows(2).any(|w| w[1] <= w[0])
-            {
-                return Err(Error::invalid(
-                    &doc.path,
-                    element,
-                    "key times must be increasing finite scalars",
-                ));
-            }
+            let (input, interpolation, output) =
+                channel_keys(doc, buffers, (samplers, c), &element)?;
+            let times = input.times;
             let kind = if path == Path::Rotation {
                 Kind::Vec4
             } else {
@@ -174,6 +143,67 @@ pub fn read_clips(doc: &Document, buffers: &[Vec<u8>]) -> Result<Vec<Clip>> {
         }
     }
     Ok(clips)
+}
+
+/// The keys of an animation channel `c` (its animation's `samplers`): the input accessor and
+/// its times (checked increasing, finite scalars), the interpolation, and the output accessor.
+pub(super) fn channel_keys(
+    doc: &Document,
+    buffers: &[Vec<u8>],
+    (samplers, c): (&[Value], &Value),
+    element: &str,
+) -> Result<(Keys, Interpolation, usize)> {
+    let sampler = c["sampler"].as_u64().and_then(|s| samplers.get(s as usize));
+    let name = sampler
+        .and_then(|s| s["interpolation"].as_str())
+        .unwrap_or("LINEAR");
+    let interpolation = Interpolation::from_name(name).ok_or_else(|| {
+        Error::invalid(
+            &doc.path,
+            element,
+            format!("interpolation '{}' is not glTF's", super::escape(name)),
+        )
+    })?;
+    let (Some(input), Some(output)) = (
+        sampler.and_then(|s| s["input"].as_u64()),
+        sampler.and_then(|s| s["output"].as_u64()),
+    ) else {
+        return Err(Error::invalid(
+            &doc.path,
+            element,
+            "its sampler lacks input or output",
+        ));
+    };
+    let (input, output) = (input as usize, output as usize);
+    let times: Vec<f32> = doc
+        .read_accessor(buffers, input, element)?
+        .into_iter()
+        .map(|t| t as f32)
+        .collect();
+    if doc.accessors[input].kind != Kind::Scalar
+        || times.iter().any(|t| !t.is_finite())
+        || times.windows(2).any(|w| w[1] <= w[0])
+    {
+        return Err(Error::invalid(
+            &doc.path,
+            element,
+            "key times must be increasing finite scalars",
+        ));
+    }
+    Ok((
+        Keys {
+            accessor: input,
+            times,
+        },
+        interpolation,
+        output,
+    ))
+}
+
+/// A channel's key times and the accessor they are read from.
+pub(super) struct Keys {
+    pub accessor: usize,
+    pub times: Vec<f32>,
 }
 
 /// The skeleton of skin `s`: its joints and their ancestors copied (document order), the inverse

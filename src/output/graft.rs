@@ -29,11 +29,12 @@
 //!   skips those parts (no fur on fur).
 //!   A part with shape keys (morph targets) has its layers carry the keys' deltas after their
 //!   own targets (`pack`), and each animation channel on the part's morph weights gets a twin on
-//!   every layer node of the part's fur, in the same animation and keyed at the same times: the
-//!   node's own weights with the keys' replaced by the channel's (`follow_shape_keys`). The
-//!   single-draw layout does not carry them (a warning says so), and a wind clip on the same
-//!   nodes holds the keys at rest while the asset's clips hold the wind at rest (a warning too:
-//!   glTF lets one animation at a time set a node's weights).
+//!   every layer node of the part's fur, keyed at the same times: the node's own weights with
+//!   the keys' replaced by the channel's (`follow_shape_keys`). LOD 0's twins join the channel's
+//!   animation, the coarser levels' an animation `<name>_lod` (as the wind's `wind_lod`). The
+//!   single-draw layout, fins and outlines do not follow them (warnings say so), and a wind clip
+//!   on the same nodes holds the keys at rest while the asset's clips hold the wind at rest (a
+//!   warning too: one animation at a time sets a node's weights).
 //!   The fur's coarser levels are the roots of a scene of their own, as in a plain bake
 //!   (`write.rs`, "Where the coarser levels live"), and the file's `scene` names the default.
 //! - **Extensions**: `extensionsUsed` and `extensionsRequired` are the union of both files'
@@ -163,10 +164,14 @@ impl Placing<'_> {
 
     /// Makes the layer nodes of surface `s` follow the shape keys of part `p`, whose targets
     /// their meshes carry from [`PackedSurface::shape_keys_at`] on: every animation channel on
-    /// the part's morph weights gets a twin in its animation for each layer node, keyed at the
-    /// same times (the same input accessor), whose values are the node's own weights with the
-    /// shape keys' replaced by the channel's (a `CUBICSPLINE` channel's tangents are zero for
-    /// the node's own). The outputs are written into `bin`. Returns what the fur cannot follow.
+    /// the part's morph weights gets a twin for each layer node, keyed at the same times (the
+    /// same input accessor), whose values are the node's own weights with the shape keys'
+    /// replaced by the channel's (a `CUBICSPLINE` channel's tangents are zero for the node's
+    /// own). LOD 0's twins join the channel's animation; the coarser levels' (`MSFT_lod`
+    /// alternatives, in the second scene) go to an animation of their own, named after it with
+    /// `_lod`, so that a client without `MSFT_lod` finds every node the asset's clip names, as
+    /// the wind's `wind_lod` does. Layers with the same weights share an output, written into
+    /// `bin`. Returns what the fur cannot follow.
     ///
     /// [`PackedSurface::shape_keys_at`]: crate::output::pack::PackedSurface::shape_keys_at
     fn follow_shape_keys(
@@ -182,7 +187,8 @@ impl Placing<'_> {
             return vec![];
         };
         let node_name = crate::input::escape(&part.names.node);
-        let Some(at) = packed.surfaces[s].shape_keys_at else {
+        let surface = &packed.surfaces[s];
+        let Some(at) = surface.shape_keys_at else {
             return vec![format!(
                 "node '{node_name}' has shape keys, which the single-draw layout's fur does not \
                  follow (the compact layout's does)"
@@ -202,54 +208,44 @@ impl Placing<'_> {
                 (rest.len() >= at + k).then_some((i, &rest[..]))
             })
             .collect();
+        // the coarser levels' animation of each of the asset's, made when first needed
+        let mut lod_animations: Vec<(usize, usize)> = Vec::new();
         for c in &keys.channels {
-            let per_key = if c.interpolation == "CUBICSPLINE" {
-                3
-            } else {
-                1
-            };
+            let cubic = c.interpolation == crate::stages::skin::Interpolation::CubicSpline;
             let entries = c.values.len() / k.max(1);
+            let mut outputs: Vec<(Vec<u32>, usize)> = Vec::new();
             for &(n, rest) in &layers {
                 let mut values = Vec::with_capacity(entries * rest.len());
                 for e in 0..entries {
-                    let tangent = per_key == 3 && e % 3 != 1;
+                    // a cubic key is in-tangents, values, out-tangents
+                    let tangent = cubic && e % 3 != 1;
                     values.extend(rest.iter().enumerate().map(|(i, &w)| match i {
                         i if (at..at + k).contains(&i) => c.values[e * k + i - at],
                         _ if tangent => 0.0,
                         _ => w,
                     }));
                 }
-                align(bin);
-                let offset = bin.len();
-                bin.extend(values.iter().flat_map(|v| v.to_le_bytes()));
-                let view = push_one(
-                    out,
-                    "bufferViews",
-                    json!({
-                        "buffer": 0,
-                        "byteOffset": offset,
-                        "byteLength": 4 * values.len(),
-                        "name": "shape_key_weights",
-                    }),
-                );
-                let accessor = push_one(
-                    out,
-                    "accessors",
-                    json!({
-                        "bufferView": view,
-                        "componentType": 5126,
-                        "count": values.len(),
-                        "type": "SCALAR",
-                    }),
-                );
-                let animation = &mut out["animations"][c.animation];
+                let bits: Vec<u32> = values.iter().map(|v| v.to_bits()).collect();
+                let output = match outputs.iter().find(|(b, _)| *b == bits) {
+                    Some(&(_, a)) => a,
+                    None => {
+                        let a = float_accessor(out, bin, &values);
+                        outputs.push((bits, a));
+                        a
+                    }
+                };
+                let animation = match surface.layer_nodes.contains(&n) {
+                    true => c.animation,
+                    false => lod_animation(out, &mut lod_animations, c.animation),
+                };
+                let animation = &mut out["animations"][animation];
                 let sampler = push_one(
                     animation,
                     "samplers",
                     json!({
                         "input": c.input,
-                        "output": accessor,
-                        "interpolation": c.interpolation,
+                        "output": output,
+                        "interpolation": c.interpolation.name(),
                     }),
                 );
                 push_one(
@@ -262,14 +258,21 @@ impl Placing<'_> {
                 );
             }
         }
+        let mut warnings = Vec::new();
+        if surface.fin_bytes > 0 || surface.outline_bytes > 0 {
+            warnings.push(format!(
+                "node '{node_name}': its fins and outline do not follow its shape keys (the \
+                 layers do)"
+            ));
+        }
         let windy = layers.iter().any(|(_, rest)| rest.len() > at + k);
-        match windy && !keys.channels.is_empty() {
-            true => vec![format!(
+        if windy && !keys.channels.is_empty() {
+            warnings.push(format!(
                 "node '{node_name}': the wind's clip and the asset's clips on its shape keys both \
                  set the fur's layer weights, each holding the other's at rest: play one at a time"
-            )],
-            false => vec![],
+            ));
         }
+        warnings
     }
 
     /// Makes the root of surface `s` a child of part `p`'s node, its transform the
@@ -359,6 +362,45 @@ pub fn graft(
         json: out,
         warnings,
     })
+}
+
+/// A `SCALAR` float accessor over `values`, written into `bin` (buffer 0).
+fn float_accessor(out: &mut Value, bin: &mut Vec<u8>, values: &[f32]) -> usize {
+    align(bin);
+    let offset = bin.len();
+    bin.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+    let view = json!({
+        "buffer": 0,
+        "byteOffset": offset,
+        "byteLength": 4 * values.len(),
+        "name": "shape_key_weights",
+    });
+    let view = push_one(out, "bufferViews", view);
+    let accessor = json!({
+        "bufferView": view,
+        "componentType": 5126,
+        "count": values.len(),
+        "type": "SCALAR",
+    });
+    push_one(out, "accessors", accessor)
+}
+
+/// The animation the coarser levels' channels of the asset's animation `a` go to (`made`: those
+/// made so far, by `a`): `<its name>_lod`, appended when first asked for.
+fn lod_animation(out: &mut Value, made: &mut Vec<(usize, usize)>, a: usize) -> usize {
+    if let Some(&(_, l)) = made.iter().find(|(of, _)| *of == a) {
+        return l;
+    }
+    let name = out["animations"][a]["name"]
+        .as_str()
+        .map_or_else(|| format!("animation{a}"), str::to_string);
+    let l = push_one(
+        out,
+        "animations",
+        json!({ "name": format!("{name}_lod"), "channels": [], "samplers": [] }),
+    );
+    made.push((a, l));
+    l
 }
 
 /// Appends `item` to the array `kind` of `v` (made when missing); returns its index.
