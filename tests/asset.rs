@@ -1634,6 +1634,29 @@ fn the_fur_follows_the_asset_s_shape_keys() {
         targets.sort_unstable();
         assert_eq!(targets, layers, "{name}: every layer node once");
     }
+    // Babylon.js, each clip played alone to its end: the skin's key and every layer's follow
+    let babylon = &node("babylon_weights.mjs", std::slice::from_ref(&glb))[0]["clips"];
+    for (clip, lod, w) in [
+        ("stretch", "lod0", 1.0),
+        ("stretch_lod", "lod1", 1.0),
+        ("ease", "lod0", 0.5),
+    ] {
+        let meshes = babylon[clip]
+            .as_object()
+            .unwrap_or_else(|| panic!("no clip {clip}"));
+        let layers: Vec<_> = meshes.iter().filter(|(n, _)| n.starts_with(lod)).collect();
+        assert!(layers.len() >= 9, "{clip}: {} {lod} layers", layers.len());
+        for (name, influences) in layers {
+            let key = influences[1].as_f64().unwrap();
+            assert!((key - w).abs() < 1e-3, "{clip}: {name} {influences}");
+        }
+        if !clip.ends_with("_lod") {
+            assert!(
+                (meshes["blob"][0].as_f64().unwrap() - w).abs() < 1e-3,
+                "{clip}: the skin"
+            );
+        }
+    }
     // in the viewer, at rest and stretched (the first clip's end; the second, played at the
     // same time, ends at 0.5 and is taken after it), the fur's box holds the base's and
     // reaches at most the fur's height past it
