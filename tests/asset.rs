@@ -1679,4 +1679,36 @@ fn the_fur_follows_the_asset_s_shape_keys() {
             );
         }
     }
+    // the fins and the outline carry the key as their only target, animated by the clip itself
+    let (glb, _) = bake(&input, &dir, "blob-fins.glb", &["--fins", "--outline"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let after = json_of(&glb);
+    for name in ["fins", "outline"] {
+        let n = (after["nodes"].as_array().unwrap().iter())
+            .position(|n| n["name"] == name)
+            .unwrap();
+        let m = after["nodes"][n]["mesh"].as_u64().unwrap() as usize;
+        let targets = after["meshes"][m]["primitives"][0]["targets"]
+            .as_array()
+            .unwrap();
+        assert_eq!(
+            (targets.len(), &after["meshes"][m]["weights"]),
+            (1, &json!([0.0])),
+            "{name}"
+        );
+        let on = |c: &Value| c["target"]["node"] == n;
+        for a in [0, 1] {
+            let channels = after["animations"][a]["channels"].as_array().unwrap();
+            assert_eq!(
+                channels.iter().filter(|c| on(c)).count(),
+                1,
+                "{name}, animation {a}"
+            );
+        }
+    }
+    let [base, fur] = morphed_boxes(&glb, 0.999);
+    assert!(
+        fur.0.cmple(base.0).all() && fur.1.cmpge(base.1).all(),
+        "{fur:?} {base:?}"
+    );
 }

@@ -30,9 +30,10 @@
 //!   A part with shape keys (morph targets) has its layers carry the keys' deltas after their
 //!   own targets (`pack`), and each animation channel on the part's morph weights gets a twin on
 //!   every layer node of the part's fur, keyed at the same times: the node's own weights with
-//!   the keys' replaced by the channel's (`follow_shape_keys`). LOD 0's twins join the channel's
-//!   animation, the coarser levels' an animation `<name>_lod` (as the wind's `wind_lod`). The
-//!   single-draw layout, fins and outlines do not follow them (warnings say so), and a wind clip
+//!   the keys' replaced by the channel's (`follow_shape_keys`); the fins and the outline, whose
+//!   only targets are the keys, likewise. LOD 0's twins join the channel's animation, the
+//!   coarser levels' an animation `<name>_lod` (as the wind's `wind_lod`). The single-draw
+//!   layout's fur does not follow them (a warning says so), and a wind clip
 //!   on the same nodes holds the keys at rest while the asset's clips hold the wind at rest (a
 //!   warning too: one animation at a time sets a node's weights).
 //!   The fur's coarser levels are the roots of a scene of their own, as in a plain bake
@@ -195,18 +196,22 @@ impl Placing<'_> {
             )];
         };
         let k = keys.rest.len();
-        // the surface's layer nodes (every level): their weights, own and the shape keys'
-        let layers: Vec<(usize, &[f32])> = (packed.nodes.iter().enumerate())
-            .filter(|(_, n)| n.tag.surface == s)
-            .filter_map(|(i, n)| {
-                let mesh = &packed.meshes[n.mesh?];
-                let rest = if n.weights.is_empty() {
-                    &mesh.weights
-                } else {
-                    &n.weights
-                };
-                (rest.len() >= at + k).then_some((i, &rest[..]))
+        // the surface's nodes that carry the keys, with where their targets start and their
+        // weights, own and the keys': the layers (every level), the fins and the outline
+        let weights = |i: usize| -> Option<&[f32]> {
+            let n = &packed.nodes[i];
+            let mesh = &packed.meshes[n.mesh?];
+            Some(if n.weights.is_empty() {
+                &mesh.weights
+            } else {
+                &n.weights
             })
+        };
+        let extras = &surface.shape_key_extras;
+        let layers: Vec<(usize, usize, &[f32])> = (0..packed.nodes.len())
+            .filter(|i| packed.nodes[*i].tag.surface == s && !extras.contains(i))
+            .filter_map(|i| weights(i).filter(|w| w.len() >= at + k).map(|w| (i, at, w)))
+            .chain(extras.iter().filter_map(|&i| Some((i, 0, weights(i)?))))
             .collect();
         // the coarser levels' animation of each of the asset's, made when first needed
         let mut lod_animations: Vec<(usize, usize)> = Vec::new();
@@ -214,7 +219,7 @@ impl Placing<'_> {
             let cubic = c.interpolation == crate::stages::skin::Interpolation::CubicSpline;
             let entries = c.values.len() / k.max(1);
             let mut outputs: Vec<(Vec<u32>, usize)> = Vec::new();
-            for &(n, rest) in &layers {
+            for &(n, at, rest) in &layers {
                 let mut values = Vec::with_capacity(entries * rest.len());
                 for e in 0..entries {
                     // a cubic key is in-tangents, values, out-tangents
@@ -234,9 +239,11 @@ impl Placing<'_> {
                         a
                     }
                 };
-                let animation = match surface.layer_nodes.contains(&n) {
-                    true => c.animation,
-                    false => lod_animation(out, &mut lod_animations, c.animation),
+                // the coarser levels' layer nodes are neither LOD 0's nor the fins or outline
+                let coarse = !surface.layer_nodes.contains(&n) && !extras.contains(&n);
+                let animation = match coarse {
+                    false => c.animation,
+                    true => lod_animation(out, &mut lod_animations, c.animation),
                 };
                 let animation = &mut out["animations"][animation];
                 let sampler = push_one(
@@ -259,13 +266,7 @@ impl Placing<'_> {
             }
         }
         let mut warnings = Vec::new();
-        if surface.fin_bytes > 0 || surface.outline_bytes > 0 {
-            warnings.push(format!(
-                "node '{node_name}': its fins and outline do not follow its shape keys (the \
-                 layers do)"
-            ));
-        }
-        let windy = layers.iter().any(|(_, rest)| rest.len() > at + k);
+        let windy = layers.iter().any(|&(_, at, rest)| rest.len() > at + k);
         if windy && !keys.channels.is_empty() {
             warnings.push(format!(
                 "node '{node_name}': the wind's clip and the asset's clips on its shape keys both \

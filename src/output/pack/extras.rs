@@ -7,7 +7,8 @@
 //! fur stays on it. Fin normals are `i8` like the layers'; fin texture coordinates are
 //! normalized `u16` over `[0, u_max] × [0, 1]` in strip tiles, the strip bound with a
 //! `KHR_texture_transform` scale of `(u_max, 1)`. The hull has positions and indices only: its
-//! material is unlit.
+//! material is unlit. An asset part's shape keys are both meshes' targets, gathered from the
+//! vertices they stand on (`carry_shape_keys`), so they follow the keys as the layers do.
 
 use glam::{Vec2, Vec3};
 
@@ -20,6 +21,8 @@ pub(super) struct Extras {
     pub nodes: Vec<usize>,
     pub fin_bytes: usize,
     pub outline_bytes: usize,
+    /// The nodes whose mesh carries an asset part's shape keys (their only targets).
+    pub shape_key_nodes: Vec<usize>,
 }
 
 /// Bytes of the streams from `first` on.
@@ -42,11 +45,41 @@ pub(super) fn extras(b: &mut Builder, g: &Geometry, input: &PackInput) -> Extras
         nodes.push(outline(b, g, input, o));
         outline_bytes = bytes_since(b.out, first);
     }
+    let shape_key_nodes = match g.morphs.is_empty() {
+        true => vec![],
+        false => nodes.clone(),
+    };
     Extras {
         nodes,
         fin_bytes,
         outline_bytes,
+        shape_key_nodes,
     }
+}
+
+/// Gives `mesh` (one primitive over vertices `source` of the input mesh) the asset part's shape
+/// keys as its targets, at their rest weights, so that it follows them as the layers do.
+fn carry_shape_keys(
+    b: &mut Builder,
+    g: &Geometry,
+    mesh: usize,
+    source: &[u32],
+    name: &'static str,
+) {
+    if g.morphs.is_empty() {
+        return;
+    }
+    let targets: Vec<Vec<(Semantic, usize)>> = (g.morphs.iter().enumerate())
+        .map(|(k, (values, stored))| {
+            let picked: Vec<Vec3> = source.iter().map(|&v| values[v as usize]).collect();
+            vec![(Semantic::Position, b.deltas(&picked, name, k, *stored))]
+        })
+        .collect();
+    let mesh = &mut b.out.meshes[mesh];
+    mesh.primitives[0].targets = targets;
+    mesh.weights = (0..g.morphs.len())
+        .map(|k| g.morph_rest.get(k).copied().unwrap_or(0.0))
+        .collect();
 }
 
 /// Positions `p` as the POSITION stream stores them.
@@ -88,6 +121,9 @@ fn fins(b: &mut Builder, g: &Geometry, input: &PackInput, f: &crate::effects::fi
     ];
     let name = format!("{}fins", input.prefix);
     let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
+    // each fin's corners: base a, base b, top b, top a
+    let source: Vec<u32> = f.edges.iter().flat_map(|e| [e.a, e.b, e.b, e.a]).collect();
+    carry_shape_keys(b, g, mesh, &source, "fin_shape_key");
     node(b, name, mesh)
 }
 
@@ -154,6 +190,8 @@ fn outline(
     let name = format!("{}outline", input.prefix);
     let attributes = vec![(Semantic::Position, position)];
     let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
+    let source: Vec<u32> = (0..hull.len() as u32).collect();
+    carry_shape_keys(b, g, mesh, &source, "outline_shape_key");
     node(b, name, mesh)
 }
 

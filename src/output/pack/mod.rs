@@ -777,6 +777,7 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
         fin_bytes: extras.fin_bytes,
         outline_bytes: extras.outline_bytes,
         shape_keys_at: (!geometry.morphs.is_empty()).then(|| 1 + geometry.bends.is_some() as usize),
+        shape_key_extras: extras.shape_key_nodes,
     };
     out.surfaces.push(surface.clone());
     surface

@@ -315,6 +315,8 @@ pub struct PackedSurface {
     /// Where the shape keys of an asset's part start among each layer mesh's targets (after
     /// the extrusion and the bend), when its layers carry them; the graft animates them there.
     pub shape_keys_at: Option<usize>,
+    /// The fins' and outline's nodes, whose meshes carry the shape keys as their only targets.
+    pub shape_key_extras: Vec<usize>,
 }
 
 impl PackedSurface {
