@@ -733,6 +733,9 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
     shellbake::output::write::write_atomic(&dir.join("terrain.toml"), scene.as_bytes())?;
     let tube = shellbake::fixtures::procedural::skinned_tube();
     shellbake::output::write::write_atomic(&dir.join("tube_skinned.glb"), &tube)?;
+    // a sphere with a shape key and two clips on it: fur that follows shape keys
+    let blob = shellbake::fixtures::procedural::shape_key_blob();
+    shellbake::output::write::write_atomic(&dir.join("shape_keys.glb"), &blob)?;
     // the creature assets (DESIGN §10): one critter; two on a ground with a camera and a light
     use shellbake::fixtures::critter::{critter_glb, Critters};
     let one = critter_glb(Critters::default());

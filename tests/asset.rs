@@ -1430,107 +1430,17 @@ fn the_critters_seam_copies_extrude_together() {
     assert!(extrusion.iter().all(|e| e != &[0, 0, 0]), "a bald vertex");
 }
 
-/// A UV sphere of radius 1 (`rings` × `segments`, the seam and poles as copies), with one
-/// shape key stretching it to an ellipsoid (y × 1.8, x and z × 0.7), a sparse accessor without
-/// a buffer view as Blender writes one, and two clips on it: a `LINEAR` one from 0 to 1 over a
-/// second, and a `CUBICSPLINE` one from 0 to 0.5.
+/// The shape-key fixture as committed (`shellbake::fixtures::procedural::shape_key_blob`, which
+/// it must match), copied into `dir`, and its JSON.
 fn shape_key_sphere(dir: &Path) -> (PathBuf, Value) {
-    let (rings, segments) = (16, 32);
-    let mut positions = Vec::new();
-    let mut uvs = Vec::new();
-    for r in 0..=rings {
-        let theta = std::f32::consts::PI * r as f32 / rings as f32;
-        for k in 0..=segments {
-            let phi = std::f32::consts::TAU * k as f32 / segments as f32;
-            positions.push([
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                theta.sin() * phi.sin(),
-            ]);
-            uvs.push([k as f32 / segments as f32, r as f32 / rings as f32]);
-        }
-    }
-    let row = segments + 1;
-    let mut indices: Vec<u16> = Vec::new();
-    for r in 0..rings {
-        for k in 0..segments {
-            let (a, b) = ((r * row + k) as u16, ((r + 1) * row + k) as u16);
-            indices.extend_from_slice(&[a, a + 1, b, a + 1, b + 1, b]);
-        }
-    }
-    let deltas: Vec<[f32; 3]> = positions
-        .iter()
-        .map(|p| [-0.3 * p[0], 0.8 * p[1], -0.3 * p[2]])
-        .collect();
-    let floats =
-        |v: &[[f32; 3]]| -> Vec<u8> { v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect() };
-    let n = positions.len();
-    let mut bin = floats(&positions);
-    bin.extend(floats(&positions)); // a unit sphere's normals are its positions
-    bin.extend(uvs.iter().flatten().flat_map(|x| x.to_le_bytes()));
-    bin.extend(floats(&deltas));
-    let index_at = bin.len();
-    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
-    bin.resize(bin.len().next_multiple_of(4), 0);
-    let anim_at = bin.len();
-    // times [0, 1]; linear weights [0, 1]; cubic (in, value, out) per key: [0, 0, 1], [-1, 0.5, 0]
-    for v in [0.0f32, 1.0, 0.0, 1.0, 0.0, 0.0, 1.0, -1.0, 0.5, 0.0] {
-        bin.extend(v.to_le_bytes());
-    }
-    // the shape key's sparse indices: every vertex
-    let sparse_at = bin.len();
-    bin.extend((0..n as u16).flat_map(|i| i.to_le_bytes()));
-    bin.resize(bin.len().next_multiple_of(4), 0);
-    let doc = json!({
-        "asset": { "version": "2.0" },
-        "scene": 0,
-        "scenes": [{ "nodes": [0] }],
-        "nodes": [{ "name": "blob", "mesh": 0 }],
-        "meshes": [{
-            "name": "blob",
-            "primitives": [{
-                "attributes": { "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2 },
-                "targets": [{ "POSITION": 3 }],
-                "indices": 4,
-                "material": 0
-            }],
-            "weights": [0.0],
-            "extras": { "targetNames": ["stretch"] }
-        }],
-        "materials": [{ "name": "coat", "pbrMetallicRoughness": { "baseColorFactor": [0.8, 0.5, 0.2, 1.0] } }],
-        "accessors": [
-            { "bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3", "min": [-1.0, -1.0, -1.0], "max": [1.0, 1.0, 1.0] },
-            { "bufferView": 1, "componentType": 5126, "count": n, "type": "VEC3" },
-            { "bufferView": 2, "componentType": 5126, "count": n, "type": "VEC2" },
-            { "componentType": 5126, "count": n, "type": "VEC3", "min": [-0.3, -0.8, -0.3], "max": [0.3, 0.8, 0.3],
-              "sparse": { "count": n, "indices": { "bufferView": 8, "componentType": 5123 }, "values": { "bufferView": 3 } } },
-            { "bufferView": 4, "componentType": 5123, "count": indices.len(), "type": "SCALAR" },
-            { "bufferView": 5, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0] },
-            { "bufferView": 6, "componentType": 5126, "count": 2, "type": "SCALAR" },
-            { "bufferView": 7, "componentType": 5126, "count": 6, "type": "SCALAR" }
-        ],
-        "bufferViews": [
-            { "buffer": 0, "byteOffset": 0, "byteLength": 12 * n },
-            { "buffer": 0, "byteOffset": 12 * n, "byteLength": 12 * n },
-            { "buffer": 0, "byteOffset": 24 * n, "byteLength": 8 * n },
-            { "buffer": 0, "byteOffset": 32 * n, "byteLength": 12 * n },
-            { "buffer": 0, "byteOffset": index_at, "byteLength": 2 * indices.len() },
-            { "buffer": 0, "byteOffset": anim_at, "byteLength": 8 },
-            { "buffer": 0, "byteOffset": anim_at + 8, "byteLength": 8 },
-            { "buffer": 0, "byteOffset": anim_at + 16, "byteLength": 24 },
-            { "buffer": 0, "byteOffset": sparse_at, "byteLength": 2 * n }
-        ],
-        "animations": [
-            { "name": "stretch", "channels": [{ "sampler": 0, "target": { "node": 0, "path": "weights" } }],
-              "samplers": [{ "input": 5, "output": 6, "interpolation": "LINEAR" }] },
-            { "name": "ease", "channels": [{ "sampler": 0, "target": { "node": 0, "path": "weights" } }],
-              "samplers": [{ "input": 5, "output": 7, "interpolation": "CUBICSPLINE" }] }
-        ],
-        "buffers": [{ "byteLength": bin.len() }]
-    });
+    let committed = std::fs::read(common::fixture("shape_keys.glb")).unwrap();
+    assert!(
+        committed == shellbake::fixtures::procedural::shape_key_blob(),
+        "fixtures/shape_keys.glb is stale: run `shellbake fixtures fixtures`"
+    );
     let input = dir.join("blob.glb");
-    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
-    (input, doc)
+    std::fs::write(&input, &committed).unwrap();
+    (input, Glb::parse(&committed).json)
 }
 
 /// World boxes of the furred file's instances at `time`, morph weights applied: the input's

@@ -2,7 +2,8 @@
 # Regenerates the README's first pictures: the critter asset (fixtures/critter.glb) bare and
 # furred with `--only material=fur_*`, drawn by stock three.js (GLTFLoader) in headless Chromium
 # from the same cameras (overall and close), and the furred file imported into Blender (bpy)
-# and rendered with Cycles at 64 transparent bounces.
+# and rendered with Cycles at 64 transparent bounces; and the shape-key fixture
+# (fixtures/shape_keys.glb) bare and furred at rest and stretched, drawn by the viewer.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tests/setup.sh
@@ -29,4 +30,13 @@ far='[1.2,1.3,2.4]'; centre='[0,0.6,0]'; near='[1.1,0.95,0.75]'; head='[0.5,0.7,
 } > "$tmp/jobs.json"
 node tests/js/three_render.mjs "$tmp/jobs.json"
 python3 tests/blender_render.py "$tmp/critter-fur.glb" out/gallery/asset-critter-blender.png 64 | tail -1
+# shape keys: every clip played at 0.999 s (the last, `ease`, holds the key at 0.5)
+target/release/shellbake bake fixtures/shape_keys.glb -o "$tmp/blob.glb" -q
+shape() { # GLB NAME TIME
+  target/release/shellbake render "$1" -o "out/gallery/asset-shape-key-$2.png" --view side \
+    --size 320x320 --distance 3.2 --time "$3"
+}
+shape fixtures/shape_keys.glb bare 0.999
+shape "$tmp/blob.glb" rest 0
+shape "$tmp/blob.glb" stretched 0.999
 rm -rf "$tmp"
