@@ -193,6 +193,8 @@ pub struct PartOf {
     /// The rest weights of the part's shape keys when grafted (the mesh then carries their
     /// deltas, [`crate::mesh::Mesh::morphs`]); empty otherwise.
     pub shape_rest: Vec<f32>,
+    /// Their names, when the asset names them (`extras.targetNames`).
+    pub shape_names: Vec<String>,
 }
 
 /// The scene that furs the chosen parts of `asset` (from [`input::asset::Asset::select`]): one
@@ -233,11 +235,11 @@ pub fn asset_scene(
         let mut geometry = part.scene.clone();
         geometry.warnings.clear();
         // the fur follows the shape keys only in the asset that has them
-        let shape_rest = match (&part.shape_keys, graft) {
-            (Some(keys), true) => keys.rest.clone(),
+        let (shape_rest, shape_names) = match (&part.shape_keys, graft) {
+            (Some(keys), true) => (keys.rest.clone(), keys.names.clone()),
             _ => {
                 geometry.meshes.iter_mut().for_each(|m| m.morphs.clear());
-                vec![]
+                (vec![], vec![])
             }
         };
         let maps = surface_maps(&s, &geometry)?;
@@ -250,6 +252,7 @@ pub fn asset_scene(
                 paint: part.paint.clone(),
                 graft,
                 shape_rest,
+                shape_names,
             }),
         });
     }
@@ -736,8 +739,10 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
     } = prepared;
     let grafted = job.part.is_some_and(|p| p.graft);
     let parts = (&shape, &heights, &look, &chain);
-    let morph_rest = job.part.map_or(&[][..], |p| &p.shape_rest[..]);
-    let placing = (surface, scene, grafted, morph_rest);
+    let morphs = job.part.map_or((&[][..], &[][..]), |p| {
+        (&p.shape_rest[..], &p.shape_names[..])
+    });
+    let placing = (surface, scene, grafted, morphs);
     let surface_packed = pack_surface(&mut run, placing, parts, job.several, packed);
     let mut report = run.report;
     report.lods = (chain.levels.iter().zip(&surface_packed.lod_triangles))
@@ -1201,7 +1206,12 @@ fn cull_levels(
 /// Pack: the surface's streams, nodes and materials into `packed`.
 fn pack_surface(
     run: &mut Run,
-    (surface, scene, grafted, morph_rest): (&Surface, &Scene, bool, &[f32]),
+    (surface, scene, grafted, (morph_rest, morph_names)): (
+        &Surface,
+        &Scene,
+        bool,
+        (&[f32], &[String]),
+    ),
     (shape, heights, look, chain): (&Shape, &Heights, &Look, &Levels),
     several: bool,
     packed: &mut Packed,
@@ -1256,6 +1266,7 @@ fn pack_surface(
         fins: look.fins.as_ref(),
         outline: look.outline.as_ref(),
         morph_rest,
+        morph_names,
         base: !grafted,
     };
     let params = &run.params.pack;

@@ -1502,6 +1502,13 @@ fn the_fur_follows_the_asset_s_shape_keys() {
             2
         );
         assert_eq!(after["nodes"][n]["weights"][1], 0.0, "node {n}");
+        // named as the asset names the key, so setting it by name on every mesh moves the fur
+        let names = &after["meshes"][m]["extras"]["targetNames"];
+        assert_eq!(
+            names,
+            &json!(["shellbake_extrusion", "stretch"]),
+            "node {n}"
+        );
     }
     // each clip gains a channel per LOD 0 layer node, and an animation `<clip>_lod` one per
     // coarser level's (in the second scene, as `wind_lod`): every layer node once; a key holds
@@ -1605,6 +1612,10 @@ fn the_fur_follows_the_asset_s_shape_keys() {
             (targets.len(), &after["meshes"][m]["weights"]),
             (1, &json!([0.0])),
             "{name}"
+        );
+        assert_eq!(
+            after["meshes"][m]["extras"]["targetNames"],
+            json!(["stretch"])
         );
         let on = |c: &Value| c["target"]["node"] == n;
         for a in [0, 1] {

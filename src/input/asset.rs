@@ -167,6 +167,8 @@ pub struct Part {
 pub struct ShapeKeys {
     /// The node's `weights`, else its mesh's, else zeros: one per target.
     pub rest: Vec<f32>,
+    /// The mesh's `extras.targetNames`, one per target (empty when it has none).
+    pub names: Vec<String>,
     /// Every animation channel on the node's `weights`.
     pub channels: Vec<WeightsChannel>,
 }
@@ -260,7 +262,15 @@ fn shape_keys(
             });
         }
     }
-    Ok(ShapeKeys { rest, channels })
+    let names: Vec<String> = (doc.json["meshes"][mesh]["extras"]["targetNames"].as_array())
+        .filter(|n| n.len() == targets)
+        .and_then(|n| n.iter().map(|v| v.as_str().map(str::to_string)).collect())
+        .unwrap_or_default();
+    Ok(ShapeKeys {
+        rest,
+        names,
+        channels,
+    })
 }
 
 /// A glTF asset kept whole, and its parts.

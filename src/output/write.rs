@@ -441,6 +441,9 @@ fn mesh_json(m: &PackedMesh) -> Value {
         let weights: Vec<Value> = m.weights.iter().map(|&w| num(w)).collect();
         mesh.insert("weights".into(), Value::Array(weights));
     }
+    if !m.target_names.is_empty() {
+        mesh.insert("extras".into(), json!({ "targetNames": m.target_names }));
+    }
     if !m.layer_ranges.is_empty() {
         let r = &m.layer_ranges;
         mesh.insert(

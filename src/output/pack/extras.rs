@@ -80,6 +80,9 @@ fn carry_shape_keys(
     mesh.weights = (0..g.morphs.len())
         .map(|k| g.morph_rest.get(k).copied().unwrap_or(0.0))
         .collect();
+    if g.morph_names.len() == g.morphs.len() {
+        mesh.target_names = g.morph_names.to_vec();
+    }
 }
 
 /// Positions `p` as the POSITION stream stores them.

@@ -266,6 +266,9 @@ pub struct PackInput<'a> {
     /// compact layout's layers carry the shape keys as targets after the extrusion and bend,
     /// at these weights (DESIGN §10: the fur follows them; the graft animates them).
     pub morph_rest: &'a [f32],
+    /// The shape keys' names (the asset mesh's `extras.targetNames`; empty when it has none):
+    /// the meshes that carry the keys name every target, the keys by these.
+    pub morph_names: &'a [String],
     /// Whether the surface draws its own base layer. `false` for a part of an asset kept whole
     /// (DESIGN §10): the asset's primitive is the base, so no base layer and no bare level are
     /// written, and a skinned surface writes no skeleton of its own (its layer nodes share the
@@ -311,6 +314,8 @@ struct Geometry<'a> {
     morphs: Vec<(Vec<Vec3>, Targets)>,
     /// Their rest weights ([`PackInput::morph_rest`]).
     morph_rest: &'a [f32],
+    /// Their names ([`PackInput::morph_names`]).
+    morph_names: &'a [String],
 }
 
 impl Geometry<'_> {
@@ -1068,6 +1073,7 @@ fn geometry<'a>(
         skin,
         morphs,
         morph_rest: input.morph_rest,
+        morph_names: input.morph_names,
     }
 }
 
@@ -1890,6 +1896,7 @@ impl Builder<'_> {
             primitives: vec![primitive],
             weights: vec![],
             layer_ranges: vec![],
+            target_names: vec![],
         };
         Packed::push(&mut self.out.meshes, mesh)
     }
@@ -2410,8 +2417,26 @@ fn compact_layer(
                 }
             },
             layer_ranges: vec![],
+            target_names: layer_target_names(ctx.geometry, shells, base),
         },
     )
+}
+
+/// A layer mesh's target names, when it carries an asset part's named shape keys: its own
+/// targets by what they do (`shellbake_extrusion`, `_bend`, `_wind_sin`, `_wind_cos`) and the
+/// keys by the asset's names, so a client that sets a key by name on every mesh moves the fur
+/// too.
+fn layer_target_names(g: &Geometry, shells: &ShellStreams, base: bool) -> Vec<String> {
+    if base || shells.morphs.is_empty() || g.morph_names.len() != shells.morphs.len() {
+        return vec![];
+    }
+    let mut names = vec!["shellbake_extrusion".to_string()];
+    names.extend(shells.bend.map(|_| "shellbake_bend".to_string()));
+    names.extend(g.morph_names.iter().cloned());
+    if shells.wind.is_some() {
+        names.extend(["shellbake_wind_sin".into(), "shellbake_wind_cos".into()]);
+    }
+    names
 }
 
 /// An upper bound of the GLB size for a mesh of at most `vertices` render vertices and

@@ -183,6 +183,9 @@ pub struct Mesh {
     /// Single-draw: where each layer's triangles and vertex copies lie in the primitive
     /// (`extras.shellbake_layers`), so that a client can draw layers `0..=k`; empty otherwise.
     pub layer_ranges: Vec<LayerRange>,
+    /// Names of the morph targets (`extras.targetNames`, as three.js and Blender read them):
+    /// written where a mesh carries an asset part's named shape keys, empty otherwise.
+    pub target_names: Vec<String>,
 }
 
 /// One layer's part of a single-draw primitive: its triangles are indices
