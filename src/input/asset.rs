@@ -233,10 +233,7 @@ fn shape_keys(
             let (keys, interpolation, output) =
                 super::skin::channel_keys(doc, buffers, (samplers, c), &element)?;
             let (input, keys) = (keys.accessor, keys.times.len());
-            let per_key = match interpolation {
-                Interpolation::CubicSpline => 3,
-                _ => 1,
-            };
+            let per_key = interpolation.per_key();
             let values: Vec<f32> = (doc.read_accessor(buffers, output, &element)?.into_iter())
                 .map(|v| v as f32)
                 .collect();

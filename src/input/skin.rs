@@ -101,11 +101,7 @@ pub fn read_clips(doc: &Document, buffers: &[Vec<u8>]) -> Result<Vec<Clip>> {
             } else {
                 Kind::Vec3
             };
-            let per_key = if interpolation == Interpolation::CubicSpline {
-                3
-            } else {
-                1
-            };
+            let per_key = interpolation.per_key();
             let values: Vec<f32> = doc
                 .read_accessor(buffers, output, &element)?
                 .into_iter()

@@ -198,20 +198,14 @@ impl Placing<'_> {
         let k = keys.rest.len();
         // the surface's nodes that carry the keys, with where their targets start and their
         // weights, own and the keys': the layers (every level), the fins and the outline
-        let weights = |i: usize| -> Option<&[f32]> {
-            let n = &packed.nodes[i];
-            let mesh = &packed.meshes[n.mesh?];
-            Some(if n.weights.is_empty() {
-                &mesh.weights
-            } else {
-                &n.weights
-            })
-        };
+        // and whether they are a coarser level's (neither LOD 0's nor an extra)
         let extras = &surface.shape_key_extras;
-        let layers: Vec<(usize, usize, &[f32])> = (0..packed.nodes.len())
+        let lod0: std::collections::HashSet<usize> = surface.layer_nodes.iter().copied().collect();
+        let layers: Vec<(usize, usize, &[f32], bool)> = (0..packed.nodes.len())
             .filter(|i| packed.nodes[*i].tag.surface == s && !extras.contains(i))
-            .filter_map(|i| weights(i).filter(|w| w.len() >= at + k).map(|w| (i, at, w)))
-            .chain(extras.iter().filter_map(|&i| Some((i, 0, weights(i)?))))
+            .map(|i| (i, at, packed.weights_of(i), !lod0.contains(&i)))
+            .filter(|&(_, at, w, _)| w.len() >= at + k)
+            .chain(extras.iter().map(|&i| (i, 0, packed.weights_of(i), false)))
             .collect();
         // the coarser levels' animation of each of the asset's, made when first needed
         let mut lod_animations: Vec<(usize, usize)> = Vec::new();
@@ -219,7 +213,7 @@ impl Placing<'_> {
             let cubic = c.interpolation == crate::stages::skin::Interpolation::CubicSpline;
             let entries = c.values.len() / k.max(1);
             let mut outputs: Vec<(Vec<u32>, usize)> = Vec::new();
-            for &(n, at, rest) in &layers {
+            for &(n, at, rest, coarse) in &layers {
                 let mut values = Vec::with_capacity(entries * rest.len());
                 for e in 0..entries {
                     // a cubic key is in-tangents, values, out-tangents
@@ -239,8 +233,6 @@ impl Placing<'_> {
                         a
                     }
                 };
-                // the coarser levels' layer nodes are neither LOD 0's nor the fins or outline
-                let coarse = !surface.layer_nodes.contains(&n) && !extras.contains(&n);
                 let animation = match coarse {
                     false => c.animation,
                     true => lod_animation(out, &mut lod_animations, c.animation),
@@ -266,7 +258,7 @@ impl Placing<'_> {
             }
         }
         let mut warnings = Vec::new();
-        let windy = layers.iter().any(|&(_, at, rest)| rest.len() > at + k);
+        let windy = layers.iter().any(|&(_, at, rest, _)| rest.len() > at + k);
         if windy && !keys.channels.is_empty() {
             warnings.push(format!(
                 "node '{node_name}': the wind's clip and the asset's clips on its shape keys both \

@@ -117,6 +117,15 @@ impl Interpolation {
         }
     }
 
+    /// Entries a key holds per animated value: 3 for `CUBICSPLINE` (in-tangent, value,
+    /// out-tangent), else 1.
+    pub fn per_key(self) -> usize {
+        match self {
+            Interpolation::CubicSpline => 3,
+            _ => 1,
+        }
+    }
+
     pub fn from_name(name: &str) -> Option<Interpolation> {
         [
             Interpolation::Linear,
@@ -153,7 +162,7 @@ pub fn sample(
     rotation: bool,
 ) -> Vec<f32> {
     let cubic = interpolation == Interpolation::CubicSpline;
-    let stride = if cubic { 3 * n } else { n };
+    let stride = interpolation.per_key() * n;
     let value = |k: usize| {
         let o = k * stride + if cubic { n } else { 0 };
         &values[o..o + n]
@@ -211,7 +220,7 @@ impl Channel {
             time,
             rotation,
         );
-        if self.path == Path::Rotation {
+        if rotation {
             let q = DQuat::from_xyzw(out[0] as f64, out[1] as f64, out[2] as f64, out[3] as f64);
             return q.normalize().to_array().map(|x| x as f32).to_vec();
         }

@@ -287,11 +287,7 @@ pub struct WeightTrack {
 impl WeightTrack {
     /// The weights at `time` (within the keys; clamped at either end).
     pub fn at(&self, time: f32) -> Vec<f32> {
-        let per_key = self.values.len() / self.times.len().max(1);
-        let n = match self.interpolation {
-            Interpolation::CubicSpline => per_key / 3,
-            _ => per_key,
-        };
+        let n = self.values.len() / (self.times.len().max(1) * self.interpolation.per_key());
         let keys = (&self.times[..], &self.values[..]);
         crate::stages::skin::sample(self.interpolation, keys, n, time, false)
     }
@@ -487,10 +483,7 @@ impl Asset {
                         ),
                     ));
                 };
-                let per_key = match interpolation {
-                    Interpolation::CubicSpline => 3,
-                    _ => 1,
-                };
+                let per_key = interpolation.per_key();
                 if times.is_empty() || values.len() % (per_key * times.len()) != 0 {
                     return Err(self.invalid(
                         format!("animation {i} sampler {s}"),

@@ -77,12 +77,8 @@ fn carry_shape_keys(
         .collect();
     let mesh = &mut b.out.meshes[mesh];
     mesh.primitives[0].targets = targets;
-    mesh.weights = (0..g.morphs.len())
-        .map(|k| g.morph_rest.get(k).copied().unwrap_or(0.0))
-        .collect();
-    if g.morph_names.len() == g.morphs.len() {
-        mesh.target_names = g.morph_names.to_vec();
-    }
+    mesh.weights = g.shape_key_rest().collect();
+    mesh.target_names = g.shape_key_names().unwrap_or_default().to_vec();
 }
 
 /// Positions `p` as the POSITION stream stores them.

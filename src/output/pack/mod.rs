@@ -323,6 +323,17 @@ impl Geometry<'_> {
     fn stored(&self, p: Vec3) -> Vec3 {
         stored_position(&self.grid, self.exact, p)
     }
+
+    /// The shape keys' rest weights, one per target of [`Geometry::morphs`].
+    fn shape_key_rest(&self) -> impl Iterator<Item = f32> + '_ {
+        (0..self.morphs.len()).map(|k| self.morph_rest.get(k).copied().unwrap_or(0.0))
+    }
+
+    /// The shape keys' names, when the asset names every one.
+    fn shape_key_names(&self) -> Option<&[String]> {
+        let named = !self.morphs.is_empty() && self.morph_names.len() == self.morphs.len();
+        named.then_some(self.morph_names)
+    }
 }
 
 /// Position `p` as the POSITION stream stores it: its level on `grid`, or itself in a plain
@@ -1620,10 +1631,7 @@ fn wind_channel(
 ) -> Option<Channel> {
     let mesh = &b.out.meshes[m];
     let targets = mesh.primitives.first().map_or(0, |p| p.targets.len());
-    let rest = match &b.out.nodes[node].weights {
-        w if !w.is_empty() => w.clone(),
-        _ => mesh.weights.clone(),
-    };
+    let rest = b.out.weights_of(node).to_vec();
     if targets < 2 || rest.len() != targets {
         return None;
     }
@@ -2405,12 +2413,7 @@ fn compact_layer(
                 (false, bend) => {
                     let mut w = vec![l.t];
                     w.extend(bend.map(|b| b.weight(l.t)));
-                    if !shells.morphs.is_empty() {
-                        let rest = ctx.geometry.morph_rest;
-                        w.extend(
-                            (0..shells.morphs.len()).map(|k| rest.get(k).copied().unwrap_or(0.0)),
-                        );
-                    }
+                    w.extend(ctx.geometry.shape_key_rest());
                     // the wind at rest (the animation moves it)
                     w.extend(shells.wind.map_or(&[][..], |_| &[0.0, 0.0]));
                     w
@@ -2427,12 +2430,12 @@ fn compact_layer(
 /// keys by the asset's names, so a client that sets a key by name on every mesh moves the fur
 /// too.
 fn layer_target_names(g: &Geometry, shells: &ShellStreams, base: bool) -> Vec<String> {
-    if base || shells.morphs.is_empty() || g.morph_names.len() != shells.morphs.len() {
+    let Some(keys) = g.shape_key_names().filter(|_| !base) else {
         return vec![];
-    }
+    };
     let mut names = vec!["shellbake_extrusion".to_string()];
     names.extend(shells.bend.map(|_| "shellbake_bend".to_string()));
-    names.extend(g.morph_names.iter().cloned());
+    names.extend(keys.iter().cloned());
     if shells.wind.is_some() {
         names.extend(["shellbake_wind_sin".into(), "shellbake_wind_cos".into()]);
     }

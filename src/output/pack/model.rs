@@ -346,6 +346,16 @@ pub struct Packed {
 }
 
 impl Packed {
+    /// The morph weights node `n` draws with: its own, else its mesh's (none without a mesh).
+    pub fn weights_of(&self, n: usize) -> &[f32] {
+        let node = &self.nodes[n];
+        match (node.weights.is_empty(), node.mesh) {
+            (false, _) => &node.weights,
+            (true, Some(m)) => &self.meshes[m].weights,
+            (true, None) => &[],
+        }
+    }
+
     pub(super) fn stream(
         &mut self,
         name: &'static str,
