@@ -195,6 +195,10 @@ pub struct PartOf {
     pub shape_rest: Vec<f32>,
     /// Their names, when the asset names them (`extras.targetNames`).
     pub shape_names: Vec<String>,
+    /// The animation channels on those weights and their keys summed (three a key for
+    /// `CUBICSPLINE`), which the fur's channels repeat: for the size estimate
+    /// ([`params::BakeParams::estimate_animation_bytes`]).
+    pub shape_key_clips: (u64, u64),
 }
 
 /// The scene that furs the chosen parts of `asset` (from [`input::asset::Asset::select`]): one
@@ -235,11 +239,11 @@ pub fn asset_scene(
         let mut geometry = part.scene.clone();
         geometry.warnings.clear();
         // the fur follows the shape keys only in the asset that has them
-        let (shape_rest, shape_names) = match (&part.shape_keys, graft) {
-            (Some(keys), true) => (keys.rest.clone(), keys.names.clone()),
+        let (shape_rest, shape_names, shape_key_clips) = match (&part.shape_keys, graft) {
+            (Some(keys), true) => (keys.rest.clone(), keys.names.clone(), keys.clips()),
             _ => {
                 geometry.meshes.iter_mut().for_each(|m| m.morphs.clear());
-                (vec![], vec![])
+                (vec![], vec![], (0, 0))
             }
         };
         let maps = surface_maps(&s, &geometry)?;
@@ -253,6 +257,7 @@ pub fn asset_scene(
                 graft,
                 shape_rest,
                 shape_names,
+                shape_key_clips,
             }),
         });
     }

@@ -485,6 +485,9 @@ fn check_loaded(
             surface.asks(Effect::Fins),
             surface.asks(Effect::Outline),
         );
+        let clips = l.part.as_ref().map_or((0, 0), |p| p.shape_key_clips);
+        estimate +=
+            (surface.params).estimate_animation_bytes(&l.scene, surface.asks(Effect::Wind), clips);
     }
     if estimate > args.max_output {
         anyhow::bail!(

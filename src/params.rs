@@ -201,9 +201,66 @@ impl BakeParams {
             .iter()
             .map(|m| m.triangle_count() as u64)
             .sum::<u64>();
-        // chunks: cells of the chunk size over the scene's bounding box (at most one per
-        // triangle); the LOD stage may not run, but the bound holds either way
-        let chunks = match self.lod.chunk_size {
+        // an asset part's shape keys: a target each over every vertex, as floats at worst
+        let shape_keys: u64 = (scene.meshes.iter())
+            .map(|m| m.morphs.len() as u64 * 3 * m.triangle_count() as u64 * 12)
+            .sum();
+        crate::output::pack::estimate_bytes(
+            3 * triangles,
+            triangles,
+            self.shells.layers as u64,
+            self.strands.mask_size as u64,
+            self.pack.layout,
+            (self.lod.levels.max(1) as u64, self.chunk_bound(scene)),
+        ) + shape_keys
+    }
+
+    /// What animations add to [`BakeParams::estimate_bytes`]: the wind's clip (`wind`), and the
+    /// fur's twins of an asset part's shape-key channels, `(channels, keys)`: how many channels
+    /// move the part's weights, and their keys summed (three a key for `CUBICSPLINE`). A layer
+    /// node's weights depend on its level and layer only and nodes with the same weights share
+    /// an output, so a clip stores at most one output per layer mesh of any level, the fins and
+    /// the outline, each a float per key and target (targets: the extrusion, the bend, the
+    /// occlusion's shade, the wind's two and the shape keys); every node of every chunk costs a
+    /// channel and a sampler in the JSON.
+    pub fn estimate_animation_bytes(
+        &self,
+        scene: &crate::mesh::Scene,
+        wind: bool,
+        (channels, keys): (u64, u64),
+    ) -> u64 {
+        let levels = self.lod.levels.max(1) as u64;
+        let meshes = crate::output::pack::level_layers(self.shells.layers as u64, levels) + 2;
+        let nodes = self.chunk_bound(scene) * meshes;
+        let morphs = scene.meshes.iter().map(|m| m.morphs.len()).max();
+        let targets = 5 + morphs.unwrap_or(0) as u64;
+        // an output: its floats, its accessor and view (JSON) and padding; a node's channel
+        // and sampler (JSON)
+        let clip = |keys: u64, channels: u64| {
+            meshes * (4 * keys * targets + 256 * channels) + channels * nodes * 128 + 4 * keys + 512
+        };
+        let wind = if wind {
+            clip(self.wind.keyframes as u64 + 1, 1)
+        } else {
+            0
+        };
+        wind + if channels > 0 {
+            clip(keys, channels)
+        } else {
+            0
+        }
+    }
+
+    /// At most how many chunks the LOD stage cuts the scene into: cells of the chunk size over
+    /// its bounding box (at most one per triangle); the stage may not run, but the bound holds
+    /// either way.
+    fn chunk_bound(&self, scene: &crate::mesh::Scene) -> u64 {
+        let triangles = scene
+            .meshes
+            .iter()
+            .map(|m| m.triangle_count() as u64)
+            .sum::<u64>();
+        match self.lod.chunk_size {
             Some(size) if size > 0.0 => {
                 let (mut lo, mut hi) = (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY);
                 for m in &scene.meshes {
@@ -220,19 +277,7 @@ impl BakeParams {
                 (cells(axes[0]).saturating_mul(cells(axes[1]))).min(triangles.max(1))
             }
             _ => 1,
-        };
-        // an asset part's shape keys: a target each over every vertex, as floats at worst
-        let shape_keys: u64 = (scene.meshes.iter())
-            .map(|m| m.morphs.len() as u64 * 3 * m.triangle_count() as u64 * 12)
-            .sum();
-        crate::output::pack::estimate_bytes(
-            3 * triangles,
-            triangles,
-            self.shells.layers as u64,
-            self.strands.mask_size as u64,
-            self.pack.layout,
-            (self.lod.levels.max(1) as u64, chunks),
-        ) + shape_keys
+        }
     }
 
     /// World-unit shell height for a mesh with the given bounding-box diagonal.

@@ -329,3 +329,86 @@ fn control_characters_from_paths_are_escaped_on_the_terminal() {
         run.stderr
     );
 }
+
+/// The estimate `plan` prints (what `--max-output` refuses by), in bytes.
+fn planned(args: &[&str]) -> u64 {
+    let (code, stdout, stderr) = common::shellbake(&[&["plan"], args].concat());
+    assert_eq!(code, Some(0), "{stderr}");
+    let line = (stdout.lines())
+        .find_map(|l| l.strip_prefix("estimated output: at most "))
+        .unwrap_or_else(|| panic!("no estimate in: {stdout}"));
+    line.split(' ').next().unwrap().parse().unwrap()
+}
+
+/// `--max-output` holds for files whose animations outweigh their geometry: the wind's clip on
+/// a cube of 239 layers at 256 keyframes a period (1.8 MB written from 12 triangles), and a
+/// shape-key clip of 2 000 keys that each of 239 layers repeats. The estimate counted geometry
+/// only, and let both through at a third of their size; a bake under a limit below the file
+/// is refused, and one at the estimate writes it.
+#[test]
+fn the_size_estimate_counts_the_animations_the_fur_writes() {
+    let dir = scratch("estimate_animations");
+    // the shape-key sphere with its first clip stretched to 2 000 keys
+    let (mut doc, mut bin) =
+        shellbake::view::glb::split_glb(&std::fs::read(fixture("shape_keys.glb")).unwrap())
+            .unwrap();
+    let keys = 2000usize;
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let at = bin.len();
+    for k in 0..keys {
+        bin.extend((k as f32 / 100.0).to_le_bytes());
+    }
+    for k in 0..keys {
+        bin.extend(((k % 7) as f32 / 6.0).to_le_bytes());
+    }
+    let views = doc["bufferViews"].as_array_mut().unwrap();
+    views.push(json!({ "buffer": 0, "byteOffset": at, "byteLength": 4 * keys }));
+    views.push(json!({ "buffer": 0, "byteOffset": at + 4 * keys, "byteLength": 4 * keys }));
+    let v = views.len();
+    let accessors = doc["accessors"].as_array_mut().unwrap();
+    accessors.push(
+        json!({ "bufferView": v - 2, "componentType": 5126, "count": keys,
+        "type": "SCALAR", "min": [0.0], "max": [(keys - 1) as f32 / 100.0] }),
+    );
+    accessors.push(
+        json!({ "bufferView": v - 1, "componentType": 5126, "count": keys, "type": "SCALAR" }),
+    );
+    let a = accessors.len();
+    doc["animations"][0]["samplers"][0]["input"] = json!(a - 2);
+    doc["animations"][0]["samplers"][0]["output"] = json!(a - 1);
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    let long_clip = dir.join("long_clip.glb");
+    std::fs::write(&long_clip, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+
+    let cube = fixture("cube.obj");
+    let cases: [(&Path, &[&str]); 2] = [
+        (&cube, &["--wind", "--set", "wind.keyframes=256"]),
+        (&long_clip, &[]),
+    ];
+    for (input, extra) in cases {
+        let input = input.to_str().unwrap();
+        let out = dir.join("out.glb");
+        let out = out.to_str().unwrap();
+        let args = [&[input, "--layers", "239"], extra].concat();
+        let estimate = planned(&args);
+        let (code, _, stderr) =
+            common::shellbake(&[&["bake", "-o", out, "-q"], &args[..]].concat());
+        assert_eq!(code, Some(0), "{input}: {stderr}");
+        let written = std::fs::metadata(out).unwrap().len();
+        assert!(
+            written > 1 << 20,
+            "{input}: {written} bytes: the animation should outweigh the geometry"
+        );
+        assert!(
+            estimate >= written,
+            "{input}: estimate {estimate} < written {written}"
+        );
+        std::fs::remove_file(out).unwrap();
+        let limit = (written - 1).to_string();
+        let (code, _, stderr) =
+            common::shellbake(&[&["bake", "-o", out, "--max-output", &limit], &args[..]].concat());
+        assert_eq!(code, Some(1), "{input}: {stderr}");
+        assert!(stderr.contains("--max-output"), "{stderr}");
+        assert!(!Path::new(out).exists(), "{input}: written over the limit");
+    }
+}

@@ -173,6 +173,18 @@ pub struct ShapeKeys {
     pub channels: Vec<WeightsChannel>,
 }
 
+impl ShapeKeys {
+    /// The channels on the weights and their keys summed (three a key for `CUBICSPLINE`).
+    pub fn clips(&self) -> (u64, u64) {
+        let targets = self.rest.len().max(1);
+        let keys = self
+            .channels
+            .iter()
+            .map(|c| (c.values.len() / targets) as u64);
+        (self.channels.len() as u64, keys.sum())
+    }
+}
+
 /// One animation channel on a part's morph weights.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WeightsChannel {

@@ -2462,12 +2462,7 @@ pub fn estimate_bytes(
     // grey + alpha per texel, one filter byte per row; mips add at most a third
     let raw = mask_size * (2 * mask_size + 1);
     let png = (raw + raw / 8) * 4 / 3 + 4096 * (levels + 1);
-    // layer meshes over all levels: LOD 0's, each coarser level's at most half the previous
-    // plus one, and the bare level
-    let level_layers: u64 = (0..levels.max(1))
-        .map(|k| 1 + layers.saturating_sub(1).div_ceil(1 << k.min(62)))
-        .sum::<u64>()
-        + 1;
+    let level_layers = level_layers(layers, levels);
     let json = 8192 + chunks * (600 * level_layers + 1000 * (levels + 1));
     // each view is padded to 4 bytes
     let padding = 4 * (12 + 4 * (levels + 1) * chunks);
@@ -2483,6 +2478,15 @@ pub fn estimate_bytes(
         }
     };
     28 + body + png + json + padding
+}
+
+/// At most how many layer meshes `levels` levels of a `layers`-layer stack write in one chunk:
+/// LOD 0's, each coarser level's at most half the previous plus one, and the bare level.
+pub fn level_layers(layers: u64, levels: u64) -> u64 {
+    (0..levels.max(1))
+        .map(|k| 1 + layers.saturating_sub(1).div_ceil(1 << k.min(62)))
+        .sum::<u64>()
+        + 1
 }
 
 /// `COLOR_0` alpha of a single-draw layer at height step `k`, as normalized u16: 1 for the base
