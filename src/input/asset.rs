@@ -720,8 +720,11 @@ fn wrap(i: i64, n: i64, mode: u64) -> i64 {
 }
 
 /// A `KHR_texture_transform` object as the matrix it stands for (translation · rotation ·
-/// scale, the extension's order); identity when absent.
-fn texture_transform(t: &Value) -> glam::Affine2 {
+/// scale, the extension's order); identity when absent. The rotation turns UVs by `[c s; −s c]`
+/// (rows), as three.js, Blender's exporter and Babylon.js read it; the extension's sample GLSL,
+/// read column-major, would be the transpose, which no client draws. Shared by the bake's
+/// colour sampling and the viewer, so the bare asset and its fur agree.
+pub fn texture_transform(t: &Value) -> glam::Affine2 {
     if !t.is_object() {
         return glam::Affine2::IDENTITY;
     }

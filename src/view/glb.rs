@@ -844,21 +844,11 @@ fn parse_material(m: &Value) -> Material {
         .map(|v| [v[0], v[1], v[2], v[3]])
         .unwrap_or(d.base_color);
     let tex = &pbr["baseColorTexture"];
-    let xf = &tex["extensions"]["KHR_texture_transform"];
-    let offset = f32s(&xf["offset"])
-        .filter(|v| v.len() == 2)
-        .unwrap_or(vec![0.0, 0.0]);
-    let scale = f32s(&xf["scale"])
-        .filter(|v| v.len() == 2)
-        .unwrap_or(vec![1.0, 1.0]);
-    let rotation = xf["rotation"].as_f64().unwrap_or(0.0) as f32;
-    // KHR_texture_transform: uv' = T(offset) · R(rotation) · S(scale) · uv, with
-    // the extension's GLSL `mat3(cos, sin, 0, −sin, cos, 0, 0, 0, 1)` is column-major, so in rows
-    // R = [[cos, −sin], [sin, cos]].
-    let (s, c) = rotation.sin_cos();
+    let xf = crate::input::asset::texture_transform(&tex["extensions"]["KHR_texture_transform"]);
+    let (m2, t) = (xf.matrix2, xf.translation);
     let uv_transform = [
-        [c * scale[0], -s * scale[1], offset[0]],
-        [s * scale[0], c * scale[1], offset[1]],
+        [m2.x_axis.x, m2.y_axis.x, t.x],
+        [m2.x_axis.y, m2.y_axis.y, t.y],
     ];
     let alpha = match m["alphaMode"].as_str() {
         Some("MASK") => AlphaMode::Mask(m["alphaCutoff"].as_f64().unwrap_or(0.5) as f32),
@@ -1022,5 +1012,22 @@ mod tests {
         assert_eq!(m.uv_transform, [[3.0, 0.0, 0.5], [0.0, 4.0, 2.0]]);
         assert_eq!(m.alpha, AlphaMode::Mask(0.25));
         assert_eq!(m.metallic, 1.0);
+        // a quarter turn: u' = v, v' = −u, as three.js's `setUvTransform` and the bake's colour
+        // sampling turn it (it was drawn the other way, the bare asset disagreeing with its fur)
+        let m = parse_material(&json!({
+            "pbrMetallicRoughness": { "baseColorTexture": { "index": 0,
+                "extensions": { "KHR_texture_transform": { "rotation": std::f64::consts::FRAC_PI_2, "scale": [2.0, 1.0] } } } }
+        }));
+        let t = m.uv_transform;
+        let at = |u: f32, v: f32| {
+            [
+                t[0][0] * u + t[0][1] * v + t[0][2],
+                t[1][0] * u + t[1][1] * v + t[1][2],
+            ]
+        };
+        let [u, v] = at(1.0, 0.0);
+        assert!((u - 0.0).abs() < 1e-6 && (v + 2.0).abs() < 1e-6, "{t:?}");
+        let [u, v] = at(0.0, 1.0);
+        assert!((u - 1.0).abs() < 1e-6 && v.abs() < 1e-6, "{t:?}");
     }
 }
