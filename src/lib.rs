@@ -892,6 +892,23 @@ impl Heights {
     }
 }
 
+/// The density map's value per render vertex times how much of the surface there the asset's
+/// material draws (`albedo`'s `w`: a `MASK` cut-out or a `BLEND` fade grows no fur where it
+/// draws nothing); `None` when neither lowers any vertex.
+fn drawn_density(map: Option<Vec<u8>>, albedo: Option<&[glam::Vec4]>) -> Option<Vec<u8>> {
+    let coverage = albedo.filter(|a| a.iter().any(|c| c.w < 1.0));
+    let Some(coverage) = coverage else {
+        return map;
+    };
+    let map = map.unwrap_or_else(|| vec![255; coverage.len()]);
+    let scaled = map.iter().zip(coverage);
+    Some(
+        scaled
+            .map(|(&d, c)| (d as f32 * c.w.clamp(0.0, 1.0)).round() as u8)
+            .collect(),
+    )
+}
+
 /// Smooth, collision, clamp, occlusion: how far each strand may reach.
 fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
     let params = run.params;
@@ -933,7 +950,10 @@ fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
             *s *= l as f32 / 255.0;
         }
     }
-    let density_map = maps.density.as_ref().map(|m| m.per_vertex(mesh));
+    let density_map = drawn_density(
+        maps.density.as_ref().map(|m| m.per_vertex(mesh)),
+        mesh.albedo.as_deref(),
+    );
     let comb_map = maps.comb.as_ref().map(|m| m.per_vertex(mesh));
     frames.direction = clamp.directions(welded);
     let facts = clamp.facts(length.is_some(), run.runs(Stage::Collision));

@@ -131,10 +131,11 @@ pub struct Mesh {
     /// Vertex colours (glTF `COLOR_0`, or an OBJ `v x y z r g b`) as bytes, RGBA (alpha 255
     /// where the input has three channels); they can drive the density and length maps.
     pub colors: Option<Vec<[u8; 4]>>,
-    /// The asset's base colour at each vertex (linear RGB), when the fur takes it (DESIGN §10;
-    /// `load::asset::Paint`): sampled where the asset's own UVs still hold, then carried through
-    /// every stage that splits or adds vertices.
-    pub albedo: Option<Vec<Vec3>>,
+    /// The asset's base colour at each vertex (linear RGB; `w`: how much of the surface around
+    /// the vertex its material draws, which scales the fur's density), when the fur takes it
+    /// (DESIGN §10; [`crate::input::asset::Paint::albedo`]): sampled where the asset's own UVs
+    /// still hold, then carried through every stage that splits or adds vertices.
+    pub albedo: Option<Vec<glam::Vec4>>,
     /// Triangle list.
     pub indices: Vec<u32>,
     /// Each vertex's joints and weights, when the input is skinned ([`crate::stages::skin`]).

@@ -791,7 +791,7 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     let albedo = paint.albedo(mesh);
     let sampled = start.elapsed();
     // mean and worst ΔE76 over `roots` x `roots` strand roots per triangle of `mesh`
-    let error = |mesh: &shellbake::mesh::Mesh, albedo: &[glam::Vec3], roots: usize| {
+    let error = |mesh: &shellbake::mesh::Mesh, albedo: &[glam::Vec4], roots: usize| {
         let uvs = mesh.uvs.as_ref().unwrap();
         let (mut sum, mut worst, mut n) = (0.0f64, 0.0f64, 0usize);
         for t in mesh.indices.chunks_exact(3) {
@@ -802,8 +802,8 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
                     let (u, v) = ((i as f32 + 0.33) / r, (j as f32 + 0.33) / r);
                     let w = 1.0 - u - v;
                     let uv = uvs[a] * w + uvs[b] * u + uvs[c] * v;
-                    let exact = texture.sample(uv);
-                    let vertex = albedo[a] * w + albedo[b] * u + albedo[c] * v;
+                    let exact = texture.sample(uv).truncate();
+                    let vertex = (albedo[a] * w + albedo[b] * u + albedo[c] * v).truncate();
                     let (p, q) = (lab_of(exact), lab_of(vertex));
                     let de =
                         ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2))
@@ -1632,4 +1632,124 @@ fn the_fur_follows_the_asset_s_shape_keys() {
         fur.0.cmple(base.0).all() && fur.1.cmpge(base.1).all(),
         "{fur:?} {base:?}"
     );
+}
+
+/// A plane of 8 × 8 quads (x and z in [0, 1], facing +y, UVs (x, z)) whose material `leaf` is
+/// textured by two texels, red on the left and red with alpha 0 on the right (`NEAREST`), under
+/// `alpha_mode`: as a leaf card or a cut-out cloth arrives.
+fn cut_out_plane(alpha_mode: &str) -> Vec<u8> {
+    let n = 8usize;
+    let (mut bin, mut indices) = (Vec::new(), Vec::new());
+    for k in 0..=n {
+        for i in 0..=n {
+            let (x, z) = (i as f32 / n as f32, k as f32 / n as f32);
+            for c in [x, 0.0, z, 0.0, 1.0, 0.0, x, z] {
+                bin.extend(c.to_le_bytes());
+            }
+        }
+    }
+    let row = n as u16 + 1;
+    for k in 0..n as u16 {
+        for i in 0..n as u16 {
+            let (a, b) = (k * row + i, (k + 1) * row + i);
+            indices.extend_from_slice(&[a, b, a + 1, a + 1, b, b + 1]);
+        }
+    }
+    let vertices = (n + 1) * (n + 1);
+    let index_at = bin.len();
+    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let image = image::RgbaImage::from_raw(2, 1, vec![200, 30, 20, 255, 200, 30, 20, 0]).unwrap();
+    let mut png = Vec::new();
+    image::DynamicImage::ImageRgba8(image)
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    let png_at = bin.len();
+    bin.extend(&png);
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "name": "card", "mesh": 0 }],
+        "meshes": [{ "name": "card", "primitives": [{
+            "attributes": { "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2 }, "indices": 3, "material": 0 }] }],
+        "materials": [{ "name": "leaf", "alphaMode": alpha_mode,
+            "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 } } }],
+        "textures": [{ "source": 0, "sampler": 0 }],
+        "samplers": [{ "magFilter": 9728, "minFilter": 9728 }],
+        "images": [{ "bufferView": 2, "mimeType": "image/png" }],
+        "accessors": [
+            { "bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": vertices, "type": "VEC3",
+              "min": [0.0, 0.0, 0.0], "max": [1.0, 0.0, 1.0] },
+            { "bufferView": 0, "byteOffset": 12, "componentType": 5126, "count": vertices, "type": "VEC3" },
+            { "bufferView": 0, "byteOffset": 24, "componentType": 5126, "count": vertices, "type": "VEC2" },
+            { "bufferView": 1, "componentType": 5123, "count": indices.len(), "type": "SCALAR" }
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": index_at, "byteStride": 32 },
+            { "buffer": 0, "byteOffset": index_at, "byteLength": 2 * indices.len() },
+            { "buffer": 0, "byteOffset": png_at, "byteLength": png.len() }
+        ],
+        "buffers": [{ "byteLength": bin.len() }]
+    });
+    shellbake::output::write::glb_bytes(&doc, &bin)
+}
+
+/// Each vertex of the outermost layer as (x in stored units, `COLOR_0` alpha: the density the
+/// strands are thinned by).
+fn outer_layer_density(glb: &Glb) -> Vec<(f64, f64)> {
+    let meshes = glb.json["meshes"].as_array().unwrap();
+    let layer = |m: &Value| {
+        let name = m["name"].as_str().unwrap_or("");
+        name.rsplit_once("layer_")
+            .and_then(|(_, k)| k.parse::<u32>().ok())
+    };
+    let outer = meshes
+        .iter()
+        .filter(|m| layer(m).is_some())
+        .max_by_key(|m| layer(m))
+        .unwrap();
+    let attributes = &outer["primitives"][0]["attributes"];
+    let at = |name: &str| glb.accessor(attributes[name].as_u64().unwrap() as usize);
+    let (x, colour) = (at("POSITION"), at("COLOR_0"));
+    x.iter().zip(&colour).map(|(p, c)| (p[0], c[3])).collect()
+}
+
+#[test]
+fn fur_grows_only_where_an_alpha_cut_out_surface_is_drawn() {
+    // A MASK (or BLEND) material whose texture's alpha cuts the right half of a card away:
+    // fur grew over the whole card, the hidden half included, in the hidden texels' colour.
+    let dir = scratch("cut_out");
+    let mut density = Vec::new();
+    for mode in ["OPAQUE", "MASK", "BLEND"] {
+        let input = dir.join(format!("{mode}.glb"));
+        std::fs::write(&input, cut_out_plane(mode)).unwrap();
+        let (glb, _) = bake(&input, &dir, &format!("{mode}_fur.glb"), &["--no-lod"]);
+        assert_valid(std::slice::from_ref(&glb));
+        density.push((
+            mode,
+            outer_layer_density(&Glb::parse(&std::fs::read(&glb).unwrap())),
+        ));
+    }
+    let xs = density[0].1.iter().map(|v| v.0);
+    let (lo, hi) = xs.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+    let column = (hi - lo) / 8.0;
+    for (mode, vertices) in &density {
+        for &(x, alpha) in vertices {
+            let want = match *mode {
+                "OPAQUE" => Some(1.0),
+                _ if x < lo + 3.5 * column => Some(1.0),
+                _ if x > lo + 4.5 * column => Some(0.0),
+                _ => None, // on the cut: partly drawn
+            };
+            if let Some(want) = want {
+                assert!(
+                    (alpha - want).abs() < 1e-3,
+                    "{mode}: density {alpha} at x {x} (cut at {})",
+                    lo + 4.0 * column
+                );
+            }
+        }
+    }
 }

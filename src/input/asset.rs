@@ -30,7 +30,7 @@
 
 use std::path::Path;
 
-use glam::{DMat4, Vec2, Vec3};
+use glam::{DMat4, Vec2, Vec3, Vec4};
 use serde_json::Value;
 
 use super::document::{Document, Kind, Primitive};
@@ -528,7 +528,9 @@ fn names_of(doc: &Document, node: usize, mesh: usize, material: Option<usize>) -
     }
 }
 
-/// Where a part's fur takes its colour: the material's base colour at each strand root.
+/// Where a part's fur takes its colour: the material's base colour at each strand root, and
+/// where it grows at all: a material that cuts its surface out by alpha (`MASK`) or fades it
+/// (`BLEND`) grows fur only where the surface is drawn.
 #[derive(Clone, Debug)]
 pub struct Paint {
     /// `baseColorFactor` (linear RGBA).
@@ -536,6 +538,37 @@ pub struct Paint {
     pub texture: Option<ColorTexture>,
     /// Multiply by the primitive's `COLOR_0`.
     pub vertex_colors: bool,
+    /// The material's `alphaMode`.
+    pub alpha: AlphaMode,
+}
+
+/// A material's `alphaMode`, and `alphaCutoff` for `MASK`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum AlphaMode {
+    #[default]
+    Opaque,
+    Mask(f32),
+    Blend,
+}
+
+impl AlphaMode {
+    fn of(material: &Value) -> AlphaMode {
+        match material["alphaMode"].as_str() {
+            Some("MASK") => AlphaMode::Mask(material["alphaCutoff"].as_f64().unwrap_or(0.5) as f32),
+            Some("BLEND") => AlphaMode::Blend,
+            _ => AlphaMode::Opaque,
+        }
+    }
+
+    /// How much of the surface a base-colour alpha draws: all of it (opaque), all or none
+    /// (`MASK`, by the cutoff), or the alpha itself (`BLEND`).
+    pub fn coverage(self, alpha: f32) -> f32 {
+        match self {
+            AlphaMode::Opaque => 1.0,
+            AlphaMode::Mask(cutoff) => (alpha >= cutoff) as u8 as f32,
+            AlphaMode::Blend => alpha.clamp(0.0, 1.0),
+        }
+    }
 }
 
 /// A decoded base-colour texture and how it is sampled.
@@ -543,10 +576,13 @@ pub struct Paint {
 pub struct ColorTexture {
     pub width: u32,
     pub height: u32,
-    /// Linear RGB per texel, row by row.
-    pub texels: Vec<Vec3>,
+    /// Linear RGB and alpha per texel, row by row.
+    pub texels: Vec<Vec4>,
     /// glTF wrap modes (10497 repeat, 33071 clamp, 33648 mirrored repeat) in u and v.
     pub wrap: [u64; 2],
+    /// The sampler's `magFilter` is `NEAREST` (palette and pixel-art textures): texels are read
+    /// whole, not blended.
+    pub nearest: bool,
     /// `KHR_texture_transform`: `uv' = M · (u, v, 1)`.
     pub transform: glam::Affine2,
 }
@@ -567,11 +603,13 @@ impl Paint {
                     factor: [1.0; 4],
                     texture: None,
                     vertex_colors,
+                    alpha: AlphaMode::Opaque,
                 }),
                 None,
             );
         };
-        let pbr = &doc.json["materials"][m]["pbrMetallicRoughness"];
+        let material = &doc.json["materials"][m];
+        let pbr = &material["pbrMetallicRoughness"];
         let mut factor = [1.0f32; 4];
         if let Some(f) = pbr["baseColorFactor"].as_array() {
             for (k, v) in f.iter().take(4).enumerate() {
@@ -598,33 +636,99 @@ impl Paint {
             factor,
             texture,
             vertex_colors,
+            alpha: AlphaMode::of(material),
         };
         (Some(paint), warning)
     }
 
-    /// The linear base colour at each vertex of `mesh` (its `uvs` are the primitive's
-    /// `TEXCOORD_0`, its `colors` the primitive's `COLOR_0`).
-    pub fn albedo(&self, mesh: &Mesh) -> Vec<Vec3> {
-        (0..mesh.vertex_count())
-            .map(|v| {
-                self.colour_at(
-                    mesh.uvs.as_ref().map(|u| u[v]),
-                    mesh.colors.as_ref().map(|k| k[v]),
-                )
+    /// The fur's colour at each vertex of `mesh` (its `uvs` are the primitive's `TEXCOORD_0`,
+    /// its `colors` the primitive's `COLOR_0`): linear RGB, and in `w` how much of the surface
+    /// around the vertex the material draws ([`AlphaMode::coverage`]).
+    ///
+    /// The texture is read inside the vertex's faces, not at the vertex itself: each face
+    /// around it is sampled half a texel in from the corner, toward the face's UV centroid, and
+    /// the samples averaged (the colours weighted by their coverage, so a vertex on the rim of a
+    /// cut-out takes the colour of the side that is drawn). A vertex sits on the edge of its UV
+    /// island (a cylinder's side at v = 0, a plane's border at u = 1), where a sample at the
+    /// vertex blends in the texel across the edge: the texture's other side under `REPEAT`, or
+    /// the next island. That colour then spread over every triangle of the vertex, so a blue and
+    /// yellow cylinder grew purple fur along its rims.
+    pub fn albedo(&self, mesh: &Mesh) -> Vec<Vec4> {
+        let n = mesh.vertex_count();
+        let colors = mesh.colors.as_deref();
+        let (Some(t), Some(uvs)) = (&self.texture, mesh.uvs.as_deref()) else {
+            return (0..n)
+                .map(|v| self.colour_at(None, colors.map(|k| k[v])))
+                .collect();
+        };
+        // per vertex: colours weighted by coverage, their plain sum, coverage, samples
+        let mut sum = vec![(Vec3::ZERO, Vec3::ZERO, 0.0f32, 0u32); n];
+        for f in mesh.indices.chunks_exact(3) {
+            let centroid = f.iter().map(|&v| uvs[v as usize]).sum::<Vec2>() / 3.0;
+            for &v in f {
+                let v = v as usize;
+                let texel = t.sample_toward(uvs[v], centroid);
+                let c = self.shade(texel, colors.map(|k| k[v]));
+                let s = &mut sum[v];
+                *s = (
+                    s.0 + c.truncate() * c.w,
+                    s.1 + c.truncate(),
+                    s.2 + c.w,
+                    s.3 + 1,
+                );
+            }
+        }
+        let mut albedo: Vec<Vec4> = (sum.iter().enumerate())
+            .map(|(v, &(weighted, plain, coverage, count))| match count {
+                0 => self.colour_at(Some(uvs[v]), colors.map(|k| k[v])),
+                _ if coverage > 0.0 => (weighted / coverage).extend(coverage / count as f32),
+                _ => (plain / count as f32).extend(0.0),
             })
-            .collect()
+            .collect();
+        // a vertex whose surface is cut out everywhere takes the colour of its drawn
+        // neighbours, which the fur thinning out toward it shows
+        let mut near = vec![Vec4::ZERO; n];
+        for f in mesh.indices.chunks_exact(3) {
+            for (a, b) in [
+                (f[0], f[1]),
+                (f[1], f[2]),
+                (f[2], f[0]),
+                (f[1], f[0]),
+                (f[2], f[1]),
+                (f[0], f[2]),
+            ] {
+                let (a, b) = (a as usize, b as usize);
+                if albedo[a].w == 0.0 && albedo[b].w > 0.0 {
+                    near[a] += (albedo[b].truncate() * albedo[b].w).extend(albedo[b].w);
+                }
+            }
+        }
+        for (c, n) in albedo.iter_mut().zip(&near) {
+            if n.w > 0.0 {
+                *c = (n.truncate() / n.w).extend(0.0);
+            }
+        }
+        albedo
     }
 
-    /// The linear base colour at one vertex, given its `TEXCOORD_0` and `COLOR_0`.
-    pub fn colour_at(&self, uv: Option<Vec2>, color: Option<[u8; 4]>) -> Vec3 {
-        let mut c = Vec3::new(self.factor[0], self.factor[1], self.factor[2]);
-        if let (Some(t), Some(uv)) = (&self.texture, uv) {
-            c *= t.sample(uv);
-        }
+    /// The fur's colour at one point, given its `TEXCOORD_0` and `COLOR_0` (see
+    /// [`Paint::albedo`]).
+    pub fn colour_at(&self, uv: Option<Vec2>, color: Option<[u8; 4]>) -> Vec4 {
+        let texel = match (&self.texture, uv) {
+            (Some(t), Some(uv)) => t.sample(uv),
+            _ => Vec4::ONE,
+        };
+        self.shade(texel, color)
+    }
+
+    /// Factor × texel × vertex colour, the alpha turned into coverage.
+    fn shade(&self, texel: Vec4, color: Option<[u8; 4]>) -> Vec4 {
+        let mut c = Vec4::from(self.factor) * texel;
         if let (true, Some(k)) = (self.vertex_colors, color) {
-            c *= Vec3::new(k[0] as f32, k[1] as f32, k[2] as f32) / 255.0;
+            c *= Vec4::from(k.map(|b| b as f32)) / 255.0;
         }
-        c.clamp(Vec3::ZERO, Vec3::ONE)
+        let c = c.clamp(Vec4::ZERO, Vec4::ONE);
+        c.truncate().extend(self.alpha.coverage(c.w))
     }
 }
 
@@ -658,15 +762,16 @@ impl ColorTexture {
         };
         let decoded = image::load_from_memory(&bytes)
             .map_err(|e| format!("cannot be decoded ({e})"))?
-            .to_rgb8();
+            .to_rgba8();
         let (width, height) = decoded.dimensions();
         let texels = decoded
             .pixels()
             .map(|p| {
-                Vec3::new(
+                Vec4::new(
                     crate::srgb::decode8(p[0]) as f32,
                     crate::srgb::decode8(p[1]) as f32,
                     crate::srgb::decode8(p[2]) as f32,
+                    p[3] as f32 / 255.0,
                 )
             })
             .collect();
@@ -674,28 +779,48 @@ impl ColorTexture {
             .as_u64()
             .map(|s| &doc.json["samplers"][s as usize]);
         let wrap = ["wrapS", "wrapT"].map(|k| sampler.and_then(|s| s[k].as_u64()).unwrap_or(10497));
+        let nearest = sampler.and_then(|s| s["magFilter"].as_u64()) == Some(9728);
         Ok(ColorTexture {
             width,
             height,
             texels,
             wrap,
+            nearest,
             transform: texture_transform(&info["extensions"]["KHR_texture_transform"]),
         })
     }
 
-    /// Bilinear sample at `uv` (glTF convention, v down the image).
-    pub fn sample(&self, uv: Vec2) -> Vec3 {
-        let uv = self.transform.transform_point2(uv);
+    /// The texture at `uv` (glTF convention, v down the image): bilinear, or the texel it falls
+    /// in under a `NEAREST` sampler.
+    pub fn sample(&self, uv: Vec2) -> Vec4 {
+        self.sample_transformed(self.transform.transform_point2(uv))
+    }
+
+    /// The texture up to half a texel from `uv` toward `toward` along each axis (no further
+    /// than `toward`): a sample inside the face whose corner `uv` is and whose UV centroid
+    /// `toward` is, off the texel edge a corner on an island's border sits on.
+    pub fn sample_toward(&self, uv: Vec2, toward: Vec2) -> Vec4 {
+        let size = Vec2::new(self.width as f32, self.height as f32);
+        let p = self.transform.transform_point2(uv);
+        let c = self.transform.transform_point2(toward);
+        let step = ((c - p) * size).clamp(Vec2::splat(-0.5), Vec2::splat(0.5));
+        self.sample_transformed(p + step / size)
+    }
+
+    fn sample_transformed(&self, uv: Vec2) -> Vec4 {
         let (w, h) = (self.width as i64, self.height as i64);
-        let x = uv.x as f64 * w as f64 - 0.5;
-        let y = uv.y as f64 * h as f64 - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
         let at = |i: i64, j: i64| {
             let i = wrap(i, w, self.wrap[0]);
             let j = wrap(j, h, self.wrap[1]);
             self.texels[(j * w + i) as usize]
         };
+        let (x, y) = (uv.x as f64 * w as f64, uv.y as f64 * h as f64);
+        if self.nearest {
+            return at(x.floor() as i64, y.floor() as i64);
+        }
+        let (x, y) = (x - 0.5, y - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = ((x - x0) as f32, (y - y0) as f32);
         let (i, j) = (x0 as i64, y0 as i64);
         let top = at(i, j).lerp(at(i + 1, j), fx);
         let bottom = at(i, j + 1).lerp(at(i + 1, j + 1), fx);
@@ -746,6 +871,110 @@ pub fn texture_transform(t: &Value) -> glam::Affine2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A 4 × 4 texture: the top two rows blue, the bottom two yellow; alpha 0 in the right
+    /// half when `cut`.
+    fn two_tone(nearest: bool, cut: bool) -> ColorTexture {
+        let texels = (0..16)
+            .map(|k| {
+                let (i, j) = (k % 4, k / 4);
+                let c = if j < 2 {
+                    Vec3::Z
+                } else {
+                    Vec3::new(1.0, 1.0, 0.0)
+                };
+                c.extend(if cut && i >= 2 { 0.0 } else { 1.0 })
+            })
+            .collect();
+        ColorTexture {
+            width: 4,
+            height: 4,
+            texels,
+            wrap: [10497, 10497],
+            nearest,
+            transform: glam::Affine2::IDENTITY,
+        }
+    }
+
+    /// A strip of quads over u in [0, 1], v in [0, 0.5] (the blue half, its edges on the
+    /// texture's top edge and on the colour boundary), `columns` quads wide.
+    fn strip(columns: usize) -> Mesh {
+        let mut m = Mesh::default();
+        let mut uvs = Vec::new();
+        for i in 0..=columns {
+            for v in [0.0, 0.5] {
+                let u = i as f32 / columns as f32;
+                m.positions.push(Vec3::new(u, v, 0.0));
+                uvs.push(Vec2::new(u, v));
+            }
+        }
+        for i in 0..columns as u32 {
+            let (a, b, c, d) = (2 * i, 2 * i + 1, 2 * i + 2, 2 * i + 3);
+            m.indices.extend_from_slice(&[a, b, c, c, b, d]);
+        }
+        m.uvs = Some(uvs);
+        m
+    }
+
+    #[test]
+    fn fur_colour_is_read_inside_the_faces_not_across_the_uv_island_s_edge() {
+        // every vertex of the strip is on its island's edge: at v = 0 a sample blends in the
+        // texture's bottom row (REPEAT), at v = 0.5 the yellow half; both halves yellow-blue
+        for nearest in [false, true] {
+            let paint = Paint {
+                factor: [1.0; 4],
+                texture: Some(two_tone(nearest, false)),
+                vertex_colors: false,
+                alpha: AlphaMode::Opaque,
+            };
+            let mesh = strip(4);
+            let at_vertex = paint.colour_at(Some(Vec2::new(0.5, 0.0)), None);
+            if !nearest {
+                assert!(
+                    at_vertex.x > 0.4,
+                    "the sample at the vertex blends: {at_vertex}"
+                );
+            }
+            for (v, c) in paint.albedo(&mesh).iter().enumerate() {
+                assert!(
+                    c.abs_diff_eq(Vec4::new(0.0, 0.0, 1.0, 1.0), 1e-6),
+                    "vertex {v} (nearest {nearest}): {c}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_cut_out_surface_draws_no_fur_and_its_rim_takes_the_drawn_side_s_colour() {
+        let mesh = strip(4);
+        for (alpha, drawn) in [(AlphaMode::Mask(0.5), 1.0), (AlphaMode::Blend, 1.0)] {
+            let paint = Paint {
+                factor: [1.0; 4],
+                texture: Some(two_tone(true, true)),
+                vertex_colors: false,
+                alpha,
+            };
+            let albedo = paint.albedo(&mesh);
+            for (v, c) in albedo.iter().enumerate() {
+                let u = mesh.uvs.as_ref().unwrap()[v].x;
+                // left of the cut drawn, right of it not, on it partly
+                let ok = match u {
+                    u if u < 0.5 => c.w == drawn,
+                    u if u > 0.5 => c.w == 0.0,
+                    _ => c.w > 0.0 && c.w < 1.0,
+                };
+                assert!(ok, "{alpha:?} vertex {v} at u {u}: {c}");
+                assert!(
+                    c.truncate().abs_diff_eq(Vec3::Z, 1e-6),
+                    "{alpha:?} vertex {v}: the drawn side's colour, not the hidden one: {c}"
+                );
+            }
+        }
+        let opaque = AlphaMode::Opaque;
+        assert_eq!(opaque.coverage(0.0), 1.0, "opaque materials ignore alpha");
+        assert_eq!(AlphaMode::Mask(0.5).coverage(0.49), 0.0);
+        assert_eq!(AlphaMode::Blend.coverage(0.3), 0.3);
+    }
 
     #[test]
     fn globs_match_whole_names() {

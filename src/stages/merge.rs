@@ -53,7 +53,7 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
     let snapped = weld::snap_near_twins(&mut mesh.positions, diagonal);
     if let FurColour::Asset { paint, color } = colour {
         mesh.albedo = match color {
-            Some(c) => Some(vec![Vec3::from(c); mesh.vertex_count()]),
+            Some(c) => Some(vec![Vec3::from(c).extend(1.0); mesh.vertex_count()]),
             None => paint.map(|paint| paint.albedo(&mesh)),
         };
     }

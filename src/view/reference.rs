@@ -331,7 +331,10 @@ impl ReferenceRenderer {
             f32s(
                 (0..mesh.vertex_count())
                     .flat_map(|v| {
-                        let [i, j, k] = mesh.albedo.as_ref().map_or([1.0; 3], |a| a[v].to_array());
+                        let [i, j, k] = mesh
+                            .albedo
+                            .as_ref()
+                            .map_or([1.0; 3], |a| a[v].truncate().to_array());
                         match &mesh.skin {
                             Some(s) => {
                                 let [a, b, c, d] = s.joints[v].map(f32::from);

@@ -306,7 +306,7 @@ struct Geometry<'a> {
     fur_weight: Option<&'a [f32]>,
     /// The asset's base colour per vertex ([`Mesh::albedo`]): it multiplies every layer
     /// (`COLOR_0`), whose materials then carry the shade only.
-    albedo: Option<&'a [Vec3]>,
+    albedo: Option<&'a [glam::Vec4]>,
     /// Joints and weights per vertex, and the skin's joint count.
     skin: Option<(&'a crate::mesh::VertexSkin, usize)>,
     /// The compact layout's shape-key targets in the stored unit, each with how it is stored:
@@ -1818,7 +1818,7 @@ fn root_colors(b: &mut Builder, g: &Geometry, order: &[u32]) -> Option<usize> {
             let mut bytes = Bytes::default();
             for &o in order {
                 let shade = g.occlusion.map_or(1.0, |a| 1.0 - a[o as usize]);
-                let c = (albedo[o as usize] * shade).clamp(Vec3::ZERO, Vec3::ONE);
+                let c = (albedo[o as usize].truncate() * shade).clamp(Vec3::ZERO, Vec3::ONE);
                 let d = g.density.map_or(u16::MAX, |d| d[o as usize] as u16 * 257);
                 let q = |v: f32| (v * 65535.0).round() as u16;
                 bytes.u16s(&[q(c.x), q(c.y), q(c.z), d], 8);
@@ -1854,7 +1854,7 @@ fn occlusion_deltas(b: &mut Builder, g: &Geometry, order: &[u32], a: &[f32]) -> 
     let mut bytes = Bytes::default();
     for &o in order {
         let rgb = match g.albedo {
-            Some(albedo) => albedo[o as usize] * a[o as usize],
+            Some(albedo) => albedo[o as usize].truncate() * a[o as usize],
             None => Vec3::splat(1.0 - root_shade(g, o) as f32 / 255.0),
         };
         let [r, gr, bl] = rgb
@@ -2323,7 +2323,7 @@ fn bare_level(
         for &o in &s.order {
             let w = weight.map_or(1.0, |w| w[o as usize]);
             let shade = occlusion.map_or(1.0, |a| 1.0 - 0.5 * a[o as usize]);
-            let tint = albedo.map_or(Vec3::ONE, |a| a[o as usize]);
+            let tint = albedo.map_or(Vec3::ONE, |a| a[o as usize].truncate());
             let c = [0, 1, 2].map(|k| {
                 let v = (skin[k] + (fur[k] - skin[k]) * w) * shade * tint[k];
                 (v.clamp(0.0, 1.0) * 255.0).round() as u8
@@ -2709,7 +2709,7 @@ fn single_draw_color(g: &Geometry, (j, l): (usize, &LevelLayer), alpha: u16, o: 
     let shade = g
         .occlusion
         .map_or(1.0, |a| crate::effects::occlusion::shade(a[o], l.t));
-    let albedo = g.albedo.map_or(Vec3::ONE, |a| a[o]);
+    let albedo = g.albedo.map_or(Vec3::ONE, |a| a[o].truncate());
     let c = [0, 1, 2]
         .map(|k| ((l.color[k] * shade * albedo[k]).clamp(0.0, 1.0) * 65535.0).round() as u16);
     [c[0], c[1], c[2], a as u16]
