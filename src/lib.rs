@@ -199,6 +199,10 @@ pub struct PartOf {
     /// `CUBICSPLINE`), which the fur's channels repeat: for the size estimate
     /// ([`params::BakeParams::estimate_animation_bytes`]).
     pub shape_key_clips: (u64, u64),
+    /// How many instances the part's node draws (`EXT_mesh_gpu_instancing`; 0: none) when the
+    /// fur is grafted: the graft copies the fur to every one, so it takes one level
+    /// ([`blocked`]).
+    pub instances: usize,
 }
 
 /// The scene that furs the chosen parts of `asset` (from [`input::asset::Asset::select`]): one
@@ -258,6 +262,7 @@ pub fn asset_scene(
                 shape_rest,
                 shape_names,
                 shape_key_clips,
+                instances: if graft { part.instances.len() } else { 0 },
             }),
         });
     }
@@ -683,12 +688,14 @@ fn prepare<'a>(job: &Job<'a>, masks: &MaskCache) -> Prepared<'a> {
     let start = Instant::now();
     let report = Report::begin(&surface.name, &surface.mesh, &scene.warnings, job.load_ms);
     let skinned = scene.skeleton.is_some();
+    let instanced = job.part.is_some_and(|p| p.instances > 0);
     let (plan, i) = (job.plan, job.i);
     let mut run = Run {
         plan,
         i,
         params,
         skinned,
+        instanced,
         report,
     };
     if let Some(k) = &scene.skeleton {
@@ -785,6 +792,8 @@ struct Run<'a> {
     params: &'a BakeParams,
     /// A skinned surface takes no fins, outline or LOD chain ([`blocked`]).
     skinned: bool,
+    /// An instanced asset part takes no LOD chain ([`blocked`]).
+    instanced: bool,
     report: Report,
 }
 
@@ -797,7 +806,7 @@ impl Run<'_> {
     /// Runs `stage` if the plan runs it for this surface and nothing blocks it on this surface
     /// (see [`Report::gate`]).
     fn gate<T>(&mut self, stage: Stage, f: impl FnOnce() -> T) -> Option<T> {
-        let blocked = blocked(stage, self.skinned);
+        let blocked = blocked(stage, self.skinned, self.instanced);
         self.report.gate(self.plan, stage, self.i, blocked, f)
     }
 }
@@ -1118,7 +1127,8 @@ fn levels(run: &mut Run, shape: &Shape, heights: &Heights, look: &Look) -> Level
     let params = run.params;
     let density_map = heights.density_map.as_deref();
     let (mesh, mask, shells) = (&shape.mesh, &look.mask, &look.shells);
-    let lod_runs = run.runs(Stage::Lod) && !run.skinned;
+    let lod_runs =
+        run.runs(Stage::Lod) && blocked(Stage::Lod, run.skinned, run.instanced).is_none();
     let chunks = lod::chunks(mesh, params.lod.chunk_size.filter(|_| lod_runs));
     let levels = run
         .gate(Stage::Lod, || {
@@ -1312,7 +1322,7 @@ fn pack_surface(
 /// fins or outline (neither is skinned) and no LOD chain (its layer nodes are scene roots,
 /// which `MSFT_lod` cannot switch). The bake skips the stage with this reason and a warning;
 /// `shellbake plan` shows the same.
-pub fn blocked(stage: Stage, skinned: bool) -> Option<&'static str> {
+pub fn blocked(stage: Stage, skinned: bool, instanced: bool) -> Option<&'static str> {
     match stage {
         Stage::Fins | Stage::Outline if skinned => {
             Some("skinned surface: fins and outlines are not skinned")
@@ -1320,6 +1330,10 @@ pub fn blocked(stage: Stage, skinned: bool) -> Option<&'static str> {
         Stage::Lod if skinned => {
             Some("skinned surface: its layer nodes are scene roots, so one level and no chunks")
         }
+        Stage::Lod if instanced => Some(
+            "instanced part (EXT_mesh_gpu_instancing): its fur is copied to every instance, so \
+             one level and no chunks",
+        ),
         _ => None,
     }
 }

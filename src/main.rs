@@ -486,8 +486,13 @@ fn check_loaded(
             surface.asks(Effect::Outline),
         );
         let clips = l.part.as_ref().map_or((0, 0), |p| p.shape_key_clips);
-        estimate +=
-            (surface.params).estimate_animation_bytes(&l.scene, surface.asks(Effect::Wind), clips);
+        let wind = surface.asks(Effect::Wind);
+        estimate += (surface.params).estimate_animation_bytes(&l.scene, wind, clips);
+        let copies = l
+            .part
+            .as_ref()
+            .map_or(0, |p| p.instances.saturating_sub(1) as u64);
+        estimate += copies * (surface.params).estimate_copy_bytes(&l.scene, wind as u64 + clips.0);
     }
     if estimate > args.max_output {
         anyhow::bail!(
@@ -634,8 +639,10 @@ fn plan(args: &BakeArgs) -> anyhow::Result<()> {
     use shellbake::scene::Stage;
     for (i, (s, l)) in scene.surfaces.iter().zip(&loaded).enumerate() {
         let skinned = l.scene.skeleton.is_some();
+        let instanced = l.part.as_ref().is_some_and(|p| p.instances > 0);
         for stage in [Stage::Fins, Stage::Outline, Stage::Lod] {
-            if let (true, Some(why)) = (plan.runs(stage, i), shellbake::blocked(stage, skinned)) {
+            let blocked = shellbake::blocked(stage, skinned, instanced);
+            if let (true, Some(why)) = (plan.runs(stage, i), blocked) {
                 text += &format!(
                     "warning: surface {}: {} {} will not run: {why}\n",
                     s.name,

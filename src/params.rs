@@ -251,6 +251,15 @@ impl BakeParams {
         }
     }
 
+    /// The JSON a copy of the surface's fur nodes adds (an instanced part's fur is copied to
+    /// every instance, `output/graft.rs`): a node per layer mesh, the fins and the outline, and
+    /// a channel per node for each of `channels` animation channels on them.
+    pub fn estimate_copy_bytes(&self, scene: &crate::mesh::Scene, channels: u64) -> u64 {
+        let levels = self.lod.levels.max(1) as u64;
+        let meshes = crate::output::pack::level_layers(self.shells.layers as u64, levels) + 2;
+        self.chunk_bound(scene) * meshes * (256 + 64 * channels) + 256
+    }
+
     /// At most how many chunks the LOD stage cuts the scene into: cells of the chunk size over
     /// its bounding box (at most one per triangle); the stage may not run, but the bound holds
     /// either way.

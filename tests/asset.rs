@@ -1753,3 +1753,83 @@ fn fur_grows_only_where_an_alpha_cut_out_surface_is_drawn() {
         }
     }
 }
+
+#[test]
+fn an_instanced_part_grows_fur_on_every_instance() {
+    // EXT_mesh_gpu_instancing draws the node's mesh once per instance and none of its children:
+    // the fur grew on the node's own transform only, once. three.js throws on an instanced
+    // mesh with morph targets, so each instance gets a node holding a copy of the fur.
+    let dir = scratch("instanced");
+    let (mut doc, mut bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    let at = bin.len();
+    let offsets = [[0.0f32, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 3.0]];
+    bin.extend(offsets.iter().flatten().flat_map(|v| v.to_le_bytes()));
+    doc["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "buffer": 0, "byteOffset": at, "byteLength": 36 }));
+    let view = doc["bufferViews"].as_array().unwrap().len() - 1;
+    doc["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "bufferView": view, "componentType": 5126, "count": 3, "type": "VEC3" }));
+    let accessor = doc["accessors"].as_array().unwrap().len() - 1;
+    doc["nodes"][0]["translation"] = json!([0.0, 1.0, 0.0]);
+    doc["nodes"][0]["extensions"] =
+        json!({ "EXT_mesh_gpu_instancing": { "attributes": { "TRANSLATION": accessor } } });
+    doc["extensionsUsed"] = json!(["EXT_mesh_gpu_instancing"]);
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    let input = dir.join("instanced.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+
+    let (glb, report) = bake(&input, &dir, "instanced_fur.glb", &["--wind"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let out = json_of(&glb);
+    let nodes = out["nodes"].as_array().unwrap();
+    let holders: Vec<usize> = (out["nodes"][0]["children"].as_array().unwrap().iter())
+        .map(|c| c.as_u64().unwrap() as usize)
+        .collect();
+    assert_eq!(holders.len(), 3, "a node per instance: {holders:?}");
+    // every node below a holder, and the meshes they draw
+    fn below(nodes: &[Value], n: usize, into: &mut Vec<usize>) {
+        into.push(n);
+        for c in nodes[n]["children"].as_array().into_iter().flatten() {
+            below(nodes, c.as_u64().unwrap() as usize, into);
+        }
+    }
+    let mut meshes = Vec::new();
+    let mut channels_per_copy = Vec::new();
+    for (h, offset) in holders.iter().zip(offsets) {
+        assert_eq!(
+            out["nodes"][*h]["translation"],
+            json!(offset.map(|v| v as f64))
+        );
+        let mut under = Vec::new();
+        below(nodes, *h, &mut under);
+        let drawn: Vec<u64> = under
+            .iter()
+            .filter_map(|&n| nodes[n]["mesh"].as_u64())
+            .collect();
+        assert!(
+            drawn.len() >= 31,
+            "{} layer nodes under instance {h}",
+            drawn.len()
+        );
+        meshes.push(drawn);
+        let channels = (out["animations"].as_array().unwrap().iter())
+            .flat_map(|a| a["channels"].as_array().unwrap())
+            .filter(|c| under.contains(&(c["target"]["node"].as_u64().unwrap() as usize)))
+            .count();
+        channels_per_copy.push(channels);
+    }
+    assert!(
+        meshes.windows(2).all(|w| w[0] == w[1]),
+        "the copies share the meshes"
+    );
+    assert!(
+        channels_per_copy[0] > 0 && channels_per_copy.iter().all(|&c| c == channels_per_copy[0]),
+        "the wind sways every copy: {channels_per_copy:?}"
+    );
+    let warnings = report["surfaces"][0]["warnings"].to_string();
+    assert!(warnings.contains("instanced part"), "{warnings}");
+}

@@ -159,6 +159,10 @@ pub struct Part {
     /// The primitive's shape keys (its mesh's morph targets), when it has any: the fur's layers
     /// carry their `POSITION` deltas ([`Mesh::morphs`]) and follow their weights.
     pub shape_keys: Option<ShapeKeys>,
+    /// The node's `EXT_mesh_gpu_instancing` transforms, each applied to the mesh in the node's
+    /// frame (empty: the node draws its mesh once). The fur is baked once, in the node's place,
+    /// and drawn at every instance (`output/graft.rs`).
+    pub instances: Vec<DMat4>,
 }
 
 /// The morph weights of a part's node: at rest, and as its animations move them. The fur's
@@ -402,6 +406,7 @@ impl Asset {
                     ));
                     continue;
                 }
+                let instances = instances(&doc, &buffers, placed.node)?;
                 let (paint, paint_warning) = Paint::of(&doc, &buffers, prim, &element);
                 warnings.extend(paint_warning);
                 if mesh.uvs.is_none() {
@@ -423,6 +428,7 @@ impl Asset {
                     paint,
                     furred: furred.contains(&(placed.node, k)),
                     shape_keys,
+                    instances,
                 });
             }
         }
@@ -842,6 +848,67 @@ fn wrap(i: i64, n: i64, mode: u64) -> i64 {
         }
         _ => i.rem_euclid(n),
     }
+}
+
+/// The `EXT_mesh_gpu_instancing` transforms of `node` (empty without the extension): its
+/// `TRANSLATION`, `ROTATION` and `SCALE` accessors, each optional, read per instance.
+fn instances(doc: &Document, buffers: &[Vec<u8>], node: usize) -> Result<Vec<DMat4>> {
+    let attributes =
+        &doc.json["nodes"][node]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
+    let Some(attributes) = attributes.as_object() else {
+        return Ok(vec![]);
+    };
+    let element = format!("node {node}: EXT_mesh_gpu_instancing");
+    let read = |name: &str, components: usize| -> Result<Option<Vec<f64>>> {
+        let Some(a) = attributes.get(name) else {
+            return Ok(None);
+        };
+        let a = (a.as_u64().map(|a| a as usize))
+            .filter(|&a| a < doc.accessors.len())
+            .ok_or_else(|| {
+                Error::invalid(&doc.path, &element, format!("{name} names no accessor"))
+            })?;
+        let values = doc.read_accessor(buffers, a, &element)?;
+        if doc.accessors[a].kind.components() != components {
+            return Err(Error::invalid(
+                &doc.path,
+                &element,
+                format!("{name} is not a VEC{components}"),
+            ));
+        }
+        Ok(Some(values))
+    };
+    let (t, r, s) = (
+        read("TRANSLATION", 3)?,
+        read("ROTATION", 4)?,
+        read("SCALE", 3)?,
+    );
+    let counts = [
+        t.as_ref().map(|v| v.len() / 3),
+        r.as_ref().map(|v| v.len() / 4),
+        s.as_ref().map(|v| v.len() / 3),
+    ];
+    let count = counts.iter().flatten().copied().max().unwrap_or(0);
+    if counts.iter().flatten().any(|&c| c != count) {
+        return Err(Error::invalid(
+            &doc.path,
+            &element,
+            "its attributes' counts differ",
+        ));
+    }
+    fn at(v: &Option<Vec<f64>>, i: usize, n: usize) -> Option<&[f64]> {
+        v.as_ref().map(|v| &v[n * i..n * i + n])
+    }
+    Ok((0..count)
+        .map(|i| {
+            let t = at(&t, i, 3).map_or(glam::DVec3::ZERO, glam::DVec3::from_slice);
+            let r = at(&r, i, 4).map_or(glam::DQuat::IDENTITY, |q| {
+                glam::DQuat::from_slice(q).normalize()
+            });
+            let s = at(&s, i, 3).map_or(glam::DVec3::ONE, glam::DVec3::from_slice);
+            DMat4::from_scale_rotation_translation(s, r, t)
+        })
+        .collect())
 }
 
 /// A `KHR_texture_transform` object as the matrix it stands for (translation · rotation ·

@@ -141,6 +141,82 @@ impl Placing<'_> {
         }
     }
 
+    /// Copies the fur of surface `s` to every instance of part `p`'s node, when it is instanced
+    /// (`EXT_mesh_gpu_instancing`; `p` rigid, its fur root under the node). The extension draws
+    /// the node's mesh once per instance and none of its children, and three.js draws no
+    /// instanced mesh with morph targets at all (its loader's `InstancedMesh` carries no morph
+    /// influences: it throws), and every layer is one; so the instances become nodes: per
+    /// instance a node under the part's node with the instance's transform, holding the fur
+    /// root (the first) or a copy of it and the nodes below (the meshes shared). Every
+    /// animation channel on the fur's nodes (wind, shape keys) gets a twin on each copy.
+    /// Returns a warning when the fur cannot be copied so.
+    fn expand_instances(&self, out: &mut Value, s: usize, p: usize) -> Option<String> {
+        let part = &self.asset.parts[p];
+        if part.instances.is_empty() {
+            return None;
+        }
+        let name = crate::input::escape(&part.names.node);
+        if part.skin.is_some() {
+            return Some(format!(
+                "node '{name}' is skinned and instanced (EXT_mesh_gpu_instancing): its fur is \
+                 drawn once, bound to the skin"
+            ));
+        }
+        let root = self.base.nodes + self.packed.surfaces[s].root;
+        let children = out["nodes"][part.node]["children"].as_array_mut();
+        let Some(at) = children.and_then(|c| {
+            let at = c.iter().position(|c| c.as_u64() == Some(root as u64))?;
+            c.remove(at);
+            Some(at)
+        }) else {
+            // a scene root (the node's transform is no TRS): the warning is given already
+            return None;
+        };
+        let mut copies: Vec<(usize, usize)> = Vec::new();
+        let mut holders = Vec::with_capacity(part.instances.len());
+        for (i, &t) in part.instances.iter().enumerate() {
+            let fur = match i {
+                0 => root,
+                _ => copy_subtree(out, root, &mut copies),
+            };
+            let mut holder = json!({ "name": format!("{}_fur_instance_{i}", part.names.node), "children": [fur] });
+            match trs_of(t) {
+                Some((t, r, sc)) => {
+                    holder["translation"] = json!([t.x, t.y, t.z]);
+                    holder["rotation"] = json!([r.x, r.y, r.z, r.w]);
+                    holder["scale"] = json!([sc.x, sc.y, sc.z]);
+                }
+                None => holder["matrix"] = json!(t.to_cols_array()),
+            }
+            holders.push(push_one(out, "nodes", holder));
+        }
+        let children = out["nodes"][part.node]["children"]
+            .as_array_mut()
+            .expect("children");
+        for (k, h) in holders.into_iter().enumerate() {
+            children.insert(at + k, json!(h));
+        }
+        // the channels on the fur's nodes, twinned onto the copies
+        let animations = out.get_mut("animations").and_then(Value::as_array_mut);
+        for animation in animations.into_iter().flatten() {
+            let channels = animation["channels"].as_array_mut().expect("channels");
+            let twins: Vec<Value> = (channels.iter())
+                .flat_map(|c| {
+                    let node = c["target"]["node"].as_u64().map(|n| n as usize);
+                    (copies.iter())
+                        .filter(move |(from, _)| Some(*from) == node)
+                        .map(move |&(_, to)| {
+                            let mut twin = c.clone();
+                            twin["target"]["node"] = json!(to);
+                            twin
+                        })
+                })
+                .collect();
+            channels.extend(twins);
+        }
+        None
+    }
+
     /// Binds the layer nodes of surface `s` to `skin` (marked as the root is) and makes them
     /// and the surface's root roots of the scene.
     fn attach_skinned(&self, out: &mut Value, s: usize, skin: usize, marker: &Value) {
@@ -306,6 +382,25 @@ impl Placing<'_> {
     }
 }
 
+/// Appends a copy of node `n` and the nodes below it (meshes, skins and the rest shared);
+/// returns the copy's index and records each `(node, copy)` in `copies`.
+fn copy_subtree(out: &mut Value, n: usize, copies: &mut Vec<(usize, usize)>) -> usize {
+    let mut node = out["nodes"][n].clone();
+    let children: Vec<usize> = (node["children"].as_array().into_iter().flatten())
+        .filter_map(|c| c.as_u64().map(|c| c as usize))
+        .collect();
+    if !children.is_empty() {
+        let copied: Vec<usize> = children
+            .iter()
+            .map(|&c| copy_subtree(out, c, copies))
+            .collect();
+        node["children"] = json!(copied);
+    }
+    let copy = push_one(out, "nodes", node);
+    copies.push((n, copy));
+    copy
+}
+
 /// Writes `asset` with the fur of `fur` (the fur-only file's JSON and binary chunk, and its
 /// packing) grafted on: surface `s` of the fur grows on part `parts[s]` of the asset.
 pub fn graft(
@@ -343,6 +438,7 @@ pub fn graft(
     for (s, &p) in parts.iter().enumerate() {
         warnings.extend(placing.attach(&mut out, s, p));
         warnings.extend(placing.follow_shape_keys(&mut out, &mut bin, s, p));
+        warnings.extend(placing.expand_instances(&mut out, s, p));
     }
     add_lod_scene(&mut out, packed, base, placing.scene);
     merge_extensions(&mut out, fur_json);
