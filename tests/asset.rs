@@ -1833,3 +1833,32 @@ fn an_instanced_part_grows_fur_on_every_instance() {
     let warnings = report["surfaces"][0]["warnings"].to_string();
     assert!(warnings.contains("instanced part"), "{warnings}");
 }
+
+#[test]
+fn parts_outside_the_default_scene_are_named_not_skipped_silently() {
+    let dir = scratch("other_scene");
+    let (mut doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    doc["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "name": "spare card", "mesh": 0 }));
+    doc["scenes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "nodes": [1] }));
+    let input = dir.join("two_scenes.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, report) = bake(&input, &dir, "two_scenes_fur.glb", &[]);
+    assert_valid(std::slice::from_ref(&glb));
+    let warnings = report["asset"]["warnings"].to_string();
+    assert!(
+        warnings
+            .contains("'spare card' with a mesh is outside the default scene: kept, not furred"),
+        "{warnings}"
+    );
+    assert_eq!(
+        json_of(&glb)["scenes"][1]["nodes"],
+        json!([1]),
+        "the second scene is kept"
+    );
+}

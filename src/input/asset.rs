@@ -345,7 +345,9 @@ impl Asset {
         let fur = fur_subtrees(&doc);
         let mut parts = Vec::new();
         let mut total: u64 = 0;
-        for placed in doc.walk(|n| n)? {
+        let walked = doc.walk(|n| n)?;
+        warnings.extend(outside_the_scene(&doc, &walked, &fur));
+        for placed in walked {
             let Some(m) = doc.nodes[placed.node].mesh else {
                 continue;
             };
@@ -848,6 +850,37 @@ fn wrap(i: i64, n: i64, mode: u64) -> i64 {
         }
         _ => i.rem_euclid(n),
     }
+}
+
+/// A warning naming the nodes with a mesh that the default scene does not reach (another
+/// scene's, or no scene's): they are kept as they are and not furred, since the bake reads the
+/// scene a viewer opens.
+fn outside_the_scene(
+    doc: &Document,
+    walked: &[super::document::Placed],
+    fur: &std::collections::HashSet<usize>,
+) -> Option<String> {
+    let mut reached = vec![false; doc.nodes.len()];
+    for p in walked {
+        reached[p.node] = true;
+    }
+    let outside: Vec<String> = (0..doc.nodes.len())
+        .filter(|&n| !reached[n] && doc.nodes[n].mesh.is_some() && !fur.contains(&n))
+        .map(|n| match doc.json["nodes"][n]["name"].as_str() {
+            Some(name) => format!("'{}'", crate::input::escape(name)),
+            None => format!("node {n}"),
+        })
+        .collect();
+    let first = outside.first()?;
+    let more = match outside.len() {
+        1 => String::new(),
+        n => format!(" and {} more", n - 1),
+    };
+    Some(format!(
+        "{}: {first}{more} with a mesh {} outside the default scene: kept, not furred",
+        doc.path.display(),
+        if outside.len() == 1 { "is" } else { "are" },
+    ))
 }
 
 /// The `EXT_mesh_gpu_instancing` transforms of `node` (empty without the extension): its
