@@ -905,7 +905,9 @@ impl Heights {
 /// material draws (`albedo`'s `w`: a `MASK` cut-out or a `BLEND` fade grows no fur where it
 /// draws nothing); `None` when neither lowers any vertex.
 fn drawn_density(map: Option<Vec<u8>>, albedo: Option<&[glam::Vec4]>) -> Option<Vec<u8>> {
-    let coverage = albedo.filter(|a| a.iter().any(|c| c.w < 1.0));
+    // a coverage that rounds to a full byte lowers nothing (interpolation leaves 1 − ε)
+    let lowers = |c: &glam::Vec4| (c.w.clamp(0.0, 1.0) * 255.0).round() < 255.0;
+    let coverage = albedo.filter(|a| a.iter().any(lowers));
     let Some(coverage) = coverage else {
         return map;
     };

@@ -492,7 +492,8 @@ fn check_loaded(
             .part
             .as_ref()
             .map_or(0, |p| p.instances.saturating_sub(1) as u64);
-        estimate += copies * (surface.params).estimate_copy_bytes(&l.scene, wind as u64 + clips.0);
+        let copy = (surface.params).estimate_copy_bytes(&l.scene, wind as u64 + clips.0);
+        estimate = estimate.saturating_add(copies.saturating_mul(copy));
     }
     if estimate > args.max_output {
         anyhow::bail!(

@@ -255,9 +255,12 @@ impl BakeParams {
     /// every instance, `output/graft.rs`): a node per layer mesh, the fins and the outline, and
     /// a channel per node for each of `channels` animation channels on them.
     pub fn estimate_copy_bytes(&self, scene: &crate::mesh::Scene, channels: u64) -> u64 {
-        let levels = self.lod.levels.max(1) as u64;
-        let meshes = crate::output::pack::level_layers(self.shells.layers as u64, levels) + 2;
-        self.chunk_bound(scene) * meshes * (256 + 64 * channels) + 256
+        // an instanced part takes one level in one piece (`blocked`); a node names its mesh,
+        // its weights (a float each: the fur's targets and the shape keys) and its marker
+        let meshes = crate::output::pack::level_layers(self.shells.layers as u64, 1) + 2;
+        let morphs = scene.meshes.iter().map(|m| m.morphs.len()).max();
+        let weights = 5 + morphs.unwrap_or(0) as u64;
+        meshes * (384 + 24 * weights + 64 * channels) + 256
     }
 
     /// At most how many chunks the LOD stage cuts the scene into: cells of the chunk size over

@@ -1758,33 +1758,52 @@ fn fur_grows_only_where_an_alpha_cut_out_surface_is_drawn() {
 fn an_instanced_part_grows_fur_on_every_instance() {
     // EXT_mesh_gpu_instancing draws the node's mesh once per instance and none of its children:
     // the fur grew on the node's own transform only, once. three.js throws on an instanced
-    // mesh with morph targets, so each instance gets a node holding a copy of the fur.
+    // mesh with morph targets, so each instance gets a node holding a copy of the fur. The
+    // node is turned and scaled, and so are the instances.
+    use glam::{DMat4, DQuat, DVec3};
     let dir = scratch("instanced");
     let (mut doc, mut bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
-    let at = bin.len();
-    let offsets = [[0.0f32, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 0.0, 3.0]];
-    bin.extend(offsets.iter().flatten().flat_map(|v| v.to_le_bytes()));
-    doc["bufferViews"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({ "buffer": 0, "byteOffset": at, "byteLength": 36 }));
-    let view = doc["bufferViews"].as_array().unwrap().len() - 1;
-    doc["accessors"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({ "bufferView": view, "componentType": 5126, "count": 3, "type": "VEC3" }));
-    let accessor = doc["accessors"].as_array().unwrap().len() - 1;
+    let translations = [[0.0f32, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 3.0]];
+    let turn = |k: f64| DQuat::from_rotation_z(k * 0.4) * DQuat::from_rotation_y(k);
+    let rotations: Vec<DQuat> = (0..3).map(|k| turn(k as f64)).collect();
+    let scales = [[1.0f32, 1.0, 1.0], [0.5, 0.5, 0.5], [1.5, 1.0, 2.0]];
+    let accessor = |values: Vec<f32>, kind: &str, doc: &mut Value, bin: &mut Vec<u8>| {
+        let at = bin.len();
+        bin.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+        let views = doc["bufferViews"].as_array_mut().unwrap();
+        views.push(json!({ "buffer": 0, "byteOffset": at, "byteLength": 4 * values.len() }));
+        let view = views.len() - 1;
+        let count = values.len() / if kind == "VEC4" { 4 } else { 3 };
+        let accessors = doc["accessors"].as_array_mut().unwrap();
+        accessors.push(
+            json!({ "bufferView": view, "componentType": 5126, "count": count, "type": kind }),
+        );
+        accessors.len() - 1
+    };
+    let t = accessor(translations.concat(), "VEC3", &mut doc, &mut bin);
+    let quats = rotations
+        .iter()
+        .flat_map(|q| q.to_array().map(|v| v as f32))
+        .collect();
+    let r = accessor(quats, "VEC4", &mut doc, &mut bin);
+    let sc = accessor(scales.concat(), "VEC3", &mut doc, &mut bin);
+    let node_rotation = DQuat::from_rotation_x(0.3);
     doc["nodes"][0]["translation"] = json!([0.0, 1.0, 0.0]);
-    doc["nodes"][0]["extensions"] =
-        json!({ "EXT_mesh_gpu_instancing": { "attributes": { "TRANSLATION": accessor } } });
+    doc["nodes"][0]["rotation"] = json!(node_rotation.to_array());
+    doc["nodes"][0]["scale"] = json!([2.0, 2.0, 2.0]);
+    doc["nodes"][0]["extensions"] = json!({ "EXT_mesh_gpu_instancing": {
+        "attributes": { "TRANSLATION": t, "ROTATION": r, "SCALE": sc } } });
     doc["extensionsUsed"] = json!(["EXT_mesh_gpu_instancing"]);
+    // as gltfpack writes it
+    doc["extensionsRequired"] = json!(["EXT_mesh_gpu_instancing"]);
     doc["buffers"][0]["byteLength"] = json!(bin.len());
     let input = dir.join("instanced.glb");
     std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
 
     let (glb, report) = bake(&input, &dir, "instanced_fur.glb", &["--wind"]);
     assert_valid(std::slice::from_ref(&glb));
-    let out = json_of(&glb);
+    let bytes = std::fs::read(&glb).unwrap();
+    let out = Glb::parse(&bytes).json;
     let nodes = out["nodes"].as_array().unwrap();
     let holders: Vec<usize> = (out["nodes"][0]["children"].as_array().unwrap().iter())
         .map(|c| c.as_u64().unwrap() as usize)
@@ -1797,25 +1816,66 @@ fn an_instanced_part_grows_fur_on_every_instance() {
             below(nodes, c.as_u64().unwrap() as usize, into);
         }
     }
+    // where each fur layer lands: its world matrix (the reader's walk) times the centre of its
+    // stored positions, against the card's centre under the node and the instance
+    let placed = shellbake::input::document::Document::parse(&glb, &bytes).unwrap();
+    let world: std::collections::HashMap<usize, DMat4> = placed
+        .walk(|n| n)
+        .unwrap()
+        .iter()
+        .map(|p| (p.node, p.world))
+        .collect();
+    let node_world =
+        DMat4::from_scale_rotation_translation(DVec3::splat(2.0), node_rotation, DVec3::Y);
     let mut meshes = Vec::new();
     let mut channels_per_copy = Vec::new();
-    for (h, offset) in holders.iter().zip(offsets) {
-        assert_eq!(
-            out["nodes"][*h]["translation"],
-            json!(offset.map(|v| v as f64))
+    for (i, h) in holders.iter().enumerate() {
+        let instance = DMat4::from_scale_rotation_translation(
+            DVec3::from(scales[i].map(f64::from)),
+            rotations[i],
+            DVec3::from(translations[i].map(f64::from)),
         );
+        let want = (node_world * instance).transform_point3(DVec3::new(0.5, 0.0, 0.5));
         let mut under = Vec::new();
         below(nodes, *h, &mut under);
-        let drawn: Vec<u64> = under
+        let drawn: Vec<usize> = under
             .iter()
-            .filter_map(|&n| nodes[n]["mesh"].as_u64())
+            .copied()
+            .filter(|&n| nodes[n]["mesh"].is_u64())
             .collect();
         assert!(
             drawn.len() >= 31,
-            "{} layer nodes under instance {h}",
+            "{} layer nodes under instance {i}",
             drawn.len()
         );
-        meshes.push(drawn);
+        for &n in &drawn {
+            let prim = &out["meshes"][nodes[n]["mesh"].as_u64().unwrap() as usize]["primitives"][0];
+            let a = &out["accessors"][prim["attributes"]["POSITION"].as_u64().unwrap() as usize];
+            let normalized = a["normalized"].as_bool().unwrap_or(false);
+            let unit = if normalized { 32767.0 } else { 1.0 };
+            let corner = |k: &str| {
+                DVec3::from_slice(
+                    &a[k]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|v| v.as_f64().unwrap() / unit)
+                        .collect::<Vec<_>>(),
+                )
+            };
+            let centre = (corner("min") + corner("max")) / 2.0;
+            let got = world[&n].transform_point3(centre);
+            assert!(
+                got.distance(want) < 1e-3,
+                "instance {i} node {n}: fur at {got}, card at {want}"
+            );
+        }
+        meshes.push(
+            drawn
+                .iter()
+                .map(|&n| nodes[n]["mesh"].clone())
+                .collect::<Vec<_>>(),
+        );
         let channels = (out["animations"].as_array().unwrap().iter())
             .flat_map(|a| a["channels"].as_array().unwrap())
             .filter(|c| under.contains(&(c["target"]["node"].as_u64().unwrap() as usize)))
@@ -1832,6 +1892,10 @@ fn an_instanced_part_grows_fur_on_every_instance() {
     );
     let warnings = report["surfaces"][0]["warnings"].to_string();
     assert!(warnings.contains("instanced part"), "{warnings}");
+    // read again: the copies are fur, nothing is left to fur
+    let (code, _, err) = shellbake(&["plan", glb.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("carries shellbake fur already"), "{err}");
 }
 
 #[test]
@@ -1860,5 +1924,19 @@ fn parts_outside_the_default_scene_are_named_not_skipped_silently() {
         json_of(&glb)["scenes"][1]["nodes"],
         json!([1]),
         "the second scene is kept"
+    );
+    // read again, the fur's coarser levels (the levels' scene, reached through MSFT_lod only)
+    // are fur, not meshes outside the default scene
+    let bytes = std::fs::read(&glb).unwrap();
+    let again = shellbake::input::asset::Asset::from_bytes(&glb, &bytes).unwrap();
+    let outside: Vec<&String> = again
+        .warnings
+        .iter()
+        .filter(|w| w.contains("outside"))
+        .collect();
+    assert_eq!(outside.len(), 1, "{outside:?}");
+    assert!(
+        outside[0].contains("'spare card' with a mesh is outside"),
+        "{outside:?}"
     );
 }

@@ -404,6 +404,21 @@ fn the_size_estimate_counts_the_animations_the_fur_writes() {
             "{input}: estimate {estimate} < written {written}"
         );
         std::fs::remove_file(out).unwrap();
+        let limit = estimate.to_string();
+        let (code, _, stderr) = common::shellbake(
+            &[
+                &["bake", "-o", out, "-q", "--max-output", &limit],
+                &args[..],
+            ]
+            .concat(),
+        );
+        assert_eq!(
+            code,
+            Some(0),
+            "{input}: refused at its own estimate: {stderr}"
+        );
+        assert_eq!(std::fs::metadata(out).unwrap().len(), written, "{input}");
+        std::fs::remove_file(out).unwrap();
         let limit = (written - 1).to_string();
         let (code, _, stderr) =
             common::shellbake(&[&["bake", "-o", out, "--max-output", &limit], &args[..]].concat());

@@ -354,6 +354,7 @@ impl Asset {
             if fur.contains(&placed.node) {
                 continue;
             }
+            let node_instances = instances(&doc, &buffers, placed.node)?;
             for (k, prim) in doc.meshes[m].primitives.iter().enumerate() {
                 let element = format!("node {} mesh {m} primitive {k}", placed.node);
                 if !is_triangles(prim.mode) {
@@ -408,7 +409,6 @@ impl Asset {
                     ));
                     continue;
                 }
-                let instances = instances(&doc, &buffers, placed.node)?;
                 let (paint, paint_warning) = Paint::of(&doc, &buffers, prim, &element);
                 warnings.extend(paint_warning);
                 if mesh.uvs.is_none() {
@@ -430,7 +430,7 @@ impl Asset {
                     paint,
                     furred: furred.contains(&(placed.node, k)),
                     shape_keys,
-                    instances,
+                    instances: node_instances.clone(),
                 });
             }
         }
@@ -500,6 +500,14 @@ fn fur_subtrees(doc: &Document) -> std::collections::HashSet<usize> {
     while let Some(n) = stack.pop() {
         if out.insert(n) {
             stack.extend(doc.nodes[n].children.iter().copied());
+            // a chunk's coarser levels (roots of the levels' scene, reached by no child link)
+            let ids = &doc.json["nodes"][n]["extensions"]["MSFT_lod"]["ids"];
+            let ids = ids
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(Value::as_u64);
+            stack.extend(ids.map(|i| i as usize).filter(|&i| i < doc.nodes.len()));
         }
     }
     out
@@ -729,6 +737,17 @@ impl Paint {
         self.shade(texel, color)
     }
 
+    /// [`Paint::colour_at`] read up to half a texel from `uv` toward `inside` (a point inside
+    /// the face the point lies on, such as its UV centroid), as [`Paint::albedo`] reads corners:
+    /// a point on a UV island's edge takes the island's colour, not the texel across the edge.
+    pub fn colour_toward(&self, uv: Vec2, inside: Vec2, color: Option<[u8; 4]>) -> Vec4 {
+        let texel = match &self.texture {
+            Some(t) => t.sample_toward(uv, inside),
+            None => Vec4::ONE,
+        };
+        self.shade(texel, color)
+    }
+
     /// Factor × texel × vertex colour, the alpha turned into coverage.
     fn shade(&self, texel: Vec4, color: Option<[u8; 4]>) -> Vec4 {
         let mut c = Vec4::from(self.factor) * texel;
@@ -901,13 +920,19 @@ fn instances(doc: &Document, buffers: &[Vec<u8>], node: usize) -> Result<Vec<DMa
             .ok_or_else(|| {
                 Error::invalid(&doc.path, &element, format!("{name} names no accessor"))
             })?;
+        let kind = if components == 4 {
+            Kind::Vec4
+        } else {
+            Kind::Vec3
+        };
+        if doc.accessors[a].kind != kind {
+            let why = format!("{name} is not a VEC{components}");
+            return Err(Error::invalid(&doc.path, &element, why));
+        }
         let values = doc.read_accessor(buffers, a, &element)?;
-        if doc.accessors[a].kind.components() != components {
-            return Err(Error::invalid(
-                &doc.path,
-                &element,
-                format!("{name} is not a VEC{components}"),
-            ));
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            let why = format!("{name} of instance {} is not finite", k / components);
+            return Err(Error::invalid(&doc.path, &element, why));
         }
         Ok(Some(values))
     };
@@ -931,6 +956,12 @@ fn instances(doc: &Document, buffers: &[Vec<u8>], node: usize) -> Result<Vec<DMa
     }
     fn at(v: &Option<Vec<f64>>, i: usize, n: usize) -> Option<&[f64]> {
         v.as_ref().map(|v| &v[n * i..n * i + n])
+    }
+    let zero =
+        |i: &usize| at(&r, *i, 4).is_some_and(|q| glam::DQuat::from_slice(q).length() < 1e-6);
+    if let Some(i) = (0..count).find(zero) {
+        let why = format!("ROTATION of instance {i} is a zero quaternion");
+        return Err(Error::invalid(&doc.path, &element, why));
     }
     Ok((0..count)
         .map(|i| {
@@ -1069,6 +1100,19 @@ mod tests {
                     "{alpha:?} vertex {v}: the drawn side's colour, not the hidden one: {c}"
                 );
             }
+        }
+        // a half-transparent BLEND material (the factor's alpha) grows half the fur
+        let half = Paint {
+            factor: [1.0, 1.0, 1.0, 0.5],
+            texture: Some(two_tone(false, false)),
+            vertex_colors: false,
+            alpha: AlphaMode::Blend,
+        };
+        for c in half.albedo(&mesh) {
+            assert!(
+                (c.w - 0.5).abs() < 1e-6 && c.truncate().abs_diff_eq(Vec3::Z, 1e-6),
+                "{c}"
+            );
         }
         let opaque = AlphaMode::Opaque;
         assert_eq!(opaque.coverage(0.0), 1.0, "opaque materials ignore alpha");

@@ -63,13 +63,16 @@ use crate::error::{Error, Result};
 use crate::stages::skin::Trs;
 
 /// Extensions a file may list in `extensionsRequired`: quantized attributes (decoded by
-/// `accessor.rs`) and texture transforms (drawn by the viewer; UVs are read untransformed by the
-/// loader, where they only set the strand pattern's placement).
+/// `accessor.rs`), texture transforms (drawn by the viewer; UVs are read untransformed by the
+/// loader, where they only set the strand pattern's placement), meshopt-compressed views, and
+/// GPU instancing (gltfpack requires it: an asset's instanced part grows fur on every instance,
+/// `output/graft.rs`; the viewer draws each node's mesh once).
 pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_mesh_quantization",
     "KHR_texture_transform",
     "EXT_meshopt_compression",
     "KHR_meshopt_compression",
+    "EXT_mesh_gpu_instancing",
 ];
 
 /// Required extensions that change how materials and textures are drawn, never the geometry:

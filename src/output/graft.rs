@@ -169,8 +169,11 @@ impl Placing<'_> {
             c.remove(at);
             Some(at)
         }) else {
-            // a scene root (the node's transform is no TRS): the warning is given already
-            return None;
+            // a scene root: the node's transform is no TRS
+            return Some(format!(
+                "node '{name}' is instanced (EXT_mesh_gpu_instancing), but its fur is a scene \
+                 root (see above): it is drawn once, where the node's own transform puts it"
+            ));
         };
         let mut copies: Vec<(usize, usize)> = Vec::new();
         let mut holders = Vec::with_capacity(part.instances.len());
@@ -197,19 +200,24 @@ impl Placing<'_> {
             children.insert(at + k, json!(h));
         }
         // the channels on the fur's nodes, twinned onto the copies
+        let mut copies_of: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+        for (from, to) in copies {
+            copies_of.entry(from).or_default().push(to);
+        }
         let animations = out.get_mut("animations").and_then(Value::as_array_mut);
         for animation in animations.into_iter().flatten() {
-            let channels = animation["channels"].as_array_mut().expect("channels");
+            let Some(channels) = animation.get_mut("channels").and_then(Value::as_array_mut) else {
+                continue;
+            };
             let twins: Vec<Value> = (channels.iter())
                 .flat_map(|c| {
                     let node = c["target"]["node"].as_u64().map(|n| n as usize);
-                    (copies.iter())
-                        .filter(move |(from, _)| Some(*from) == node)
-                        .map(move |&(_, to)| {
-                            let mut twin = c.clone();
-                            twin["target"]["node"] = json!(to);
-                            twin
-                        })
+                    let to = node.and_then(|n| copies_of.get(&n)).into_iter().flatten();
+                    to.map(move |&to| {
+                        let mut twin = c.clone();
+                        twin["target"]["node"] = json!(to);
+                        twin
+                    })
                 })
                 .collect();
             channels.extend(twins);

@@ -52,9 +52,12 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
     let diagonal = mesh.diagonal();
     let snapped = weld::snap_near_twins(&mut mesh.positions, diagonal);
     if let FurColour::Asset { paint, color } = colour {
-        mesh.albedo = match color {
-            Some(c) => Some(vec![Vec3::from(c).extend(1.0); mesh.vertex_count()]),
-            None => paint.map(|paint| paint.albedo(&mesh)),
+        let albedo = paint.map(|paint| paint.albedo(&mesh));
+        mesh.albedo = match (color, albedo) {
+            // one colour, where the material draws the surface (cut-outs stay bare)
+            (Some(c), Some(a)) => Some(a.iter().map(|a| Vec3::from(c).extend(a.w)).collect()),
+            (Some(c), None) => Some(vec![Vec3::from(c).extend(1.0); mesh.vertex_count()]),
+            (None, albedo) => albedo,
         };
     }
     let mut paint = match colour {

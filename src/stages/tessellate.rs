@@ -225,13 +225,18 @@ impl<'a> Subdivision<'a> {
             out.push([mix(0), mix(1), mix(2), mix(3)]);
         }
         if let (Some(out), Some(inn)) = (m.albedo.as_mut(), src.albedo.as_ref()) {
-            out.push(match self.paint {
-                // the new vertex's own uv and colour, pushed above
-                Some(paint) => paint.colour_at(
-                    m.uvs.as_ref().and_then(|u| u.last().copied()),
-                    m.colors.as_ref().and_then(|k| k.last().copied()),
-                ),
-                None => inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2],
+            let uv = m.uvs.as_ref().and_then(|u| u.last().copied());
+            let inside = src
+                .uvs
+                .as_ref()
+                .map(|u| (u[at(c[0])] + u[at(c[1])] + u[at(c[2])]) / 3.0);
+            // the new vertex's own uv and colour, pushed above; read inside its source triangle,
+            // as merge reads the corners (a point on an island's edge takes the island's colour)
+            let color = m.colors.as_ref().and_then(|k| k.last().copied());
+            out.push(match (self.paint, uv, inside) {
+                (Some(paint), Some(uv), Some(inside)) => paint.colour_toward(uv, inside, color),
+                (Some(paint), uv, _) => paint.colour_at(uv, color),
+                (None, _, _) => inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2],
             });
         }
         if let (Some(out), Some(inn)) = (m.skin.as_mut(), src.skin.as_ref()) {

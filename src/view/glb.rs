@@ -1012,8 +1012,9 @@ mod tests {
         assert_eq!(m.uv_transform, [[3.0, 0.0, 0.5], [0.0, 4.0, 2.0]]);
         assert_eq!(m.alpha, AlphaMode::Mask(0.25));
         assert_eq!(m.metallic, 1.0);
-        // a quarter turn: u' = v, v' = −u, as three.js's `setUvTransform` and the bake's colour
-        // sampling turn it (it was drawn the other way, the bare asset disagreeing with its fur)
+        // a quarter turn: u' = v, v' = −u, as three.js and the bake's colour sampling turn it
+        // (it was drawn the other way, the bare asset disagreeing with its fur); the scale
+        // first, then the turn (the extension's T · R · S)
         let m = parse_material(&json!({
             "pbrMetallicRoughness": { "baseColorTexture": { "index": 0,
                 "extensions": { "KHR_texture_transform": { "rotation": std::f64::consts::FRAC_PI_2, "scale": [2.0, 1.0] } } } }
