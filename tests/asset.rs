@@ -1799,6 +1799,9 @@ fn an_instanced_part_grows_fur_on_every_instance() {
     doc["buffers"][0]["byteLength"] = json!(bin.len());
     let input = dir.join("instanced.glb");
     std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    // the mesh loader (a scene file's surface) places the mesh at every instance too
+    let loaded = shellbake::input::load(&input).unwrap();
+    assert_eq!(loaded.meshes.len(), 3, "one mesh per instance");
 
     let (glb, report) = bake(&input, &dir, "instanced_fur.glb", &["--wind"]);
     assert_valid(std::slice::from_ref(&glb));

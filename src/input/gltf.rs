@@ -22,8 +22,8 @@
 //! layer. Primitives of one mesh are all read, even when they share
 //! a vertex buffer (a multi-material split does), and so is an instance of the same mesh
 //! elsewhere. Morph targets are ignored (the base geometry is read), so any layer yields
-//! the base surface. The same geometry under a different transform (real instancing) is baked
-//! once per instance. Lower LODs (`MSFT_lod`) live in a second scene and are not read. A
+//! the base surface. The same geometry under a different transform (real instancing, and each
+//! instance of a node's `EXT_mesh_gpu_instancing`) is baked once per instance. Lower LODs (`MSFT_lod`) live in a second scene and are not read. A
 //! single-draw output holds every layer in one primitive and would be baked as it stands.
 //! Buffer views compressed with `EXT_`/`KHR_meshopt_compression` (shellbake's own `--compress
 //! meshopt`, gltfpack's `-c`) are decoded by the shared reader; other compression
@@ -68,12 +68,24 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
     let mut read: HashSet<(usize, usize, [u64; 16])> = HashSet::new();
     let mut skipped = 0usize;
     let mut total: u64 = 0;
+    // read before the elements are counted: GPU instances count as placements
+    let buffers = doc.load_buffers()?;
     // Depth first in document order, so "the first instance" is the one a reader sees first.
     for placed in doc.walk(|n| n)? {
         let Some(m) = doc.nodes[placed.node].mesh else {
             continue;
         };
-        for (k, prim) in doc.meshes[m].primitives.iter().enumerate() {
+        // a node's `EXT_mesh_gpu_instancing` instances each place its mesh
+        let instances = super::asset::instances(&doc, &buffers, placed.node)?;
+        let places: Vec<DMat4> = match instances.is_empty() {
+            true => vec![placed.world],
+            false => instances.iter().map(|&t| placed.world * t).collect(),
+        };
+        let primitives = doc.meshes[m].primitives.iter().enumerate();
+        for (placed_world, (k, prim)) in places
+            .iter()
+            .flat_map(|&w| primitives.clone().map(move |p| (w, p)))
+        {
             let element = format!("mesh {m} primitive {k}");
             if !is_triangles(prim.mode) {
                 scene.warnings.push(format!(
@@ -92,7 +104,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             let world = if skin.is_some() {
                 DMat4::IDENTITY
             } else {
-                placed.world
+                placed_world
             };
             let place = world.to_cols_array().map(f64::to_bits);
             let first = *taken.entry((pos, place)).or_insert(m);
@@ -143,7 +155,6 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             ),
         ));
     }
-    let buffers = doc.load_buffers()?;
     if let Some(s) = skin {
         scene.skeleton = Some(super::skin::read_skeleton(&doc, &buffers, s)?);
     }
