@@ -1799,9 +1799,15 @@ fn an_instanced_part_grows_fur_on_every_instance() {
     doc["buffers"][0]["byteLength"] = json!(bin.len());
     let input = dir.join("instanced.glb");
     std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
-    // the mesh loader (a scene file's surface) places the mesh at every instance too
+    // the mesh loader (a scene file's surface) places the mesh at every instance too, and the
+    // viewer draws it at each
     let loaded = shellbake::input::load(&input).unwrap();
     assert_eq!(loaded.meshes.len(), 3, "one mesh per instance");
+    let viewed = shellbake::view::glb::Asset::open(&input)
+        .unwrap()
+        .instances(0)
+        .unwrap();
+    assert_eq!(viewed.len(), 3, "the viewer draws every instance");
 
     let (glb, report) = bake(&input, &dir, "instanced_fur.glb", &["--wind"]);
     assert_valid(std::slice::from_ref(&glb));

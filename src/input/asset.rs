@@ -904,7 +904,7 @@ fn outside_the_scene(
 
 /// The `EXT_mesh_gpu_instancing` transforms of `node` (empty without the extension): its
 /// `TRANSLATION`, `ROTATION` and `SCALE` accessors, each optional, read per instance.
-pub(super) fn instances(doc: &Document, buffers: &[Vec<u8>], node: usize) -> Result<Vec<DMat4>> {
+pub(crate) fn instances(doc: &Document, buffers: &[Vec<u8>], node: usize) -> Result<Vec<DMat4>> {
     let attributes =
         &doc.json["nodes"][node]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
     let Some(attributes) = attributes.as_object() else {

@@ -66,7 +66,7 @@ use crate::stages::skin::Trs;
 /// `accessor.rs`), texture transforms (drawn by the viewer; UVs are read untransformed by the
 /// loader, where they only set the strand pattern's placement), meshopt-compressed views, and
 /// GPU instancing (gltfpack requires it: an asset's instanced part grows fur on every instance,
-/// `output/graft.rs`; the viewer draws each node's mesh once).
+/// `output/graft.rs`; the mesh loader and the viewer place the mesh at every instance).
 pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_mesh_quantization",
     "KHR_texture_transform",

@@ -13,7 +13,7 @@
 //!   `SCALAR`s with a buffer view.
 //! - **Instances**: the reader's walk of the node forest, world matrices composed in `f64` so a
 //!   model placed 1e6 units from the origin keeps its precision until the renderer subtracts the
-//!   camera anchor. Node `weights` override mesh `weights`. `MSFT_lod` is understood: level `k`
+//!   camera anchor; a node's `EXT_mesh_gpu_instancing` instances each draw its mesh. Node `weights` override mesh `weights`. `MSFT_lod` is understood: level `k`
 //!   of a node draws its `k`-th alternative.
 //! - **Materials**: metallic-roughness factors, `baseColorTexture` on `TEXCOORD_0` with
 //!   `KHR_texture_transform`, `alphaMode` (`OPAQUE`, `MASK` + `alphaCutoff`, `BLEND`),
@@ -735,6 +735,16 @@ impl Asset {
             false => self.doc.nodes[n].local,
         })?;
         let worlds: HashMap<usize, DMat4> = placed.iter().map(|p| (p.node, p.world)).collect();
+        // a node's `EXT_mesh_gpu_instancing` instances: its mesh drawn at each (none: once)
+        let mut instanced: HashMap<usize, Vec<DMat4>> = HashMap::new();
+        for p in &placed {
+            if self.doc.nodes[p.node].mesh.is_some() && self.doc.nodes[p.node].skin.is_none() {
+                let at = crate::input::asset::instances(&self.doc, &self.buffers, p.node)?;
+                if !at.is_empty() {
+                    instanced.insert(p.node, at);
+                }
+            }
+        }
         let mut joint_sets: Vec<Option<Vec<DMat4>>> = Vec::with_capacity(self.skins.len());
         for (s, (joints, ibm)) in self.skins.iter().enumerate() {
             let m: Option<Vec<DMat4>> = joints
@@ -754,6 +764,7 @@ impl Asset {
             }
             joint_sets.push(m);
         }
+        let once = [DMat4::IDENTITY];
         Ok(placed
             .into_iter()
             .filter_map(|p| {
@@ -765,19 +776,21 @@ impl Asset {
                     (None, None) => self.meshes[m].weights.clone(),
                 };
                 let joints = node.skin.and_then(|s| joint_sets[s].clone());
-                Some(Instance {
+                let each = instanced.get(&p.node).map_or(&once[..], |t| &t[..]);
+                Some(each.iter().map(move |&t| Instance {
                     node: p.node,
                     mesh: m,
                     world: if joints.is_some() {
                         DMat4::IDENTITY
                     } else {
-                        p.world
+                        p.world * t
                     },
-                    weights,
+                    weights: weights.clone(),
                     sibling: p.sibling,
-                    joints,
-                })
+                    joints: joints.clone(),
+                }))
             })
+            .flatten()
             .collect())
     }
 
