@@ -232,8 +232,7 @@ impl BakeParams {
         let levels = self.lod.levels.max(1) as u64;
         let meshes = crate::output::pack::level_layers(self.shells.layers as u64, levels) + 2;
         let nodes = self.chunk_bound(scene) * meshes;
-        let morphs = scene.meshes.iter().map(|m| m.morphs.len()).max();
-        let targets = 5 + morphs.unwrap_or(0) as u64;
+        let targets = targets_bound(scene);
         // an output: its floats, its accessor and view (JSON) and padding; a node's channel
         // and sampler (JSON)
         let clip = |keys: u64, channels: u64| {
@@ -256,11 +255,9 @@ impl BakeParams {
     /// a channel per node for each of `channels` animation channels on them.
     pub fn estimate_copy_bytes(&self, scene: &crate::mesh::Scene, channels: u64) -> u64 {
         // an instanced part takes one level in one piece (`blocked`); a node names its mesh,
-        // its weights (a float each: the fur's targets and the shape keys) and its marker
+        // its weights (a float per target) and its marker
         let meshes = crate::output::pack::level_layers(self.shells.layers as u64, 1) + 2;
-        let morphs = scene.meshes.iter().map(|m| m.morphs.len()).max();
-        let weights = 5 + morphs.unwrap_or(0) as u64;
-        meshes * (384 + 24 * weights + 64 * channels) + 256
+        meshes * (384 + 24 * targets_bound(scene) + 64 * channels) + 256
     }
 
     /// At most how many chunks the LOD stage cuts the scene into: cells of the chunk size over
@@ -303,6 +300,13 @@ impl BakeParams {
             .density
             .unwrap_or(self.strands.strands_per_diagonal / diagonal.max(f32::MIN_POSITIVE))
     }
+}
+
+/// At most how many morph targets a layer mesh of `scene` carries: the extrusion, the bend,
+/// the occlusion's shade, the wind's two, and the shape keys of its mesh with the most.
+fn targets_bound(scene: &crate::mesh::Scene) -> u64 {
+    let morphs = scene.meshes.iter().map(|m| m.morphs.len()).max();
+    5 + morphs.unwrap_or(0) as u64
 }
 
 #[cfg(test)]

@@ -568,7 +568,9 @@ pub enum AlphaMode {
 }
 
 impl AlphaMode {
-    fn of(material: &Value) -> AlphaMode {
+    /// A material's `alphaMode` (`OPAQUE` when absent or unknown), `alphaCutoff` 0.5 when
+    /// absent: what the bake's paint and the viewer read.
+    pub fn of(material: &Value) -> AlphaMode {
         match material["alphaMode"].as_str() {
             Some("MASK") => AlphaMode::Mask(material["alphaCutoff"].as_f64().unwrap_or(0.5) as f32),
             Some("BLEND") => AlphaMode::Blend,

@@ -23,8 +23,9 @@
 //! a vertex buffer (a multi-material split does), and so is an instance of the same mesh
 //! elsewhere. Morph targets are ignored (the base geometry is read), so any layer yields
 //! the base surface. The same geometry under a different transform (real instancing, and each
-//! instance of a node's `EXT_mesh_gpu_instancing`) is baked once per instance. Lower LODs (`MSFT_lod`) live in a second scene and are not read. A
-//! single-draw output holds every layer in one primitive and would be baked as it stands.
+//! instance of a node's `EXT_mesh_gpu_instancing`) is baked once per instance. Lower LODs
+//! (`MSFT_lod`) live in a second scene and are not read. A single-draw output holds every layer
+//! in one primitive and would be baked as it stands.
 //! Buffer views compressed with `EXT_`/`KHR_meshopt_compression` (shellbake's own `--compress
 //! meshopt`, gltfpack's `-c`) are decoded by the shared reader; other compression
 //! (`KHR_draco_mesh_compression`) is refused by its required-extension check, by name.

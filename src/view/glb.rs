@@ -13,8 +13,9 @@
 //!   `SCALAR`s with a buffer view.
 //! - **Instances**: the reader's walk of the node forest, world matrices composed in `f64` so a
 //!   model placed 1e6 units from the origin keeps its precision until the renderer subtracts the
-//!   camera anchor; a node's `EXT_mesh_gpu_instancing` instances each draw its mesh. Node `weights` override mesh `weights`. `MSFT_lod` is understood: level `k`
-//!   of a node draws its `k`-th alternative.
+//!   camera anchor; a node's `EXT_mesh_gpu_instancing` instances each draw its mesh. Node
+//!   `weights` override mesh `weights`. `MSFT_lod` is understood: level `k` of a node draws its
+//!   `k`-th alternative.
 //! - **Materials**: metallic-roughness factors, `baseColorTexture` on `TEXCOORD_0` with
 //!   `KHR_texture_transform`, `alphaMode` (`OPAQUE`, `MASK` + `alphaCutoff`, `BLEND`),
 //!   `doubleSided`, `emissiveFactor`. Other textures (normal, occlusion, metallic-roughness maps)
@@ -143,12 +144,7 @@ pub struct Texture {
     pub sampler: SamplerDesc,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum AlphaMode {
-    Opaque,
-    Mask(f32),
-    Blend,
-}
+pub use crate::input::asset::AlphaMode;
 
 /// A metallic-roughness material.
 #[derive(Clone, Debug, PartialEq)]
@@ -259,6 +255,9 @@ pub struct Asset {
     pub meshes: Vec<Mesh>,
     /// `MSFT_lod` alternatives of each node, coarser first-to-last.
     pub lods: Vec<Vec<usize>>,
+    /// Each node's `EXT_mesh_gpu_instancing` transforms (empty: its mesh is drawn once; a
+    /// skinned node's are ignored, as its transform is).
+    pub gpu_instances: Vec<Vec<DMat4>>,
     pub materials: Vec<Material>,
     pub textures: Vec<Texture>,
     /// Layer count from `extras.shellbake.layers` of node 0, when the file is a shellbake bake.
@@ -413,6 +412,12 @@ impl Asset {
             }
             lods.push(ids);
         }
+        let gpu_instances = (0..doc.nodes.len())
+            .map(|n| match (doc.nodes[n].mesh, doc.nodes[n].skin) {
+                (Some(_), None) => crate::input::asset::instances(&doc, &buffers, n),
+                _ => Ok(Vec::new()),
+            })
+            .collect::<crate::Result<_>>()?;
         let materials = doc.json["materials"]
             .as_array()
             .map(|m| m.iter().map(parse_material).collect())
@@ -425,6 +430,7 @@ impl Asset {
             buffers,
             meshes,
             lods,
+            gpu_instances,
             materials,
             textures: Vec::new(),
             animations: Vec::new(),
@@ -735,16 +741,6 @@ impl Asset {
             false => self.doc.nodes[n].local,
         })?;
         let worlds: HashMap<usize, DMat4> = placed.iter().map(|p| (p.node, p.world)).collect();
-        // a node's `EXT_mesh_gpu_instancing` instances: its mesh drawn at each (none: once)
-        let mut instanced: HashMap<usize, Vec<DMat4>> = HashMap::new();
-        for p in &placed {
-            if self.doc.nodes[p.node].mesh.is_some() && self.doc.nodes[p.node].skin.is_none() {
-                let at = crate::input::asset::instances(&self.doc, &self.buffers, p.node)?;
-                if !at.is_empty() {
-                    instanced.insert(p.node, at);
-                }
-            }
-        }
         let mut joint_sets: Vec<Option<Vec<DMat4>>> = Vec::with_capacity(self.skins.len());
         for (s, (joints, ibm)) in self.skins.iter().enumerate() {
             let m: Option<Vec<DMat4>> = joints
@@ -776,7 +772,11 @@ impl Asset {
                     (None, None) => self.meshes[m].weights.clone(),
                 };
                 let joints = node.skin.and_then(|s| joint_sets[s].clone());
-                let each = instanced.get(&p.node).map_or(&once[..], |t| &t[..]);
+                // a node's GPU instances each draw its mesh (none: once)
+                let each = match &self.gpu_instances[p.node][..] {
+                    [] => &once[..],
+                    t => t,
+                };
                 Some(each.iter().map(move |&t| Instance {
                     node: p.node,
                     mesh: m,
@@ -863,11 +863,7 @@ fn parse_material(m: &Value) -> Material {
         [m2.x_axis.x, m2.y_axis.x, t.x],
         [m2.x_axis.y, m2.y_axis.y, t.y],
     ];
-    let alpha = match m["alphaMode"].as_str() {
-        Some("MASK") => AlphaMode::Mask(m["alphaCutoff"].as_f64().unwrap_or(0.5) as f32),
-        Some("BLEND") => AlphaMode::Blend,
-        _ => AlphaMode::Opaque,
-    };
+    let alpha = AlphaMode::of(m);
     Material {
         base_color,
         metallic: pbr["metallicFactor"]
