@@ -647,7 +647,9 @@ fn blender_imports_and_renders_the_furred_creature_with_enough_transparent_bounc
 fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     // a box (`fur_box`: a palette texture, half blue, half yellow, the sides mapped into the
     // blue half and the top and bottom into the yellow one, as low-poly assets are) and its lid
-    // (`plain`, red), as an OBJ with a .mtl beside it
+    // (`plain`, red), as an OBJ with a .mtl beside it; the box's bottom switches to `plain`
+    // and back (one object, two materials), the texture's name has a space and follows map
+    // options, and a third material names a texture by a path from another machine
     let dir = scratch("asset-obj");
     let tex = image::RgbImage::from_fn(32, 32, |x, _| {
         if x < 16 {
@@ -656,10 +658,11 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
             image::Rgb([230, 200, 40])
         }
     });
-    tex.save(dir.join("tex.png")).unwrap();
+    tex.save(dir.join("box tex.png")).unwrap();
     std::fs::write(
         dir.join("box.mtl"),
-        "newmtl fur_box\nKd 1 1 1\nmap_Kd tex.png\n\nnewmtl plain\nKd 0.8 0.1 0.1\n",
+        "newmtl fur_box\nKd 1 1 1\nmap_Kd -s 1 1 1 -bm 0.5 box tex.png\n\nnewmtl plain\n\
+         Kd 0.8 0.1 0.1\n\nnewmtl lost\nKd 0.2 0.2 0.2\nmap_Kd C:\\Users\\art\\lost.png\n",
     )
     .unwrap();
     let mut obj = String::from("mtllib box.mtl\n");
@@ -687,8 +690,11 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
         [4, 1, 5, 8],
     ];
     for (k, f) in faces.iter().enumerate() {
-        if k == 5 {
-            obj += "o lid\nusemtl plain\n";
+        match k {
+            1 => obj += "usemtl plain\n",
+            2 => obj += "usemtl fur_box\n",
+            5 => obj += "o lid\nusemtl plain\n",
+            _ => {}
         }
         let t = if k == 2 || k == 4 { 4 } else { 0 };
         obj += &format!(
@@ -713,6 +719,31 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
         .map(|m| m["name"].as_str().unwrap())
         .collect();
     assert_eq!(names, ["fur_box", "plain"]);
+    // the box is one mesh of two primitives: its four `fur_box` faces (two pieces of the
+    // file) and its `plain` bottom
+    let primitives = after["meshes"][0]["primitives"].as_array().unwrap();
+    let materials: Vec<u64> = (primitives.iter())
+        .map(|p| p["material"].as_u64().unwrap())
+        .collect();
+    assert_eq!(materials, [0, 1], "{primitives:?}");
+    let triangles = |p: &serde_json::Value| {
+        after["accessors"][p["indices"].as_u64().unwrap() as usize]["count"]
+            .as_u64()
+            .unwrap()
+            / 3
+    };
+    assert_eq!(
+        (triangles(&primitives[0]), triangles(&primitives[1])),
+        (8, 2)
+    );
+    let lost = &after["materials"][2];
+    assert_eq!(lost["name"], "lost");
+    assert!(lost["pbrMetallicRoughness"]["baseColorTexture"].is_null());
+    let warnings = report["asset"]["warnings"].to_string();
+    assert!(
+        warnings.contains("material 'lost': map_Kd 'C:/Users/art/lost.png' is not a file"),
+        "{warnings}"
+    );
     assert_eq!(
         after["materials"][1]["pbrMetallicRoughness"]["baseColorFactor"],
         json!([0.8, 0.1, 0.1, 1.0])

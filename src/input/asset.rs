@@ -322,12 +322,12 @@ impl Asset {
         // read once: `asset_document` looks for a material library before parsing anything
         let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES)
             .map_err(|e| Error::io(path, e))?;
-        match super::obj::asset_document(path, &bytes)? {
-            Some((json, bin)) => {
-                Asset::from_document(Document::from_json(path, json, Some(bin))?).map(Some)
-            }
-            None => Ok(None),
-        }
+        let Some(obj) = super::obj::asset_document(path, &bytes)? else {
+            return Ok(None);
+        };
+        let mut asset = Asset::from_document(Document::from_json(path, obj.json, Some(obj.bin))?)?;
+        asset.warnings.splice(0..0, obj.warnings);
+        Ok(Some(asset))
     }
 
     /// [`Asset::read`] on bytes in memory; `path` names the file and resolves relative URIs.

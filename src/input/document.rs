@@ -75,11 +75,14 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "EXT_mesh_gpu_instancing",
 ];
 
-/// Required extensions that change how materials and textures are drawn, never the geometry:
-/// a file that requires them is read (its geometry is plain glTF) and, as an asset, written
-/// back with them; a texture shellbake cannot decode (Basis Universal, WebP, AVIF) leaves the
-/// fur's colour to the material's factor, with a warning (`load::asset`).
+/// Required extensions that change how materials and textures are drawn, or add lights, never
+/// the geometry: a file that requires them is read (its geometry is plain glTF) and, as an
+/// asset, written back with them; a texture shellbake cannot decode (Basis Universal, WebP,
+/// AVIF) leaves the fur's colour to the material's factor, with a warning (`load::asset`), and
+/// `render` lights a scene its own way. (Blender lists `KHR_lights_punctual` as required when
+/// it exports lights.)
 pub const PASSED_THROUGH_EXTENSIONS: &[&str] = &[
+    "KHR_lights_punctual",
     "KHR_texture_basisu",
     "EXT_texture_webp",
     "EXT_texture_avif",
@@ -1593,6 +1596,8 @@ mod tests {
         // Used but not required: read as if absent.
         assert!(parse(json!({"extensionsUsed": ["EXT_x"]})).is_ok());
         assert!(parse(json!({"extensionsRequired": SUPPORTED_EXTENSIONS})).is_ok());
+        // Lights, as Blender requires them when it exports any.
+        assert!(parse(json!({"extensionsRequired": ["KHR_lights_punctual"]})).is_ok());
         // A hostile name is escaped.
         let e = parse(json!({"extensionsRequired": ["X\u{1b}[2J"]})).unwrap_err();
         assert!(!e.contains('\u{1b}') && e.contains("X\\u{1b}[2J"), "{e}");

@@ -1027,12 +1027,15 @@ impl Chunk {
         self.push(&bytes, fields, 34962)
     }
 
-    /// The primitive of `mesh` (as loaded), its arrays appended; its material is the object's
-    /// when that is one of the `materials` materials.
-    fn primitive(&mut self, model: &tobj::Model, mesh: &Mesh, materials: usize) -> Value {
+    /// The primitive of `mesh` (as loaded), its positions relative to its node's `origin`, its
+    /// arrays appended, drawn with `material`.
+    fn primitive(&mut self, mesh: &Mesh, origin: DVec3, material: Option<usize>) -> Value {
         let n = mesh.vertex_count();
-        let p: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
-        let (lo, hi) = mesh.bounds();
+        let shift = (mesh.origin - origin).as_vec3();
+        let placed: Vec<Vec3> = mesh.positions.iter().map(|&p| p + shift).collect();
+        let p: Vec<f32> = placed.iter().flat_map(|p| p.to_array()).collect();
+        let lo = placed.iter().fold(Vec3::INFINITY, |a, &p| a.min(p));
+        let hi = placed.iter().fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
         let position = self.floats(
             &p,
             json!({ "componentType": 5126, "count": n, "type": "VEC3", "min": lo.to_array(), "max": hi.to_array() }),
@@ -1059,16 +1062,22 @@ impl Chunk {
             34963,
         );
         let mut primitive = json!({ "attributes": attributes, "indices": indices });
-        if let Some(m) = model.mesh.material_id.filter(|&m| m < materials) {
+        if let Some(m) = material {
             primitive["material"] = json!(m);
         }
         primitive
     }
 }
 
-/// The glTF material of `.mtl` material `m`: `Kd` and `d` as the base colour factor, `map_Kd`
-/// as the base colour texture (its image and texture appended to `images` and `textures`).
-fn material(m: &tobj::Material, images: &mut Vec<Value>, textures: &mut Vec<Value>) -> Value {
+/// The glTF material of `.mtl` material `m` of the OBJ at `path`: `Kd` and `d` as the base
+/// colour factor, `map_Kd` as the base colour texture (its image and texture appended to
+/// `images` and `textures`) when its file is in the OBJ's folder ([`map_uri`]; else a warning).
+fn material(
+    path: &Path,
+    m: &tobj::Material,
+    (images, textures): (&mut Vec<Value>, &mut Vec<Value>),
+    warnings: &mut Vec<String>,
+) -> Value {
     let kd = m.diffuse.unwrap_or([1.0; 3]);
     let alpha = m.dissolve.unwrap_or(1.0).clamp(0.0, 1.0);
     let mut pbr = json!({
@@ -1076,51 +1085,147 @@ fn material(m: &tobj::Material, images: &mut Vec<Value>, textures: &mut Vec<Valu
         "metallicFactor": 0.0,
         "roughnessFactor": 1.0,
     });
-    if let Some(map) = m.diffuse_texture.as_deref().filter(|t| !t.is_empty()) {
-        // the map's file name, which may follow options (`-s 1 1 1 name.png`)
-        let file = map
-            .split_whitespace()
-            .last()
-            .unwrap_or(map)
-            .replace('\\', "/");
-        images.push(json!({ "uri": file }));
-        textures.push(json!({ "sampler": 0, "source": images.len() - 1 }));
-        pbr["baseColorTexture"] = json!({ "index": textures.len() - 1 });
+    if let Some(map) = m
+        .diffuse_texture
+        .as_deref()
+        .filter(|t| !t.trim().is_empty())
+    {
+        let file = map_file(map).replace('\\', "/");
+        match map_uri(path, &file) {
+            Some(uri) => {
+                images.push(json!({ "uri": uri }));
+                textures.push(json!({ "sampler": 0, "source": images.len() - 1 }));
+                pbr["baseColorTexture"] = json!({ "index": textures.len() - 1 });
+            }
+            None => warnings.push(format!(
+                "{}: material '{}': map_Kd '{}' is not a file in the OBJ's folder (nor is its \
+                 file name); the material keeps its Kd colour",
+                path.display(),
+                super::escape(&m.name),
+                super::escape(&file)
+            )),
+        }
     }
     json!({ "name": m.name, "pbrMetallicRoughness": pbr })
 }
 
+/// The file name of a `.mtl` map statement's value: what follows its options (`-s 1 1 1`,
+/// `-bm 0.5`, `-clamp on` …), spaces and all, as Blender writes a name with spaces unquoted.
+fn map_file(value: &str) -> &str {
+    fn token(s: &str) -> (&str, &str) {
+        let s = s.trim_start();
+        let end = s.find(char::is_whitespace).unwrap_or(s.len());
+        (&s[..end], &s[end..])
+    }
+    let mut rest = value.trim();
+    loop {
+        // (least, most) arguments of each option of the MTL format
+        let (least, most) = match token(rest).0 {
+            "-blendu" | "-blendv" | "-cc" | "-clamp" | "-bm" | "-boost" | "-imfchan"
+            | "-texres" | "-type" => (1, 1),
+            "-mm" => (2, 2),
+            "-o" | "-s" | "-t" => (1, 3),
+            _ => return rest,
+        };
+        rest = token(rest).1;
+        for k in 0..most {
+            let (arg, after) = token(rest);
+            if arg.is_empty() || (k >= least && arg.parse::<f64>().is_err()) {
+                break;
+            }
+            rest = after;
+        }
+        rest = rest.trim_start();
+    }
+}
+
+/// The image URI of map file `file` named by the OBJ at `path`: the file itself when it is a
+/// regular file inside the OBJ's folder, else its file name when that is one beside the OBJ (an
+/// absolute path written on another machine, the textures copied along); `None` when neither
+/// is. Percent-encoded where a URI needs it.
+fn map_uri(path: &Path, file: &str) -> Option<String> {
+    let encode = |s: &str| {
+        s.chars()
+            .map(|c| match c {
+                '%' => "%25".to_string(),
+                ' ' => "%20".to_string(),
+                '#' => "%23".to_string(),
+                '?' => "%3F".to_string(),
+                c => c.to_string(),
+            })
+            .collect::<String>()
+    };
+    let name = file.rsplit('/').next().unwrap_or(file);
+    [file, name].into_iter().map(encode).find(|uri| {
+        super::document::confined_path(path, uri)
+            .and_then(|p| std::fs::metadata(p).ok())
+            .is_some_and(|m| m.is_file())
+    })
+}
+
 /// An OBJ with materials as a glTF asset (DESIGN §10): one node and mesh per OBJ object (its
 /// name kept; positions relative to the object's origin, which the node's translation holds in
-/// `f64`), the triangles as loaded here, and one glTF material per `.mtl` material — `Kd` as the
-/// base colour factor (taken as linear, as obj2gltf does), `map_Kd` as the base colour texture
-/// (an image naming the file beside the OBJ, embedded when the asset is written). `None` when
-/// the file names no `.mtl` or none can be read (a plain mesh). The `.mtl` is read only inside the
-/// OBJ's folder, as a glTF's buffers are.
-pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<(Value, Vec<u8>)>> {
+/// `f64`), one primitive per material the object's faces use (tobj splits an object at each
+/// `usemtl`; the pieces of one object are its mesh's primitives, as a glTF exporter writes
+/// them), polygons triangulated as the reader does, and one glTF material per `.mtl`
+/// material — `Kd` as the base colour factor (taken as linear, as obj2gltf does), `map_Kd` as
+/// the base colour texture (an image naming the file beside the OBJ, embedded when the asset is
+/// written). `None` when the file names no `.mtl` or none can be read (a plain mesh). The `.mtl`
+/// is read only inside the OBJ's folder, as a glTF's buffers are; a `map_Kd` outside it (an
+/// absolute path from the exporting machine) is looked for by its file name beside the OBJ,
+/// and one found nowhere there leaves its material the `Kd` colour, with a warning.
+pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsset>> {
     // most OBJ files name no material library: find out before parsing anything
     if !names_mtl(bytes) {
         return Ok(None);
     }
-    let scene = load(path, bytes)?;
+    // the reader's checks, and its messages naming the line, for a file that does not load
+    load(path, bytes)?;
     let (models, materials) = load_with_materials(path, bytes)?;
     let Some(materials) = materials else {
         return Ok(None);
     };
-    if models.len() != scene.meshes.len() {
-        return Ok(None);
+    // consecutive pieces of one object (split at each `usemtl`) form one mesh, with one
+    // primitive per material (pieces of one material appended, when they carry the same
+    // attributes); a piece without a face adds nothing
+    let mut objects: Vec<(String, Vec<(Option<usize>, Mesh)>)> = Vec::new();
+    let alike = |a: &Mesh, b: &Mesh| {
+        (a.normals.is_some(), a.uvs.is_some(), a.colors.is_some())
+            == (b.normals.is_some(), b.uvs.is_some(), b.colors.is_some())
+    };
+    for (k, model) in models.into_iter().enumerate() {
+        if model.mesh.indices.is_empty() {
+            continue;
+        }
+        let material = model.mesh.material_id.filter(|&m| m < materials.len());
+        let name = model.name.clone();
+        let (mesh, _) = object_mesh(path, k, &Object::from_tobj(model))?;
+        let Some((_, pieces)) = objects.last_mut().filter(|(last, _)| *last == name) else {
+            objects.push((name, vec![(material, mesh)]));
+            continue;
+        };
+        match (pieces.iter_mut()).find(|(m, piece)| *m == material && alike(piece, &mesh)) {
+            Some((_, piece)) => piece.append(&mesh),
+            None => pieces.push((material, mesh)),
+        }
     }
     let mut chunk = Chunk::default();
     let (mut nodes, mut meshes) = (Vec::new(), Vec::new());
-    for (model, mesh) in models.iter().zip(&scene.meshes) {
-        let primitive = chunk.primitive(model, mesh, materials.len());
-        meshes.push(json!({ "name": model.name, "primitives": [primitive] }));
-        nodes.push(json!({ "name": model.name, "mesh": meshes.len() - 1, "translation": mesh.origin.to_array() }));
+    for (name, pieces) in &objects {
+        let origin = pieces[0].1.origin;
+        let primitives: Vec<Value> = (pieces.iter())
+            .map(|(material, mesh)| chunk.primitive(mesh, origin, *material))
+            .collect();
+        meshes.push(json!({ "name": name, "primitives": primitives }));
+        nodes.push(
+            json!({ "name": name, "mesh": meshes.len() - 1, "translation": origin.to_array() }),
+        );
     }
     let (mut images, mut textures) = (Vec::<Value>::new(), Vec::<Value>::new());
+    let mut warnings = Vec::new();
     let materials: Vec<Value> = materials
         .iter()
-        .map(|m| material(m, &mut images, &mut textures))
+        .map(|m| material(path, m, (&mut images, &mut textures), &mut warnings))
         .collect();
     chunk.bin.resize(chunk.bin.len().next_multiple_of(4), 0);
     let mut doc = json!({
@@ -1139,7 +1244,19 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<(Value,
         doc["textures"] = json!(textures);
         doc["samplers"] = json!([{ "wrapS": 10497, "wrapT": 10497 }]);
     }
-    Ok(Some((doc, chunk.bin)))
+    Ok(Some(ObjAsset {
+        json: doc,
+        bin: chunk.bin,
+        warnings,
+    }))
+}
+
+/// An OBJ with materials as a glTF document ([`asset_document`]): its JSON, its binary chunk,
+/// and what of its `.mtl` it could not use.
+pub(super) struct ObjAsset {
+    pub json: Value,
+    pub bin: Vec<u8>,
+    pub warnings: Vec<String>,
 }
 
 #[cfg(test)]
@@ -1148,6 +1265,20 @@ mod tests {
 
     fn load_str(s: &str) -> Result<Scene> {
         load(Path::new("t.obj"), s.as_bytes())
+    }
+
+    #[test]
+    fn a_map_s_file_name_follows_its_options_spaces_and_all() {
+        for (value, file) in [
+            ("tex.png", "tex.png"),
+            ("my checker.jpg", "my checker.jpg"),
+            ("-s 1 1 1 -bm 0.5 fur tex.png", "fur tex.png"),
+            ("-o 0.5 tex.png", "tex.png"),
+            ("-clamp on -mm 0 1 -imfchan r  a b.png ", "a b.png"),
+            ("-blendu off C:\\tex\\fur.png", "C:\\tex\\fur.png"),
+        ] {
+            assert_eq!(map_file(value), file, "{value}");
+        }
     }
 
     #[test]
