@@ -230,8 +230,9 @@ struct BakeArgs {
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
     /// Fur only the parts of a glTF asset whose node, mesh or material name matches
-    /// (`material=fox_*`; KIND is node, mesh or material; `*` and `?` globs; repeatable); the
-    /// rest passes through untouched [default: every triangle primitive].
+    /// (`material=fox_*`; KIND is node, mesh or material, or under: the node or any above it,
+    /// `under=Wolf`; `*` and `?` globs; repeatable); the rest passes through untouched
+    /// [default: every triangle primitive].
     #[arg(long = "only", value_name = "KIND=GLOB")]
     only: Vec<shellbake::input::asset::Selector>,
     /// Write the JSON report here.

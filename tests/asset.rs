@@ -422,6 +422,69 @@ fn only_names_what_the_file_has_when_nothing_matches_and_writes_nothing() {
 }
 
 #[test]
+fn under_chooses_a_character_by_the_node_that_holds_it() {
+    // as Blender writes a rigged character: an armature node holding the skinned mesh and the
+    // root bone; the second critter under `Wolf`, the ground under `field` under `set`
+    let dir = scratch("asset-under");
+    let glb = Glb::parse(&critter_glb(Critters {
+        count: 2,
+        ground: true,
+        camera_and_light: false,
+    }));
+    let mut doc = glb.json.clone();
+    let named = |doc: &serde_json::Value, name: &str| {
+        (doc["nodes"].as_array().unwrap().iter())
+            .position(|n| n["name"] == name)
+            .unwrap()
+    };
+    let (mesh, bone, ground) = (
+        named(&doc, "critter_1"),
+        named(&doc, "root_1"),
+        named(&doc, "ground"),
+    );
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    nodes.push(json!({ "name": "Wolf", "children": [bone, mesh] }));
+    nodes.push(json!({ "name": "field", "children": [ground] }));
+    nodes.push(json!({ "name": "set", "children": [nodes.len() - 1] }));
+    let n = nodes.len();
+    let roots = doc["scenes"][0]["nodes"].as_array_mut().unwrap();
+    roots.retain(|r| ![bone, mesh, ground].contains(&(r.as_u64().unwrap() as usize)));
+    roots.extend([json!(n - 3), json!(n - 1)]);
+    let input = dir.join("pack.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &glb.bin)).unwrap();
+    let furred = |args: &[&str]| {
+        let (_, report) = bake(&input, &dir, "under.glb", args);
+        let list = report["asset"]["furred"].as_array().unwrap().clone();
+        list.iter().map(|p| p.to_string()).collect::<Vec<_>>()
+    };
+    let wolf = furred(&["--only", "under=Wolf"]);
+    assert_eq!(
+        wolf.len(),
+        4,
+        "the second critter's four primitives: {wolf:?}"
+    );
+    assert!(wolf.iter().all(|p| p.contains("critter_1")), "{wolf:?}");
+    // with another selector: the parts either chooses
+    let fur = furred(&["--only", "under=Wolf", "--only", "material=fur_*"]);
+    assert_eq!(fur.len(), 6, "{fur:?}");
+    // two levels down, by glob; a node matches itself
+    for glob in ["under=s?t", "under=ground"] {
+        let ground = furred(&["--only", glob]);
+        assert_eq!(ground.len(), 1, "{glob}: {ground:?}");
+        assert!(ground[0].contains("ground"), "{ground:?}");
+    }
+    // no match names the nodes parts sit under
+    let (code, _, err) = shellbake(&["bake", &path_str(&input), "--only", "under=Fox"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("matches no node at or above a triangle primitive")
+            && err.contains("Wolf")
+            && err.contains("field"),
+        "{err}"
+    );
+}
+
+#[test]
 fn a_furred_asset_read_again_is_not_furred_twice() {
     let dir = scratch("asset-rebake");
     let input = critters(&dir, "critter.glb", Critters::default());

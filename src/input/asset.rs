@@ -11,8 +11,10 @@
 //!   parts, and a primitive
 //!   that a fur node's `extras.shellbake_fur` names (node and primitive) is *furred already*: it
 //!   passes through and is not furred twice.
-//! - **Selection.** `--only KIND=GLOB` (KIND `node`, `mesh` or `material`; `*` and `?` as in a
-//!   shell, on the whole name, case-sensitive) keeps the parts any selector matches. A selector
+//! - **Selection.** `--only KIND=GLOB` (KIND `node`, `mesh` or `material`, or `under`: the
+//!   part's node or any node above it, so `under=Wolf` chooses a character by its root or
+//!   armature; `*` and `?` as in a shell, on the whole name, case-sensitive) keeps the parts any
+//!   selector matches. A selector
 //!   matching no part is an error listing the names the file has of that kind. Without
 //!   selectors every part is furred. Unnamed objects are matched as `node3`, `mesh2`,
 //!   `material0` (their index); a primitive without a material as `(none)`.
@@ -45,6 +47,8 @@ pub enum NameKind {
     Node,
     Mesh,
     Material,
+    /// The part's node or any node above it: a character chosen by its root or armature.
+    Under,
 }
 
 impl NameKind {
@@ -53,6 +57,7 @@ impl NameKind {
             NameKind::Node => "node",
             NameKind::Mesh => "mesh",
             NameKind::Material => "material",
+            NameKind::Under => "under",
         }
     }
 }
@@ -68,16 +73,17 @@ impl std::str::FromStr for Selector {
     type Err = String;
 
     fn from_str(s: &str) -> std::result::Result<Selector, String> {
-        let (kind, glob) = s
-            .split_once('=')
-            .ok_or_else(|| format!("'{s}' is not KIND=GLOB (KIND: node, mesh or material)"))?;
+        let (kind, glob) = s.split_once('=').ok_or_else(|| {
+            format!("'{s}' is not KIND=GLOB (KIND: node, mesh, material or under)")
+        })?;
         let kind = match kind.trim() {
             "node" => NameKind::Node,
             "mesh" => NameKind::Mesh,
             "material" => NameKind::Material,
+            "under" => NameKind::Under,
             other => {
                 return Err(format!(
-                    "'{other}' is not a kind of name (node, mesh or material)"
+                    "'{other}' is not a kind of name (node, mesh, material or under)"
                 ))
             }
         };
@@ -127,15 +133,27 @@ pub struct PartNames {
     pub node: String,
     pub mesh: String,
     pub material: String,
+    /// The names of the nodes above the part's node, its parent first.
+    pub ancestors: Vec<String>,
 }
 
 impl PartNames {
-    pub fn of(&self, kind: NameKind) -> &str {
+    /// The names of `kind` the part answers to (`under`: its node's and every ancestor's).
+    pub fn of(&self, kind: NameKind) -> Vec<&str> {
         match kind {
-            NameKind::Node => &self.node,
-            NameKind::Mesh => &self.mesh,
-            NameKind::Material => &self.material,
+            NameKind::Node => vec![&self.node],
+            NameKind::Mesh => vec![&self.mesh],
+            NameKind::Material => vec![&self.material],
+            NameKind::Under => std::iter::once(&self.node)
+                .chain(&self.ancestors)
+                .map(String::as_str)
+                .collect(),
         }
+    }
+
+    /// Whether selector `s` chooses the part.
+    pub fn chosen_by(&self, s: &Selector) -> bool {
+        self.of(s.kind).iter().any(|n| glob_matches(&s.glob, n))
     }
 }
 
@@ -346,6 +364,12 @@ impl Asset {
         let mut parts = Vec::new();
         let mut total: u64 = 0;
         let walked = doc.walk(|n| n)?;
+        let mut parents = vec![None; doc.nodes.len()];
+        for (n, node) in doc.nodes.iter().enumerate() {
+            for &c in &node.children {
+                parents[c] = Some(n);
+            }
+        }
         warnings.extend(outside_the_scene(&doc, &walked, &fur));
         for placed in walked {
             let Some(m) = doc.nodes[placed.node].mesh else {
@@ -423,7 +447,7 @@ impl Asset {
                     node: placed.node,
                     mesh: m,
                     primitive: k,
-                    names: names_of(&doc, placed.node, m, prim.material),
+                    names: names_of(&doc, &parents, placed.node, (m, prim.material)),
                     world: placed.world,
                     skin,
                     scene,
@@ -446,12 +470,9 @@ impl Asset {
     /// already. A selector that matches no part is an error naming the names the file has.
     pub fn select(&self, only: &[Selector]) -> Result<Vec<usize>> {
         for s in only {
-            if !self
-                .parts
-                .iter()
-                .any(|p| glob_matches(&s.glob, p.names.of(s.kind)))
-            {
-                let mut names: Vec<&str> = self.parts.iter().map(|p| p.names.of(s.kind)).collect();
+            if !self.parts.iter().any(|p| p.names.chosen_by(s)) {
+                let mut names: Vec<&str> =
+                    self.parts.iter().flat_map(|p| p.names.of(s.kind)).collect();
                 names.sort_unstable();
                 names.dedup();
                 let shown: Vec<String> = names.iter().map(|n| super::escape(n)).collect();
@@ -459,8 +480,11 @@ impl Asset {
                     &self.doc.path,
                     format!("--only {}", super::escape(&s.to_string())),
                     format!(
-                        "matches no {} of a triangle primitive; the file has: {}",
-                        s.kind.name(),
+                        "matches no {} a triangle primitive; the file has: {}",
+                        match s.kind {
+                            NameKind::Under => "node at or above".to_string(),
+                            kind => format!("{} of", kind.name()),
+                        },
                         shown.join(", ")
                     ),
                 ));
@@ -469,11 +493,7 @@ impl Asset {
         Ok((0..self.parts.len())
             .filter(|&i| {
                 let p = &self.parts[i];
-                !p.furred
-                    && (only.is_empty()
-                        || only
-                            .iter()
-                            .any(|s| glob_matches(&s.glob, p.names.of(s.kind))))
+                !p.furred && (only.is_empty() || only.iter().any(|s| p.names.chosen_by(s)))
             })
             .collect())
     }
@@ -527,7 +547,14 @@ fn furred_parts(doc: &Document) -> std::collections::HashSet<(usize, usize)> {
         .collect()
 }
 
-fn names_of(doc: &Document, node: usize, mesh: usize, material: Option<usize>) -> PartNames {
+/// The names of the part at `node` (whose parent each node's entry of `parents` is), drawing
+/// `mesh` with `material`.
+fn names_of(
+    doc: &Document,
+    parents: &[Option<usize>],
+    node: usize,
+    (mesh, material): (usize, Option<usize>),
+) -> PartNames {
     let name = |(list, one): (&str, &str), i: usize| -> String {
         doc.json[list][i]["name"]
             .as_str()
@@ -541,6 +568,10 @@ fn names_of(doc: &Document, node: usize, mesh: usize, material: Option<usize>) -
             || "(none)".to_string(),
             |m| name(("materials", "material"), m),
         ),
+        // the graph is a forest (`Document` checks it), so the climb ends
+        ancestors: std::iter::successors(parents[node], |&n| parents[n])
+            .map(|n| name(("nodes", "node"), n))
+            .collect(),
     }
 }
 
