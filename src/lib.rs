@@ -354,6 +354,16 @@ pub fn bake_asset(
             );
         }
         report.furred.push(line);
+        if asset.parts[i].more_influences {
+            report.warnings.push(format!(
+                "{}: {} has bone influences past four (JOINTS_1/WEIGHTS_1); the fur follows \
+                 the first four, as three.js moves the body, while Babylon.js and Blender move \
+                 the body by all eight and it can part from its fur in motion (export with four \
+                 influences, Blender's default)",
+                asset.doc.path.display(),
+                describe(i)
+            ));
+        }
     }
     for i in (0..asset.parts.len()).filter(|i| !chosen.contains(i)) {
         let why = if asset.parts[i].furred {

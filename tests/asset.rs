@@ -485,6 +485,30 @@ fn under_chooses_a_character_by_the_node_that_holds_it() {
 }
 
 #[test]
+fn bone_influences_past_four_are_named_in_a_warning() {
+    // the body's primitive gains a second set of influences (the first set's accessors again,
+    // enough for the reader: only the set's presence is looked at)
+    let dir = scratch("asset-eight");
+    let glb = Glb::parse(&critter_glb(Critters::default()));
+    let mut doc = glb.json.clone();
+    let attributes = &mut doc["meshes"][0]["primitives"][0]["attributes"];
+    attributes["JOINTS_1"] = attributes["JOINTS_0"].clone();
+    attributes["WEIGHTS_1"] = attributes["WEIGHTS_0"].clone();
+    let input = dir.join("eight.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &glb.bin)).unwrap();
+    let (_, report) = bake(&input, &dir, "eight-fur.glb", &["--only", "material=fur_*"]);
+    let warnings: Vec<String> = (report["asset"]["warnings"].as_array().unwrap().iter())
+        .map(|w| w.as_str().unwrap().to_string())
+        .filter(|w| w.contains("past four"))
+        .collect();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].contains("material 'fur_body'") && warnings[0].contains("JOINTS_1"),
+        "{warnings:?}"
+    );
+}
+
+#[test]
 fn a_furred_asset_read_again_is_not_furred_twice() {
     let dir = scratch("asset-rebake");
     let input = critters(&dir, "critter.glb", Critters::default());

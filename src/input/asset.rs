@@ -181,6 +181,9 @@ pub struct Part {
     /// frame (empty: the node draws its mesh once). The fur is baked once, in the node's place,
     /// and drawn at every instance (`output/graft.rs`).
     pub instances: Vec<DMat4>,
+    /// The skinned primitive has bone influences past four (`JOINTS_1`/`WEIGHTS_1`), which the
+    /// fur does not follow: it takes the first four, as three.js skins the body.
+    pub more_influences: bool,
 }
 
 /// The morph weights of a part's node: at rest, and as its animations move them. The fur's
@@ -455,6 +458,9 @@ impl Asset {
                     furred: furred.contains(&(placed.node, k)),
                     shape_keys,
                     instances: node_instances.clone(),
+                    more_influences: skin.is_some()
+                        && prim.attribute("JOINTS_1").is_some()
+                        && prim.attribute("WEIGHTS_1").is_some(),
                 });
             }
         }

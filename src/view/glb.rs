@@ -836,11 +836,27 @@ impl Asset {
     }
 }
 
-/// Vertex `i`'s blend of the joint matrices `mats` by its `JOINTS_0` / `WEIGHTS_0` (decoded).
+/// A vertex's four `WEIGHTS_0` scaled to sum to 1, as three.js's loader scales them: a file
+/// whose vertices have more influences (`WEIGHTS_1`) leaves the first four short of 1, and a
+/// blend of them would pull the vertex toward the origin. Weights summing to 0, or to 1
+/// within rounding (every file shellbake writes), are kept as they are.
+pub fn normalized_weights(w: &[f32]) -> [f32; 4] {
+    let w = [0, 1, 2, 3].map(|k| w.get(k).copied().unwrap_or(0.0));
+    let sum: f32 = w.iter().sum();
+    match sum > 0.0 && sum.is_finite() && (sum - 1.0).abs() > 1e-4 {
+        true => w.map(|x| x / sum),
+        false => w,
+    }
+}
+
+/// Vertex `i`'s blend of the joint matrices `mats` by its `JOINTS_0` / `WEIGHTS_0` (decoded,
+/// [`normalized_weights`]).
 pub fn skin_matrix(mats: &[DMat4], joints: &Floats, weights: &Floats, i: usize) -> DMat4 {
     let mut m = DMat4::ZERO;
+    let ws = weights.data.get(4 * i..4 * i + 4).unwrap_or(&[]);
+    let ws = normalized_weights(ws);
     for k in 0..4 {
-        let w = weights.data.get(4 * i + k).copied().unwrap_or(0.0) as f64;
+        let w = ws[k] as f64;
         let j = joints.data.get(4 * i + k).copied().unwrap_or(0.0) as usize;
         if w != 0.0 {
             m += *mats.get(j).unwrap_or(&DMat4::IDENTITY) * w;
@@ -900,6 +916,19 @@ mod tests {
 
     fn bytes_of(values: &[u16]) -> Vec<u8> {
         values.iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+
+    #[test]
+    fn the_first_four_weights_are_scaled_to_one_as_three_js_scales_them() {
+        // a vertex whose other influences sit in WEIGHTS_1: the first four sum to 0.8
+        assert_eq!(
+            normalized_weights(&[0.4, 0.2, 0.2, 0.0]),
+            [0.5, 0.25, 0.25, 0.0]
+        );
+        // whole, or nothing: kept bit for bit
+        let ours = [128.0 / 255.0, 127.0 / 255.0, 0.0, 0.0];
+        assert_eq!(normalized_weights(&ours), ours);
+        assert_eq!(normalized_weights(&[0.0; 4]), [0.0; 4]);
     }
 
     #[test]

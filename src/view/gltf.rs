@@ -491,7 +491,10 @@ impl GltfRenderer {
                             .data
                             .chunks_exact(4)
                             .zip(weights.data.chunks_exact(4))
-                            .flat_map(|(j, w)| j.iter().chain(w).copied())
+                            .flat_map(|(j, w)| {
+                                let w = super::glb::normalized_weights(w);
+                                j.iter().copied().chain(w).collect::<Vec<_>>()
+                            })
                             .collect();
                         self.skin_pairs.insert((*j, *w), vertex_buffer(gpu, &data));
                     }
