@@ -1188,7 +1188,9 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
     // consecutive pieces of one object (split at each `usemtl`) form one mesh, with one
     // primitive per material (pieces of one material appended, when they carry the same
     // attributes); a piece without a face adds nothing
-    let mut objects: Vec<(String, Vec<(Option<usize>, Mesh)>)> = Vec::new();
+    // (name, [(material, mesh)])
+    type Pieces = Vec<(Option<usize>, Mesh)>;
+    let mut objects: Vec<(String, Pieces)> = Vec::new();
     let alike = |a: &Mesh, b: &Mesh| {
         (a.normals.is_some(), a.uvs.is_some(), a.colors.is_some())
             == (b.normals.is_some(), b.uvs.is_some(), b.colors.is_some())

@@ -855,8 +855,8 @@ pub fn skin_matrix(mats: &[DMat4], joints: &Floats, weights: &Floats, i: usize) 
     let mut m = DMat4::ZERO;
     let ws = weights.data.get(4 * i..4 * i + 4).unwrap_or(&[]);
     let ws = normalized_weights(ws);
-    for k in 0..4 {
-        let w = ws[k] as f64;
+    for (k, &w) in ws.iter().enumerate() {
+        let w = w as f64;
         let j = joints.data.get(4 * i + k).copied().unwrap_or(0.0) as usize;
         if w != 0.0 {
             m += *mats.get(j).unwrap_or(&DMat4::IDENTITY) * w;
