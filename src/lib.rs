@@ -216,7 +216,18 @@ pub fn asset_scene(
     chosen: &[usize],
     graft: bool,
 ) -> Result<(SceneFile, Vec<Loaded>)> {
-    let surface = &template.surfaces[0];
+    let pairs: Vec<(usize, usize)> = chosen.iter().map(|&i| (i, 0)).collect();
+    asset_scene_of(template, asset, &pairs, graft)
+}
+
+/// [`asset_scene`] with each chosen part's settings from a surface of its own: `chosen` holds
+/// (part, surface of `template`) pairs ([`scene_asset`]).
+pub fn asset_scene_of(
+    template: &SceneFile,
+    asset: &input::asset::Asset,
+    chosen: &[(usize, usize)],
+    graft: bool,
+) -> Result<(SceneFile, Vec<Loaded>)> {
     let mut names: Vec<String> = Vec::new();
     let mut scene = SceneFile {
         path: template.path.clone(),
@@ -224,7 +235,8 @@ pub fn asset_scene(
         surfaces: Vec::new(),
     };
     let mut loaded = Vec::new();
-    for &i in chosen {
+    for &(i, k) in chosen {
+        let surface = &template.surfaces[k];
         let start = Instant::now();
         let part = &asset.parts[i];
         let mut name = part.label(asset.primitives(i));
@@ -369,7 +381,7 @@ pub fn bake_asset(
         let why = if asset.parts[i].furred {
             "carries shellbake fur already"
         } else {
-            "not selected by --only"
+            "not chosen (by --only, or by a scene surface's only)"
         };
         report.skipped.push(format!("{}: {why}", describe(i)));
     }
@@ -410,6 +422,60 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
             })
         })
         .collect()
+}
+
+/// (part, surface) pairs: the surface of a scene whose settings fur each chosen part of an
+/// asset.
+pub type PartSurfaces = Vec<(usize, usize)>;
+
+/// The asset a scene file furs whole, when every surface takes its parts (`only`) from that one
+/// asset and leaves it in place (no `scale` or `translation`): the scene then bakes as `bake`
+/// bakes the asset — the asset kept, each part's fur in the asset's colours, following its node,
+/// skin and shape keys — each part with the settings (preset, parameters, effects, maps) of the
+/// surface that chooses it. A part two surfaces choose is an error naming both. Returns the
+/// asset and the (part, surface) pairs, in part order; `None` for any other scene, which writes
+/// its surfaces' fur alone ([`load_parts`]).
+pub fn scene_asset(scene: &SceneFile) -> Result<Option<(input::asset::Asset, PartSurfaces)>> {
+    let Some(first) = scene.surfaces.first() else {
+        return Ok(None);
+    };
+    let whole = scene.path.is_some()
+        && (scene.surfaces.iter()).all(|s| {
+            !s.only.is_empty()
+                && s.mesh == first.mesh
+                && s.translation == [0.0; 3]
+                && s.scale == 1.0
+        });
+    if !whole {
+        return Ok(None);
+    }
+    let Some(asset) = input::asset::Asset::open(&first.mesh)? else {
+        return Ok(None);
+    };
+    let mut surface_of: Vec<Option<usize>> = vec![None; asset.parts.len()];
+    for (k, s) in scene.surfaces.iter().enumerate() {
+        for i in asset.select(&s.only)? {
+            if let Some(j) = surface_of[i] {
+                let path = scene.path.as_deref().unwrap_or(&first.mesh);
+                return Err(Error::invalid(
+                    path,
+                    format!("surface '{}'", input::escape(&s.name)),
+                    format!(
+                        "chooses node '{}' (material '{}'), which surface '{}' chose first; a \
+                         part takes one surface's fur",
+                        input::escape(&asset.parts[i].names.node),
+                        input::escape(&asset.parts[i].names.material),
+                        input::escape(&scene.surfaces[j].name)
+                    ),
+                ));
+            }
+            surface_of[i] = Some(k);
+        }
+    }
+    let chosen = (surface_of.iter().enumerate())
+        .filter_map(|(i, k)| k.map(|k| (i, k)))
+        .collect();
+    Ok(Some((asset, chosen)))
 }
 
 /// The parts of the asset at `path` that `only` chooses, as one scene (their meshes, and the

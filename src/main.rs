@@ -532,6 +532,19 @@ fn load_asset(
     asset: &shellbake::input::asset::Asset,
 ) -> anyhow::Result<(Vec<usize>, SceneFile, Vec<shellbake::Loaded>, u64)> {
     let chosen = asset.select(&args.only)?;
+    let pairs: Vec<(usize, usize)> = chosen.iter().map(|&i| (i, 0)).collect();
+    let (scene, loaded, estimate) = load_parts_of(args, template, asset, &pairs)?;
+    Ok((chosen, scene, loaded, estimate))
+}
+
+/// The scene and meshes that fur the (part, surface of `template`) pairs `chosen` of `asset`,
+/// grafted ([`shellbake::asset_scene_of`]), and the size estimate; no part is an error.
+fn load_parts_of(
+    args: &BakeArgs,
+    template: &SceneFile,
+    asset: &shellbake::input::asset::Asset,
+    chosen: &[(usize, usize)],
+) -> anyhow::Result<(SceneFile, Vec<shellbake::Loaded>, u64)> {
     if chosen.is_empty() {
         let why = if asset.parts.is_empty() {
             "no triangle primitive has a triangle with an area (every triangle collapses, or \
@@ -541,10 +554,67 @@ fn load_asset(
         };
         anyhow::bail!("{}: nothing to fur: {why}", args.input.display());
     }
-    let (scene, loaded) = shellbake::asset_scene(template, asset, &chosen, true)?;
+    let (scene, loaded) = shellbake::asset_scene_of(template, asset, chosen, true)?;
     let kept: u64 = asset.buffers.iter().map(|b| b.len() as u64).sum();
     let estimate = check_loaded(args, &scene, &loaded)? + kept;
-    Ok((chosen, scene, loaded, estimate))
+    Ok((scene, loaded, estimate))
+}
+
+/// An input baked as an asset kept whole: the asset, and each part to fur with the surface of
+/// the scene whose settings fur it.
+struct AssetInput {
+    asset: shellbake::input::asset::Asset,
+    /// (part, surface) pairs: `--only`'s parts with the one surface of a mesh input, or a scene
+    /// file's ([`shellbake::scene_asset`]).
+    chosen: Vec<(usize, usize)>,
+}
+
+/// The asset `args` names with the parts `--only` chooses, or the asset every surface of the
+/// scene file `scene` takes its parts from; `None`: a mesh, or a scene that writes its
+/// surfaces' fur alone. `--only` on an input that is no asset is refused.
+fn asset_of(args: &BakeArgs, scene: &SceneFile) -> anyhow::Result<Option<AssetInput>> {
+    if args.is_scene() {
+        let whole = shellbake::scene_asset(scene)?;
+        return Ok(whole.map(|(asset, chosen)| AssetInput { asset, chosen }));
+    }
+    let Some(asset) = args.asset()? else {
+        if !args.only.is_empty() {
+            anyhow::bail!(
+                "{}: --only chooses parts of an asset (.gltf, .glb, or .obj with a .mtl)",
+                args.input.display()
+            );
+        }
+        return Ok(None);
+    };
+    let chosen = asset
+        .select(&args.only)?
+        .into_iter()
+        .map(|i| (i, 0))
+        .collect();
+    Ok(Some(AssetInput { asset, chosen }))
+}
+
+/// Bakes `scene` (`args.scene()`): the chosen parts of the asset `input`, grafted onto it, when
+/// there is one, else the scene's surfaces. The report and the GLB, written nowhere yet: what
+/// `bake` writes and `batch` writes for each of its assets.
+fn bake_bytes(
+    args: &BakeArgs,
+    scene: &SceneFile,
+    input: Option<&AssetInput>,
+) -> anyhow::Result<(shellbake::report::SceneReport, Vec<u8>)> {
+    Ok(match input {
+        Some(AssetInput { asset, chosen }) => {
+            let (parts, loaded, _) = load_parts_of(args, scene, asset, chosen)?;
+            let chosen: Vec<usize> = chosen.iter().map(|&(i, _)| i).collect();
+            let baked = shellbake::bake_asset(asset, &chosen, (&parts, &loaded))?;
+            (baked.fur.report, baked.glb)
+        }
+        None => {
+            let (loaded, _) = load_checked(args, scene)?;
+            let baked = shellbake::bake_scene(scene, &loaded);
+            (baked.report, baked.glb)
+        }
+    })
 }
 
 fn bake(args: &BakeArgs) -> anyhow::Result<()> {
@@ -569,22 +639,8 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
         pb.enable_steady_tick(Duration::from_millis(120));
         pb
     });
-    let asset = args.asset()?;
-    if !args.only.is_empty() && asset.is_none() && !args.is_scene() {
-        anyhow::bail!(
-            "{}: --only chooses parts of an asset (.gltf, .glb, or .obj with a .mtl)",
-            args.input.display()
-        );
-    }
-    let (mut report, glb) = if let Some(asset) = &asset {
-        let (chosen, parts, loaded, _) = load_asset(args, &scene, asset)?;
-        let baked = shellbake::bake_asset(asset, &chosen, (&parts, &loaded))?;
-        (baked.fur.report, baked.glb)
-    } else {
-        let (loaded, _) = load_checked(args, &scene)?;
-        let baked = shellbake::bake_scene(&scene, &loaded);
-        (baked.report, baked.glb)
-    };
+    let asset = asset_of(args, &scene)?;
+    let (mut report, glb) = bake_bytes(args, &scene, asset.as_ref())?;
     if let Some(pb) = spinner {
         pb.finish_and_clear();
     }

@@ -509,6 +509,73 @@ fn bone_influences_past_four_are_named_in_a_warning() {
 }
 
 #[test]
+fn a_scene_whose_surfaces_take_parts_of_one_asset_keeps_the_asset() {
+    // fur on the critters' bodies, grass on their tails, from a scene file: the asset comes
+    // out whole, as `bake` writes it, each part with its surface's preset (before, the scene
+    // wrote the fur alone: no asset, the preset's colours, no node to follow)
+    let dir = scratch("asset-scene-file");
+    let what = Critters {
+        count: 2,
+        ground: true,
+        camera_and_light: true,
+    };
+    critters(&dir, "critters.glb", what);
+    let scene = |tail: &str| {
+        format!(
+            "[[surface]]\nname = \"coat\"\nmesh = \"critters.glb\"\nonly = [\"material=fur_body\"]\n\
+             \n[[surface]]\nname = \"tails\"\nmesh = \"critters.glb\"\n\
+             only = [\"{tail}\"]\npreset = \"grass\"\n"
+        )
+    };
+    let file = dir.join("scene.toml");
+    std::fs::write(&file, scene("material=fur_tail")).unwrap();
+    let (glb, report) = bake(&file, &dir, "scene-fur.glb", &[]);
+    assert_valid(std::slice::from_ref(&glb));
+    let (before, after) = (json_of(&dir.join("critters.glb")), json_of(&glb));
+    assert_kept(&before, &after);
+    let furred = report["asset"]["furred"].to_string();
+    assert_eq!(
+        report["asset"]["furred"].as_array().unwrap().len(),
+        4,
+        "{furred}"
+    );
+    // each part's layers are its surface's preset's: fur 32, grass 48
+    let layers: Vec<u64> = (report["surfaces"].as_array().unwrap().iter())
+        .map(|s| s["layers"].as_u64().unwrap())
+        .collect();
+    assert_eq!(layers.len(), 4, "{layers:?}");
+    assert_eq!(layers.iter().filter(|&&n| n == 48).count(), 2, "{layers:?}");
+    // each character's fur is bound to its own skin, as `bake` binds it
+    let skins = fur_layer_skins(&before, &after);
+    assert!(
+        skins.contains(&Some(0)) && skins.contains(&Some(1)),
+        "{skins:?}"
+    );
+    // a part two surfaces choose is refused, naming both
+    std::fs::write(&file, scene("node=critter_*")).unwrap();
+    let (code, _, err) = shellbake(&[
+        "bake",
+        &path_str(&file),
+        "-o",
+        &path_str(&dir.join("x.glb")),
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("surface 'tails'") && err.contains("'coat' chose first"),
+        "{err}"
+    );
+    // a surface placed elsewhere: the scene writes the fur alone, as before
+    std::fs::write(
+        &file,
+        "[[surface]]\nmesh = \"critters.glb\"\nonly = [\"node=critter_0\"]\nscale = 2.0\n",
+    )
+    .unwrap();
+    let (alone, _) = bake(&file, &dir, "alone.glb", &[]);
+    let names = json_of(&alone)["materials"].to_string();
+    assert!(!names.contains("\"eye\""), "no asset: {names}");
+}
+
+#[test]
 fn a_furred_asset_read_again_is_not_furred_twice() {
     let dir = scratch("asset-rebake");
     let input = critters(&dir, "critter.glb", Critters::default());

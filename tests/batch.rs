@@ -242,3 +242,86 @@ fn bad_manifests_and_shards_are_refused_naming_them() {
     assert_ne!(out.status.code(), Some(0), "an index without a count");
     assert!(String::from_utf8_lossy(&out.stderr).contains("--shards"));
 }
+
+#[test]
+fn an_asset_in_a_manifest_comes_out_whole_as_bake_writes_it() {
+    // the two rigged critters (two skins, a ground): their fur parts chosen by --only; batch
+    // baked an asset's parts as a bare fur scene before, refusing the two skins outright
+    let dir = common::scratch("batch-asset");
+    let critters = common::fixture("critters.glb");
+    let manifest = dir.join("manifest.toml");
+    let input = common::path_str(&critters).replace('\\', "/");
+    std::fs::write(
+        &manifest,
+        format!(
+            "[[asset]]\nname = \"critters\"\ninput = \"{input}\"\n\
+             args = [\"--only\", \"material=fur_*\"]\n\n\
+             [[asset]]\nname = \"nothing\"\ninput = \"{input}\"\n\
+             args = [\"--only\", \"material=nothing_*\"]\n"
+        ),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let (code, err) = run(&[
+        &common::path_str(&manifest),
+        "--out",
+        &common::path_str(&out),
+    ]);
+    assert_eq!(code, Some(1), "the selector matching nothing fails: {err}");
+    let r = result(&out, 0, 1);
+    assert_eq!(r.count(Status::Baked), 1, "{err}");
+    let failed = r.assets.iter().find(|a| a.name == "nothing").unwrap();
+    let e = failed.error.as_deref().unwrap();
+    assert!(
+        e.contains("matches no material") && e.contains("fur_body"),
+        "{e}"
+    );
+    // byte for byte what bake writes: the asset kept, its fur grafted on
+    let single = dir.join("single.glb");
+    let (code, _, err) = common::shellbake(&[
+        "bake",
+        &common::path_str(&critters),
+        "--only",
+        "material=fur_*",
+        "-o",
+        &common::path_str(&single),
+        "-q",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let batched = std::fs::read(out.join("critters.glb")).unwrap();
+    assert!(
+        batched == std::fs::read(&single).unwrap(),
+        "batch and bake differ"
+    );
+    let doc = common::Glb::parse(&batched).json;
+    let names: Vec<&str> = (doc["materials"].as_array().unwrap().iter())
+        .filter_map(|m| m["name"].as_str())
+        .collect();
+    assert!(
+        names.contains(&"eye") && names.contains(&"ground"),
+        "{names:?}"
+    );
+    // a second run skips it; another selector is another key
+    let (_, _) = run(&[
+        &common::path_str(&manifest),
+        "--out",
+        &common::path_str(&out),
+    ]);
+    let r = result(&out, 0, 1);
+    let critter = r.assets.iter().find(|a| a.name == "critters").unwrap();
+    assert_eq!(critter.status, Status::Skipped);
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    std::fs::write(
+        &manifest,
+        text.replacen("material=fur_*", "material=fur_b*", 1),
+    )
+    .unwrap();
+    let (_, _) = run(&[
+        &common::path_str(&manifest),
+        "--out",
+        &common::path_str(&out),
+    ]);
+    let r = result(&out, 0, 1);
+    let critter = r.assets.iter().find(|a| a.name == "critters").unwrap();
+    assert_eq!(critter.status, Status::Baked, "--only is part of the key");
+}

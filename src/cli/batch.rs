@@ -16,7 +16,7 @@ use std::time::Instant;
 use clap::Parser as _;
 use shellbake::batch::{self, AssetResult, Manifest, ShardResult, Status};
 
-use crate::{load_checked, message, printable, Cli, Command};
+use crate::{asset_of, bake_bytes, message, printable, Cli, Command};
 
 /// `shellbake batch` flags.
 #[derive(clap::Args, Clone, Debug)]
@@ -181,36 +181,41 @@ fn bake_one(manifest: &Manifest, asset: &batch::Asset, glb: &Path) -> Outcome {
         shellbake::output::write::check_outputs(&s.mesh, &[("output", glb)])
             .map_err(|e| no_key(e.into()))?;
     }
-    // the content key: version, resolved parameters, every file the bake reads
-    let files = inputs_of(&input, &scene);
+    // an asset bakes as `bake` bakes it: whole, its parts chosen by `--only`
+    let asset = asset_of(&bake, &scene).map_err(no_key)?;
+    // the content key: version, resolved parameters (with the parts chosen), every file the
+    // bake reads (an asset's images and its document too: an OBJ's from its `.mtl`)
+    let mut files = inputs_of(&input, &scene);
+    let mut settings = resolved(&scene);
+    if let Some(crate::AssetInput { asset, .. }) = &asset {
+        files.extend(asset_images(asset));
+        let only: Vec<String> = bake.only.iter().map(|s| s.to_string()).collect();
+        settings += &serde_json::json!({ "only": only, "document": asset.doc.json }).to_string();
+    }
     let mut bytes = Vec::with_capacity(files.len());
     for f in &files {
         let read = std::fs::read(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()));
         bytes.push(read.map_err(no_key)?);
     }
-    let key = batch::content_key(env!("CARGO_PKG_VERSION"), &resolved(&scene), &bytes);
+    let key = batch::content_key(env!("CARGO_PKG_VERSION"), &settings, &bytes);
     drop(bytes);
     if batch::up_to_date(glb, &key) {
         let size = std::fs::metadata(glb).map_or(0, |m| m.len());
         return Ok((Status::Skipped, key, size));
     }
     let fail = |e: anyhow::Error| (key.clone(), e);
-    let (loaded, _) = load_checked(&bake, &scene).map_err(fail)?;
-    let baked = shellbake::bake_scene(&scene, &loaded);
-    drop(loaded);
+    let (_, baked) = bake_bytes(&bake, &scene, asset.as_ref()).map_err(fail)?;
+    drop(asset);
     let record = batch::KeyRecord {
         key: key.clone(),
-        bytes: baked.glb.len() as u64,
+        bytes: baked.len() as u64,
     };
     let record = serde_json::to_string(&record).expect("a record serializes");
     let key_file = batch::key_path(glb);
     // the record last: it exists only beside a complete output
-    shellbake::output::write::write_all_atomic(&[
-        (&key_file, record.as_bytes()),
-        (glb, &baked.glb),
-    ])
-    .map_err(|e| fail(e.into()))?;
-    Ok((Status::Baked, key, baked.glb.len() as u64))
+    shellbake::output::write::write_all_atomic(&[(&key_file, record.as_bytes()), (glb, &baked)])
+        .map_err(|e| fail(e.into()))?;
+    Ok((Status::Baked, key, baked.len() as u64))
 }
 
 /// The resolved parameters of every surface, as JSON: what a bake of the same files with the
@@ -266,6 +271,19 @@ fn inputs_of(input: &Path, scene: &shellbake::scene::SceneFile) -> Vec<PathBuf> 
         }
     }
     files
+}
+
+/// The image files an asset names (a `.gltf`'s, an OBJ's `map_Kd`), which its output embeds,
+/// resolved as the writer resolves them.
+fn asset_images(asset: &shellbake::input::asset::Asset) -> Vec<PathBuf> {
+    asset.doc.json["images"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|i| i["uri"].as_str())
+        .filter(|u| !u.starts_with("data:"))
+        .filter_map(|u| shellbake::input::document::confined_path(&asset.doc.path, u))
+        .collect()
 }
 
 /// The external buffer files of a `.gltf`, resolved as the loader resolves them
