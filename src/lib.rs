@@ -366,16 +366,9 @@ pub fn bake_asset(
             );
         }
         report.furred.push(line);
-        if asset.parts[i].more_influences {
-            report.warnings.push(format!(
-                "{}: {} has bone influences past four (JOINTS_1/WEIGHTS_1); the fur follows \
-                 the first four, as three.js moves the body, while Babylon.js and Blender move \
-                 the body by all eight and it can part from its fur in motion (export with four \
-                 influences, Blender's default)",
-                asset.doc.path.display(),
-                describe(i)
-            ));
-        }
+        report
+            .warnings
+            .extend(more_influences(asset, i, describe(i)));
     }
     for i in (0..asset.parts.len()).filter(|i| !chosen.contains(i)) {
         let why = if asset.parts[i].furred {
@@ -427,6 +420,20 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
 /// (part, surface) pairs: the surface of a scene whose settings fur each chosen part of an
 /// asset.
 pub type PartSurfaces = Vec<(usize, usize)>;
+
+/// The warning for part `i` of `asset` (described as `what`) when it has bone influences past
+/// four ([`input::asset::Part::more_influences`]).
+fn more_influences(asset: &input::asset::Asset, i: usize, what: String) -> Option<String> {
+    asset.parts[i].more_influences.then(|| {
+        format!(
+            "{}: {what} has bone influences past four (JOINTS_1/WEIGHTS_1); the fur follows the \
+             first four, as three.js moves the body, while Babylon.js and Blender move the body \
+             by all of them and it can part from its fur in motion (export with four \
+             influences, Blender's default)",
+            asset.doc.path.display()
+        )
+    })
+}
 
 /// The asset a scene file furs whole, when every surface takes its parts (`only`) from that one
 /// asset and leaves it in place (no `scale` or `translation`): the scene then bakes as `bake`
@@ -509,6 +516,8 @@ fn load_parts(path: &Path, only: &[input::asset::Selector]) -> Result<Scene> {
     for &i in &chosen {
         let part = &asset.parts[i];
         // a scene surface is no asset kept whole: no shape keys to follow
+        let what = format!("node '{}'", input::escape(&part.names.node));
+        scene.warnings.extend(more_influences(&asset, i, what));
         scene.meshes.extend(part.scene.meshes.iter().map(|m| Mesh {
             morphs: vec![],
             ..m.clone()

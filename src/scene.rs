@@ -16,8 +16,10 @@
 //! length_map = "COLOR_0.g" # shorter strands where the vertex colours' green is dark
 //! comb_map = "flow.png"    # comb along a flow map: red/green = +u/+v, mid grey = none
 //!                          # (or "COLOR_0": red and green of the vertex colours)
-//! only = ["material=fur_*"] # of a glTF (or OBJ with a .mtl), only these parts (node, mesh or
-//!                          # material name globs; see `load::asset`), merged into the surface
+//! only = ["material=fur_*"] # of a glTF (or OBJ with a .mtl), only these parts (node, mesh,
+//!                          # material or `under` name globs; see `load::asset`): merged into
+//!                          # the surface, or, when every surface takes parts of one asset in
+//!                          # place, each grafted onto that asset (`scene_asset`)
 //!
 //! [surface.shells]          # any section of the parameters, any subset of its keys
 //! layers = 24

@@ -801,9 +801,10 @@ fn blender_imports_and_renders_the_furred_creature_with_enough_transparent_bounc
 fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     // a box (`fur_box`: a palette texture, half blue, half yellow, the sides mapped into the
     // blue half and the top and bottom into the yellow one, as low-poly assets are) and its lid
-    // (`plain`, red), as an OBJ with a .mtl beside it; the box's bottom switches to `plain`
-    // and back (one object, two materials), the texture's name has a space and follows map
-    // options, and a third material names a texture by a path from another machine
+    // (`plain`, red), as an OBJ with a .mtl beside it; the box's top switches to `lost` and
+    // back (one object, two materials), whose texture is on another machine only; the box's
+    // texture is named by a path from another machine too, after map options, and has a space
+    // in its name (found by its name beside the OBJ); a line statement is no face
     let dir = scratch("asset-obj");
     let tex = image::RgbImage::from_fn(32, 32, |x, _| {
         if x < 16 {
@@ -815,8 +816,9 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     tex.save(dir.join("box tex.png")).unwrap();
     std::fs::write(
         dir.join("box.mtl"),
-        "newmtl fur_box\nKd 1 1 1\nmap_Kd -s 1 1 1 -bm 0.5 box tex.png\n\nnewmtl plain\n\
-         Kd 0.8 0.1 0.1\n\nnewmtl lost\nKd 0.2 0.2 0.2\nmap_Kd C:\\Users\\art\\lost.png\n",
+        "newmtl fur_box\nKd 1 1 1\nmap_Kd -s 1 1 1 -bm 0.5 C:\\Users\\art\\box tex.png\n\n\
+         newmtl plain\nKd 0.8 0.1 0.1\n\nnewmtl lost\nKd 0.2 0.2 0.2\n\
+         map_Kd C:\\Users\\art\\lost.png\n\nnewmtl unused\nmap_Kd gone.png\n",
     )
     .unwrap();
     let mut obj = String::from("mtllib box.mtl\n");
@@ -845,7 +847,7 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     ];
     for (k, f) in faces.iter().enumerate() {
         match k {
-            1 => obj += "usemtl plain\n",
+            1 => obj += "usemtl lost\nl 1 2 3\n",
             2 => obj += "usemtl fur_box\n",
             5 => obj += "o lid\nusemtl plain\n",
             _ => {}
@@ -879,7 +881,7 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     let materials: Vec<u64> = (primitives.iter())
         .map(|p| p["material"].as_u64().unwrap())
         .collect();
-    assert_eq!(materials, [0, 1], "{primitives:?}");
+    assert_eq!(materials, [0, 2], "{primitives:?}");
     let triangles = |p: &serde_json::Value| {
         after["accessors"][p["indices"].as_u64().unwrap() as usize]["count"]
             .as_u64()
@@ -897,6 +899,11 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     assert!(
         warnings.contains("material 'lost': map_Kd 'C:/Users/art/lost.png' is not a file"),
         "{warnings}"
+    );
+    assert!(warnings.contains("line statement(s)"), "{warnings}");
+    assert!(
+        !warnings.contains("unused"),
+        "a material no face uses: {warnings}"
     );
     assert_eq!(
         after["materials"][1]["pbrMetallicRoughness"]["baseColorFactor"],

@@ -1324,6 +1324,18 @@ fn forest_roots(
     Ok(listed)
 }
 
+/// The regular file `uri` names inside the folder of `asset`: [`confined_path`], then its real
+/// path (links resolved) inside the real folder, as [`Document::read_uri`] checks before it
+/// reads; `None` when it is not one.
+pub fn confined_file(asset: &Path, uri: &str) -> Option<PathBuf> {
+    let target = confined_path(asset, uri)?;
+    let folder = asset.parent().filter(|p| !p.as_os_str().is_empty());
+    let folder = std::fs::canonicalize(folder.unwrap_or(Path::new("."))).ok()?;
+    let real = std::fs::canonicalize(target).ok()?;
+    let file = std::fs::metadata(&real).is_ok_and(|m| m.is_file());
+    (real.starts_with(&folder) && file).then_some(real)
+}
+
 /// `uri` resolved against the folder of `asset`, or `None` if it is absolute, has a scheme, or
 /// climbs out of that folder.
 pub fn confined_path(asset: &Path, uri: &str) -> Option<PathBuf> {

@@ -1031,8 +1031,10 @@ impl Chunk {
     /// arrays appended, drawn with `material`.
     fn primitive(&mut self, mesh: &Mesh, origin: DVec3, material: Option<usize>) -> Value {
         let n = mesh.vertex_count();
-        let shift = (mesh.origin - origin).as_vec3();
-        let placed: Vec<Vec3> = mesh.positions.iter().map(|&p| p + shift).collect();
+        let shift = mesh.origin - origin;
+        let placed: Vec<Vec3> = (mesh.positions.iter())
+            .map(|&p| (p.as_dvec3() + shift).as_vec3())
+            .collect();
         let p: Vec<f32> = placed.iter().flat_map(|p| p.to_array()).collect();
         let lo = placed.iter().fold(Vec3::INFINITY, |a, &p| a.min(p));
         let hi = placed.iter().fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
@@ -1091,7 +1093,13 @@ fn material(
         .filter(|t| !t.trim().is_empty())
     {
         let file = map_file(map).replace('\\', "/");
-        match map_uri(path, &file) {
+        // an option this reader does not know, or a malformed one, leaves the last word
+        let last = map
+            .split_whitespace()
+            .last()
+            .unwrap_or(map)
+            .replace('\\', "/");
+        match map_uri(path, &file).or_else(|| map_uri(path, &last)) {
             Some(uri) => {
                 images.push(json!({ "uri": uri }));
                 textures.push(json!({ "sampler": 0, "source": images.len() - 1 }));
@@ -1140,7 +1148,8 @@ fn map_file(value: &str) -> &str {
 }
 
 /// The image URI of map file `file` named by the OBJ at `path`: the file itself when it is a
-/// regular file inside the OBJ's folder, else its file name when that is one beside the OBJ (an
+/// regular file inside the OBJ's folder (its real path too, as the writer reads it:
+/// [`super::document::confined_file`]), else its file name when that is one beside the OBJ (an
 /// absolute path written on another machine, the textures copied along); `None` when neither
 /// is. Percent-encoded where a URI needs it.
 fn map_uri(path: &Path, file: &str) -> Option<String> {
@@ -1155,12 +1164,13 @@ fn map_uri(path: &Path, file: &str) -> Option<String> {
             })
             .collect::<String>()
     };
-    let name = file.rsplit('/').next().unwrap_or(file);
-    [file, name].into_iter().map(encode).find(|uri| {
-        super::document::confined_path(path, uri)
-            .and_then(|p| std::fs::metadata(p).ok())
-            .is_some_and(|m| m.is_file())
-    })
+    // the file name: past the last folder, and past a drive (`C:tex.png`)
+    let name = file.rsplit(['/', ':']).next().unwrap_or(file);
+    [file, name]
+        .into_iter()
+        .filter(|f| !f.is_empty())
+        .map(encode)
+        .find(|uri| super::document::confined_file(path, uri).is_some())
 }
 
 /// An OBJ with materials as a glTF asset (DESIGN §10): one node and mesh per OBJ object (its
@@ -1179,12 +1189,17 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
     if !names_mtl(bytes) {
         return Ok(None);
     }
-    // the reader's checks, and its messages naming the line, for a file that does not load
-    load(path, bytes)?;
-    let (models, materials) = load_with_materials(path, bytes)?;
+    // the reader's checks, and its messages naming the line, for a file that does not load;
+    // its warnings (lines left out, polygons fanned) are the asset's: the same polygons are
+    // triangulated again below
+    let read = load(path, bytes)?;
+    let (models, materials) = load_with_materials(path, &without_lines(bytes))?;
     let Some(materials) = materials else {
         return Ok(None);
     };
+    let used: Vec<bool> = (0..materials.len())
+        .map(|m| models.iter().any(|o| o.mesh.material_id == Some(m)))
+        .collect();
     // consecutive pieces of one object (split at each `usemtl`) form one mesh, with one
     // primitive per material (pieces of one material appended, when they carry the same
     // attributes); a piece without a face adds nothing
@@ -1224,10 +1239,13 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
         );
     }
     let (mut images, mut textures) = (Vec::<Value>::new(), Vec::<Value>::new());
-    let mut warnings = Vec::new();
-    let materials: Vec<Value> = materials
-        .iter()
-        .map(|m| material(path, m, (&mut images, &mut textures), &mut warnings))
+    let mut warnings = read.warnings;
+    let materials: Vec<Value> = (materials.iter().zip(&used))
+        .map(|(m, &used)| {
+            let mut unused = Vec::new();
+            let w = if used { &mut warnings } else { &mut unused };
+            material(path, m, (&mut images, &mut textures), w)
+        })
         .collect();
     chunk.bin.resize(chunk.bin.len().next_multiple_of(4), 0);
     let mut doc = json!({

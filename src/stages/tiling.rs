@@ -35,6 +35,12 @@ pub const SPREAD_WARNING: f64 = 2.0;
 /// [`SPREAD_WARNING`]'s warning from 2×.
 pub const AUTO_BOX_SPREAD: f64 = 8.0;
 
+/// Share of the surface (by area) whose texture coordinates have no area — collapsed to a point
+/// or a line, as Blender leaves an object without UVs joined into one with them — above which
+/// `fur_uv = "auto"` gives the strands a box projection: no strand grows there (every texel
+/// of a point is one strand, or none), so the part came out bald, without a word.
+pub const AUTO_BOX_FLAT: f64 = 0.01;
+
 /// Which texture coordinates the strands follow (`strands.fur_uv`, `--fur-uv`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -72,6 +78,15 @@ pub fn fur_uv_box(mesh: &Mesh, mode: FurUv) -> Option<String> {
         FurUv::Mesh => None,
         FurUv::Box => Some("fur_uv = box".into()),
         FurUv::Auto => {
+            let flat = flat_uv_share(mesh);
+            if flat > AUTO_BOX_FLAT {
+                return Some(format!(
+                    "{:.1}% of the surface (by area) has texture coordinates without area \
+                     (collapsed to a point or a line), where no strand grows; --fur-uv mesh \
+                     keeps the mesh's UVs",
+                    100.0 * flat
+                ));
+            }
             let (_, spread, _) = uv_to_world(mesh)?;
             (spread > AUTO_BOX_SPREAD).then(|| {
                 format!(
@@ -80,6 +95,43 @@ pub fn fur_uv_box(mesh: &Mesh, mode: FurUv) -> Option<String> {
                 )
             })
         }
+    }
+}
+
+/// The share of `mesh`'s area (0 without UVs or area) whose triangles' texture coordinates
+/// have no area ([`AUTO_BOX_FLAT`]). Summed per block in triangle order, so the same for any
+/// thread count.
+fn flat_uv_share(mesh: &Mesh) -> f64 {
+    use rayon::prelude::*;
+    let Some(uv) = mesh.uvs.as_ref() else {
+        return 0.0;
+    };
+    let blocks: Vec<[f64; 2]> = (mesh.indices.par_chunks(3 * UV_BLOCK))
+        .map(|block| {
+            let mut sums = [0.0f64; 2];
+            for t in block.chunks_exact(3) {
+                let [p0, p1, p2] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize].as_dvec3());
+                let [t0, t1, t2] = [0, 1, 2].map(|k| uv[t[k] as usize].as_dvec2());
+                let area = (p1 - p0).cross(p2 - p0).length() * 0.5;
+                if !area.is_finite() {
+                    continue;
+                }
+                let det = (t1 - t0).perp_dot(t2 - t0);
+                if !(det.abs() > 0.0 && det.is_finite()) {
+                    sums[0] += area;
+                }
+                sums[1] += area;
+            }
+            sums
+        })
+        .collect();
+    let [flat, total] = blocks
+        .iter()
+        .fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]]);
+    if total > 0.0 {
+        flat / total
+    } else {
+        0.0
     }
 }
 

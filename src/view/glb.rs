@@ -838,14 +838,18 @@ impl Asset {
 
 /// A vertex's four `WEIGHTS_0` scaled to sum to 1, as three.js's loader scales them: a file
 /// whose vertices have more influences (`WEIGHTS_1`) leaves the first four short of 1, and a
-/// blend of them would pull the vertex toward the origin. Weights summing to 0, or to 1
-/// within rounding (every file shellbake writes), are kept as they are.
+/// blend of them would pull the vertex toward the origin. Weights summing to 1 within rounding
+/// (every file shellbake writes) are kept as they are; none at all (a sum of 0) follow the
+/// first joint, as three.js has them.
 pub fn normalized_weights(w: &[f32]) -> [f32; 4] {
     let w = [0, 1, 2, 3].map(|k| w.get(k).copied().unwrap_or(0.0));
     let sum: f32 = w.iter().sum();
-    match sum > 0.0 && sum.is_finite() && (sum - 1.0).abs() > 1e-4 {
-        true => w.map(|x| x / sum),
-        false => w,
+    if !(sum > 0.0 && sum.is_finite()) {
+        [1.0, 0.0, 0.0, 0.0]
+    } else if (sum - 1.0).abs() > 1e-4 {
+        w.map(|x| x / sum)
+    } else {
+        w
     }
 }
 
@@ -925,10 +929,10 @@ mod tests {
             normalized_weights(&[0.4, 0.2, 0.2, 0.0]),
             [0.5, 0.25, 0.25, 0.0]
         );
-        // whole, or nothing: kept bit for bit
+        // whole: kept bit for bit; none: the first joint
         let ours = [128.0 / 255.0, 127.0 / 255.0, 0.0, 0.0];
         assert_eq!(normalized_weights(&ours), ours);
-        assert_eq!(normalized_weights(&[0.0; 4]), [0.0; 4]);
+        assert_eq!(normalized_weights(&[0.0; 4]), [1.0, 0.0, 0.0, 0.0]);
     }
 
     #[test]
