@@ -1334,6 +1334,20 @@ fn fur_uvs_a_palette_layout_cannot_carry_become_a_box_projection() {
         "{}",
         note(&report)
     );
+    // the body's lower half (v > 0.5) collapsed to one UV point, as Blender leaves an object
+    // without UVs joined into one with them: a box projection, named (it grew no fur there)
+    let flat = edited_uvs(&dir, "flat.glb", |_, v| (v > 0.5).then_some((0.0, 0.0)));
+    let (_, report) = bake(
+        &flat,
+        &dir,
+        "flat-fur.glb",
+        &["--only", "material=fur_body"],
+    );
+    assert!(
+        note(&report).contains("box projection") && note(&report).contains("without area"),
+        "{}",
+        note(&report)
+    );
     let (_, report) = bake(
         &fixture_critter(),
         &dir,

@@ -45,7 +45,8 @@ pub const AUTO_BOX_FLAT: f64 = 0.01;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum FurUv {
-    /// The mesh's own, unless their UV-to-world scale spreads more than [`AUTO_BOX_SPREAD`].
+    /// The mesh's own, unless their UV-to-world scale spreads more than [`AUTO_BOX_SPREAD`] or
+    /// more than [`AUTO_BOX_FLAT`] of the surface has UVs without area.
     #[default]
     Auto,
     /// The mesh's own, whatever their layout.
