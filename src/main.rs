@@ -498,7 +498,7 @@ fn check_loaded(
     }
     if estimate > args.max_output {
         anyhow::bail!(
-            "{}: the output would be about {:.1} MiB (at most {} bytes), above --max-output {} bytes; nothing was written",
+            "{}: the output could take up to {:.1} MiB ({} bytes, an upper bound: the file is often several times smaller), above --max-output {} bytes; nothing was written",
             args.input.display(),
             estimate as f64 / (1 << 20) as f64,
             estimate,

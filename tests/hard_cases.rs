@@ -500,7 +500,7 @@ fn oversize_outputs() {
         "big.obj",
         obj(&m).as_bytes(),
         &["--max-output", "64K"],
-        &["would be about", "bytes", "--max-output"],
+        &["could take up to", "bytes", "--max-output"],
     );
 }
 
