@@ -642,6 +642,19 @@ pub struct ColorTexture {
     pub transform: glam::Affine2,
 }
 
+/// A material's base colour: its factor and its `textureInfo` (JSON, either absent). A
+/// specular-glossiness material (`KHR_materials_pbrSpecularGlossiness`, which Babylon.js and
+/// Blender draw) without a metallic-roughness fallback has them as its diffuse; the fallback,
+/// where there is one, is what three.js draws. What the fur's paint and the viewer read.
+pub fn base_colour(material: &Value) -> (&Value, &Value) {
+    let pbr = &material["pbrMetallicRoughness"];
+    let sg = &material["extensions"]["KHR_materials_pbrSpecularGlossiness"];
+    match (pbr.is_object(), sg.is_object()) {
+        (false, true) => (&sg["diffuseFactor"], &sg["diffuseTexture"]),
+        _ => (&pbr["baseColorFactor"], &pbr["baseColorTexture"]),
+    }
+}
+
 impl Paint {
     /// The paint of primitive `prim` (with a warning when part of it cannot be used), `None`
     /// when the primitive has neither a material nor vertex colours.
@@ -664,14 +677,13 @@ impl Paint {
             );
         };
         let material = &doc.json["materials"][m];
-        let pbr = &material["pbrMetallicRoughness"];
+        let (factor_of, info) = base_colour(material);
         let mut factor = [1.0f32; 4];
-        if let Some(f) = pbr["baseColorFactor"].as_array() {
+        if let Some(f) = factor_of.as_array() {
             for (k, v) in f.iter().take(4).enumerate() {
                 factor[k] = v.as_f64().unwrap_or(1.0).clamp(0.0, 1.0) as f32;
             }
         }
-        let info = &pbr["baseColorTexture"];
         let (texture, warning) = if info.is_object() {
             match ColorTexture::read(doc, buffers, info) {
                 Ok(t) => (Some(t), None),
@@ -1157,6 +1169,24 @@ mod tests {
         assert_eq!(opaque.coverage(0.0), 1.0, "opaque materials ignore alpha");
         assert_eq!(AlphaMode::Mask(0.5).coverage(0.49), 0.0);
         assert_eq!(AlphaMode::Blend.coverage(0.3), 0.3);
+    }
+
+    #[test]
+    fn a_specular_glossiness_material_has_its_colour_as_diffuse() {
+        use serde_json::json;
+        let sg = json!({ "KHR_materials_pbrSpecularGlossiness": {
+            "diffuseFactor": [0.5, 0.25, 1.0, 1.0], "diffuseTexture": { "index": 3 } } });
+        let alone = json!({ "extensions": sg });
+        let (factor, texture) = base_colour(&alone);
+        assert_eq!(
+            (factor[1].as_f64(), texture["index"].as_u64()),
+            (Some(0.25), Some(3))
+        );
+        // with a metallic-roughness fallback, the fallback (what three.js draws)
+        let both = json!({ "extensions": sg, "pbrMetallicRoughness": {
+            "baseColorTexture": { "index": 1 } } });
+        assert_eq!(base_colour(&both).1["index"].as_u64(), Some(1));
+        assert!(base_colour(&json!({})).1.is_null());
     }
 
     #[test]

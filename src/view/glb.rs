@@ -872,11 +872,11 @@ pub fn skin_matrix(mats: &[DMat4], joints: &Floats, weights: &Floats, i: usize) 
 fn parse_material(m: &Value) -> Material {
     let d = Material::default();
     let pbr = &m["pbrMetallicRoughness"];
-    let base_color = f32s(&pbr["baseColorFactor"])
+    let (factor, tex) = crate::input::asset::base_colour(m);
+    let base_color = f32s(factor)
         .filter(|v| v.len() == 4)
         .map(|v| [v[0], v[1], v[2], v[3]])
         .unwrap_or(d.base_color);
-    let tex = &pbr["baseColorTexture"];
     let xf = crate::input::asset::texture_transform(&tex["extensions"]["KHR_texture_transform"]);
     let (m2, t) = (xf.matrix2, xf.translation);
     let uv_transform = [
