@@ -524,19 +524,6 @@ fn choose_clips(
     Ok(())
 }
 
-/// The parts of `asset` that `--only` chooses, the scene and meshes that fur them (grafted,
-/// [`shellbake::asset_scene`]), and the size estimate.
-fn load_asset(
-    args: &BakeArgs,
-    template: &SceneFile,
-    asset: &shellbake::input::asset::Asset,
-) -> anyhow::Result<(Vec<usize>, SceneFile, Vec<shellbake::Loaded>, u64)> {
-    let chosen = asset.select(&args.only)?;
-    let pairs: Vec<(usize, usize)> = chosen.iter().map(|&i| (i, 0)).collect();
-    let (scene, loaded, estimate) = load_parts_of(args, template, asset, &pairs)?;
-    Ok((chosen, scene, loaded, estimate))
-}
-
 /// The scene and meshes that fur the (part, surface of `template`) pairs `chosen` of `asset`,
 /// grafted ([`shellbake::asset_scene_of`]), and the size estimate; no part is an error.
 fn load_parts_of(
@@ -662,11 +649,11 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
 /// `shellbake plan`: the stages per surface and the estimated size; loads, does not bake.
 fn plan(args: &BakeArgs) -> anyhow::Result<()> {
     let mut scene = args.scene()?;
-    let asset = args.asset()?;
+    let asset = asset_of(args, &scene)?;
     let (loaded, estimate) = match &asset {
         // an asset's plan: one surface per part to fur
-        Some(asset) => {
-            let (_, parts, loaded, estimate) = load_asset(args, &scene, asset)?;
+        Some(AssetInput { asset, chosen }) => {
+            let (parts, loaded, estimate) = load_parts_of(args, &scene, asset, chosen)?;
             scene = parts;
             (loaded, estimate)
         }
@@ -876,16 +863,17 @@ fn main() -> ExitCode {
                 }
                 shellbake::output::write::check_outputs(&bake.input, &[("output", out)])?;
             }
-            let asset = bake.asset()?;
-            if let Some(asset) = asset {
+            if let Some(AssetInput { asset, chosen }) = asset_of(bake, &scene)? {
                 // the fur of each part, baked alone with a base layer, against the technique;
                 // `-o` writes the asset with its fur
-                let (chosen, grafted, loaded, _) = load_asset(bake, &scene, &asset)?;
+                let (grafted, loaded, _) = load_parts_of(bake, &scene, &asset, &chosen)?;
                 if let Some(out) = out {
-                    let baked = shellbake::bake_asset(&asset, &chosen, (&grafted, &loaded))?;
+                    let parts: Vec<usize> = chosen.iter().map(|&(i, _)| i).collect();
+                    let baked = shellbake::bake_asset(&asset, &parts, (&grafted, &loaded))?;
                     shellbake::output::write::write_glb(out, &baked.glb)?;
                 }
-                let (parts, mut loaded) = shellbake::asset_scene(&scene, &asset, &chosen, false)?;
+                let (parts, mut loaded) =
+                    shellbake::asset_scene_of(&scene, &asset, &chosen, false)?;
                 choose_clips(bake, &mut loaded, verify.clip())?;
                 return Ok(shellbake::view::cli::verify(
                     &bake.input,
