@@ -1115,7 +1115,8 @@ fn a_shade_colour_overrides_the_asset_and_scene_surfaces_take_only_with_their_ma
     let (lab, _) = mean_lab(&rgb(&dir.join("blue.png")));
     assert!(lab[2] < -15.0, "the fur is not blue: {lab:?}");
 
-    // a scene surface: the chosen parts merged, thinned by its density map
+    // a scene surface over the asset: the asset kept, each chosen part thinned by the
+    // surface's density map
     let density =
         image::GrayImage::from_fn(64, 64, |_, y| image::Luma([if y < 32 { 255 } else { 0 }]));
     density.save(dir.join("density.png")).unwrap();
@@ -1126,11 +1127,20 @@ fn a_shade_colour_overrides_the_asset_and_scene_surfaces_take_only_with_their_ma
     .unwrap();
     let (glb, report) = bake(&dir.join("scene.toml"), &dir, "scene.glb", &[]);
     assert_valid(std::slice::from_ref(&glb));
-    let surface = &report["surfaces"][0];
+    assert_kept(&json_of(&input), &json_of(&glb));
     // the body and head (10 x 6 + 8 x 5 quads, 200 triangles less the poles' collapsed ones) and
     // the tail's strip: no eye, no paw
-    let triangles = surface["base_triangles"].as_u64().unwrap();
+    let surfaces = report["surfaces"].as_array().unwrap();
+    let triangles: u64 = (surfaces.iter())
+        .map(|s| s["base_triangles"].as_u64().unwrap())
+        .sum();
     assert!((250..=300).contains(&triangles), "{triangles} triangles");
+    // thinned: the density map's dark half drops strands where full density keeps them
+    let (full, _) = bake(&input, &dir, "full.glb", &["--only", "material=fur_*"]);
+    assert!(
+        std::fs::read(&full).unwrap() != std::fs::read(&glb).unwrap(),
+        "the density map changes the fur"
+    );
     let (code, _, err) = shellbake(&[
         "bake",
         &path_str(&dir.join("scene.toml")),

@@ -302,26 +302,25 @@ fn an_asset_in_a_manifest_comes_out_whole_as_bake_writes_it() {
         "{names:?}"
     );
     // a second run skips it; another selector is another key
-    let (_, _) = run(&[
-        &common::path_str(&manifest),
-        "--out",
-        &common::path_str(&out),
-    ]);
-    let r = result(&out, 0, 1);
-    let critter = r.assets.iter().find(|a| a.name == "critters").unwrap();
-    assert_eq!(critter.status, Status::Skipped);
+    let again = || {
+        run(&[
+            &common::path_str(&manifest),
+            "--out",
+            &common::path_str(&out),
+        ]);
+        let r = result(&out, 0, 1);
+        r.assets
+            .into_iter()
+            .find(|a| a.name == "critters")
+            .unwrap()
+            .status
+    };
+    assert_eq!(again(), Status::Skipped);
     let text = std::fs::read_to_string(&manifest).unwrap();
     std::fs::write(
         &manifest,
         text.replacen("material=fur_*", "material=fur_b*", 1),
     )
     .unwrap();
-    let (_, _) = run(&[
-        &common::path_str(&manifest),
-        "--out",
-        &common::path_str(&out),
-    ]);
-    let r = result(&out, 0, 1);
-    let critter = r.assets.iter().find(|a| a.name == "critters").unwrap();
-    assert_eq!(critter.status, Status::Baked, "--only is part of the key");
+    assert_eq!(again(), Status::Baked, "--only is part of the key");
 }
