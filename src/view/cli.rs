@@ -424,6 +424,7 @@ pub fn verify(
         .file_stem()
         .map_or("input".into(), |s| s.to_string_lossy().into_owned());
     let mut failures = Vec::new();
+    let mut checked = (0, 0);
     for (i, surface) in scene.surfaces.iter().enumerate() {
         let alone;
         let baked = match &whole {
@@ -470,6 +471,8 @@ pub fn verify(
                 println!("  {}", l.line());
             }
         }
+        checked.0 += result.views.len();
+        checked.1 += result.levels.len();
         if !result.passed() {
             let views = result.failures().join(", ");
             failures.push(if several {
@@ -483,6 +486,14 @@ pub fn verify(
         println!("  pictures in {}", shown(&args.out_dir));
     }
     if failures.is_empty() {
+        if !quiet {
+            println!(
+                "verify passed: {} view(s) and {} level(s) of {} surface(s) within their tolerances",
+                checked.0,
+                checked.1,
+                scene.surfaces.len()
+            );
+        }
         Ok(())
     } else {
         Err(ViewError::Verify(format!(
