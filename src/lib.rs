@@ -441,7 +441,7 @@ fn more_influences(asset: &input::asset::Asset, i: usize, what: String) -> Optio
 /// skin and shape keys — each part with the settings (preset, parameters, effects, maps) of the
 /// surface that chooses it. A part two surfaces choose is an error naming both. Returns the
 /// asset and the (part, surface) pairs, in part order; `None` for any other scene, which writes
-/// its surfaces' fur alone ([`load_parts`]).
+/// its surfaces' fur alone (`load_parts`).
 pub fn scene_asset(scene: &SceneFile) -> Result<Option<(input::asset::Asset, PartSurfaces)>> {
     let Some(first) = scene.surfaces.first() else {
         return Ok(None);
