@@ -240,6 +240,10 @@ pub fn asset_scene_of(
         let start = Instant::now();
         let part = &asset.parts[i];
         let mut name = part.label(asset.primitives(i));
+        // a scene file's surfaces keep their names: `<surface>_<part>`
+        if template.path.is_some() {
+            name = format!("{}_{name}", surface.name);
+        }
         let stem = name.clone();
         let mut k = 1;
         while names.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
@@ -461,7 +465,15 @@ pub fn scene_asset(scene: &SceneFile) -> Result<Option<(input::asset::Asset, Par
     };
     let mut surface_of: Vec<Option<usize>> = vec![None; asset.parts.len()];
     for (k, s) in scene.surfaces.iter().enumerate() {
-        for i in asset.select(&s.only)? {
+        let parts = asset.select(&s.only)?;
+        if parts.is_empty() {
+            return Err(Error::invalid(
+                scene.path.as_deref().unwrap_or(&first.mesh),
+                format!("surface '{}'", input::escape(&s.name)),
+                "its `only` chooses only parts that carry shellbake fur already",
+            ));
+        }
+        for i in parts {
             if let Some(j) = surface_of[i] {
                 let path = scene.path.as_deref().unwrap_or(&first.mesh);
                 return Err(Error::invalid(

@@ -561,6 +561,19 @@ struct AssetInput {
 /// surfaces' fur alone. `--only` on an input that is no asset is refused.
 fn asset_of(args: &BakeArgs, scene: &SceneFile) -> anyhow::Result<Option<AssetInput>> {
     if args.is_scene() {
+        let one_file = scene
+            .surfaces
+            .iter()
+            .all(|s| s.mesh == scene.surfaces[0].mesh);
+        if !args.only.is_empty() && scene.surfaces.len() > 1 && one_file {
+            anyhow::bail!(
+                "{}: --only replaces every surface's `only`, so these {} surfaces over {} would \
+                 all choose the same parts; set each surface's `only` in the scene instead",
+                args.input.display(),
+                scene.surfaces.len(),
+                scene.surfaces[0].mesh.display()
+            );
+        }
         let whole = shellbake::scene_asset(scene)?;
         return Ok(whole.map(|(asset, chosen)| AssetInput { asset, chosen }));
     }

@@ -488,7 +488,9 @@ pub fn verify(
     if failures.is_empty() {
         if !quiet {
             println!(
-                "verify passed: {} view(s) and {} level(s) of {} surface(s) within their tolerances",
+                "verify {} passed: {} view(s) and {} level(s) of {} surface(s) (an asset: one \
+                 per furred part) within their tolerances",
+                shown(input),
                 checked.0,
                 checked.1,
                 scene.surfaces.len()

@@ -884,14 +884,27 @@ fn parse_material(m: &Value) -> Material {
         [m2.x_axis.y, m2.y_axis.y, t.y],
     ];
     let alpha = AlphaMode::of(m);
+    // a specular-glossiness material without a metallic-roughness fallback is no metal; its
+    // roughness is one less its glossiness
+    let sg = &m["extensions"]["KHR_materials_pbrSpecularGlossiness"];
+    let (metallic, roughness) = match (pbr.is_object(), sg.is_object()) {
+        (false, true) => (
+            0.0,
+            1.0 - sg["glossinessFactor"].as_f64().unwrap_or(1.0) as f32,
+        ),
+        _ => (
+            pbr["metallicFactor"]
+                .as_f64()
+                .map_or(d.metallic, |v| v as f32),
+            pbr["roughnessFactor"]
+                .as_f64()
+                .map_or(d.roughness, |v| v as f32),
+        ),
+    };
     Material {
         base_color,
-        metallic: pbr["metallicFactor"]
-            .as_f64()
-            .map_or(d.metallic, |v| v as f32),
-        roughness: pbr["roughnessFactor"]
-            .as_f64()
-            .map_or(d.roughness, |v| v as f32),
+        metallic,
+        roughness,
         emissive: f32s(&m["emissiveFactor"])
             .filter(|v| v.len() == 3)
             .map_or(d.emissive, |v| [v[0], v[1], v[2]]),

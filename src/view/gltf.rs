@@ -270,8 +270,9 @@ impl GltfRenderer {
         let mut material_groups: Vec<wgpu::BindGroup> = asset
             .materials
             .iter()
-            .map(|m| match m.texture {
-                Some(t) => group(&textures[t].0, &textures[t].1),
+            .map(|m| match m.texture.and_then(|t| textures.get(t)) {
+                Some((view, sampler)) => group(view, sampler),
+                // none, or an index the document's checks do not cover (an extension's)
                 None => group(&white, &default_sampler),
             })
             .collect();
