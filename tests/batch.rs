@@ -324,3 +324,72 @@ fn an_asset_in_a_manifest_comes_out_whole_as_bake_writes_it() {
     .unwrap();
     assert_eq!(again(), Status::Baked, "--only is part of the key");
 }
+
+#[test]
+fn an_obj_asset_re_bakes_when_its_mtl_or_texture_changes() {
+    // the key is found without reading the asset: the OBJ's .mtl and its map are in it
+    let dir = common::scratch("batch-obj");
+    std::fs::write(
+        dir.join("box.mtl"),
+        "newmtl fur\nKd 1 1 1\nmap_Kd fur tex.png\n",
+    )
+    .unwrap();
+    let texture = |shade: u8| {
+        image::RgbImage::from_pixel(8, 8, image::Rgb([shade, 90, 40]))
+            .save(dir.join("fur tex.png"))
+            .unwrap()
+    };
+    texture(200);
+    let mut obj = String::from("mtllib box.mtl\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n");
+    for v in [
+        [0, 0, 0],
+        [1, 0, 0],
+        [1, 1, 0],
+        [0, 1, 0],
+        [0, 0, 1],
+        [1, 0, 1],
+        [1, 1, 1],
+        [0, 1, 1],
+    ] {
+        obj += &format!("v {} {} {}\n", v[0], v[1], v[2]);
+    }
+    obj += "usemtl fur\n";
+    for f in [
+        [1, 4, 3, 2],
+        [5, 6, 7, 8],
+        [1, 2, 6, 5],
+        [2, 3, 7, 6],
+        [3, 4, 8, 7],
+        [4, 1, 5, 8],
+    ] {
+        obj += &format!("f {}/1 {}/2 {}/3 {}/4\n", f[0], f[1], f[2], f[3]);
+    }
+    std::fs::write(dir.join("box.obj"), obj).unwrap();
+    let manifest = dir.join("manifest.toml");
+    std::fs::write(
+        &manifest,
+        "[[asset]]\nname = \"box\"\ninput = \"box.obj\"\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let status = || {
+        let (code, err) = run(&[
+            &common::path_str(&manifest),
+            "--out",
+            &common::path_str(&out),
+        ]);
+        assert_eq!(code, Some(0), "{err}");
+        result(&out, 0, 1).assets[0].status
+    };
+    assert_eq!(status(), Status::Baked);
+    assert_eq!(status(), Status::Skipped);
+    texture(40);
+    assert_eq!(status(), Status::Baked, "the map is in the key");
+    std::fs::write(
+        dir.join("box.mtl"),
+        "newmtl fur\nKd 0.5 1 1\nmap_Kd fur tex.png\n",
+    )
+    .unwrap();
+    assert_eq!(status(), Status::Baked, "the .mtl is in the key");
+    assert_eq!(status(), Status::Skipped);
+}

@@ -181,16 +181,17 @@ fn bake_one(manifest: &Manifest, asset: &batch::Asset, glb: &Path) -> Outcome {
         shellbake::output::write::check_outputs(&s.mesh, &[("output", glb)])
             .map_err(|e| no_key(e.into()))?;
     }
-    // an asset bakes as `bake` bakes it: whole, its parts chosen by `--only`
-    let asset = asset_of(&bake, &scene).map_err(no_key)?;
-    // the content key: version, resolved parameters (with the parts chosen), every file the
-    // bake reads (an asset's images and its document too: an OBJ's from its `.mtl`)
+    // the content key: version, resolved parameters (with the parts `--only` chooses), every
+    // file the bake reads (an asset's images, an OBJ's `.mtl` and its maps too), found without
+    // reading the asset, so that an asset up to date costs its files' hashes only
     let mut files = inputs_of(&input, &scene);
+    for s in &scene.surfaces {
+        files.extend(shellbake::input::asset::Asset::side_files(&s.mesh));
+    }
     let mut settings = resolved(&scene);
-    if let Some(crate::AssetInput { asset, .. }) = &asset {
-        files.extend(asset_images(asset));
+    if !bake.only.is_empty() {
         let only: Vec<String> = bake.only.iter().map(|s| s.to_string()).collect();
-        settings += &serde_json::json!({ "only": only, "document": asset.doc.json }).to_string();
+        settings += &serde_json::json!({ "only": only }).to_string();
     }
     let mut bytes = Vec::with_capacity(files.len());
     for f in &files {
@@ -204,6 +205,8 @@ fn bake_one(manifest: &Manifest, asset: &batch::Asset, glb: &Path) -> Outcome {
         return Ok((Status::Skipped, key, size));
     }
     let fail = |e: anyhow::Error| (key.clone(), e);
+    // an asset bakes as `bake` bakes it: whole, its parts chosen by `--only`
+    let asset = asset_of(&bake, &scene).map_err(fail)?;
     let (_, baked) = bake_bytes(&bake, &scene, asset.as_ref()).map_err(fail)?;
     drop(asset);
     let record = batch::KeyRecord {
@@ -271,19 +274,6 @@ fn inputs_of(input: &Path, scene: &shellbake::scene::SceneFile) -> Vec<PathBuf> 
         }
     }
     files
-}
-
-/// The image files an asset names (a `.gltf`'s, an OBJ's `map_Kd`), which its output embeds,
-/// resolved as the writer resolves them.
-fn asset_images(asset: &shellbake::input::asset::Asset) -> Vec<PathBuf> {
-    asset.doc.json["images"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .filter_map(|i| i["uri"].as_str())
-        .filter(|u| !u.starts_with("data:"))
-        .filter_map(|u| shellbake::input::document::confined_path(&asset.doc.path, u))
-        .collect()
 }
 
 /// The external buffer files of a `.gltf`, resolved as the loader resolves them

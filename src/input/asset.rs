@@ -351,6 +351,31 @@ impl Asset {
         Ok(Some(asset))
     }
 
+    /// The files besides the asset at `path` that reading and writing it read, without
+    /// reading the asset: a `.gltf`'s or `.glb`'s image files (its buffers are the mesh
+    /// loader's), an OBJ's `.mtl` files and their `map_Kd` images. For a content key (`batch`):
+    /// it may list a file that is not read, never miss one that is.
+    pub fn side_files(path: &Path) -> Vec<std::path::PathBuf> {
+        let Ok(bytes) = super::read_regular_file(path, super::MAX_INPUT_BYTES) else {
+            return Vec::new();
+        };
+        let ext = path.extension().map(|e| e.to_ascii_lowercase());
+        let json = match ext.as_ref().and_then(|e| e.to_str()) {
+            Some("obj") => return super::obj::side_files(path, &bytes),
+            Some("glb") => super::document::split_glb(&bytes)
+                .ok()
+                .and_then(|(json, _)| serde_json::from_slice::<Value>(json).ok()),
+            Some("gltf") => serde_json::from_slice::<Value>(&bytes).ok(),
+            _ => None,
+        };
+        let images = json.as_ref().and_then(|j| j["images"].as_array());
+        (images.into_iter().flatten())
+            .filter_map(|i| i["uri"].as_str())
+            .filter(|u| !u.starts_with("data:"))
+            .filter_map(|u| super::document::confined_file(path, u))
+            .collect()
+    }
+
     /// [`Asset::read`] on bytes in memory; `path` names the file and resolves relative URIs.
     pub fn from_bytes(path: &Path, bytes: &[u8]) -> Result<Asset> {
         Asset::from_document(Document::parse(path, bytes)?)

@@ -1271,6 +1271,47 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
     }))
 }
 
+/// The files besides the OBJ at `path` (its bytes) that its asset reads: each `.mtl` it names
+/// and the `map_Kd` images those name, found as [`asset_document`] finds them. Cheap (no
+/// geometry is parsed): what a content key hashes before deciding to bake. A name that may be
+/// read is listed; none that is read is missed.
+pub(super) fn side_files(path: &Path, bytes: &[u8]) -> Vec<std::path::PathBuf> {
+    let mut files = Vec::new();
+    let statements = |text: &[u8], word: &str| -> Vec<String> {
+        String::from_utf8_lossy(text)
+            .lines()
+            .filter_map(|l| l.trim_start().strip_prefix(word))
+            .filter(|rest| rest.starts_with(char::is_whitespace))
+            .map(|rest| rest.trim().to_string())
+            .collect()
+    };
+    for lib in statements(without_bom(bytes), "mtllib") {
+        // one name with spaces, or several names
+        let names = std::iter::once(lib.as_str()).chain(lib.split_whitespace());
+        for mtl in names.filter_map(|n| super::document::confined_file(path, n)) {
+            if files.contains(&mtl) {
+                continue;
+            }
+            let text = std::fs::read(&mtl).unwrap_or_default();
+            files.push(mtl);
+            for map in statements(&text, "map_Kd") {
+                let last = map
+                    .split_whitespace()
+                    .last()
+                    .unwrap_or(&map)
+                    .replace('\\', "/");
+                for file in [map_file(&map).replace('\\', "/"), last] {
+                    let uri = map_uri(path, &file);
+                    if let Some(f) = uri.and_then(|u| super::document::confined_file(path, &u)) {
+                        files.push(f);
+                    }
+                }
+            }
+        }
+    }
+    files
+}
+
 /// An OBJ with materials as a glTF document ([`asset_document`]): its JSON, its binary chunk,
 /// and what of its `.mtl` it could not use.
 pub(super) struct ObjAsset {
