@@ -822,16 +822,7 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     )
     .unwrap();
     let mut obj = String::from("mtllib box.mtl\n");
-    for v in [
-        [0, 0, 0],
-        [1, 0, 0],
-        [1, 1, 0],
-        [0, 1, 0],
-        [0, 0, 1],
-        [1, 0, 1],
-        [1, 1, 1],
-        [0, 1, 1],
-    ] {
+    for v in common::UNIT_CUBE {
         obj += &format!("v {} {} {}\n", v[0], v[1], v[2]);
     }
     // vt 1-4: a square in the blue half; 5-8: in the yellow half

@@ -341,16 +341,7 @@ fn an_obj_asset_re_bakes_when_its_mtl_or_texture_changes() {
     };
     texture(200);
     let mut obj = String::from("mtllib box.mtl\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n");
-    for v in [
-        [0, 0, 0],
-        [1, 0, 0],
-        [1, 1, 0],
-        [0, 1, 0],
-        [0, 0, 1],
-        [1, 0, 1],
-        [1, 1, 1],
-        [0, 1, 1],
-    ] {
+    for v in common::UNIT_CUBE {
         obj += &format!("v {} {} {}\n", v[0], v[1], v[2]);
     }
     obj += "usemtl fur\n";

@@ -8,6 +8,19 @@ use std::process::Command;
 
 use serde_json::Value;
 
+/// The corners of the unit cube, as an OBJ's `v` lines list them for `f` statements numbered
+/// 1–8 (bottom square, then top).
+pub const UNIT_CUBE: [[i32; 3]; 8] = [
+    [0, 0, 0],
+    [1, 0, 0],
+    [1, 1, 0],
+    [0, 1, 0],
+    [0, 0, 1],
+    [1, 0, 1],
+    [1, 1, 1],
+    [0, 1, 1],
+];
+
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
