@@ -450,12 +450,12 @@ pub fn scene_asset(scene: &SceneFile) -> Result<Option<(input::asset::Asset, Par
     let Some(first) = scene.surfaces.first() else {
         return Ok(None);
     };
+    // one file, however its path is spelled (`./`, a link)
+    let real = |p: &Path| std::fs::canonicalize(p).ok();
+    let same = |p: &Path| p == first.mesh || real(p).is_some_and(|r| Some(r) == real(&first.mesh));
     let whole = scene.path.is_some()
         && (scene.surfaces.iter()).all(|s| {
-            !s.only.is_empty()
-                && s.mesh == first.mesh
-                && s.translation == [0.0; 3]
-                && s.scale == 1.0
+            !s.only.is_empty() && same(&s.mesh) && s.translation == [0.0; 3] && s.scale == 1.0
         });
     if !whole {
         return Ok(None);
@@ -1024,6 +1024,7 @@ fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
         mesh,
         welded,
         frames,
+        fur_uv,
         ..
     } = shape;
     let diagonal = mesh.diagonal();
@@ -1052,6 +1053,18 @@ fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
             collision.bound.as_deref(),
         )
     });
+    // an image map is read through the UVs the strands follow: a box projection the bake chose
+    // over the mesh's own puts it elsewhere
+    let image = matches!(maps.density, Some(input::maps::Map::Image(_)))
+        || matches!(maps.length, Some(input::maps::Map::Image(_)))
+        || matches!(maps.comb, Some(input::maps::Flow::Image(_)));
+    if image && fur_uv.starts_with("a box projection") {
+        run.report.warnings.push(
+            "the strands follow a box projection, and the density, length or comb image map is \
+             read through it, not through the mesh's UVs; --fur-uv mesh keeps the mesh's UVs"
+                .into(),
+        );
+    }
     let length = maps.length.as_ref().map(|m| m.per_vertex(mesh));
     if let Some(length) = &length {
         for (s, &l) in clamp.scale.iter_mut().zip(length) {

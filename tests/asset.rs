@@ -1335,6 +1335,21 @@ fn fur_uvs_a_palette_layout_cannot_carry_become_a_box_projection() {
         "{}",
         note(&report)
     );
+    // a density image map on the boxed surface is read through the box: said
+    image::GrayImage::from_pixel(8, 8, image::Luma([200]))
+        .save(dir.join("density.png"))
+        .unwrap();
+    std::fs::write(
+        dir.join("mapped.toml"),
+        "[[surface]]\nmesh = \"palette.glb\"\nonly = [\"material=fur_body\"]\n\
+         density_map = \"density.png\"\n",
+    )
+    .unwrap();
+    let (_, report) = bake(&dir.join("mapped.toml"), &dir, "mapped.glb", &[]);
+    assert!(
+        report.to_string().contains("image map is read through it"),
+        "{report}"
+    );
     // the body's lower half (v > 0.5) collapsed to one UV point, as Blender leaves an object
     // without UVs joined into one with them: a box projection, named (it grew no fur there)
     let flat = edited_uvs(&dir, "flat.glb", |_, v| (v > 0.5).then_some((0.0, 0.0)));
