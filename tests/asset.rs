@@ -838,7 +838,7 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     ];
     for (k, f) in faces.iter().enumerate() {
         match k {
-            1 => obj += "usemtl lost\nl 1 2 3\n",
+            1 => obj += "usemtl lost\nl 1 2 3\nusemtl ghost\nusemtl lost\n",
             2 => obj += "usemtl fur_box\n",
             5 => obj += "o lid\nusemtl plain\n",
             _ => {}
@@ -892,6 +892,10 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
         "{warnings}"
     );
     assert!(warnings.contains("line statement(s)"), "{warnings}");
+    assert!(
+        warnings.contains("usemtl 'ghost' names no material"),
+        "{warnings}"
+    );
     assert!(
         !warnings.contains("unused"),
         "a material no face uses: {warnings}"

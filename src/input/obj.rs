@@ -1200,6 +1200,20 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
     let used: Vec<bool> = (0..materials.len())
         .map(|m| models.iter().any(|o| o.mesh.material_id == Some(m)))
         .collect();
+    // a `usemtl` naming no material of the library: its faces draw with none, said
+    let mut missing: Vec<String> = Vec::new();
+    for line in String::from_utf8_lossy(without_bom(bytes)).lines() {
+        let Some(name) = line.trim_start().strip_prefix("usemtl") else {
+            continue;
+        };
+        let name = name.trim();
+        if !name.is_empty()
+            && !materials.iter().any(|m| m.name == name)
+            && !missing.iter().any(|m| m == name)
+        {
+            missing.push(name.to_string());
+        }
+    }
     // consecutive pieces of one object (split at each `usemtl`) form one mesh, with one
     // primitive per material (pieces of one material appended, when they carry the same
     // attributes); a piece without a face adds nothing
@@ -1240,6 +1254,13 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
     }
     let (mut images, mut textures) = (Vec::<Value>::new(), Vec::<Value>::new());
     let mut warnings = read.warnings;
+    warnings.extend(missing.iter().map(|name| {
+        format!(
+            "{}: usemtl '{}' names no material of its .mtl; its faces draw with none",
+            path.display(),
+            super::escape(name)
+        )
+    }));
     let materials: Vec<Value> = (materials.iter().zip(&used))
         .map(|(m, &used)| {
             let mut unused = Vec::new();
