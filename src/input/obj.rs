@@ -1073,13 +1073,13 @@ impl Chunk {
 
 /// The glTF material of `.mtl` material `m` of the OBJ at `path`: `Kd` and `d` as the base
 /// colour factor, `map_Kd` as the base colour texture (its image and texture appended to
-/// `images` and `textures`) when its file is in the OBJ's folder ([`map_uri`]; else a warning).
+/// `images` and `textures`) when its file is in the OBJ's folder ([`map_image`]); else the
+/// warning that says so.
 fn material(
     path: &Path,
     m: &tobj::Material,
     (images, textures): (&mut Vec<Value>, &mut Vec<Value>),
-    warnings: &mut Vec<String>,
-) -> Value {
+) -> (Value, Option<String>) {
     let kd = m.diffuse.unwrap_or([1.0; 3]);
     let alpha = m.dissolve.unwrap_or(1.0).clamp(0.0, 1.0);
     let mut pbr = json!({
@@ -1087,34 +1087,33 @@ fn material(
         "metallicFactor": 0.0,
         "roughnessFactor": 1.0,
     });
+    let mut warning = None;
     if let Some(map) = m
         .diffuse_texture
         .as_deref()
         .filter(|t| !t.trim().is_empty())
     {
-        let file = map_file(map).replace('\\', "/");
-        // an option this reader does not know, or a malformed one, leaves the last word
-        let last = map
-            .split_whitespace()
-            .last()
-            .unwrap_or(map)
-            .replace('\\', "/");
-        match map_uri(path, &file).or_else(|| map_uri(path, &last)) {
-            Some(uri) => {
+        match map_image(path, map) {
+            Some((uri, _)) => {
                 images.push(json!({ "uri": uri }));
                 textures.push(json!({ "sampler": 0, "source": images.len() - 1 }));
                 pbr["baseColorTexture"] = json!({ "index": textures.len() - 1 });
             }
-            None => warnings.push(format!(
-                "{}: material '{}': map_Kd '{}' is not a file in the OBJ's folder (nor is its \
-                 file name); the material keeps its Kd colour",
-                path.display(),
-                super::escape(&m.name),
-                super::escape(&file)
-            )),
+            None => {
+                warning = Some(format!(
+                    "{}: material '{}': map_Kd '{}' is not a file in the OBJ's folder (nor is \
+                     its file name); the material keeps its Kd colour",
+                    path.display(),
+                    super::escape(&m.name),
+                    super::escape(&map_file(map).replace('\\', "/"))
+                ))
+            }
         }
     }
-    json!({ "name": m.name, "pbrMetallicRoughness": pbr })
+    (
+        json!({ "name": m.name, "pbrMetallicRoughness": pbr }),
+        warning,
+    )
 }
 
 /// The file name of a `.mtl` map statement's value: what follows its options (`-s 1 1 1`,
@@ -1145,6 +1144,19 @@ fn map_file(value: &str) -> &str {
         }
         rest = rest.trim_start();
     }
+}
+
+/// The image of `.mtl` map statement value `map` of the OBJ at `path`: its URI (for the asset's
+/// document) and the file it names. The file name after the options ([`map_file`]), else the
+/// last word (an option this reader does not know, or a malformed one), each through
+/// [`map_uri`]. What the asset reads and what a content key hashes.
+fn map_image(path: &Path, map: &str) -> Option<(String, std::path::PathBuf)> {
+    let last = map.split_whitespace().last().unwrap_or(map);
+    [map_file(map), last].into_iter().find_map(|file| {
+        let uri = map_uri(path, &file.replace('\\', "/"))?;
+        let real = super::document::confined_file(path, &uri)?;
+        Some((uri, real))
+    })
 }
 
 /// The image URI of map file `file` named by the OBJ at `path`: the file itself when it is a
@@ -1202,16 +1214,10 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
         .collect();
     // a `usemtl` naming no material of the library: its faces draw with none, said
     let mut missing: Vec<String> = Vec::new();
-    for line in String::from_utf8_lossy(without_bom(bytes)).lines() {
-        let Some(name) = line.trim_start().strip_prefix("usemtl") else {
-            continue;
-        };
-        let name = name.trim();
-        if !name.is_empty()
-            && !materials.iter().any(|m| m.name == name)
-            && !missing.iter().any(|m| m == name)
+    for name in statements(without_bom(bytes), "usemtl") {
+        if !name.is_empty() && !materials.iter().any(|m| m.name == name) && !missing.contains(&name)
         {
-            missing.push(name.to_string());
+            missing.push(name);
         }
     }
     // consecutive pieces of one object (split at each `usemtl`) form one mesh, with one
@@ -1263,9 +1269,10 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
     }));
     let materials: Vec<Value> = (materials.iter().zip(&used))
         .map(|(m, &used)| {
-            let mut unused = Vec::new();
-            let w = if used { &mut warnings } else { &mut unused };
-            material(path, m, (&mut images, &mut textures), w)
+            let (material, warning) = material(path, m, (&mut images, &mut textures));
+            // a material no face uses is not worth a word
+            warnings.extend(warning.filter(|_| used));
+            material
         })
         .collect();
     chunk.bin.resize(chunk.bin.len().next_multiple_of(4), 0);
@@ -1298,14 +1305,6 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
 /// read is listed; none that is read is missed.
 pub(super) fn side_files(path: &Path, bytes: &[u8]) -> Vec<std::path::PathBuf> {
     let mut files = Vec::new();
-    let statements = |text: &[u8], word: &str| -> Vec<String> {
-        String::from_utf8_lossy(text)
-            .lines()
-            .filter_map(|l| l.trim_start().strip_prefix(word))
-            .filter(|rest| rest.starts_with(char::is_whitespace))
-            .map(|rest| rest.trim().to_string())
-            .collect()
-    };
     for lib in statements(without_bom(bytes), "mtllib") {
         // one name with spaces, or several names
         let names = std::iter::once(lib.as_str()).chain(lib.split_whitespace());
@@ -1315,22 +1314,21 @@ pub(super) fn side_files(path: &Path, bytes: &[u8]) -> Vec<std::path::PathBuf> {
             }
             let text = std::fs::read(&mtl).unwrap_or_default();
             files.push(mtl);
-            for map in statements(&text, "map_Kd") {
-                let last = map
-                    .split_whitespace()
-                    .last()
-                    .unwrap_or(&map)
-                    .replace('\\', "/");
-                for file in [map_file(&map).replace('\\', "/"), last] {
-                    let uri = map_uri(path, &file);
-                    if let Some(f) = uri.and_then(|u| super::document::confined_file(path, &u)) {
-                        files.push(f);
-                    }
-                }
-            }
+            let maps = statements(&text, "map_Kd").into_iter();
+            files.extend(maps.filter_map(|map| map_image(path, &map)).map(|(_, f)| f));
         }
     }
     files
+}
+
+/// The values of the statements of `text` (OBJ or MTL) that start with `word`, trimmed.
+fn statements(text: &[u8], word: &str) -> Vec<String> {
+    String::from_utf8_lossy(text)
+        .lines()
+        .filter_map(|l| l.trim_start().strip_prefix(word))
+        .filter(|rest| rest.starts_with(char::is_whitespace))
+        .map(|rest| rest.trim().to_string())
+        .collect()
 }
 
 /// An OBJ with materials as a glTF document ([`asset_document`]): its JSON, its binary chunk,
