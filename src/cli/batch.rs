@@ -184,10 +184,7 @@ fn bake_one(manifest: &Manifest, asset: &batch::Asset, glb: &Path) -> Outcome {
     // the content key: version, resolved parameters (with the parts `--only` chooses), every
     // file the bake reads (an asset's images, an OBJ's `.mtl` and its maps too), found without
     // reading the asset, so that an asset up to date costs its files' hashes only
-    let mut files = inputs_of(&input, &scene);
-    for s in &scene.surfaces {
-        files.extend(shellbake::input::asset::Asset::side_files(&s.mesh));
-    }
+    let files = inputs_of(&input, &scene);
     let mut settings = resolved(&scene);
     if !bake.only.is_empty() {
         let only: Vec<String> = bake.only.iter().map(|s| s.to_string()).collect();
@@ -263,7 +260,8 @@ fn inputs_of(input: &Path, scene: &shellbake::scene::SceneFile) -> Vec<PathBuf> 
     }
     for s in &scene.surfaces {
         files.push(s.mesh.clone());
-        files.extend(gltf_externals(&s.mesh));
+        // a `.gltf`'s buffers, an asset's images, an OBJ's `.mtl` and its maps
+        files.extend(shellbake::input::asset::Asset::side_files(&s.mesh));
         for m in [&s.density_map, &s.length_map].into_iter().flatten() {
             if let shellbake::scene::MapSource::Image(p) = m {
                 files.push(p.clone());
@@ -274,32 +272,6 @@ fn inputs_of(input: &Path, scene: &shellbake::scene::SceneFile) -> Vec<PathBuf> 
         }
     }
     files
-}
-
-/// The external buffer files of a `.gltf`, resolved as the loader resolves them
-/// ([`shellbake::input::document::confined_path`]; a `uri` it refuses fails the load itself).
-/// Images are left out: the loader reads none.
-fn gltf_externals(mesh: &Path) -> Vec<PathBuf> {
-    if !mesh
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gltf"))
-    {
-        return Vec::new();
-    }
-    let Ok(text) = std::fs::read(mesh) else {
-        return Vec::new();
-    };
-    let Ok(doc) = serde_json::from_slice::<serde_json::Value>(&text) else {
-        return Vec::new();
-    };
-    doc["buffers"]
-        .as_array()
-        .into_iter()
-        .flatten()
-        .filter_map(|b| b["uri"].as_str())
-        .filter(|u| !u.starts_with("data:"))
-        .filter_map(|u| shellbake::input::document::confined_path(mesh, u))
-        .collect()
 }
 
 /// `--merge`: joins the shard results of one shard count in `--out`.

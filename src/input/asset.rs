@@ -351,10 +351,11 @@ impl Asset {
         Ok(Some(asset))
     }
 
-    /// The files besides the asset at `path` that reading and writing it read, without
-    /// reading the asset: a `.gltf`'s or `.glb`'s image files (its buffers are the mesh
-    /// loader's), an OBJ's `.mtl` files and their `map_Kd` images. For a content key (`batch`):
-    /// it may list a file that is not read, never miss one that is.
+    /// The files besides the mesh or asset at `path` that reading and writing it read, without
+    /// reading it: a `.gltf`'s external buffers (resolved as the loader resolves them,
+    /// [`super::document::confined_path`]: a `uri` it refuses fails the load itself), a `.gltf`'s
+    /// or `.glb`'s image files, an OBJ's `.mtl` files and their `map_Kd` images. For a content
+    /// key (`batch`): it may list a file that is not read, never miss one that is.
     pub fn side_files(path: &Path) -> Vec<std::path::PathBuf> {
         let Ok(bytes) = super::read_regular_file(path, super::MAX_INPUT_BYTES) else {
             return Vec::new();
@@ -368,12 +369,21 @@ impl Asset {
             Some("gltf") => serde_json::from_slice::<Value>(&bytes).ok(),
             _ => None,
         };
-        let images = json.as_ref().and_then(|j| j["images"].as_array());
-        (images.into_iter().flatten())
-            .filter_map(|i| i["uri"].as_str())
-            .filter(|u| !u.starts_with("data:"))
-            .filter_map(|u| super::document::confined_file(path, u))
-            .collect()
+        let Some(json) = json else {
+            return Vec::new();
+        };
+        let uris = |list: &str| {
+            let list = json[list].as_array().into_iter().flatten();
+            list.filter_map(|x| x["uri"].as_str())
+                .filter(|u| !u.starts_with("data:"))
+                .map(str::to_string)
+                .collect::<Vec<_>>()
+        };
+        let buffers = uris("buffers").into_iter();
+        let buffers = buffers.filter_map(|u| super::document::confined_path(path, &u));
+        let images = uris("images").into_iter();
+        let images = images.filter_map(|u| super::document::confined_file(path, &u));
+        buffers.chain(images).collect()
     }
 
     /// [`Asset::read`] on bytes in memory; `path` names the file and resolves relative URIs.
