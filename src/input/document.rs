@@ -1070,12 +1070,9 @@ impl Document {
         let unreadable = |e: std::io::Error| {
             Error::invalid(path, element, format!("URI '{shown}' cannot be read: {e}"))
         };
-        let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
-        let folder = std::fs::canonicalize(folder.unwrap_or(Path::new("."))).map_err(unreadable)?;
-        let real = std::fs::canonicalize(&target).map_err(unreadable)?;
-        if !real.starts_with(&folder) {
-            return Err(leaves());
-        }
+        let real = real_inside(path, &target)
+            .map_err(unreadable)?
+            .ok_or_else(leaves)?;
         super::read_regular_file(&real, MAX_INPUT_BYTES).map_err(unreadable)
     }
 
@@ -1328,12 +1325,19 @@ fn forest_roots(
 /// path (links resolved) inside the real folder, as [`Document::read_uri`] checks before it
 /// reads; `None` when it is not one.
 pub fn confined_file(asset: &Path, uri: &str) -> Option<PathBuf> {
-    let target = confined_path(asset, uri)?;
+    let real = real_inside(asset, &confined_path(asset, uri)?).ok()??;
+    std::fs::metadata(&real)
+        .is_ok_and(|m| m.is_file())
+        .then_some(real)
+}
+
+/// The real path of `target` (links resolved) when it lies inside the real folder of `asset`,
+/// `None` when it lies outside; the error of resolving either.
+fn real_inside(asset: &Path, target: &Path) -> std::io::Result<Option<PathBuf>> {
     let folder = asset.parent().filter(|p| !p.as_os_str().is_empty());
-    let folder = std::fs::canonicalize(folder.unwrap_or(Path::new("."))).ok()?;
-    let real = std::fs::canonicalize(target).ok()?;
-    let file = std::fs::metadata(&real).is_ok_and(|m| m.is_file());
-    (real.starts_with(&folder) && file).then_some(real)
+    let folder = std::fs::canonicalize(folder.unwrap_or(Path::new(".")))?;
+    let real = std::fs::canonicalize(target)?;
+    Ok(real.starts_with(&folder).then_some(real))
 }
 
 /// `uri` resolved against the folder of `asset`, or `None` if it is absolute, has a scheme, or
