@@ -447,16 +447,12 @@ fn more_influences(asset: &input::asset::Asset, i: usize, what: String) -> Optio
 /// asset and the (part, surface) pairs, in part order; `None` for any other scene, which writes
 /// its surfaces' fur alone (`load_parts`).
 pub fn scene_asset(scene: &SceneFile) -> Result<Option<(input::asset::Asset, PartSurfaces)>> {
-    let Some(first) = scene.surfaces.first() else {
+    let (Some(path), Some(first)) = (scene.path.as_deref(), scene.surfaces.first()) else {
         return Ok(None);
     };
-    // one file, however its path is spelled (`./`, a link)
-    let real = |p: &Path| std::fs::canonicalize(p).ok();
-    let same = |p: &Path| p == first.mesh || real(p).is_some_and(|r| Some(r) == real(&first.mesh));
-    let whole = scene.path.is_some()
-        && (scene.surfaces.iter()).all(|s| {
-            !s.only.is_empty() && same(&s.mesh) && s.translation == [0.0; 3] && s.scale == 1.0
-        });
+    let whole = one_mesh_file(scene)
+        && (scene.surfaces.iter())
+            .all(|s| !s.only.is_empty() && s.translation == [0.0; 3] && s.scale == 1.0);
     if !whole {
         return Ok(None);
     }
@@ -468,14 +464,13 @@ pub fn scene_asset(scene: &SceneFile) -> Result<Option<(input::asset::Asset, Par
         let parts = asset.select(&s.only)?;
         if parts.is_empty() {
             return Err(Error::invalid(
-                scene.path.as_deref().unwrap_or(&first.mesh),
+                path,
                 format!("surface '{}'", input::escape(&s.name)),
                 "its `only` chooses only parts that carry shellbake fur already",
             ));
         }
         for i in parts {
             if let Some(j) = surface_of[i] {
-                let path = scene.path.as_deref().unwrap_or(&first.mesh);
                 return Err(Error::invalid(
                     path,
                     format!("surface '{}'", input::escape(&s.name)),
@@ -495,6 +490,18 @@ pub fn scene_asset(scene: &SceneFile) -> Result<Option<(input::asset::Asset, Par
         .filter_map(|(i, k)| k.map(|k| (i, k)))
         .collect();
     Ok(Some((asset, chosen)))
+}
+
+/// Whether every surface of `scene` names one mesh file, however its path is spelled (`./`, a
+/// link).
+pub fn one_mesh_file(scene: &SceneFile) -> bool {
+    let Some(first) = scene.surfaces.first() else {
+        return false;
+    };
+    let real = |p: &Path| std::fs::canonicalize(p).ok();
+    let first_real = real(&first.mesh);
+    (scene.surfaces.iter())
+        .all(|s| s.mesh == first.mesh || real(&s.mesh).is_some_and(|r| Some(r) == first_real))
 }
 
 /// The parts of the asset at `path` that `only` chooses, as one scene (their meshes, and the
@@ -916,6 +923,8 @@ struct Shape {
     frames: frames::Frames,
     /// Which UVs the strands follow, and why.
     fur_uv: String,
+    /// They are a box projection the bake chose over the mesh's own ([`merge::Merged::boxed`]).
+    boxed: bool,
     shade: shells::ShadeParams,
 }
 
@@ -929,6 +938,7 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
     let merge::Merged {
         mut mesh,
         fur_uv,
+        boxed,
         paint,
         ..
     } = merged;
@@ -963,6 +973,7 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
         welded,
         frames,
         fur_uv,
+        boxed,
         shade,
     }
 }
@@ -1024,7 +1035,7 @@ fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
         mesh,
         welded,
         frames,
-        fur_uv,
+        boxed,
         ..
     } = shape;
     let diagonal = mesh.diagonal();
@@ -1058,7 +1069,7 @@ fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
     let image = matches!(maps.density, Some(input::maps::Map::Image(_)))
         || matches!(maps.length, Some(input::maps::Map::Image(_)))
         || matches!(maps.comb, Some(input::maps::Flow::Image(_)));
-    if image && fur_uv.starts_with("a box projection") {
+    if image && *boxed {
         run.report.warnings.push(
             "the strands follow a box projection, and the density, length or comb image map is \
              read through it, not through the mesh's UVs; --fur-uv mesh keeps the mesh's UVs"

@@ -553,7 +553,14 @@ struct AssetInput {
     asset: shellbake::input::asset::Asset,
     /// (part, surface) pairs: `--only`'s parts with the one surface of a mesh input, or a scene
     /// file's ([`shellbake::scene_asset`]).
-    chosen: Vec<(usize, usize)>,
+    chosen: shellbake::PartSurfaces,
+}
+
+impl AssetInput {
+    /// The chosen parts, in order.
+    fn parts(&self) -> Vec<usize> {
+        self.chosen.iter().map(|&(i, _)| i).collect()
+    }
 }
 
 /// The asset `args` names with the parts `--only` chooses, or the asset every surface of the
@@ -561,11 +568,7 @@ struct AssetInput {
 /// surfaces' fur alone. `--only` on an input that is no asset is refused.
 fn asset_of(args: &BakeArgs, scene: &SceneFile) -> anyhow::Result<Option<AssetInput>> {
     if args.is_scene() {
-        let one_file = scene
-            .surfaces
-            .iter()
-            .all(|s| s.mesh == scene.surfaces[0].mesh);
-        if !args.only.is_empty() && scene.surfaces.len() > 1 && one_file {
+        if !args.only.is_empty() && scene.surfaces.len() > 1 && shellbake::one_mesh_file(scene) {
             anyhow::bail!(
                 "{}: --only replaces every surface's `only`, so these {} surfaces over {} would \
                  all choose the same parts; set each surface's `only` in the scene instead",
@@ -603,10 +606,10 @@ fn bake_bytes(
     input: Option<&AssetInput>,
 ) -> anyhow::Result<(shellbake::report::SceneReport, Vec<u8>)> {
     Ok(match input {
-        Some(AssetInput { asset, chosen }) => {
-            let (parts, loaded, _) = load_parts_of(args, scene, asset, chosen)?;
-            let chosen: Vec<usize> = chosen.iter().map(|&(i, _)| i).collect();
-            let baked = shellbake::bake_asset(asset, &chosen, (&parts, &loaded))?;
+        Some(input) => {
+            let asset = &input.asset;
+            let (parts, loaded, _) = load_parts_of(args, scene, asset, &input.chosen)?;
+            let baked = shellbake::bake_asset(asset, &input.parts(), (&parts, &loaded))?;
             (baked.fur.report, baked.glb)
         }
         None => {
@@ -876,17 +879,16 @@ fn main() -> ExitCode {
                 }
                 shellbake::output::write::check_outputs(&bake.input, &[("output", out)])?;
             }
-            if let Some(AssetInput { asset, chosen }) = asset_of(bake, &scene)? {
+            if let Some(input) = asset_of(bake, &scene)? {
                 // the fur of each part, baked alone with a base layer, against the technique;
                 // `-o` writes the asset with its fur
-                let (grafted, loaded, _) = load_parts_of(bake, &scene, &asset, &chosen)?;
+                let (asset, chosen) = (&input.asset, &input.chosen);
+                let (grafted, loaded, _) = load_parts_of(bake, &scene, asset, chosen)?;
                 if let Some(out) = out {
-                    let parts: Vec<usize> = chosen.iter().map(|&(i, _)| i).collect();
-                    let baked = shellbake::bake_asset(&asset, &parts, (&grafted, &loaded))?;
+                    let baked = shellbake::bake_asset(asset, &input.parts(), (&grafted, &loaded))?;
                     shellbake::output::write::write_glb(out, &baked.glb)?;
                 }
-                let (parts, mut loaded) =
-                    shellbake::asset_scene_of(&scene, &asset, &chosen, false)?;
+                let (parts, mut loaded) = shellbake::asset_scene_of(&scene, asset, chosen, false)?;
                 choose_clips(bake, &mut loaded, verify.clip())?;
                 return Ok(shellbake::view::cli::verify(
                     &bake.input,

@@ -33,6 +33,9 @@ pub struct Merged<'a> {
     pub mesh: Mesh,
     /// Which UVs the strands follow, and why (for the tiling stage's note).
     pub fur_uv: String,
+    /// The strands follow a box projection chosen over the mesh's own UVs ([`fur_uv_box`]),
+    /// through which any image map is read too.
+    pub boxed: bool,
     /// The paint the fur's colour was sampled from, while the mesh keeps the `TEXCOORD_0` it
     /// was sampled at (no box projection replaced them, no shade colour overrides it): new
     /// vertices (tessellation) sample it again.
@@ -66,6 +69,7 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
     };
     let mut warnings = Vec::new();
     let mut follows = "the mesh's own".to_string();
+    let mut boxed = false;
     if !has_uv_area(&mesh) {
         paint = None;
         warnings
@@ -73,12 +77,14 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
         generate_box_uvs(&mut mesh);
     } else if let Some(why) = fur_uv_box(&mesh, fur_uv) {
         follows = format!("a box projection: {why}");
+        boxed = true;
         paint = None;
         generate_box_uvs(&mut mesh);
     }
     Merged {
         mesh,
         fur_uv: follows,
+        boxed,
         paint,
         meshes: scene.meshes.len(),
         vertices,
