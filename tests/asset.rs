@@ -828,14 +828,7 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     // vt 1-4: a square in the blue half; 5-8: in the yellow half
     obj += "vt 0.1 0.1\nvt 0.4 0.1\nvt 0.4 0.9\nvt 0.1 0.9\n";
     obj += "vt 0.6 0.1\nvt 0.9 0.1\nvt 0.9 0.9\nvt 0.6 0.9\no box\nusemtl fur_box\n";
-    let faces = [
-        [1, 4, 3, 2],
-        [5, 6, 7, 8],
-        [1, 2, 6, 5],
-        [2, 3, 7, 6],
-        [3, 4, 8, 7],
-        [4, 1, 5, 8],
-    ];
+    let faces = common::UNIT_CUBE_FACES;
     for (k, f) in faces.iter().enumerate() {
         match k {
             1 => obj += "usemtl lost\nl 1 2 3\nusemtl ghost\nusemtl lost\n",

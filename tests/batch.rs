@@ -345,14 +345,7 @@ fn an_obj_asset_re_bakes_when_its_mtl_or_texture_changes() {
         obj += &format!("v {} {} {}\n", v[0], v[1], v[2]);
     }
     obj += "usemtl fur\n";
-    for f in [
-        [1, 4, 3, 2],
-        [5, 6, 7, 8],
-        [1, 2, 6, 5],
-        [2, 3, 7, 6],
-        [3, 4, 8, 7],
-        [4, 1, 5, 8],
-    ] {
+    for f in common::UNIT_CUBE_FACES {
         obj += &format!("f {}/1 {}/2 {}/3 {}/4\n", f[0], f[1], f[2], f[3]);
     }
     std::fs::write(dir.join("box.obj"), obj).unwrap();

@@ -21,6 +21,17 @@ pub const UNIT_CUBE: [[i32; 3]; 8] = [
     [0, 1, 1],
 ];
 
+/// The unit cube's six faces as OBJ quads over [`UNIT_CUBE`] (1-based), facing out: bottom,
+/// top, then the sides.
+pub const UNIT_CUBE_FACES: [[u32; 4]; 6] = [
+    [1, 4, 3, 2],
+    [5, 6, 7, 8],
+    [1, 2, 6, 5],
+    [2, 3, 7, 6],
+    [3, 4, 8, 7],
+    [4, 1, 5, 8],
+];
+
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
