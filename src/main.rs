@@ -111,7 +111,8 @@ pub(crate) fn named<T: Clone + Send + Sync + 'static>(
 struct BakeArgs {
     /// Input: a mesh (.obj, .gltf, .glb) or a scene file (.toml).
     input: PathBuf,
-    /// Output GLB [default: out/<input stem>.glb].
+    /// Output GLB [default: out/<input stem>.glb]; a path ending in .gltf writes the glTF JSON and
+    /// its binary beside it as <stem>.bin.
     #[arg(short, long)]
     output: Option<PathBuf>,
     /// Parameter preset [default: fur; a scene's surfaces name their own].
@@ -620,19 +621,38 @@ fn bake_bytes(
     })
 }
 
+/// Refuses `outputs` that would overwrite an input of the bake: a surface's mesh file or one
+/// its mesh reads (a `.gltf`'s buffers and images, an OBJ's `.mtl` and maps), or the scene file.
+fn check_outputs_of(
+    args: &BakeArgs,
+    scene: &SceneFile,
+    outputs: &[(&str, &Path)],
+) -> anyhow::Result<()> {
+    let check = |input: &Path| shellbake::output::write::check_outputs(input, outputs);
+    for s in &scene.surfaces {
+        check(&s.mesh)?;
+        for side in shellbake::input::asset::Asset::side_files(&s.mesh) {
+            check(&side)?;
+        }
+    }
+    if scene.path.is_some() {
+        check(&args.input)?;
+    }
+    Ok(())
+}
+
 fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     let scene = args.scene()?;
     let out = args.output();
+    let binary = shellbake::output::write::binary_of(&out);
     let mut outputs = vec![("output", out.as_path())];
+    if let Some(bin) = &binary {
+        outputs.push(("output's binary", bin.as_path()));
+    }
     if let Some(report) = &args.report {
         outputs.push(("report", report.as_path()));
     }
-    for s in &scene.surfaces {
-        shellbake::output::write::check_outputs(&s.mesh, &outputs)?;
-    }
-    if scene.path.is_some() {
-        shellbake::output::write::check_outputs(&args.input, &outputs)?;
-    }
+    check_outputs_of(args, &scene, &outputs)?;
     let spinner = (!args.quiet).then(|| {
         let pb = indicatif::ProgressBar::new_spinner();
         pb.set_message(printable(
@@ -650,12 +670,12 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     report.input = args.input.display().to_string();
     report.output = out.display().to_string();
     let json = args.report.as_ref().map(|_| report.to_json());
-    let mut files = vec![(out.as_path(), glb.as_slice())];
+    let mut others = Vec::new();
     if let (Some(path), Some(json)) = (&args.report, &json) {
-        files.push((path.as_path(), json.as_bytes()));
+        others.push((path.as_path(), json.as_bytes()));
     }
-    // both complete before either replaces what was there
-    shellbake::output::write::write_all_atomic(&files)?;
+    // every file complete before any replaces what was there
+    shellbake::output::write::write_output(&out, &glb, &others)?;
     if !args.quiet {
         print!("{}", printable(&report.summary(), true));
     }
@@ -874,10 +894,11 @@ fn main() -> ExitCode {
         Command::Verify { bake, verify } => bake.scene().and_then(|scene| {
             let out = bake.output.as_deref();
             if let Some(out) = out {
-                for s in &scene.surfaces {
-                    shellbake::output::write::check_outputs(&s.mesh, &[("output", out)])?;
-                }
-                shellbake::output::write::check_outputs(&bake.input, &[("output", out)])?;
+                let binary = shellbake::output::write::binary_of(out);
+                let mut outputs = vec![("output", out)];
+                outputs.extend(binary.as_deref().map(|bin| ("output's binary", bin)));
+                check_outputs_of(bake, &scene, &outputs)?;
+                shellbake::output::write::check_outputs(&bake.input, &outputs)?;
             }
             if let Some(input) = asset_of(bake, &scene)? {
                 // the fur of each part, baked alone with a base layer, against the technique;

@@ -427,3 +427,57 @@ fn the_size_estimate_counts_the_animations_the_fur_writes() {
         assert!(!Path::new(out).exists(), "{input}: written over the limit");
     }
 }
+
+#[test]
+fn a_gltf_output_is_the_glb_as_json_with_its_binary_beside_it() {
+    let dir = scratch("outputs_gltf");
+    let critter = common::path_str(&fixture("critter.glb"));
+    let bake = |out: &Path| {
+        let out = common::path_str(out);
+        let args = [
+            "bake",
+            &critter,
+            "--only",
+            "material=fur_*",
+            "-o",
+            &out,
+            "-q",
+        ];
+        common::shellbake(&args)
+    };
+    let glb = dir.join("critter.glb");
+    let gltf = dir.join("critter fur.gltf");
+    for out in [&glb, &gltf] {
+        let (code, _, stderr) = bake(out);
+        assert_eq!(code, Some(0), "{stderr}");
+    }
+    let bin = dir.join("critter fur.bin");
+    let packed = common::Glb::parse(&std::fs::read(&glb).unwrap());
+    let text = std::fs::read(&gltf).unwrap();
+    assert_eq!(text[0], b'{', "a .gltf holds JSON, not a GLB");
+    let mut doc: serde_json::Value = serde_json::from_slice(&text).unwrap();
+    assert_eq!(doc["buffers"][0]["uri"], "critter%20fur.bin");
+    let len = doc["buffers"][0]["byteLength"].as_u64().unwrap() as usize;
+    assert_eq!(std::fs::read(&bin).unwrap(), packed.bin[..len]);
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    assert_eq!(
+        doc, packed.json,
+        "the same document as the GLB, but the buffer's URI"
+    );
+    common::assert_valid(std::slice::from_ref(&gltf));
+
+    // a .gltf output whose binary would replace a buffer the input reads is refused
+    let input = dir.join("input.gltf");
+    std::fs::copy(&gltf, &input).unwrap();
+    let before = std::fs::read(&bin).unwrap();
+    let input = common::path_str(&input);
+    let out = common::path_str(&gltf);
+    let args = ["bake", &input, "--only", "material=fur_*", "-o", &out, "-q"];
+    let (code, _, stderr) = common::shellbake(&args);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("critter fur.bin") && stderr.contains("would overwrite the input"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(&bin).unwrap(), before);
+}

@@ -691,9 +691,72 @@ pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> Result<()> {
     Ok(())
 }
 
-/// Writes a baked GLB to `path` atomically.
+/// Writes a baked GLB to `path` atomically, as [`write_output`] does with nothing beside it.
 pub fn write_glb(path: &Path, glb: &[u8]) -> Result<()> {
-    write_atomic(path, glb)
+    write_output(path, glb, &[])
+}
+
+/// Writes a bake's file to `path` and `others` beside it, all or none (see
+/// [`write_all_atomic`]). A path ending in `.gltf` (any case) gets the GLB's JSON, indented,
+/// with its buffer in the file [`binary_of`] names; any other path gets the GLB as it is.
+pub fn write_output(path: &Path, glb: &[u8], others: &[(&Path, &[u8])]) -> Result<()> {
+    let split = match binary_of(path) {
+        Some(bin) => Some((gltf_of_glb(path, glb, &bin)?, bin)),
+        None => None,
+    };
+    let mut files: Vec<(&Path, &[u8])> = match &split {
+        Some(((json, data), bin)) => vec![(path, json), (bin, data)],
+        None => vec![(path, glb)],
+    };
+    files.extend_from_slice(others);
+    write_all_atomic(&files)
+}
+
+/// The binary file a `.gltf` output's buffer goes to: `<stem>.bin` beside it (none for any
+/// other output, which holds its binary itself).
+pub fn binary_of(path: &Path) -> Option<std::path::PathBuf> {
+    let ext = path.extension()?;
+    ext.eq_ignore_ascii_case("gltf")
+        .then(|| path.with_extension("bin"))
+}
+
+/// The JSON of `glb` with its one buffer named by the URI of `bin`'s file name, and that
+/// buffer's bytes: the same asset as a `.gltf` and its `.bin`. The JSON is indented, for the
+/// readers who ask for `.gltf` to read or compare it.
+fn gltf_of_glb(path: &Path, glb: &[u8], bin: &Path) -> Result<(Vec<u8>, Vec<u8>)> {
+    let fail = |message: String| Error::Output {
+        path: path.to_path_buf(),
+        message,
+    };
+    let (json, data) = crate::input::document::split_glb(glb).map_err(&fail)?;
+    let mut doc: Value = serde_json::from_slice(json).map_err(|e| fail(e.to_string()))?;
+    let mut bytes = Vec::new();
+    if let Some(buffer) = doc["buffers"].get_mut(0) {
+        let len = buffer["byteLength"].as_u64().unwrap_or(0) as usize;
+        // a meshopt file's buffer 0 holds the compressed views; buffer 1 has no data
+        if buffer.get("uri").is_none() {
+            let data = data.unwrap_or_default();
+            bytes = data[..len.min(data.len())].to_vec();
+            let name = bin.file_name().map(|n| n.to_string_lossy().into_owned());
+            buffer["uri"] = Value::from(uri_of(&name.unwrap_or_default()));
+        }
+    }
+    let mut text = serde_json::to_vec_pretty(&doc).map_err(|e| fail(e.to_string()))?;
+    text.push(b'\n');
+    Ok((text, bytes))
+}
+
+/// `name` as a relative URI: every byte but RFC 3986's unreserved characters percent-encoded.
+fn uri_of(name: &str) -> String {
+    let mut out = String::with_capacity(name.len());
+    for b in name.bytes() {
+        if b.is_ascii_alphanumeric() || b"-._~".contains(&b) {
+            out.push(b as char);
+        } else {
+            out.push_str(&format!("%{b:02X}"));
+        }
+    }
+    out
 }
 
 fn folder_of(path: &Path) -> &Path {
