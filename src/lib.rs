@@ -854,11 +854,15 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
         chain,
     } = prepared;
     let grafted = job.part.is_some_and(|p| p.graft);
+    // grafted fur on an unlit part is unlit; alone, it is compared with the lit technique
+    let unlit = job
+        .part
+        .is_some_and(|p| p.graft && p.paint.as_ref().is_some_and(|q| q.unlit));
     let parts = (&shape, &heights, &look, &chain);
     let morphs = job.part.map_or((&[][..], &[][..]), |p| {
         (&p.shape_rest[..], &p.shape_names[..])
     });
-    let placing = (surface, scene, grafted, morphs);
+    let placing = (surface, scene, (grafted, unlit), morphs);
     let surface_packed = pack_surface(&mut run, placing, parts, job.several, packed);
     let mut report = run.report;
     report.lods = (chain.levels.iter().zip(&surface_packed.lod_triangles))
@@ -1364,10 +1368,10 @@ fn cull_levels(
 /// Pack: the surface's streams, nodes and materials into `packed`.
 fn pack_surface(
     run: &mut Run,
-    (surface, scene, grafted, (morph_rest, morph_names)): (
+    (surface, scene, (grafted, unlit), (morph_rest, morph_names)): (
         &Surface,
         &Scene,
-        bool,
+        (bool, bool),
         (&[f32], &[String]),
     ),
     (shape, heights, look, chain): (&Shape, &Heights, &Look, &Levels),
@@ -1426,6 +1430,7 @@ fn pack_surface(
         morph_rest,
         morph_names,
         base: !grafted,
+        unlit,
     };
     let params = &run.params.pack;
     let surface_packed = run

@@ -128,6 +128,10 @@ pub struct Mesh {
     pub normals: Option<Vec<Vec3>>,
     /// Texture coordinates (glTF convention: v points down the image), one per vertex.
     pub uvs: Option<Vec<Vec2>>,
+    /// The texture coordinates the asset's base-colour texture reads, when they are not `uvs`:
+    /// a material whose `textureInfo` (or its `KHR_texture_transform`) names `TEXCOORD_1` or
+    /// later ([`crate::input::asset::Paint::albedo`]). Carried like `uvs`.
+    pub texture_uvs: Option<Vec<Vec2>>,
     /// Vertex colours (glTF `COLOR_0`, or an OBJ `v x y z r g b`) as bytes, RGBA (alpha 255
     /// where the input has three channels); they can drive the density and length maps.
     pub colors: Option<Vec<[u8; 4]>>,
@@ -225,6 +229,7 @@ impl Mesh {
         }
         assert_eq!(self.normals.is_some(), other.normals.is_some());
         assert_eq!(self.uvs.is_some(), other.uvs.is_some());
+        assert_eq!(self.texture_uvs.is_some(), other.texture_uvs.is_some());
         assert_eq!(self.colors.is_some(), other.colors.is_some());
         assert_eq!(self.albedo.is_some(), other.albedo.is_some());
         assert_eq!(self.skin.is_some(), other.skin.is_some());
@@ -241,6 +246,9 @@ impl Mesh {
             a.extend_from_slice(b);
         }
         if let (Some(a), Some(b)) = (&mut self.uvs, &other.uvs) {
+            a.extend_from_slice(b);
+        }
+        if let (Some(a), Some(b)) = (&mut self.texture_uvs, &other.texture_uvs) {
             a.extend_from_slice(b);
         }
         if let (Some(a), Some(b)) = (&mut self.colors, &other.colors) {
@@ -276,6 +284,7 @@ impl Mesh {
         self.positions = pick(&self.positions, source);
         self.normals = self.normals.as_deref().map(|n| pick(n, source));
         self.uvs = self.uvs.as_deref().map(|uv| pick(uv, source));
+        self.texture_uvs = self.texture_uvs.as_deref().map(|uv| pick(uv, source));
         self.colors = self.colors.as_deref().map(|c| pick(c, source));
         self.albedo = self.albedo.as_deref().map(|c| pick(c, source));
         if let Some(s) = &mut self.skin {
@@ -336,6 +345,9 @@ impl Mesh {
             assert_eq!(uv.len(), self.positions.len(), "uv count");
             assert!(uv.iter().all(|v| v.is_finite()), "non-finite uv");
         }
+        if let Some(uv) = &self.texture_uvs {
+            assert_eq!(uv.len(), self.positions.len(), "texture uv count");
+        }
         if let Some(c) = &self.colors {
             assert_eq!(c.len(), self.positions.len(), "colour count");
         }
@@ -377,6 +389,7 @@ impl Scene {
     pub fn merged(&self) -> Mesh {
         let all_normals = self.meshes.iter().all(|m| m.normals.is_some());
         let all_uvs = self.meshes.iter().all(|m| m.uvs.is_some());
+        let all_texture_uvs = self.meshes.iter().all(|m| m.texture_uvs.is_some());
         let any_colors = self.meshes.iter().any(|m| m.colors.is_some());
         // shape keys only when every mesh has as many (an asset's part is one mesh)
         let morphs = self.meshes.first().map_or(0, |m| m.morphs.len());
@@ -389,6 +402,9 @@ impl Scene {
             }
             if !all_uvs {
                 m.uvs = None;
+            }
+            if !all_texture_uvs {
+                m.texture_uvs = None;
             }
             if any_colors && m.colors.is_none() {
                 m.colors = Some(vec![[255; 4]; m.vertex_count()]);

@@ -2168,3 +2168,116 @@ fn parts_outside_the_default_scene_are_named_not_skipped_silently() {
         "{outside:?}"
     );
 }
+
+/// The critter with its body's texture coordinates moved to `TEXCOORD_1` and a mirrored copy
+/// (u → 1 − u) as `TEXCOORD_0`; `info` edits the body material's `baseColorTexture`.
+fn second_uv_set_critter(info: impl Fn(&mut Value)) -> Vec<u8> {
+    let glb = Glb::parse(&critter_glb(Critters::default()));
+    let (mut doc, mut bin) = (glb.json.clone(), glb.bin.clone());
+    let attributes = &mut doc["meshes"][0]["primitives"][0]["attributes"];
+    let a = attributes["TEXCOORD_0"].as_u64().unwrap() as usize;
+    attributes["TEXCOORD_1"] = json!(a);
+    let accessor = doc["accessors"][a].clone();
+    let view = &doc["bufferViews"][accessor["bufferView"].as_u64().unwrap() as usize];
+    let start = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let count = accessor["count"].as_u64().unwrap() as usize;
+    let f = |o: usize| f32::from_le_bytes(bin[o..o + 4].try_into().unwrap());
+    let mirrored: Vec<u8> = (0..count)
+        .flat_map(|k| [1.0 - f(start + 8 * k), f(start + 8 * k + 4)])
+        .flat_map(f32::to_le_bytes)
+        .collect();
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let offset = bin.len();
+    bin.extend_from_slice(&mirrored);
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    let views = doc["bufferViews"].as_array_mut().unwrap();
+    views.push(json!({ "buffer": 0, "byteOffset": offset, "byteLength": mirrored.len() }));
+    let mut copy = accessor.clone();
+    copy["bufferView"] = json!(views.len() - 1);
+    copy.as_object_mut().unwrap().remove("min");
+    copy.as_object_mut().unwrap().remove("max");
+    let accessors = doc["accessors"].as_array_mut().unwrap();
+    accessors.push(copy);
+    doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(accessors.len() - 1);
+    let m = doc["meshes"][0]["primitives"][0]["material"]
+        .as_u64()
+        .unwrap() as usize;
+    info(&mut doc["materials"][m]["pbrMetallicRoughness"]["baseColorTexture"]);
+    shellbake::output::write::glb_bytes(&doc, &bin)
+}
+
+#[test]
+fn the_fur_reads_the_texture_through_the_uv_set_it_names_and_is_unlit_on_an_unlit_part() {
+    use shellbake::input::asset::Asset;
+    let body_albedo = |bytes: &[u8]| {
+        let asset = Asset::from_bytes(Path::new("critter.glb"), bytes).unwrap();
+        let part = &asset.parts[0];
+        let paint = part.paint.as_ref().unwrap();
+        (paint.albedo(&part.scene.meshes[0]), asset.warnings.clone())
+    };
+    let (want, _) = body_albedo(&critter_glb(Critters::default()));
+    let close = |a: &[glam::Vec4]| a.iter().zip(&want).all(|(a, b)| a.abs_diff_eq(*b, 1e-6));
+    // the textureInfo's own texCoord, and the transform's, which overrides it
+    let cases: [(&str, Box<dyn Fn(&mut Value)>, bool); 4] = [
+        ("texCoord 1", Box::new(|i| i["texCoord"] = json!(1)), true),
+        (
+            "KHR_texture_transform texCoord 1",
+            Box::new(|i| i["extensions"] = json!({ "KHR_texture_transform": { "texCoord": 1 } })),
+            true,
+        ),
+        (
+            "texCoord 1 overridden to 0",
+            Box::new(|i| {
+                i["texCoord"] = json!(1);
+                i["extensions"] = json!({ "KHR_texture_transform": { "texCoord": 0 } });
+            }),
+            false,
+        ),
+        ("the control: TEXCOORD_0", Box::new(|_| {}), false),
+    ];
+    for (what, edit, second) in cases {
+        let (albedo, warnings) = body_albedo(&second_uv_set_critter(edit));
+        assert_eq!(close(&albedo), second, "{what}: {warnings:?}");
+        assert!(warnings.is_empty(), "{what}: {warnings:?}");
+    }
+    // a set the primitive does not have: the factor, with a warning
+    let (albedo, warnings) = body_albedo(&second_uv_set_critter(|i| i["texCoord"] = json!(2)));
+    assert!(!close(&albedo));
+    assert!(
+        warnings.iter().any(|w| w.contains("reads TEXCOORD_2")),
+        "{warnings:?}"
+    );
+
+    // through the bake, tessellated (new vertices sample the texture again through the
+    // second set), and on an unlit body
+    let dir = scratch("asset_second_uv_set");
+    let input = dir.join("second.glb");
+    let bytes = second_uv_set_critter(|i| i["texCoord"] = json!(1));
+    let mut glb = Glb::parse(&bytes);
+    let body = glb.json["meshes"][0]["primitives"][0]["material"]
+        .as_u64()
+        .unwrap() as usize;
+    glb.json["materials"][body]["extensions"] = json!({ "KHR_materials_unlit": {} });
+    glb.json["extensionsUsed"] = json!(["KHR_materials_unlit"]);
+    std::fs::write(
+        &input,
+        shellbake::output::write::glb_bytes(&glb.json, &glb.bin),
+    )
+    .unwrap();
+    let args = ["--only", "material=fur_*", "--tessellate"];
+    let (out, _) = bake(&input, &dir, "second-fur.glb", &args);
+    assert_valid(std::slice::from_ref(&out));
+    let doc = json_of(&out);
+    let layer_materials: Vec<&Value> = (doc["materials"].as_array().unwrap().iter())
+        .filter(|m| m["name"].as_str().is_some_and(|n| n.contains("layer_")))
+        .collect();
+    let unlit = |m: &&Value| m["extensions"]["KHR_materials_unlit"].is_object();
+    let body_layers = layer_materials
+        .iter()
+        .filter(|m| m["name"].as_str().unwrap().starts_with("critter_0_0"));
+    assert!(body_layers.clone().count() > 0 && body_layers.clone().all(unlit));
+    assert!(
+        layer_materials.iter().any(|m| !unlit(m)),
+        "the tail's material is lit, and so is its fur"
+    );
+}

@@ -25,8 +25,11 @@
 //! - **Colour** ([`Paint`]): the base colour of the part's material — `baseColorFactor` × the
 //!   `baseColorTexture` (PNG or JPEG, sRGB decoded to linear, bilinear with the sampler's wrap
 //!   modes and the texture's `KHR_texture_transform`) × `COLOR_0` — at each strand root, the
-//!   render vertex. A texture read through `TEXCOORD_1` or later, or an image that cannot be
-//!   decoded, falls back to the factor with a warning. A primitive without a material and
+//!   render vertex, through the coordinates the texture names (`texCoord`, which the
+//!   `KHR_texture_transform` on it may override, as three.js reads it; a set other than
+//!   `TEXCOORD_0` is carried as [`Mesh::texture_uvs`]). A set the primitive lacks, or an image
+//!   that cannot be decoded, falls back to the factor with a warning. A part whose material is
+//!   `KHR_materials_unlit` gets unlit fur ([`Paint::unlit`]). A primitive without a material and
 //!   without `COLOR_0` says nothing about colour: its fur keeps the preset's colours, as a plain
 //!   mesh's does.
 
@@ -36,7 +39,7 @@ use glam::{DMat4, Vec2, Vec3, Vec4};
 use serde_json::Value;
 
 use super::document::{Document, Kind, Primitive};
-use super::gltf::{is_triangles, morph_deltas, read_primitive};
+use super::gltf::{is_triangles, morph_deltas, read_primitive, read_uv_set};
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, Scene};
 use crate::stages::skin::Interpolation;
@@ -471,8 +474,24 @@ impl Asset {
                     ));
                     continue;
                 }
-                let (paint, paint_warning) = Paint::of(&doc, &buffers, prim, &element);
+                let (mut paint, paint_warning) = Paint::of(&doc, &buffers, prim, &element);
                 warnings.extend(paint_warning);
+                let set = paint
+                    .as_ref()
+                    .and_then(|p| p.texture.as_ref())
+                    .map(|t| t.set);
+                if let Some(set) = set.filter(|&s| s != 0) {
+                    let nv = mesh.vertex_count();
+                    mesh.texture_uvs = read_uv_set(&doc, &element, prim, &buffers, (set, nv))?;
+                    if mesh.texture_uvs.is_none() {
+                        paint.as_mut().expect("a paint with a texture").texture = None;
+                        warnings.push(format!(
+                            "{}: {element}: the base colour texture reads TEXCOORD_{set}, which \
+                             the primitive does not have; the fur takes the colour factor",
+                            path.display()
+                        ));
+                    }
+                }
                 if mesh.uvs.is_none() {
                     super::generate_box_uvs(&mut mesh);
                     warnings.push(format!(
@@ -628,6 +647,9 @@ pub struct Paint {
     pub vertex_colors: bool,
     /// The material's `alphaMode`.
     pub alpha: AlphaMode,
+    /// The material is `KHR_materials_unlit`: the fur grafted onto the part is unlit too, so it
+    /// keeps the flat colours the part is drawn in.
+    pub unlit: bool,
 }
 
 /// A material's `alphaMode`, and `alphaCutoff` for `MASK`.
@@ -675,6 +697,16 @@ pub struct ColorTexture {
     pub nearest: bool,
     /// `KHR_texture_transform`: `uv' = M · (u, v, 1)`.
     pub transform: glam::Affine2,
+    /// The texture coordinate set it reads ([`texture_set`]).
+    pub set: u32,
+}
+
+/// The texture coordinate set a `textureInfo` reads: its `KHR_texture_transform`'s `texCoord`
+/// where it has one (the extension overrides it), else its own `texCoord`, else 0.
+pub fn texture_set(info: &Value) -> u32 {
+    let over = &info["extensions"]["KHR_texture_transform"]["texCoord"];
+    let set = over.as_u64().or(info["texCoord"].as_u64()).unwrap_or(0);
+    set.min(u32::MAX as u64) as u32
 }
 
 /// A material's base colour: its factor and its `textureInfo` (JSON, either absent). A
@@ -707,6 +739,7 @@ impl Paint {
                     texture: None,
                     vertex_colors,
                     alpha: AlphaMode::Opaque,
+                    unlit: false,
                 }),
                 None,
             );
@@ -739,13 +772,15 @@ impl Paint {
             texture,
             vertex_colors,
             alpha: AlphaMode::of(material),
+            unlit: material["extensions"]["KHR_materials_unlit"].is_object(),
         };
         (Some(paint), warning)
     }
 
-    /// The fur's colour at each vertex of `mesh` (its `uvs` are the primitive's `TEXCOORD_0`,
-    /// its `colors` the primitive's `COLOR_0`): linear RGB, and in `w` how much of the surface
-    /// around the vertex the material draws ([`AlphaMode::coverage`]).
+    /// The fur's colour at each vertex of `mesh` (the texture read through its `texture_uvs`,
+    /// else its `uvs`: the coordinates the texture names; its `colors` are the primitive's
+    /// `COLOR_0`): linear RGB, and in `w` how much of the surface around the vertex the
+    /// material draws ([`AlphaMode::coverage`]).
     ///
     /// The texture is read inside the vertex's faces, not at the vertex itself: each face
     /// around it is sampled half a texel in from the corner, toward the face's UV centroid, and
@@ -758,7 +793,8 @@ impl Paint {
     pub fn albedo(&self, mesh: &Mesh) -> Vec<Vec4> {
         let n = mesh.vertex_count();
         let colors = mesh.colors.as_deref();
-        let (Some(t), Some(uvs)) = (&self.texture, mesh.uvs.as_deref()) else {
+        let uvs = mesh.texture_uvs.as_deref().or(mesh.uvs.as_deref());
+        let (Some(t), Some(uvs)) = (&self.texture, uvs) else {
             return (0..n)
                 .map(|v| self.colour_at(None, colors.map(|k| k[v])))
                 .collect();
@@ -852,9 +888,6 @@ impl ColorTexture {
         buffers: &[Vec<u8>],
         info: &Value,
     ) -> std::result::Result<ColorTexture, String> {
-        if info["texCoord"].as_u64().unwrap_or(0) != 0 {
-            return Err("reads TEXCOORD_1 or later (only TEXCOORD_0 is sampled)".into());
-        }
         let t = info["index"].as_u64().ok_or("has no index")? as usize;
         let texture = &doc.json["textures"][t];
         let source = texture["source"]
@@ -900,6 +933,7 @@ impl ColorTexture {
             wrap,
             nearest,
             transform: texture_transform(&info["extensions"]["KHR_texture_transform"]),
+            set: texture_set(info),
         })
     }
 
@@ -1110,6 +1144,7 @@ mod tests {
             wrap: [10497, 10497],
             nearest,
             transform: glam::Affine2::IDENTITY,
+            set: 0,
         }
     }
 
@@ -1143,6 +1178,7 @@ mod tests {
                 texture: Some(two_tone(nearest, false)),
                 vertex_colors: false,
                 alpha: AlphaMode::Opaque,
+                unlit: false,
             };
             let mesh = strip(4);
             let at_vertex = paint.colour_at(Some(Vec2::new(0.5, 0.0)), None);
@@ -1170,6 +1206,7 @@ mod tests {
                 texture: Some(two_tone(true, true)),
                 vertex_colors: false,
                 alpha,
+                unlit: false,
             };
             let albedo = paint.albedo(&mesh);
             for (v, c) in albedo.iter().enumerate() {
@@ -1193,6 +1230,7 @@ mod tests {
             texture: Some(two_tone(false, false)),
             vertex_colors: false,
             alpha: AlphaMode::Blend,
+            unlit: false,
         };
         for c in half.albedo(&mesh) {
             assert!(

@@ -281,10 +281,11 @@ impl PrimitiveData<'_> {
         Ok(normals.filter(|n| n.len() == nv))
     }
 
-    /// The texture coordinates `TEXCOORD_0` (none when missing or not one per each of `nv`
+    /// The texture coordinates `TEXCOORD_<set>` (none when missing or not one per each of `nv`
     /// vertices; non-finite ones are an error).
-    fn uvs(&self, nv: usize) -> Result<Option<Vec<Vec2>>> {
-        let uvs = self.attribute("TEXCOORD_0", Kind::Vec2)?.map(|t| {
+    fn uvs(&self, set: u32, nv: usize) -> Result<Option<Vec<Vec2>>> {
+        let name = format!("TEXCOORD_{set}");
+        let uvs = self.attribute(&name, Kind::Vec2)?.map(|t| {
             t.chunks_exact(2)
                 .map(|t| Vec2::new(t[0] as f32, t[1] as f32))
                 .collect::<Vec<_>>()
@@ -294,7 +295,7 @@ impl PrimitiveData<'_> {
             .as_ref()
             .is_some_and(|u| u.iter().any(|t| !t.is_finite()))
         {
-            return Err(self.err("non-finite TEXCOORD_0"));
+            return Err(self.err(format!("non-finite {name}")));
         }
         Ok(uvs)
     }
@@ -396,7 +397,7 @@ pub(super) fn read_primitive(
     let nv = world_pos.len();
     let mut indices = data.triangles(nv)?;
     let normals = data.normals(world, nv)?;
-    let uvs = data.uvs(nv)?;
+    let uvs = data.uvs(0, nv)?;
     let colors = data.colors(nv)?;
     let skin = data.skin(nv, joints)?;
     if DMat3::from_mat4(world).determinant() < 0.0 {
@@ -410,6 +411,7 @@ pub(super) fn read_primitive(
         positions: world_pos.iter().map(|p| (*p - origin).as_vec3()).collect(),
         normals: normals.filter(|n| n.iter().all(|v| v.is_finite())),
         uvs,
+        texture_uvs: None,
         colors,
         albedo: None,
         indices,
@@ -418,6 +420,24 @@ pub(super) fn read_primitive(
     };
     mesh.recentre();
     Ok(mesh)
+}
+
+/// The texture coordinates `TEXCOORD_<set>` of `prim`, one per each of its `nv` vertices (none
+/// when it has no such set, or not as many).
+pub(super) fn read_uv_set(
+    doc: &Document,
+    element: &str,
+    prim: &Primitive,
+    buffers: &[Vec<u8>],
+    (set, nv): (u32, usize),
+) -> Result<Option<Vec<Vec2>>> {
+    let data = PrimitiveData {
+        doc,
+        element,
+        prim,
+        buffers,
+    };
+    data.uvs(set, nv)
 }
 
 /// The `POSITION` deltas of each morph target of `prim` over its `nv` vertices, moved by the

@@ -223,6 +223,7 @@ fn object_mesh(path: &Path, k: usize, object: &Object) -> Result<(Mesh, usize)> 
         normals: object.normals.as_ref().map(|n| normals(n)),
         uvs: object.texcoords.as_ref().map(|t| uvs(t)),
         colors: object.colors.as_ref().map(|c| colors(c)),
+        texture_uvs: None,
         albedo: None,
         indices: triangulate(world, &object.corners, &object.arities, &mut fanned),
         skin: None,

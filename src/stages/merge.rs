@@ -70,15 +70,18 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
     let mut warnings = Vec::new();
     let mut follows = "the mesh's own".to_string();
     let mut boxed = false;
+    // a box projection replaces the UVs a texture on TEXCOORD_0 reads (new vertices then blend
+    // their corners' colour); one on another set reads `texture_uvs`, which stay
+    let reads_uvs = mesh.texture_uvs.is_none();
     if !has_uv_area(&mesh) {
-        paint = None;
+        paint = paint.filter(|_| !reads_uvs);
         warnings
             .push("texture coordinates have no area; generated a per-face box projection".into());
         generate_box_uvs(&mut mesh);
     } else if let Some(why) = fur_uv_box(&mesh, fur_uv) {
         follows = format!("a box projection: {why}");
         boxed = true;
-        paint = None;
+        paint = paint.filter(|_| !reads_uvs);
         generate_box_uvs(&mut mesh);
     }
     Merged {

@@ -215,6 +215,10 @@ impl<'a> Subdivision<'a> {
             let v: Vec2 = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
             out.push(v);
         }
+        if let (Some(out), Some(inn)) = (m.texture_uvs.as_mut(), src.texture_uvs.as_ref()) {
+            let v: Vec2 = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
+            out.push(v);
+        }
         if let (Some(out), Some(inn)) = (m.colors.as_mut(), src.colors.as_ref()) {
             let mix = |k: usize| {
                 let v = inn[at(c[0])][k] as f32 * w[0]
@@ -225,10 +229,9 @@ impl<'a> Subdivision<'a> {
             out.push([mix(0), mix(1), mix(2), mix(3)]);
         }
         if let (Some(out), Some(inn)) = (m.albedo.as_mut(), src.albedo.as_ref()) {
-            let uv = m.uvs.as_ref().and_then(|u| u.last().copied());
-            let inside = src
-                .uvs
-                .as_ref()
+            // the coordinates the texture reads ([`Paint::albedo`])
+            let uv = (m.texture_uvs.as_ref().or(m.uvs.as_ref())).and_then(|u| u.last().copied());
+            let inside = (src.texture_uvs.as_ref().or(src.uvs.as_ref()))
                 .map(|u| (u[at(c[0])] + u[at(c[1])] + u[at(c[2])]) / 3.0);
             // the new vertex's own uv and colour, pushed above; read inside its source triangle,
             // as merge reads the corners (a point on an island's edge takes the island's colour)
@@ -351,7 +354,8 @@ fn grid_triangles(n: u32, grid: &[u32], indices: &mut Vec<u32>) {
 }
 
 /// Subdivides `mesh` in place (see the module notes); returns what it did. New vertices sample
-/// their `albedo` from `paint` when given (its texture read at the mesh's `uvs`).
+/// their `albedo` from `paint` when given (its texture read at the mesh's `texture_uvs`, else
+/// its `uvs`).
 pub fn tessellate(
     mesh: &mut Mesh,
     params: &TessellationParams,

@@ -16,8 +16,8 @@
 //!   camera anchor; a node's `EXT_mesh_gpu_instancing` instances each draw its mesh. Node
 //!   `weights` override mesh `weights`. `MSFT_lod` is understood: level `k` of a node draws its
 //!   `k`-th alternative.
-//! - **Materials**: metallic-roughness factors, `baseColorTexture` on `TEXCOORD_0` with
-//!   `KHR_texture_transform`, `alphaMode` (`OPAQUE`, `MASK` + `alphaCutoff`, `BLEND`),
+//! - **Materials**: metallic-roughness factors, `baseColorTexture` on the coordinate set it
+//!   names (`texCoord`, or its `KHR_texture_transform`'s) with `KHR_texture_transform`, `alphaMode` (`OPAQUE`, `MASK` + `alphaCutoff`, `BLEND`),
 //!   `doubleSided`, `emissiveFactor`. Other textures (normal, occlusion, metallic-roughness maps)
 //!   are ignored: shellbake writes none.
 //! - **Images**: PNG from a buffer view or a URI the reader resolves; sampler filters (mipmapped
@@ -337,6 +337,10 @@ impl Asset {
         };
         let mut meshes = Vec::new();
         for (m, mesh) in doc.meshes.iter().enumerate() {
+            let texture_set = |material: Option<usize>| {
+                let material = material.map_or(&Value::Null, |m| &doc.json["materials"][m]);
+                crate::input::asset::texture_set(crate::input::asset::base_colour(material).1)
+            };
             let mut primitives = Vec::new();
             for (p, prim) in mesh.primitives.iter().enumerate() {
                 let element = || format!("mesh {m} primitive {p}");
@@ -372,7 +376,9 @@ impl Asset {
                 primitives.push(Primitive {
                     position,
                     normal: prim.attribute("NORMAL"),
-                    texcoord: prim.attribute("TEXCOORD_0"),
+                    // the set the base colour texture reads (`texCoord`, or its
+                    // `KHR_texture_transform`'s), as the bake's colour sampling reads it
+                    texcoord: prim.attribute(&format!("TEXCOORD_{}", texture_set(prim.material))),
                     color: prim.attribute("COLOR_0"),
                     skin: prim.attribute("JOINTS_0").zip(prim.attribute("WEIGHTS_0")),
                     indices: prim.indices,

@@ -274,6 +274,9 @@ pub struct PackInput<'a> {
     /// written, and a skinned surface writes no skeleton of its own (its layer nodes share the
     /// asset's skin, bound when the fur is grafted into the asset).
     pub base: bool,
+    /// Every material the surface writes is `KHR_materials_unlit`: the fur of an asset part
+    /// drawn unlit ([`crate::input::asset::Paint::unlit`]).
+    pub unlit: bool,
 }
 
 /// The surface's vertices with their quantization grids, in the input's order.
@@ -316,6 +319,8 @@ struct Geometry<'a> {
     morph_rest: &'a [f32],
     /// Their names ([`PackInput::morph_names`]).
     morph_names: &'a [String],
+    /// [`PackInput::unlit`].
+    unlit: bool,
 }
 
 impl Geometry<'_> {
@@ -1085,6 +1090,7 @@ fn geometry<'a>(
         morphs,
         morph_rest: input.morph_rest,
         morph_names: input.morph_names,
+        unlit: input.unlit,
     }
 }
 
@@ -2344,7 +2350,7 @@ fn bare_level(
         texture: None,
         roughness: ctx.roughness,
         sheen: None,
-        unlit: false,
+        unlit: ctx.geometry.unlit,
     });
     let name = format!("{}bare", ctx.prefix);
     b.single_primitive_mesh(name, attributes, ix, material)
@@ -2377,7 +2383,7 @@ fn compact_layer(
             .geometry
             .sheen
             .and_then(|s| crate::effects::sheen::Sheen::of(s, l.t)),
-        unlit: false,
+        unlit: ctx.geometry.unlit,
     });
     let primitive = Primitive {
         attributes: attributes.to_vec(),
@@ -2584,7 +2590,7 @@ fn single_draw_material(b: &mut Builder, ctx: &LevelCtx) -> usize {
             let mean = layers.iter().map(|l| l.t).sum::<f32>() / layers.len().max(1) as f32;
             crate::effects::sheen::Sheen::of(s, mean)
         }),
-        unlit: false,
+        unlit: ctx.geometry.unlit,
     })
 }
 
