@@ -620,6 +620,10 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     let pos_len = bin.len();
     bin.extend_from_slice(&indices);
     bin.resize(bin.len().next_multiple_of(4), 0);
+    // the stretched box's clip: it rises 6 units in a second
+    let clip_at = bin.len();
+    let clip: [f32; 8] = [0.0, 1.0, 0.0, 60.0, 0.0, 0.0, 66.0, 0.0];
+    bin.extend(clip.iter().flat_map(|v| v.to_le_bytes()));
     let lo: Vec<f32> = (0..3)
         .map(|k| {
             positions
@@ -641,7 +645,7 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     let doc = json!({
         "asset": { "version": "2.0" },
         "scene": 0,
-        "scenes": [{ "nodes": [0, 2, 3] }],
+        "scenes": [{ "nodes": [0, 2, 3, 4] }],
         "nodes": [
             { "name": "parent", "translation": [2.0, 0.5, -1.0], "children": [1] },
             { "name": "box", "mesh": 0, "rotation": [0.0, 0.38268343, 0.0, 0.92387953], "scale": [1.5, 1.5, 1.5] },
@@ -650,17 +654,26 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
             // quaternion 6e-8 from unit length
             { "name": "box_turned", "mesh": 0, "translation": [40.0, 0.0, 0.0],
               "rotation": [0.30151138, -0.50251895, 0.7035265, 0.40201515],
-              "scale": [1.3680453, 1.3680452, 1.3680453] }
+              "scale": [1.3680453, 1.3680452, 1.3680453] },
+            // a rotated box stretched along one axis, sliding: no TRS places its fur
+            { "name": "box_stretched", "mesh": 0, "translation": [0.0, 60.0, 0.0],
+              "rotation": [0.0, 0.0, 0.25881905, 0.96592583], "scale": [1.0, 3.0, 1.0] }
         ],
+        "animations": [{ "name": "slide",
+            "channels": [{ "sampler": 0, "target": { "node": 4, "path": "translation" } }],
+            "samplers": [{ "input": 2, "output": 3 }] }],
         "meshes": [{ "name": "box", "primitives": [{ "attributes": { "POSITION": 0 }, "indices": 1, "material": 0 }] }],
         "materials": [{ "name": "fur_box", "pbrMetallicRoughness": { "baseColorFactor": [0.2, 0.4, 0.8, 1.0] } }],
         "accessors": [
             { "bufferView": 0, "componentType": 5126, "count": positions.len() / 3, "type": "VEC3", "min": lo, "max": hi },
-            { "bufferView": 1, "componentType": 5123, "count": mesh.indices.len(), "type": "SCALAR" }
+            { "bufferView": 1, "componentType": 5123, "count": mesh.indices.len(), "type": "SCALAR" },
+            { "bufferView": 2, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0] },
+            { "bufferView": 2, "byteOffset": 8, "componentType": 5126, "count": 2, "type": "VEC3" }
         ],
         "bufferViews": [
             { "buffer": 0, "byteOffset": 0, "byteLength": pos_len },
-            { "buffer": 0, "byteOffset": pos_len, "byteLength": indices.len() }
+            { "buffer": 0, "byteOffset": pos_len, "byteLength": indices.len() },
+            { "buffer": 0, "byteOffset": clip_at, "byteLength": 32 }
         ],
         "buffers": [{ "byteLength": bin.len() }]
     });
@@ -681,12 +694,66 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
     // under it, with no warning (it used to be detached as a "non-uniform scale")
     let turned = after["nodes"][3]["children"][0].as_u64().unwrap() as usize;
     assert_eq!(after["nodes"][turned]["extras"]["shellbake_fur"]["node"], 3);
+    // the stretched box's fur hangs under it through a node between: that node and the root
+    // undo the box's turn and stretch, leaving the fur's grid axis-aligned and uniform
+    let trs = |n: &Value| {
+        let v = |k: &str, d: [f64; 4]| -> Vec<f64> {
+            (0..d.len())
+                .map(|i| n[k][i].as_f64().unwrap_or(d[i]))
+                .collect()
+        };
+        let (t, r, sc) = (
+            v("translation", [0.0; 4]),
+            v("rotation", [0.0, 0.0, 0.0, 1.0]),
+            v("scale", [1.0; 4]),
+        );
+        glam::DMat4::from_scale_rotation_translation(
+            glam::DVec3::new(sc[0], sc[1], sc[2]),
+            glam::DQuat::from_xyzw(r[0], r[1], r[2], r[3]),
+            glam::DVec3::new(t[0], t[1], t[2]),
+        )
+    };
+    let between = after["nodes"][4]["children"][0].as_u64().unwrap() as usize;
+    let stretched = after["nodes"][between]["children"][0].as_u64().unwrap() as usize;
+    assert_eq!(
+        after["nodes"][stretched]["extras"]["shellbake_fur"]["node"],
+        4
+    );
+    let placed = trs(&after["nodes"][4]) * trs(&after["nodes"][between]);
+    let placed = glam::DMat3::from_mat4(placed * trs(&after["nodes"][stretched]));
+    let step = placed.x_axis.length();
+    assert!(
+        (placed - glam::DMat3::from_diagonal(glam::DVec3::splat(step)))
+            .to_cols_array()
+            .iter()
+            .all(|e| e.abs() < 1e-6 * step),
+        "{placed:?}"
+    );
     let warnings = report["asset"]["warnings"].as_array().unwrap();
     assert!(
         !warnings
             .iter()
             .any(|w| w.as_str().unwrap().contains("scale")),
         "{warnings:?}"
+    );
+    // played half way, three.js finds the stretched box's fur around the box, not where it was
+    let mut at_half = job(
+        &glb,
+        &dir.join("half.png"),
+        [0.0, 63.0, 12.0],
+        [0.0, 63.0, 0.0],
+        false,
+    );
+    at_half["time"] = json!(0.5);
+    let spec = dir.join("half.json");
+    std::fs::write(&spec, serde_json::to_vec(&[at_half]).unwrap()).unwrap();
+    let half = node("three_render.mjs", &[spec]);
+    let (fur, bare) = (&half[0]["bounds"]["fur"], &half[0]["bounds"]["bare"]);
+    let y = |b: &Value| b["max"][1].as_f64().unwrap();
+    // over every box: the stretched one is the highest, and its fur reaches its top
+    assert!(
+        y(bare) > 64.0 && (y(fur) - y(bare)).abs() < 0.5,
+        "fur {fur}, bare {bare}"
     );
     let eye = [4.5, 3.0, 3.0];
     let target = [2.0, 0.5, -1.0];

@@ -19,8 +19,10 @@
 //!   shifted by the input's count of that kind. A rigid part's fur root hangs under the part's
 //!   node, its transform `W⁻¹ · D` (`W` the node's world matrix, `D` the dequantization), so the
 //!   node's animation moves the fur with it and the fur renders where it was baked. When
-//!   `W⁻¹ · D` is not a translation-rotation-scale (a non-uniform scale under a rotation), the
-//!   root stays a scene root with `D` and a warning says the fur will not follow the node. A
+//!   `W⁻¹ · D` is not a translation-rotation-scale (a non-uniform scale under a rotation), it is
+//!   split in two by its singular value decomposition: a node between the part's node and the
+//!   root takes `T · U · Σ`, the root the rotation `Vᵀ`. Only a singular `W` (a scale of 0 at
+//!   rest) leaves the root a scene root with `D`, and a warning says the fur will not follow. A
 //!   skinned part's layer nodes are scene roots bound to the part's own skin (the same joints,
 //!   the same inverse bind matrices: their positions are stored unquantized in the
 //!   primitive's bind space), so the asset's clips animate the fur and every client computes
@@ -41,8 +43,8 @@
 //! - **Extensions**: `extensionsUsed` and `extensionsRequired` are the union of both files'
 //!   (less meshopt's, as above), in first-seen order.
 
-use glam::{DMat4, DQuat, DVec3};
-use serde_json::{json, Value};
+use glam::{DMat3, DMat4, DQuat, DVec3};
+use serde_json::{json, Map, Value};
 
 use crate::error::Result;
 use crate::input::asset::Asset;
@@ -353,8 +355,11 @@ impl Placing<'_> {
     }
 
     /// Makes the root of surface `s` a child of part `p`'s node, its transform the
-    /// dequantization relative to the node; a transform that is no TRS leaves the root in the
-    /// scene where it was baked, with the warning returned.
+    /// dequantization relative to the node. Where that is no TRS (a rotation and an uneven
+    /// scale meet: a rotated box stretched along one axis), it is split in two ([`two_trs_of`]):
+    /// a node between the part's node and the root takes the translation, a rotation and the
+    /// scale, and the root a rotation. A node whose transform cannot be undone (a scale of 0)
+    /// leaves the root in the scene where it was baked, with the warning returned.
     fn attach_rigid(&self, out: &mut Value, s: usize, p: usize) -> Option<String> {
         let part = &self.asset.parts[p];
         let surface = &self.packed.surfaces[s];
@@ -365,27 +370,46 @@ impl Placing<'_> {
             surface.translation,
         );
         let local = part.world.inverse() * dequantize;
-        let Some((t, r, sc)) = trs_of(local) else {
+        let trs = |(t, r, sc): (DVec3, DQuat, DVec3), node: &mut Map<String, Value>| {
+            node.insert("translation".into(), json!([t.x, t.y, t.z]));
+            if r != DQuat::IDENTITY {
+                node.insert("rotation".into(), json!([r.x, r.y, r.z, r.w]));
+            }
+            node.insert("scale".into(), json!([sc.x, sc.y, sc.z]));
+        };
+        let child = if let Some(placed) = trs_of(local) {
+            trs(placed, out["nodes"][root].as_object_mut().expect("a node"));
+            root
+        } else if let Some((outer, inner)) = two_trs_of(local) {
+            let node = out["nodes"][root].as_object_mut().expect("a node");
+            node.remove("translation");
+            node.remove("scale");
+            node.insert(
+                "rotation".into(),
+                json!([inner.x, inner.y, inner.z, inner.w]),
+            );
+            let name = format!("{} placement", node["name"].as_str().unwrap_or("shellbake"));
+            let mut between = Map::new();
+            between.insert("name".into(), json!(name));
+            trs(outer, &mut between);
+            between.insert("children".into(), json!([root]));
+            push_one(out, "nodes", Value::Object(between))
+        } else {
             add_to_scene(out, self.scene, std::iter::once(root));
             return Some(format!(
-                "node '{}' has a non-uniform scale under a rotation: its fur is a scene root \
-                 placed where it was baked and does not follow the node's animation",
+                "node '{}' has a transform that cannot be undone (a scale of 0) at rest: its fur \
+                 is a scene root placed where it was baked and does not follow the node's \
+                 animation",
                 crate::input::escape(&part.names.node)
             ));
         };
-        let node = out["nodes"][root].as_object_mut().expect("a node");
-        node.insert("translation".into(), json!([t.x, t.y, t.z]));
-        if r != DQuat::IDENTITY {
-            node.insert("rotation".into(), json!([r.x, r.y, r.z, r.w]));
-        }
-        node.insert("scale".into(), json!([sc.x, sc.y, sc.z]));
         let parent = out["nodes"][part.node].as_object_mut().expect("a node");
         let children = parent
             .entry("children")
             .or_insert_with(|| json!([]))
             .as_array_mut()
             .expect("children");
-        children.push(json!(root));
+        children.push(json!(child));
         None
     }
 }
@@ -828,10 +852,10 @@ fn add_to_scene(out: &mut Value, scene: usize, nodes: impl Iterator<Item = usize
 /// translation-rotation-scale its fur root is given. A file's node transforms are `f32`: an
 /// exporter that writes a uniform scale as three separately rounded values (Blender: one ulp
 /// apart) or a quaternion a few ulps from unit length makes a rotated, uniformly scaled node
-/// shear by about 1e-7, which is no reason to detach its fur. A real non-uniform scale under a
-/// rotation shears by the scales' relative difference, so one of 1e-5 or more is still refused.
-/// The root's TRS moves the fur by at most this fraction of the node's size: a sixtieth of a
-/// 14-bit position step.
+/// shear by about 1e-7, which is no reason for a second node. A real non-uniform scale under a
+/// rotation shears by the scales' relative difference, so one of 1e-5 or more takes the two
+/// nodes of [`two_trs_of`]. The root's transform moves the fur by at most this fraction of the
+/// node's size: a sixtieth of a 14-bit position step.
 const TRS_TOLERANCE: f64 = 1e-6;
 
 /// `m` as translation, rotation and scale, when it is one (to within [`TRS_TOLERANCE`] of its
@@ -850,6 +874,88 @@ fn trs_of(m: DMat4) -> Option<(DVec3, DQuat, DVec3)> {
         .fold(0.0f64, |a, v| a.max(v.abs()));
     (err <= TRS_TOLERANCE * size && s.is_finite() && r.is_finite() && t.is_finite())
         .then_some((t, r, s))
+}
+
+/// `m` (an affine map) as a TRS times a rotation, `m = TRS(t, U, Σ) · R(Vᵀ)`, from the singular
+/// value decomposition of its linear part `U Σ Vᵀ` (`U` and `V` rotations; a mirroring `m` takes
+/// a negative scale): what any invertible affine map is, shear included, so a fur root under a
+/// node of any transform has one. `None` when the map is singular, or the decomposition does
+/// not give `m` back to within [`TRS_TOLERANCE`] of its size.
+fn two_trs_of(m: DMat4) -> Option<((DVec3, DQuat, DVec3), DQuat)> {
+    let linear = DMat3::from_mat4(m);
+    let (eigenvalues, mut v) = symmetric_eigen(linear.transpose() * linear);
+    if v.determinant() < 0.0 {
+        v.z_axis = -v.z_axis;
+    }
+    let sigma = eigenvalues.max(DVec3::ZERO).to_array().map(f64::sqrt);
+    let largest = sigma.iter().fold(0.0f64, |a, &b| a.max(b));
+    if !(largest.is_finite() && sigma.iter().all(|&s| s > largest * 1e-9)) {
+        return None;
+    }
+    let mut u = DMat3::from_cols(
+        linear * v.x_axis / sigma[0],
+        linear * v.y_axis / sigma[1],
+        linear * v.z_axis / sigma[2],
+    );
+    let mut scale = DVec3::from_array(sigma);
+    if u.determinant() < 0.0 {
+        u.z_axis = -u.z_axis;
+        scale.z = -scale.z;
+    }
+    let (outer, inner) = (DQuat::from_mat3(&u), DQuat::from_mat3(&v.transpose()));
+    let t = m.w_axis.truncate();
+    let back = DMat4::from_scale_rotation_translation(scale, outer, t) * DMat4::from_quat(inner);
+    let size = m.to_cols_array().iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    let err = (back - m)
+        .to_cols_array()
+        .iter()
+        .fold(0.0f64, |a, v| a.max(v.abs()));
+    (err <= TRS_TOLERANCE * size && outer.is_finite() && inner.is_finite())
+        .then_some(((t, outer, scale), inner))
+}
+
+/// The eigenvalues of the symmetric `a` and their unit eigenvectors (the columns), by cyclic
+/// Jacobi rotations (each zeroes one off-diagonal pair; a 3 × 3 matrix converges in a few
+/// sweeps to `f64` precision).
+fn symmetric_eigen(a: DMat3) -> (DVec3, DMat3) {
+    // row-major copies: a[r][c]
+    let mut a = a.transpose().to_cols_array_2d();
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _ in 0..64 {
+        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
+        let diagonal = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
+        if off <= diagonal * 1e-17 || off == 0.0 {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if a[p][q] == 0.0 {
+                continue;
+            }
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let c = 1.0 / (t * t + 1.0).sqrt();
+            let s = t * c;
+            // a ← Jᵀ a J and v ← v J, J the rotation in the (p, q) plane
+            for row in &mut a {
+                let (x, y) = (row[p], row[q]);
+                row[p] = c * x - s * y;
+                row[q] = s * x + c * y;
+            }
+            for k in 0..3 {
+                let (x, y) = (a[p][k], a[q][k]);
+                a[p][k] = c * x - s * y;
+                a[q][k] = s * x + c * y;
+            }
+            for row in &mut v {
+                let (x, y) = (row[p], row[q]);
+                row[p] = c * x - s * y;
+                row[q] = s * x + c * y;
+            }
+        }
+    }
+    let values = DVec3::new(a[0][0], a[1][1], a[2][2]);
+    // v is row-major: its columns are the eigenvectors
+    (values, DMat3::from_cols_array_2d(&v).transpose())
 }
 
 /// The union of both files' extension lists, the input's first.
@@ -890,6 +996,39 @@ mod tests {
             * DMat4::from_scale(DVec3::new(1.0, 1.00001, 1.0))
             * DMat4::from_rotation_x(0.8);
         assert!(trs_of(slight).is_none());
+    }
+
+    #[test]
+    fn any_invertible_affine_map_is_a_trs_times_a_rotation() {
+        let maps = [
+            // a rotated box stretched along one axis, placed by its dequantization
+            DMat4::from_scale(DVec3::new(1.0, 1.0 / 3.0, 1.0))
+                * DMat4::from_rotation_z(-0.52)
+                * DMat4::from_scale_rotation_translation(
+                    DVec3::splat(0.002),
+                    DQuat::IDENTITY,
+                    DVec3::new(1.5, -0.2, 0.3),
+                ),
+            // a shear, mirrored
+            DMat4::from_cols_array(&[
+                1.0, 0.4, 0.0, 0.0, 0.0, -2.0, 0.3, 0.0, 0.2, 0.0, 0.5, 0.0, 4.0, 5.0, 6.0, 1.0,
+            ]),
+            // a plain TRS, and equal scales (repeated singular values)
+            DMat4::from_scale_rotation_translation(
+                DVec3::splat(7.0),
+                DQuat::from_rotation_y(1.1),
+                DVec3::new(-1.0, 2.0, 0.0),
+            ),
+        ];
+        for m in maps {
+            let ((t, outer, scale), inner) = two_trs_of(m).expect("invertible");
+            let back =
+                DMat4::from_scale_rotation_translation(scale, outer, t) * DMat4::from_quat(inner);
+            let err = (back - m).to_cols_array();
+            assert!(err.iter().all(|e| e.abs() < 1e-12), "{m:?}: {err:?}");
+            assert!(outer.is_normalized() && inner.is_normalized());
+        }
+        assert!(two_trs_of(DMat4::from_scale(DVec3::new(1.0, 0.0, 1.0))).is_none());
     }
 
     #[test]
