@@ -256,8 +256,10 @@ pub fn asset_scene_of(
         if part.skin.is_some() && graft {
             s.params.pack.quantize = pack::Quantize::None;
         }
+        // the part's own warnings (its UVs, its texture) with its surface
         let mut geometry = part.scene.clone();
-        geometry.warnings.clear();
+        let (paint, paint_warning) = asset.paint(i);
+        geometry.warnings.extend(paint_warning);
         // the fur follows the shape keys only in the asset that has them
         let (shape_rest, shape_names, shape_key_clips) = match (&part.shape_keys, graft) {
             (Some(keys), true) => (keys.rest.clone(), keys.names.clone(), keys.clips()),
@@ -273,7 +275,7 @@ pub fn asset_scene_of(
             maps,
             ms: start.elapsed().as_secs_f64() * 1e3,
             part: Some(PartOf {
-                paint: part.paint.clone(),
+                paint,
                 graft,
                 shape_rest,
                 shape_names,
@@ -537,6 +539,7 @@ fn load_parts(path: &Path, only: &[input::asset::Selector]) -> Result<Scene> {
         // a scene surface is no asset kept whole: no shape keys to follow
         let what = format!("node '{}'", input::escape(&part.names.node));
         scene.warnings.extend(more_influences(&asset, i, what));
+        scene.warnings.extend(part.scene.warnings.iter().cloned());
         scene.meshes.extend(part.scene.meshes.iter().map(|m| Mesh {
             morphs: vec![],
             ..m.clone()

@@ -1032,7 +1032,8 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     .unwrap();
     let part = &asset.parts[0];
     let mesh = &part.scene.meshes[0];
-    let paint = part.paint.as_ref().unwrap();
+    let (paint, _) = asset.paint(0);
+    let paint = paint.as_ref().unwrap();
     let texture = paint.texture.as_ref().unwrap();
     let start = std::time::Instant::now();
     let albedo = paint.albedo(mesh);
@@ -1267,11 +1268,15 @@ fn material_extensions_the_fur_does_not_need_pass_through_and_draco_says_what_to
     assert_kept(&doc, &after);
     assert_eq!(after["extensionsRequired"][0], "KHR_texture_basisu");
     assert_eq!(after["textures"][0], doc["textures"][0]);
-    let warnings = report["asset"]["warnings"].to_string();
+    // with the part it colours
+    let warnings = report["surfaces"][0]["warnings"].to_string();
     assert!(
         warnings.contains("base colour texture") && warnings.contains("colour factor"),
         "{warnings}"
     );
+    // and only then: a bake of the eyes reads no body texture and says nothing of it
+    let (_, eyes) = bake(&input, &dir, "basis-eyes.glb", &["--only", "material=eye"]);
+    assert!(!eyes.to_string().contains("base colour texture"), "{eyes}");
 
     doc["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
     std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &glb.bin)).unwrap();
@@ -2279,8 +2284,10 @@ fn the_fur_reads_the_texture_through_the_uv_set_it_names_and_is_unlit_on_an_unli
     let body_albedo = |bytes: &[u8]| {
         let asset = Asset::from_bytes(Path::new("critter.glb"), bytes).unwrap();
         let part = &asset.parts[0];
-        let paint = part.paint.as_ref().unwrap();
-        (paint.albedo(&part.scene.meshes[0]), asset.warnings.clone())
+        let (paint, warning) = asset.paint(0);
+        let mut warnings = part.scene.warnings.clone();
+        warnings.extend(warning);
+        (paint.unwrap().albedo(&part.scene.meshes[0]), warnings)
     };
     let (want, _) = body_albedo(&critter_glb(Critters::default()));
     let close = |a: &[glam::Vec4]| a.iter().zip(&want).all(|(a, b)| a.abs_diff_eq(*b, 1e-6));

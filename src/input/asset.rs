@@ -474,18 +474,16 @@ impl Asset {
                     ));
                     continue;
                 }
-                let (mut paint, paint_warning) = Paint::of(&doc, &buffers, prim, &element);
-                warnings.extend(paint_warning);
-                let set = paint
-                    .as_ref()
-                    .and_then(|p| p.texture.as_ref())
-                    .map(|t| t.set);
+                // what only matters if the part is furred goes with the part
+                let mut notes = Vec::new();
+                let mut paint = Paint::of(&doc, prim, &element);
+                let set = paint.as_ref().and_then(Paint::texture_set);
                 if let Some(set) = set.filter(|&s| s != 0) {
                     let nv = mesh.vertex_count();
                     mesh.texture_uvs = read_uv_set(&doc, &element, prim, &buffers, (set, nv))?;
                     if mesh.texture_uvs.is_none() {
-                        paint.as_mut().expect("a paint with a texture").texture = None;
-                        warnings.push(format!(
+                        paint.as_mut().expect("a paint with a texture").pending = None;
+                        notes.push(format!(
                             "{}: {element}: the base colour texture reads TEXCOORD_{set}, which \
                              the primitive does not have; the fur takes the colour factor",
                             path.display()
@@ -494,12 +492,13 @@ impl Asset {
                 }
                 if mesh.uvs.is_none() {
                     super::generate_box_uvs(&mut mesh);
-                    warnings.push(format!(
+                    notes.push(format!(
                         "{}: {element} has no UVs; generated a per-face box projection",
                         path.display()
                     ));
                 }
                 scene.meshes.push(mesh);
+                scene.warnings = notes;
                 parts.push(Part {
                     node: placed.node,
                     mesh: m,
@@ -524,6 +523,30 @@ impl Asset {
             parts,
             warnings,
         })
+    }
+
+    /// Part `i`'s paint with its texture decoded, and a warning when the texture cannot be
+    /// read (the fur then takes the colour factor).
+    pub fn paint(&self, i: usize) -> (Option<Paint>, Option<String>) {
+        let Some(mut paint) = self.parts[i].paint.clone() else {
+            return (None, None);
+        };
+        let Some((info, element)) = paint.pending.take() else {
+            return (Some(paint), None);
+        };
+        match ColorTexture::read(&self.doc, &self.buffers, &info) {
+            Ok(t) => {
+                paint.texture = Some(t);
+                (Some(paint), None)
+            }
+            Err(why) => {
+                let warning = format!(
+                    "{}: {element} base colour texture {why}; the fur takes the colour factor",
+                    self.doc.path.display()
+                );
+                (Some(paint), Some(warning))
+            }
+        }
     }
 
     /// The parts to fur: those `only` selects (every part without selectors), less those furred
@@ -650,6 +673,9 @@ pub struct Paint {
     /// The material is `KHR_materials_unlit`: the fur grafted onto the part is unlit too, so it
     /// keeps the flat colours the part is drawn in.
     pub unlit: bool,
+    /// The base-colour `textureInfo` and the element it belongs to, not decoded yet: reading
+    /// an asset decodes no image, [`Asset::paint`] decodes those of the parts the bake furs.
+    pending: Option<(Value, String)>,
 }
 
 /// A material's `alphaMode`, and `alphaCutoff` for `MASK`.
@@ -688,8 +714,9 @@ impl AlphaMode {
 pub struct ColorTexture {
     pub width: u32,
     pub height: u32,
-    /// Linear RGB and alpha per texel, row by row.
-    pub texels: Vec<Vec4>,
+    /// The image's RGBA bytes (sRGB colour, linear alpha), row by row: a quarter of the
+    /// memory of decoded floats, which an 8k texture made 1 GB; decoded per sample.
+    pub texels: Vec<u8>,
     /// glTF wrap modes (10497 repeat, 33071 clamp, 33648 mirrored repeat) in u and v.
     pub wrap: [u64; 2],
     /// The sampler's `magFilter` is `NEAREST` (palette and pixel-art textures): texels are read
@@ -723,26 +750,19 @@ pub fn base_colour(material: &Value) -> (&Value, &Value) {
 }
 
 impl Paint {
-    /// The paint of primitive `prim` (with a warning when part of it cannot be used), `None`
+    /// The paint of primitive `prim`, its texture not decoded yet ([`Asset::paint`]), `None`
     /// when the primitive has neither a material nor vertex colours.
-    fn of(
-        doc: &Document,
-        buffers: &[Vec<u8>],
-        prim: &super::document::Primitive,
-        element: &str,
-    ) -> (Option<Paint>, Option<String>) {
+    fn of(doc: &Document, prim: &super::document::Primitive, element: &str) -> Option<Paint> {
         let vertex_colors = prim.attribute("COLOR_0").is_some();
         let Some(m) = prim.material else {
-            return (
-                vertex_colors.then_some(Paint {
-                    factor: [1.0; 4],
-                    texture: None,
-                    vertex_colors,
-                    alpha: AlphaMode::Opaque,
-                    unlit: false,
-                }),
-                None,
-            );
+            return vertex_colors.then_some(Paint {
+                factor: [1.0; 4],
+                texture: None,
+                vertex_colors,
+                alpha: AlphaMode::Opaque,
+                unlit: false,
+                pending: None,
+            });
         };
         let material = &doc.json["materials"][m];
         let (factor_of, info) = base_colour(material);
@@ -752,29 +772,22 @@ impl Paint {
                 factor[k] = v.as_f64().unwrap_or(1.0).clamp(0.0, 1.0) as f32;
             }
         }
-        let (texture, warning) = if info.is_object() {
-            match ColorTexture::read(doc, buffers, info) {
-                Ok(t) => (Some(t), None),
-                Err(why) => (
-                    None,
-                    Some(format!(
-                        "{}: {element}: material {m}'s base colour texture {why}; the fur takes the \
-                         colour factor",
-                        doc.path.display()
-                    )),
-                ),
-            }
-        } else {
-            (None, None)
-        };
-        let paint = Paint {
+        Some(Paint {
             factor,
-            texture,
+            texture: None,
             vertex_colors,
             alpha: AlphaMode::of(material),
             unlit: material["extensions"]["KHR_materials_unlit"].is_object(),
-        };
-        (Some(paint), warning)
+            pending: info
+                .is_object()
+                .then(|| (info.clone(), format!("{element}: material {m}'s"))),
+        })
+    }
+
+    /// The texture coordinate set its texture reads, when it has one ([`texture_set`]).
+    pub fn texture_set(&self) -> Option<u32> {
+        let pending = self.pending.as_ref().map(|(info, _)| texture_set(info));
+        pending.or(self.texture.as_ref().map(|t| t.set))
     }
 
     /// The fur's colour at each vertex of `mesh` (the texture read through its `texture_uvs`,
@@ -906,21 +919,9 @@ impl ColorTexture {
         } else {
             return Err("has no data".into());
         };
-        let decoded = image::load_from_memory(&bytes)
-            .map_err(|e| format!("cannot be decoded ({e})"))?
-            .to_rgba8();
+        let decoded = decode_image(&bytes).map_err(|e| format!("cannot be decoded ({e})"))?;
         let (width, height) = decoded.dimensions();
-        let texels = decoded
-            .pixels()
-            .map(|p| {
-                Vec4::new(
-                    crate::srgb::decode8(p[0]) as f32,
-                    crate::srgb::decode8(p[1]) as f32,
-                    crate::srgb::decode8(p[2]) as f32,
-                    p[3] as f32 / 255.0,
-                )
-            })
-            .collect();
+        let texels = decoded.into_raw();
         let sampler = texture["sampler"]
             .as_u64()
             .map(|s| &doc.json["samplers"][s as usize]);
@@ -959,7 +960,14 @@ impl ColorTexture {
         let at = |i: i64, j: i64| {
             let i = wrap(i, w, self.wrap[0]);
             let j = wrap(j, h, self.wrap[1]);
-            self.texels[(j * w + i) as usize]
+            let at = 4 * (j * w + i) as usize;
+            let p = &self.texels[at..at + 4];
+            Vec4::new(
+                crate::srgb::decode8(p[0]) as f32,
+                crate::srgb::decode8(p[1]) as f32,
+                crate::srgb::decode8(p[2]) as f32,
+                p[3] as f32 / 255.0,
+            )
         };
         let (x, y) = (uv.x as f64 * w as f64, uv.y as f64 * h as f64);
         if self.nearest {
@@ -973,6 +981,21 @@ impl ColorTexture {
         let bottom = at(i, j + 1).lerp(at(i + 1, j + 1), fx);
         top.lerp(bottom, fy)
     }
+}
+
+/// The largest side of a base-colour image the bake decodes: 16384, what GPUs draw.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+/// `bytes` (PNG or JPEG) decoded to RGBA bytes, up to [`MAX_IMAGE_SIDE`] a side (the image
+/// crate's default limit, 512 MB, refused a 12k texture).
+fn decode_image(bytes: &[u8]) -> image::ImageResult<image::RgbaImage> {
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE);
+    limits.max_alloc = Some(3 * 4 * (MAX_IMAGE_SIDE as u64).pow(2));
+    reader.limits(limits);
+    Ok(reader.decode()?.into_rgba8())
 }
 
 /// Texel `i` of `n` under a glTF wrap mode.
@@ -1134,8 +1157,11 @@ mod tests {
                 } else {
                     Vec3::new(1.0, 1.0, 0.0)
                 };
-                c.extend(if cut && i >= 2 { 0.0 } else { 1.0 })
+                let alpha = if cut && i >= 2 { 0 } else { 255 };
+                let [r, g, b] = (c * 255.0).to_array().map(|v| v as u8);
+                [r, g, b, alpha]
             })
+            .flatten()
             .collect();
         ColorTexture {
             width: 4,
@@ -1179,6 +1205,7 @@ mod tests {
                 vertex_colors: false,
                 alpha: AlphaMode::Opaque,
                 unlit: false,
+                pending: None,
             };
             let mesh = strip(4);
             let at_vertex = paint.colour_at(Some(Vec2::new(0.5, 0.0)), None);
@@ -1207,6 +1234,7 @@ mod tests {
                 vertex_colors: false,
                 alpha,
                 unlit: false,
+                pending: None,
             };
             let albedo = paint.albedo(&mesh);
             for (v, c) in albedo.iter().enumerate() {
@@ -1231,6 +1259,7 @@ mod tests {
             vertex_colors: false,
             alpha: AlphaMode::Blend,
             unlit: false,
+            pending: None,
         };
         for c in half.albedo(&mesh) {
             assert!(
