@@ -313,7 +313,7 @@ impl Report {
         }
         s += &self.lod_line();
         s += &format!(
-            "  {} bytes, {:.2} bytes per base vertex (",
+            "  {} bytes for this surface, {:.2} bytes per base vertex (",
             self.total_bytes, self.bytes_per_base_vertex
         );
         s += &self
@@ -529,7 +529,12 @@ impl SceneReport {
             .as_ref()
             .map_or(String::new(), AssetReport::lines);
         if let [one] = self.surfaces.as_slice() {
-            return format!("{} -> {}\n", self.input, self.output)
+            // an asset's file holds more than its one surface's bytes
+            let file = match &self.asset {
+                Some(_) => format!(": {} bytes", self.total_bytes),
+                None => String::new(),
+            };
+            return format!("{} -> {}{file}\n", self.input, self.output)
                 + &asset
                 + &one.section()
                 + &self.plan_line();

@@ -1261,6 +1261,12 @@ fn material_extensions_the_fur_does_not_need_pass_through_and_draco_says_what_to
     doc["textures"][0] =
         json!({ "sampler": 0, "extensions": { "KHR_texture_basisu": { "source": 0 } } });
     doc["extensions"] = json!({ "KHR_materials_variants": { "variants": [{ "name": "winter" }] } });
+    // the body switches to its tail's material in winter, and glows
+    let body = &mut doc["meshes"][0]["primitives"][0];
+    body["extensions"] =
+        json!({ "KHR_materials_variants": { "mappings": [{ "material": 1, "variants": [0] }] } });
+    let m = body["material"].as_u64().unwrap() as usize;
+    doc["materials"][m]["emissiveFactor"] = json!([0.2, 0.0, 0.0]);
     let input = dir.join("basis.glb");
     std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &glb.bin)).unwrap();
     let (out, report) = bake(&input, &dir, "basis-fur.glb", &["--only", "material=fur_*"]);
@@ -1272,6 +1278,11 @@ fn material_extensions_the_fur_does_not_need_pass_through_and_draco_says_what_to
     let warnings = report["surfaces"][0]["warnings"].to_string();
     assert!(
         warnings.contains("base colour texture") && warnings.contains("colour factor"),
+        "{warnings}"
+    );
+    // what the fur does not carry of the body's material is said
+    assert!(
+        warnings.contains("is emissive") && warnings.contains("its fur keeps the colours"),
         "{warnings}"
     );
     // and only then: a bake of the eyes reads no body texture and says nothing of it
@@ -2023,6 +2034,23 @@ fn fur_grows_only_where_an_alpha_cut_out_surface_is_drawn() {
             outer_layer_density(&Glb::parse(&std::fs::read(&glb).unwrap())),
         ));
     }
+    // a card its material hides everywhere (the factor's alpha under the cutoff) says so
+    let hidden = Glb::parse(&cut_out_plane("MASK"));
+    let mut doc = hidden.json.clone();
+    doc["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] = json!([1.0, 1.0, 1.0, 0.3]);
+    let input = dir.join("hidden.glb");
+    std::fs::write(
+        &input,
+        shellbake::output::write::glb_bytes(&doc, &hidden.bin),
+    )
+    .unwrap();
+    let (_, report) = bake(&input, &dir, "hidden_fur.glb", &["--no-lod"]);
+    let warnings = report["surfaces"][0]["warnings"].to_string();
+    assert!(
+        warnings.contains("draws none of this surface"),
+        "{warnings}"
+    );
+
     let xs = density[0].1.iter().map(|v| v.0);
     let (lo, hi) = xs.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
     let column = (hi - lo) / 8.0;

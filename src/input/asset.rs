@@ -421,7 +421,14 @@ impl Asset {
             }
             let node_instances = instances(&doc, &buffers, placed.node)?;
             for (k, prim) in doc.meshes[m].primitives.iter().enumerate() {
-                let element = format!("node {} mesh {m} primitive {k}", placed.node);
+                let element = match &doc.nodes[placed.node].name {
+                    Some(name) => format!(
+                        "node {} '{}' mesh {m} primitive {k}",
+                        placed.node,
+                        super::escape(name)
+                    ),
+                    None => format!("node {} mesh {m} primitive {k}", placed.node),
+                };
                 if !is_triangles(prim.mode) {
                     warnings.push(format!(
                         "{}: {element}: mode {} is kept and not furred",
@@ -477,6 +484,8 @@ impl Asset {
                 // what only matters if the part is furred goes with the part
                 let mut notes = Vec::new();
                 let mut paint = Paint::of(&doc, prim, &element);
+                let said = material_notes(&doc, (m, k), &element).into_iter();
+                notes.extend(said.map(|n| format!("{}: {n}", path.display())));
                 let set = paint.as_ref().and_then(Paint::texture_set);
                 if let Some(set) = set.filter(|&s| s != 0) {
                     let nv = mesh.vertex_count();
@@ -1012,6 +1021,31 @@ fn wrap(i: i64, n: i64, mode: u64) -> i64 {
         }
         _ => i.rem_euclid(n),
     }
+}
+
+/// What the fur of primitive `k` of mesh `m` does not carry of its material, for warnings: a
+/// glow (fur over an emissive surface does not glow, and covers it) and material variants (the
+/// fur keeps the default material's colours when a viewer switches the part to another).
+fn material_notes(doc: &Document, (m, k): (usize, usize), element: &str) -> Vec<String> {
+    let prim = &doc.json["meshes"][m]["primitives"][k];
+    let mut notes = Vec::new();
+    if let Some(i) = prim["material"].as_u64() {
+        let material = &doc.json["materials"][i as usize];
+        let factor = material["emissiveFactor"].as_array().into_iter().flatten();
+        let glows = factor.filter_map(Value::as_f64).any(|v| v > 0.0);
+        if glows || material["emissiveTexture"].is_object() {
+            notes.push(format!(
+                "{element}: material {i} is emissive; the fur over it does not glow and covers it"
+            ));
+        }
+    }
+    if prim["extensions"]["KHR_materials_variants"].is_object() {
+        notes.push(format!(
+            "{element}: switches materials with KHR_materials_variants; its fur keeps the \
+             colours of the default material"
+        ));
+    }
+    notes
 }
 
 /// A warning naming the nodes with a mesh that the default scene does not reach (another

@@ -68,6 +68,13 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
         _ => None,
     };
     let mut warnings = Vec::new();
+    if (mesh.albedo.as_ref()).is_some_and(|a| !a.is_empty() && a.iter().all(|c| c.w == 0.0)) {
+        warnings.push(
+            "the material draws none of this surface (its alpha is under the cutoff, or 0, \
+             everywhere): it grows no fur"
+                .into(),
+        );
+    }
     let mut follows = "the mesh's own".to_string();
     let mut boxed = false;
     // a box projection replaces the UVs a texture on TEXCOORD_0 reads (new vertices then blend
