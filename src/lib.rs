@@ -865,7 +865,13 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
     let morphs = job.part.map_or((&[][..], &[][..]), |p| {
         (&p.shape_rest[..], &p.shape_names[..])
     });
-    let placing = (surface, scene, (grafted, unlit), morphs);
+    let placing = Placing {
+        surface,
+        scene,
+        grafted,
+        unlit,
+        morphs,
+    };
     let surface_packed = pack_surface(&mut run, placing, parts, job.several, packed);
     let mut report = run.report;
     report.lods = (chain.levels.iter().zip(&surface_packed.lod_triangles))
@@ -1368,19 +1374,31 @@ fn cull_levels(
         .collect()
 }
 
+/// What [`pack_surface`] places a surface by: the surface and its scene, and for an asset's
+/// part whether its fur is grafted, unlit, and follows shape keys (rest weights, names).
+struct Placing<'a> {
+    surface: &'a Surface,
+    scene: &'a Scene,
+    grafted: bool,
+    unlit: bool,
+    morphs: (&'a [f32], &'a [String]),
+}
+
 /// Pack: the surface's streams, nodes and materials into `packed`.
 fn pack_surface(
     run: &mut Run,
-    (surface, scene, (grafted, unlit), (morph_rest, morph_names)): (
-        &Surface,
-        &Scene,
-        (bool, bool),
-        (&[f32], &[String]),
-    ),
+    placing: Placing,
     (shape, heights, look, chain): (&Shape, &Heights, &Look, &Levels),
     several: bool,
     packed: &mut Packed,
 ) -> PackedSurface {
+    let Placing {
+        surface,
+        scene,
+        grafted,
+        unlit,
+        morphs: (morph_rest, morph_names),
+    } = placing;
     let mesh = &shape.mesh;
     let switches: Vec<lod::ChunkSwitch> = (chain.chunks.iter())
         .map(|tris| {

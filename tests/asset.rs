@@ -2320,7 +2320,8 @@ fn the_fur_reads_the_texture_through_the_uv_set_it_names_and_is_unlit_on_an_unli
     let (want, _) = body_albedo(&critter_glb(Critters::default()));
     let close = |a: &[glam::Vec4]| a.iter().zip(&want).all(|(a, b)| a.abs_diff_eq(*b, 1e-6));
     // the textureInfo's own texCoord, and the transform's, which overrides it
-    let cases: [(&str, Box<dyn Fn(&mut Value)>, bool); 4] = [
+    type Edit = Box<dyn Fn(&mut Value)>;
+    let cases: [(&str, Edit, bool); 4] = [
         ("texCoord 1", Box::new(|i| i["texCoord"] = json!(1)), true),
         (
             "KHR_texture_transform texCoord 1",

@@ -1184,7 +1184,7 @@ mod tests {
     /// half when `cut`.
     fn two_tone(nearest: bool, cut: bool) -> ColorTexture {
         let texels = (0..16)
-            .map(|k| {
+            .flat_map(|k| {
                 let (i, j) = (k % 4, k / 4);
                 let c = if j < 2 {
                     Vec3::Z
@@ -1195,7 +1195,6 @@ mod tests {
                 let [r, g, b] = (c * 255.0).to_array().map(|v| v as u8);
                 [r, g, b, alpha]
             })
-            .flatten()
             .collect();
         ColorTexture {
             width: 4,
