@@ -2384,3 +2384,56 @@ fn the_fur_reads_the_texture_through_the_uv_set_it_names_and_is_unlit_on_an_unli
         "the tail's material is lit, and so is its fur"
     );
 }
+
+#[test]
+fn a_part_scaled_to_nothing_at_rest_is_named_with_the_reason() {
+    // a cube that pops in (its node's scale 0 at rest, animated up) beside one that is there
+    let corners = common::UNIT_CUBE.map(|c| c.map(|v| v as f32));
+    let mut bin: Vec<u8> = corners
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let faces = common::UNIT_CUBE_FACES.map(|f| f.map(|i| i as u16 - 1));
+    let triangles: Vec<u16> = faces
+        .iter()
+        .flat_map(|f| [f[0], f[1], f[2], f[0], f[2], f[3]])
+        .collect();
+    bin.extend(triangles.iter().flat_map(|i| i.to_le_bytes()));
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0, 1] }],
+        "nodes": [
+            { "name": "Visible", "mesh": 0 },
+            { "name": "PopIn", "mesh": 0, "translation": [3.0, 0.0, 0.0], "scale": [0.0, 0.0, 0.0] }
+        ],
+        "meshes": [{ "primitives": [{ "attributes": { "POSITION": 0 }, "indices": 1 }] }],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
+              "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 1.0] },
+            { "bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR" }
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteLength": 96 },
+            { "buffer": 0, "byteOffset": 96, "byteLength": 72 }
+        ],
+        "buffers": [{ "byteLength": bin.len() }]
+    });
+    let bytes = shellbake::output::write::glb_bytes(&doc, &bin);
+    let asset = shellbake::input::asset::Asset::from_bytes(Path::new("pop.glb"), &bytes).unwrap();
+    assert!(
+        asset
+            .warnings
+            .iter()
+            .any(|w| w.contains("node 1 'PopIn'") && w.contains("scaled to nothing at rest")),
+        "{:?}",
+        asset.warnings
+    );
+    let only: shellbake::input::asset::Selector = "node=PopIn".parse().unwrap();
+    let e = asset.select(&[only]).unwrap_err().to_string();
+    assert!(
+        e.contains("nothing to grow fur on") && e.contains("'PopIn'"),
+        "{e}"
+    );
+}

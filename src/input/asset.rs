@@ -35,7 +35,7 @@
 
 use std::path::Path;
 
-use glam::{DMat4, Vec2, Vec3, Vec4};
+use glam::{DMat3, DMat4, Vec2, Vec3, Vec4};
 use serde_json::Value;
 
 use super::document::{Document, Kind, Primitive};
@@ -317,6 +317,9 @@ pub struct Asset {
     pub buffers: Vec<Vec<u8>>,
     pub parts: Vec<Part>,
     pub warnings: Vec<String>,
+    /// The names of triangle primitives kept bare for want of area (a flat mesh, a node scaled
+    /// to 0 at rest): a selector naming only these is told why, not that they do not exist.
+    bare: Vec<(PartNames, String)>,
 }
 
 impl Asset {
@@ -403,6 +406,7 @@ impl Asset {
         let furred = furred_parts(&doc);
         let fur = fur_subtrees(&doc);
         let mut parts = Vec::new();
+        let mut bare = Vec::new();
         let mut total: u64 = 0;
         let walked = doc.walk(|n| n)?;
         let mut parents = vec![None; doc.nodes.len()];
@@ -475,10 +479,19 @@ impl Asset {
                 });
                 if !has_area {
                     // kept as it is: nothing to grow fur on
+                    let collapsed = skin.is_none()
+                        && DMat3::from_mat4(placed.world).determinant().abs() < 1e-30;
+                    let why = match collapsed {
+                        // a part that pops in: its shape is there, its node flat at rest
+                        true => "is scaled to nothing at rest (its node's scale is 0)",
+                        false => "has no triangle with an area",
+                    };
                     warnings.push(format!(
-                        "{}: {element} has no triangle with an area; kept, not furred",
+                        "{}: {element} {why}; kept, not furred",
                         path.display()
                     ));
+                    let names = names_of(&doc, &parents, placed.node, (m, prim.material));
+                    bare.push((names, format!("{element} {why}")));
                     continue;
                 }
                 // what only matters if the part is furred goes with the part
@@ -531,6 +544,7 @@ impl Asset {
             buffers,
             parts,
             warnings,
+            bare,
         })
     }
 
@@ -563,6 +577,13 @@ impl Asset {
     pub fn select(&self, only: &[Selector]) -> Result<Vec<usize>> {
         for s in only {
             if !self.parts.iter().any(|p| p.names.chosen_by(s)) {
+                if let Some((_, why)) = self.bare.iter().find(|(n, _)| n.chosen_by(s)) {
+                    return Err(Error::invalid(
+                        &self.doc.path,
+                        format!("--only {}", super::escape(&s.to_string())),
+                        format!("matches only parts with nothing to grow fur on: {why}"),
+                    ));
+                }
                 let mut names: Vec<&str> =
                     self.parts.iter().flat_map(|p| p.names.of(s.kind)).collect();
                 names.sort_unstable();
