@@ -2281,3 +2281,89 @@ fn the_fur_reads_the_texture_through_the_uv_set_it_names_and_is_unlit_on_an_unli
         "the tail's material is lit, and so is its fur"
     );
 }
+
+/// A texture the viewer cannot decode (only a WebP or KTX2 source, or a cut-short PNG) is drawn
+/// from its material's factor with one warning, as three.js draws a material whose texture did
+/// not load; before, `render`, `view` and `verify` refused the baked file. A PNG `source` beside
+/// the extension's is drawn.
+#[test]
+fn the_viewer_draws_a_texture_it_cannot_decode_from_the_factor() {
+    let dir = scratch("undecodable_texture");
+    let (doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    let webp_only = {
+        let mut d = doc.clone();
+        d["extensionsUsed"] = json!(["EXT_texture_webp"]);
+        d["extensionsRequired"] = json!(["EXT_texture_webp"]);
+        d["textures"][0] =
+            json!({ "sampler": 0, "extensions": { "EXT_texture_webp": { "source": 0 } } });
+        d["images"][0]["mimeType"] = json!("image/webp");
+        d
+    };
+    let input = dir.join("webp.glb");
+    std::fs::write(
+        &input,
+        shellbake::output::write::glb_bytes(&webp_only, &bin),
+    )
+    .unwrap();
+    let (baked, _) = bake(&input, &dir, "webp_fur.glb", &["--no-lod"]);
+    let viewer = shellbake::view::glb::Asset::open(&baked).unwrap();
+    assert_eq!(viewer.materials[0].texture, Some(0));
+    assert!(
+        viewer.textures[0].is_none(),
+        "no source: drawn from the factor"
+    );
+    assert!(
+        viewer.textures[1..].iter().all(Option::is_some),
+        "the fur's own decode"
+    );
+    assert_eq!(viewer.warnings.len(), 1, "{:?}", viewer.warnings);
+    assert!(
+        viewer.warnings[0].contains("texture 0 has no PNG or JPEG source")
+            && viewer.warnings[0].contains("colour factor"),
+        "{:?}",
+        viewer.warnings
+    );
+    let (code, _, err) = shellbake(&[
+        "render",
+        &path_str(&baked),
+        "-o",
+        &path_str(&dir.join("webp.png")),
+        "--size",
+        "64x64",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(
+        err.matches("texture 0 has no PNG or JPEG source").count(),
+        1,
+        "{err}"
+    );
+
+    // a PNG cut short: undecodable, drawn from the factor
+    let view = doc["images"][0]["bufferView"].as_u64().unwrap() as usize;
+    let at = doc["bufferViews"][view]["byteOffset"].as_u64().unwrap() as usize;
+    let mut truncated = doc.clone();
+    truncated["bufferViews"][view]["byteLength"] = json!(40);
+    let viewer = shellbake::view::glb::Asset::from_glb(&shellbake::output::write::glb_bytes(
+        &truncated, &bin,
+    ))
+    .unwrap();
+    assert!(viewer.textures[0].is_none());
+    assert!(viewer.warnings[0].contains("texture 0 (image 0) cannot be decoded"));
+    assert!(bin[at..].starts_with(b"\x89PNG"));
+
+    // a KTX2 source with a PNG fallback draws the fallback
+    let mut fallback = doc.clone();
+    fallback["extensionsUsed"] = json!(["KHR_texture_basisu"]);
+    fallback["textures"][0]["extensions"] = json!({ "KHR_texture_basisu": { "source": 1 } });
+    fallback["images"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "bufferView": view, "mimeType": "image/ktx2" }));
+    let viewer = shellbake::view::glb::Asset::from_glb(&shellbake::output::write::glb_bytes(
+        &fallback, &bin,
+    ))
+    .unwrap();
+    let texture = viewer.textures[0].as_ref().expect("the PNG fallback");
+    assert_eq!((texture.width, texture.height), (2, 1));
+    assert!(viewer.warnings.is_empty(), "{:?}", viewer.warnings);
+}
