@@ -80,7 +80,7 @@ pub fn split_glb(bytes: &[u8]) -> Result<(Value, Vec<u8>)> {
         what: format!("GLB: {what}"),
     };
     let (json, bin) = document::split_glb(bytes).map_err(glb)?;
-    let json = serde_json::from_slice(json).map_err(|e| glb(format!("JSON: {e}")))?;
+    let json = document::parse_json(json).map_err(|e| glb(format!("JSON: {e}")))?;
     Ok((json, bin.map(<[u8]>::to_vec).unwrap_or_default()))
 }
 
