@@ -2367,3 +2367,28 @@ fn the_viewer_draws_a_texture_it_cannot_decode_from_the_factor() {
     assert_eq!((texture.width, texture.height), (2, 1));
     assert!(viewer.warnings.is_empty(), "{:?}", viewer.warnings);
 }
+
+/// `NORMAL` and `TEXCOORD_0` accessors without a buffer view (valid glTF: all zeros) bake: the
+/// normals read as missing, the UVs as without area (box-projected); before, the bake was
+/// refused.
+#[test]
+fn a_part_whose_normals_and_uvs_have_no_buffer_view_bakes() {
+    let dir = scratch("zero_accessors");
+    let (mut doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    for a in [1, 2] {
+        let o = doc["accessors"][a].as_object_mut().unwrap();
+        o.remove("bufferView");
+        o.remove("byteOffset");
+    }
+    let input = dir.join("zeros.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, report) = bake(&input, &dir, "zeros_fur.glb", &["--no-lod"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let warnings = report.to_string();
+    assert!(
+        warnings.contains("texture coordinates have no area")
+            && warnings.contains("no normals in the input"),
+        "{warnings}"
+    );
+    assert_kept(&doc, &json_of(&glb));
+}
