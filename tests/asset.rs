@@ -2392,3 +2392,25 @@ fn a_part_whose_normals_and_uvs_have_no_buffer_view_bakes() {
     );
     assert_kept(&doc, &json_of(&glb));
 }
+
+/// Numbers are written back as they were read: a translation that needs all 17 digits
+/// (`100.00000762939453`) came back one step off, serde_json's default float parsing being
+/// approximate.
+#[test]
+fn numbers_come_back_to_the_last_bit() {
+    let dir = scratch("float_roundtrip");
+    let (mut doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    let x = 100.00000762939453f64;
+    doc["nodes"][0]["translation"] = json!([x, 0.1, 1e-7]);
+    let input = dir.join("far.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, _) = bake(&input, &dir, "far_fur.glb", &["--no-lod"]);
+    let bytes = std::fs::read(&glb).unwrap();
+    let (json, _) = shellbake::input::document::split_glb(&bytes).unwrap();
+    let text = String::from_utf8_lossy(json);
+    assert!(
+        text.contains("\"translation\":[100.00000762939453,0.1,1e-7]"),
+        "{}",
+        &text[..text.len().min(600)]
+    );
+}
