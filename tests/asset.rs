@@ -2414,3 +2414,48 @@ fn numbers_come_back_to_the_last_bit() {
         &text[..text.len().min(600)]
     );
 }
+
+/// An image given as a `data:` URI is embedded in the GLB's binary chunk as a buffer view (the
+/// validator warns `DATA_URI_GLB` otherwise); a bad one is an error naming the image.
+#[test]
+fn a_data_uri_image_is_embedded_as_a_buffer_view() {
+    use base64::Engine as _;
+    let dir = scratch("data_uri_image");
+    let (mut doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    let view = doc["images"][0]["bufferView"].as_u64().unwrap() as usize;
+    let at = doc["bufferViews"][view]["byteOffset"].as_u64().unwrap() as usize;
+    let len = doc["bufferViews"][view]["byteLength"].as_u64().unwrap() as usize;
+    let png = bin[at..at + len].to_vec();
+    doc["images"][0] = json!({
+        "uri": format!(
+            "data:image/png;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&png)
+        )
+    });
+    // the view that held the PNG stays (unused views are valid), so indices hold
+    let input = dir.join("datauri.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, _) = bake(&input, &dir, "datauri_fur.glb", &["--no-lod"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let out = Glb::parse(&std::fs::read(&glb).unwrap());
+    let image = &out.json["images"][0];
+    assert!(image.get("uri").is_none(), "{image}");
+    assert_eq!(image["mimeType"], "image/png");
+    let v = &out.json["bufferViews"][image["bufferView"].as_u64().unwrap() as usize];
+    let start = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+    assert_eq!(
+        &out.bin[start..start + v["byteLength"].as_u64().unwrap() as usize],
+        &png[..]
+    );
+
+    doc["images"][0]["uri"] = json!("data:image/png;base64,not*base64");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (code, _, err) = shellbake(&[
+        "bake",
+        &path_str(&input),
+        "-o",
+        &path_str(&dir.join("bad.glb")),
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("image 0") && err.contains("base64"), "{err}");
+}
