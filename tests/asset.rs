@@ -2437,3 +2437,181 @@ fn a_part_scaled_to_nothing_at_rest_is_named_with_the_reason() {
         "{e}"
     );
 }
+
+/// A texture the viewer cannot decode (only a WebP or KTX2 source, or a cut-short PNG) is drawn
+/// from its material's factor with one warning, as three.js draws a material whose texture did
+/// not load; before, `render`, `view` and `verify` refused the baked file. A PNG `source` beside
+/// the extension's is drawn.
+#[test]
+fn the_viewer_draws_a_texture_it_cannot_decode_from_the_factor() {
+    let dir = scratch("undecodable_texture");
+    let (doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    let webp_only = {
+        let mut d = doc.clone();
+        d["extensionsUsed"] = json!(["EXT_texture_webp"]);
+        d["extensionsRequired"] = json!(["EXT_texture_webp"]);
+        d["textures"][0] =
+            json!({ "sampler": 0, "extensions": { "EXT_texture_webp": { "source": 0 } } });
+        d["images"][0]["mimeType"] = json!("image/webp");
+        d
+    };
+    let input = dir.join("webp.glb");
+    std::fs::write(
+        &input,
+        shellbake::output::write::glb_bytes(&webp_only, &bin),
+    )
+    .unwrap();
+    let (baked, _) = bake(&input, &dir, "webp_fur.glb", &["--no-lod"]);
+    let viewer = shellbake::view::glb::Asset::open(&baked).unwrap();
+    assert_eq!(viewer.materials[0].texture, Some(0));
+    assert!(
+        viewer.textures[0].is_none(),
+        "no source: drawn from the factor"
+    );
+    assert!(
+        viewer.textures[1..].iter().all(Option::is_some),
+        "the fur's own decode"
+    );
+    assert_eq!(viewer.warnings.len(), 1, "{:?}", viewer.warnings);
+    assert!(
+        viewer.warnings[0].contains("texture 0 has no PNG or JPEG source")
+            && viewer.warnings[0].contains("colour factor"),
+        "{:?}",
+        viewer.warnings
+    );
+    let (code, _, err) = shellbake(&[
+        "render",
+        &path_str(&baked),
+        "-o",
+        &path_str(&dir.join("webp.png")),
+        "--size",
+        "64x64",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(
+        err.matches("texture 0 has no PNG or JPEG source").count(),
+        1,
+        "{err}"
+    );
+
+    // a PNG cut short: undecodable, drawn from the factor
+    let view = doc["images"][0]["bufferView"].as_u64().unwrap() as usize;
+    let at = doc["bufferViews"][view]["byteOffset"].as_u64().unwrap() as usize;
+    let mut truncated = doc.clone();
+    truncated["bufferViews"][view]["byteLength"] = json!(40);
+    let viewer = shellbake::view::glb::Asset::from_glb(&shellbake::output::write::glb_bytes(
+        &truncated, &bin,
+    ))
+    .unwrap();
+    assert!(viewer.textures[0].is_none());
+    assert!(viewer.warnings[0].contains("texture 0 (image 0) cannot be decoded"));
+    assert!(bin[at..].starts_with(b"\x89PNG"));
+
+    // a KTX2 source with a PNG fallback draws the fallback
+    let mut fallback = doc.clone();
+    fallback["extensionsUsed"] = json!(["KHR_texture_basisu"]);
+    fallback["textures"][0]["extensions"] = json!({ "KHR_texture_basisu": { "source": 1 } });
+    fallback["images"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "bufferView": view, "mimeType": "image/ktx2" }));
+    let viewer = shellbake::view::glb::Asset::from_glb(&shellbake::output::write::glb_bytes(
+        &fallback, &bin,
+    ))
+    .unwrap();
+    let texture = viewer.textures[0].as_ref().expect("the PNG fallback");
+    assert_eq!((texture.width, texture.height), (2, 1));
+    assert!(viewer.warnings.is_empty(), "{:?}", viewer.warnings);
+}
+
+/// `NORMAL` and `TEXCOORD_0` accessors without a buffer view (valid glTF: all zeros) bake: the
+/// normals read as missing, the UVs as without area (box-projected); before, the bake was
+/// refused.
+#[test]
+fn a_part_whose_normals_and_uvs_have_no_buffer_view_bakes() {
+    let dir = scratch("zero_accessors");
+    let (mut doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    for a in [1, 2] {
+        let o = doc["accessors"][a].as_object_mut().unwrap();
+        o.remove("bufferView");
+        o.remove("byteOffset");
+    }
+    let input = dir.join("zeros.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, report) = bake(&input, &dir, "zeros_fur.glb", &["--no-lod"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let warnings = report.to_string();
+    assert!(
+        warnings.contains("texture coordinates have no area")
+            && warnings.contains("no normals in the input"),
+        "{warnings}"
+    );
+    assert_kept(&doc, &json_of(&glb));
+}
+
+/// Numbers are written back as they were read: a translation that needs all 17 digits
+/// (`100.00000762939453`) came back one step off, serde_json's default float parsing being
+/// approximate.
+#[test]
+fn numbers_come_back_to_the_last_bit() {
+    let dir = scratch("float_roundtrip");
+    let (mut doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    let x = 100.00000762939453f64;
+    doc["nodes"][0]["translation"] = json!([x, 0.1, 1e-7]);
+    let input = dir.join("far.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, _) = bake(&input, &dir, "far_fur.glb", &["--no-lod"]);
+    let bytes = std::fs::read(&glb).unwrap();
+    let (json, _) = shellbake::input::document::split_glb(&bytes).unwrap();
+    let text = String::from_utf8_lossy(json);
+    assert!(
+        text.contains("\"translation\":[100.00000762939453,0.1,1e-7]"),
+        "{}",
+        &text[..text.len().min(600)]
+    );
+}
+
+/// An image given as a `data:` URI is embedded in the GLB's binary chunk as a buffer view (the
+/// validator warns `DATA_URI_GLB` otherwise); a bad one is an error naming the image.
+#[test]
+fn a_data_uri_image_is_embedded_as_a_buffer_view() {
+    use base64::Engine as _;
+    let dir = scratch("data_uri_image");
+    let (mut doc, bin) = shellbake::view::glb::split_glb(&cut_out_plane("OPAQUE")).unwrap();
+    let view = doc["images"][0]["bufferView"].as_u64().unwrap() as usize;
+    let at = doc["bufferViews"][view]["byteOffset"].as_u64().unwrap() as usize;
+    let len = doc["bufferViews"][view]["byteLength"].as_u64().unwrap() as usize;
+    let png = bin[at..at + len].to_vec();
+    doc["images"][0] = json!({
+        "uri": format!(
+            "data:image/png;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&png)
+        )
+    });
+    // the view that held the PNG stays (unused views are valid), so indices hold
+    let input = dir.join("datauri.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, _) = bake(&input, &dir, "datauri_fur.glb", &["--no-lod"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let out = Glb::parse(&std::fs::read(&glb).unwrap());
+    let image = &out.json["images"][0];
+    assert!(image.get("uri").is_none(), "{image}");
+    assert_eq!(image["mimeType"], "image/png");
+    let v = &out.json["bufferViews"][image["bufferView"].as_u64().unwrap() as usize];
+    let start = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+    assert_eq!(
+        &out.bin[start..start + v["byteLength"].as_u64().unwrap() as usize],
+        &png[..]
+    );
+
+    doc["images"][0]["uri"] = json!("data:image/png;base64,not*base64");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (code, _, err) = shellbake(&[
+        "bake",
+        &path_str(&input),
+        "-o",
+        &path_str(&dir.join("bad.glb")),
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("image 0") && err.contains("base64"), "{err}");
+}

@@ -89,6 +89,54 @@ fn an_accessor_without_a_buffer_view_or_past_its_view_is_refused() {
 }
 
 #[test]
+fn normals_and_uvs_without_a_buffer_view_read_as_zeros() {
+    // valid glTF: an accessor without a buffer view is all zeros; zero normals say nothing (read
+    // as missing), zero UVs have no area (the bake box-projects them)
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    let accessors = g["accessors"].as_array_mut().unwrap();
+    accessors.push(json!({"componentType": 5126, "count": 3, "type": "VEC3"}));
+    accessors.push(json!({"componentType": 5126, "count": 3, "type": "VEC2"}));
+    g["meshes"][0]["primitives"][0]["attributes"] =
+        json!({"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2});
+    let s = load_json("zeros.gltf", &g).unwrap();
+    let mesh = &s.meshes[0];
+    assert_eq!(mesh.triangle_count(), 1);
+    assert_eq!(mesh.normals, None, "all-zero normals read as missing");
+    assert_eq!(mesh.uvs.as_deref(), Some(&[glam::Vec2::ZERO; 3][..]));
+    // colours of zeros (black, transparent) make no fur colour: still refused
+    let mut g = g.clone();
+    g["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(1);
+    assert_refused(
+        load_json("zeros.gltf", &g),
+        &["zeros.gltf", "accessor 1", "COLOR_0 has no buffer view"],
+    );
+}
+
+#[test]
+fn a_byte_order_mark_before_the_json_is_skipped() {
+    // browsers' TextDecoder (three.js's loader) skips a UTF-8 BOM; the loader and viewer do too
+    let g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    let mut bytes = b"\xEF\xBB\xBF".to_vec();
+    bytes.extend(g.to_string().as_bytes());
+    let s = load_bytes(Path::new("bom.gltf"), &bytes).unwrap();
+    assert_eq!(s.meshes[0].triangle_count(), 1);
+    let viewer = shellbake::view::glb::Asset::from_glb(&bytes).unwrap();
+    assert_eq!(viewer.meshes.len(), 1);
+    // a GLB's JSON chunk with one too
+    let mut json = b"\xEF\xBB\xBF".to_vec();
+    json.extend(g.to_string().as_bytes());
+    json.resize(json.len().next_multiple_of(4), b' ');
+    let mut glb = b"glTF".to_vec();
+    glb.extend(2u32.to_le_bytes());
+    glb.extend((20 + json.len() as u32).to_le_bytes());
+    glb.extend((json.len() as u32).to_le_bytes());
+    glb.extend(b"JSON");
+    glb.extend(&json);
+    let s = load_bytes(Path::new("bom.glb"), &glb).unwrap();
+    assert_eq!(s.meshes[0].triangle_count(), 1);
+}
+
+#[test]
 fn an_interleaved_stride_larger_than_the_element_is_read() {
     // positions interleaved with a padding float: stride 16
     let data = f32_bytes(&[0., 0., 0., 9., 1., 0., 0., 9., 0., 1., 0., 9.]);

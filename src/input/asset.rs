@@ -371,8 +371,8 @@ impl Asset {
             Some("obj") => return super::obj::side_files(path, &bytes),
             Some("glb") => super::document::split_glb(&bytes)
                 .ok()
-                .and_then(|(json, _)| serde_json::from_slice::<Value>(json).ok()),
-            Some("gltf") => serde_json::from_slice::<Value>(&bytes).ok(),
+                .and_then(|(json, _)| super::document::parse_json(json).ok()),
+            Some("gltf") => super::document::parse_json(&bytes).ok(),
             _ => None,
         };
         let Some(json) = json else {

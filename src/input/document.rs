@@ -3,7 +3,8 @@
 //! refuse the rest with the same errors, naming the file and the element.
 //!
 //! [`Document::parse`] splits a GLB ([`split_glb`]) or takes `.gltf` JSON, parses the JSON with
-//! `serde_json` and checks, before a byte of any buffer is read:
+//! `serde_json` ([`parse_json`], which skips a leading UTF-8 byte order mark as browsers do)
+//! and checks, before a byte of any buffer is read:
 //!
 //! - **Required extensions**: [`SUPPORTED_EXTENSIONS`] (implemented by the accessor decoder,
 //!   the meshopt decoder and the viewer's materials) and [`PASSED_THROUGH_EXTENSIONS`] (material
@@ -301,6 +302,12 @@ pub struct Document {
     /// The nodes of the default scene (or the first scene); with no scene, every node without a
     /// parent.
     pub roots: Vec<usize>,
+}
+
+/// The JSON of a `.gltf` file or a GLB's JSON chunk, a leading UTF-8 byte order mark skipped:
+/// the spec asks writers for none, and browsers' `TextDecoder` (three.js's loader) skips one.
+pub fn parse_json(bytes: &[u8]) -> serde_json::Result<Value> {
+    serde_json::from_slice(bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes))
 }
 
 /// A GLB chunk: its 4-byte type and its body.
@@ -849,8 +856,8 @@ impl Document {
         } else {
             (bytes, None)
         };
-        let json: Value = serde_json::from_slice(json)
-            .map_err(|e| Error::invalid(path, "JSON", escape(&e.to_string())))?;
+        let json: Value =
+            parse_json(json).map_err(|e| Error::invalid(path, "JSON", escape(&e.to_string())))?;
         Document::from_json(path, json, bin)
     }
 

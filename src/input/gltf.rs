@@ -6,9 +6,12 @@
 //! `TEXCOORD_0` is `VEC2`, each as float or (u)int8/16, normalized or not — the quantized forms
 //! `KHR_mesh_quantization` allows, written by shellbake itself and by gltfpack, load like float
 //! ones; their dequantization lives in the node transform, applied in `f64`. Indices are
-//! (u)int8/16/32 `SCALAR`s, each below the vertex count. An attribute accessor without a buffer
-//! view and without sparse values (all zeros) is refused (base meshes do not use them); a sparse
-//! one reads with its substitutions. A shape key (`morph_deltas`) may be either.
+//! (u)int8/16/32 `SCALAR`s, each below the vertex count. An accessor without a buffer view and
+//! without sparse values (all zeros) is read as zeros for `NORMAL` (all-zero normals read as
+//! missing: the bake shades with its extrusion directions) and `TEXCOORD_n` (UVs without area,
+//! box-projected by the bake), and refused for positions, indices, colours and skin weights,
+//! of which zeros make no mesh ([`Zeros`]); a sparse one reads with its substitutions. A shape
+//! key (`morph_deltas`) may be either.
 //!
 //! The instanced size (vertices and indices of every primitive to read) is summed and bounded by
 //! [`MAX_INSTANCED_ELEMENTS`] before any buffer is resolved or accessor read.
@@ -215,8 +218,9 @@ impl PrimitiveData<'_> {
         Error::invalid(&self.doc.path, self.element, message)
     }
 
-    /// The values of attribute `name` (of element type `kind`), if the primitive has it.
-    fn attribute(&self, name: &str, kind: Kind) -> Result<Option<Vec<f64>>> {
+    /// The values of attribute `name` (of element type `kind`), if the primitive has it; an
+    /// accessor without data is read or refused as `zeros` says.
+    fn attribute(&self, name: &str, kind: Kind, zeros: Zeros) -> Result<Option<Vec<f64>>> {
         let Some(a) = self.prim.attribute(name) else {
             return Ok(None);
         };
@@ -225,14 +229,14 @@ impl PrimitiveData<'_> {
             self.element,
             a,
             self.buffers,
-            (name, kind, ATTRIBUTE_TYPES),
+            (name, kind, ATTRIBUTE_TYPES, zeros),
         )
         .map(Some)
     }
 
     /// The positions placed by `world`, each coordinate checked finite and in range.
     fn world_positions(&self, world: DMat4) -> Result<Vec<DVec3>> {
-        let Some(local) = self.attribute("POSITION", Kind::Vec3)? else {
+        let Some(local) = self.attribute("POSITION", Kind::Vec3, Zeros::Refused)? else {
             return Err(self.err("no POSITION attribute"));
         };
         let mut world_pos = Vec::with_capacity(local.len() / 3);
@@ -254,7 +258,7 @@ impl PrimitiveData<'_> {
                 self.element,
                 a,
                 self.buffers,
-                ("indices", Kind::Scalar, INDEX_TYPES),
+                ("indices", Kind::Scalar, INDEX_TYPES, Zeros::Refused),
             )?
             .into_iter()
             .map(|i| i as u32)
@@ -267,10 +271,12 @@ impl PrimitiveData<'_> {
         Ok(triangle_list(self.prim.mode, &indices))
     }
 
-    /// The normals turned by `world` (none when missing or not one per each of `nv` vertices).
+    /// The normals turned by `world` (none when missing, not one per each of `nv` vertices, or
+    /// all zero, as an accessor without data reads: the bake then shades with its extrusion
+    /// directions, with a warning).
     fn normals(&self, world: DMat4, nv: usize) -> Result<Option<Vec<Vec3>>> {
         let normal_matrix: DMat3 = DMat3::from_mat4(world).inverse().transpose();
-        let normals = self.attribute("NORMAL", Kind::Vec3)?.map(|n| {
+        let normals = self.attribute("NORMAL", Kind::Vec3, Zeros::Read)?.map(|n| {
             n.chunks_exact(3)
                 .map(|n| {
                     let v = normal_matrix * DVec3::new(n[0], n[1], n[2]);
@@ -278,14 +284,15 @@ impl PrimitiveData<'_> {
                 })
                 .collect::<Vec<_>>()
         });
-        Ok(normals.filter(|n| n.len() == nv))
+        Ok(normals.filter(|n| n.len() == nv && n.iter().any(|&v| v != Vec3::ZERO)))
     }
 
     /// The texture coordinates `TEXCOORD_<set>` (none when missing or not one per each of `nv`
-    /// vertices; non-finite ones are an error).
+    /// vertices; non-finite ones are an error). An accessor without data reads as zeros: UVs
+    /// without area, which the bake box-projects with a warning.
     fn uvs(&self, set: u32, nv: usize) -> Result<Option<Vec<Vec2>>> {
         let name = format!("TEXCOORD_{set}");
-        let uvs = self.attribute(&name, Kind::Vec2)?.map(|t| {
+        let uvs = self.attribute(&name, Kind::Vec2, Zeros::Read)?.map(|t| {
             t.chunks_exact(2)
                 .map(|t| Vec2::new(t[0] as f32, t[1] as f32))
                 .collect::<Vec<_>>()
@@ -318,7 +325,7 @@ impl PrimitiveData<'_> {
             self.element,
             a,
             self.buffers,
-            ("COLOR_0", kind, &[5126, 5121, 5123]),
+            ("COLOR_0", kind, &[5126, 5121, 5123], Zeros::Refused),
         )?;
         let colors: Vec<[u8; 4]> = values
             .chunks_exact(n)
@@ -508,7 +515,13 @@ fn attribute_of(
     let a = prim
         .attribute(name)
         .expect("the caller checked the attribute");
-    read_checked(doc, element, a, buffers, (name, Kind::Vec4, types))
+    read_checked(
+        doc,
+        element,
+        a,
+        buffers,
+        (name, Kind::Vec4, types, Zeros::Refused),
+    )
 }
 
 /// Vertex attribute component types a mesh may use (float, or integers as
@@ -518,15 +531,26 @@ const ATTRIBUTE_TYPES: &[u64] = &[5126, 5120, 5121, 5122, 5123];
 /// Index component types.
 const INDEX_TYPES: &[u64] = &[5121, 5123, 5125];
 
+/// What an accessor without data (no buffer view and no sparse values: all zeros, the spec
+/// says) means as a mesh input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Zeros {
+    /// Read: normals of zeros say nothing (read as missing), texture coordinates of zeros
+    /// have no area (box-projected).
+    Read,
+    /// Refused: positions all at one point, indices naming one vertex, black transparent
+    /// colours, skin weights of nothing — no mesh a bake can use is made of them.
+    Refused,
+}
+
 /// Reads accessor `a` of a primitive after checking that its element type is `kind` with a
-/// component type among `types`, and that it has a buffer view (an accessor of zeros is no mesh
-/// input).
+/// component type among `types`, and, unless `zeros` reads them, that it has data.
 fn read_checked(
     doc: &Document,
     element: &str,
     a: usize,
     buffers: &[Vec<u8>],
-    (what, kind, types): (&str, Kind, &[u64]),
+    (what, kind, types, zeros): (&str, Kind, &[u64], Zeros),
 ) -> Result<Vec<f64>> {
     let acc = &doc.accessors[a];
     if acc.kind != kind || !types.contains(&acc.component_type) {
@@ -543,7 +567,7 @@ fn read_checked(
             ),
         ));
     }
-    if acc.buffer_view.is_none() && acc.sparse.is_none() {
+    if zeros == Zeros::Refused && acc.buffer_view.is_none() && acc.sparse.is_none() {
         return Err(Error::invalid(
             &doc.path,
             format!("{element}: accessor {a}"),

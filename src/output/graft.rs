@@ -11,8 +11,8 @@
 //!   written as it was, at the same index, so every reference inside it still holds. What
 //!   changes is where bytes live, because the output is one self-contained GLB: every buffer
 //!   becomes part of the one binary chunk (each buffer view moved by its buffer's offset there);
-//!   an image file beside a `.gltf` is embedded as a buffer view (`data:` URIs stay as they are);
-//!   and views compressed with `EXT_`/`KHR_meshopt_compression` are written decoded (the
+//!   an image given by a URI (a file beside a `.gltf`, or a `data:` URI, decoded) is embedded as
+//!   a buffer view; and views compressed with `EXT_`/`KHR_meshopt_compression` are written decoded (the
 //!   extension is dropped), since the reader decodes them and the compressed source would
 //!   otherwise be carried twice.
 //! - **The fur, added.** The fur file's objects are appended after the input's, every index
@@ -585,7 +585,9 @@ fn carry_buffers(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) {
     }
 }
 
-/// Embeds every image that names a file (not a `data:` URI) as a buffer view of `bin`.
+/// Embeds every image given by a URI — a file, or a `data:` URI decoded (a GLB's images belong
+/// in its binary chunk: the validator warns `DATA_URI_GLB` otherwise) — as a buffer view of
+/// `bin`; one that cannot be read is an error naming it.
 fn embed_images(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) -> Result<()> {
     let Some(images) = out["images"].as_array().cloned() else {
         return Ok(());
@@ -594,10 +596,13 @@ fn embed_images(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) -> Result<()>
         let Some(uri) = image["uri"].as_str() else {
             continue;
         };
-        if uri.starts_with("data:") {
-            continue;
-        }
         let bytes = asset.doc.read_uri(&format!("image {i}"), uri)?;
+        // the media type a `data:` URI declares, for bytes not sniffed below
+        let declared = uri
+            .strip_prefix("data:")
+            .and_then(|rest| rest.split_once(';'))
+            .map(|(media, _)| media)
+            .filter(|media| !media.is_empty());
         let mime = if bytes.starts_with(b"\x89PNG") {
             "image/png"
         } else if bytes.starts_with(&[0xff, 0xd8]) {
@@ -609,6 +614,7 @@ fn embed_images(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) -> Result<()>
         } else {
             image["mimeType"]
                 .as_str()
+                .or(declared)
                 .unwrap_or("application/octet-stream")
         };
         align(bin);

@@ -354,10 +354,19 @@ pub fn bench(
     Ok(())
 }
 
+/// Prints `warnings`, what the viewer cannot draw of the file `what` names as it asks, to
+/// stderr.
+fn print_warnings(what: &str, warnings: &[String]) {
+    for w in warnings {
+        eprintln!("warning: {what}: {}", escape(w));
+    }
+}
+
 /// Runs `render`.
 pub fn render(args: &RenderArgs) -> Result<()> {
     let gpu = Gpu::new()?;
     let mut asset = Asset::open(&args.input)?;
+    print_warnings(&shown(&args.input), &asset.warnings);
     choose_clip(&args.input, &mut asset.clips, args.clip.as_deref())?;
     let mut r = GltfRenderer::new(&gpu, asset)?;
     if args.time.is_some() {
@@ -383,6 +392,7 @@ pub fn choose_clip(
 /// Runs `view`.
 pub fn view(args: &ViewArgs) -> Result<()> {
     let mut asset = Asset::open(&args.input)?;
+    print_warnings(&shown(&args.input), &asset.warnings);
     choose_clip(&args.input, &mut asset.clips, args.clip.as_deref())?;
     let title = args
         .input

@@ -1,5 +1,5 @@
 //! Reading the glTF subset the viewer draws into an [`Asset`]: accessors decoded to `f32`,
-//! instances with world matrices in `f64`, materials and embedded PNG textures.
+//! instances with world matrices in `f64`, materials and PNG or JPEG textures.
 //!
 //! The file itself is read by the loader's glTF reader (`load/document.rs`): GLB split, JSON,
 //! required extensions, every index between objects, the node forest, buffers (GLB chunk,
@@ -20,7 +20,11 @@
 //!   names (`texCoord`, or its `KHR_texture_transform`'s) with `KHR_texture_transform`, `alphaMode` (`OPAQUE`, `MASK` + `alphaCutoff`, `BLEND`),
 //!   `doubleSided`, `emissiveFactor`. Other textures (normal, occlusion, metallic-roughness maps)
 //!   are ignored: shellbake writes none.
-//! - **Images**: PNG from a buffer view or a URI the reader resolves; sampler filters (mipmapped
+//! - **Images**: PNG or JPEG from a buffer view or a URI the reader resolves, through the
+//!   texture's `source` (the fallback of an `EXT_texture_webp` or `KHR_texture_basisu` image). A
+//!   texture without one (WebP- or KTX2-only) or whose image cannot be read or decoded is drawn
+//!   as untextured, its material's factor alone, as three.js draws a material whose texture
+//!   failed to load, with one warning ([`Asset::warnings`]); sampler filters (mipmapped
 //!   ones get a mip chain, see `gltf.rs`; a sampler without `minFilter` is read as
 //!   `LINEAR_MIPMAP_LINEAR`, as three.js does) and wrap modes.
 //! - **Morph targets**: `POSITION` deltas, at most [`MAX_MORPH_TARGETS`] per primitive, and one
@@ -76,7 +80,7 @@ pub fn split_glb(bytes: &[u8]) -> Result<(Value, Vec<u8>)> {
         what: format!("GLB: {what}"),
     };
     let (json, bin) = document::split_glb(bytes).map_err(glb)?;
-    let json = serde_json::from_slice(json).map_err(|e| glb(format!("JSON: {e}")))?;
+    let json = document::parse_json(json).map_err(|e| glb(format!("JSON: {e}")))?;
     Ok((json, bin.map(<[u8]>::to_vec).unwrap_or_default()))
 }
 
@@ -259,7 +263,13 @@ pub struct Asset {
     /// skinned node's are ignored, as its transform is).
     pub gpu_instances: Vec<Vec<DMat4>>,
     pub materials: Vec<Material>,
-    pub textures: Vec<Texture>,
+    /// Each glTF texture decoded; `None` where its `source` is missing (a WebP- or KTX2-only
+    /// texture) or cannot be read or decoded: a material using it draws from its factor, as
+    /// three.js draws a material whose texture failed to load.
+    pub textures: Vec<Option<Texture>>,
+    /// What the viewer cannot draw as the file asks (one line for all the textures it draws
+    /// from their material's factor), without the file's name; the commands print them once.
+    pub warnings: Vec<String>,
     /// Layer count from `extras.shellbake.layers` of node 0, when the file is a shellbake bake.
     pub shell_layers: Option<usize>,
     /// Morph weight tracks of each animation.
@@ -439,12 +449,21 @@ impl Asset {
             gpu_instances,
             materials,
             textures: Vec::new(),
+            warnings: Vec::new(),
             animations: Vec::new(),
             clips: Vec::new(),
             skins: Vec::new(),
             time: None,
         };
-        asset.textures = asset.parse_textures()?;
+        let (textures, undrawn) = asset.parse_textures();
+        asset.textures = textures;
+        if !undrawn.is_empty() {
+            asset.warnings.push(format!(
+                "{}; materials using {} are drawn from their colour factor",
+                undrawn.join("; "),
+                if undrawn.len() == 1 { "it" } else { "them" },
+            ));
+        }
         asset.animations = asset.parse_animations()?;
         asset.clips = crate::input::skin::read_clips(&asset.doc, &asset.buffers)?;
         let skins = asset.doc.json["skins"].as_array().map_or(0, Vec::len);
@@ -542,9 +561,13 @@ impl Asset {
         crate::Error::invalid(&self.doc.path, element, message).into()
     }
 
-    fn parse_textures(&self) -> Result<Vec<Texture>> {
+    /// Every texture decoded (`None` where it cannot be) and, for each that cannot, why.
+    /// Only `source` is read: a texture whose `EXT_texture_webp` or `KHR_texture_basisu`
+    /// image has a PNG or JPEG `source` fallback draws the fallback.
+    fn parse_textures(&self) -> (Vec<Option<Texture>>, Vec<String>) {
         let json = &self.doc.json;
         let mut out = Vec::new();
+        let mut undrawn = Vec::new();
         for (t, tex) in json["textures"]
             .as_array()
             .map(Vec::as_slice)
@@ -552,53 +575,71 @@ impl Asset {
             .iter()
             .enumerate()
         {
-            let source = index(&tex["source"])
-                .ok_or_else(|| self.invalid(format!("texture {t}"), "has no source"))?;
-            let image = &json["images"][source];
-            let element = format!("image {source}");
-            let bytes: Vec<u8> = if let Some(v) = index(&image["bufferView"]) {
-                self.doc
-                    .view_bytes(&self.buffers, v)
-                    .map_err(|m| self.invalid(element.clone(), m))?
-                    .to_vec()
-            } else if let Some(uri) = image["uri"].as_str() {
-                self.doc.read_uri(&element, uri)?
-            } else {
-                return Err(self.invalid(element, "has neither a buffer view nor a URI"));
-            };
-            let img = image::load_from_memory(&bytes)
-                .map_err(|e| self.invalid(element.clone(), e.to_string()))?
-                .to_rgba8();
-            let s = index(&tex["sampler"])
-                .map(|s| json["samplers"][s].clone())
-                .unwrap_or(Value::Null);
-            let wrap = |k: &str| match s[k].as_u64() {
-                Some(33071) => Wrap::Clamp,
-                Some(33648) => Wrap::Mirror,
-                _ => Wrap::Repeat,
-            };
-            let min = s["minFilter"].as_u64();
-            let sampler = SamplerDesc {
-                mag_nearest: s["magFilter"].as_u64() == Some(9728),
-                // 9728 NEAREST, 9729 LINEAR, 9984 NEAREST_MIPMAP_NEAREST,
-                // 9985 LINEAR_MIPMAP_NEAREST, 9986 NEAREST_MIPMAP_LINEAR, 9987 LINEAR_MIPMAP_LINEAR
-                min_nearest: matches!(min, Some(9728 | 9984 | 9986)),
-                mip: match min {
-                    Some(9728 | 9729) => None,
-                    Some(9984 | 9985) => Some(MipFilter::Nearest),
-                    _ => Some(MipFilter::Linear),
-                },
-                wrap_u: wrap("wrapS"),
-                wrap_v: wrap("wrapT"),
-            };
-            out.push(Texture {
-                width: img.width(),
-                height: img.height(),
-                rgba: img.into_raw(),
-                sampler,
-            });
+            match self.decode_source(tex) {
+                Ok(img) => out.push(Some(self.texture(tex, img))),
+                Err(why) => {
+                    undrawn.push(format!("texture {t} {why}"));
+                    out.push(None);
+                }
+            }
         }
-        Ok(out)
+        (out, undrawn)
+    }
+
+    /// The pixels of texture `tex`'s `source`; the error says why there are none.
+    fn decode_source(&self, tex: &Value) -> std::result::Result<image::RgbaImage, String> {
+        let source = index(&tex["source"]).ok_or("has no PNG or JPEG source")?;
+        let image = &self.doc.json["images"][source];
+        let bytes: Vec<u8> = if let Some(v) = index(&image["bufferView"]) {
+            self.doc
+                .view_bytes(&self.buffers, v)
+                .map_err(|m| format!("(image {source}): {m}"))?
+                .to_vec()
+        } else if let Some(uri) = image["uri"].as_str() {
+            self.doc
+                .read_uri(&format!("image {source}"), uri)
+                .map_err(|e| format!("cannot be read ({e})"))?
+        } else {
+            return Err(format!(
+                "(image {source}) has neither a buffer view nor a URI"
+            ));
+        };
+        Ok(image::load_from_memory(&bytes)
+            .map_err(|e| format!("(image {source}) cannot be decoded ({e})"))?
+            .to_rgba8())
+    }
+
+    /// Texture `tex` with its decoded pixels and its sampler.
+    fn texture(&self, tex: &Value, img: image::RgbaImage) -> Texture {
+        let json = &self.doc.json;
+        let s = index(&tex["sampler"])
+            .map(|s| json["samplers"][s].clone())
+            .unwrap_or(Value::Null);
+        let wrap = |k: &str| match s[k].as_u64() {
+            Some(33071) => Wrap::Clamp,
+            Some(33648) => Wrap::Mirror,
+            _ => Wrap::Repeat,
+        };
+        let min = s["minFilter"].as_u64();
+        let sampler = SamplerDesc {
+            mag_nearest: s["magFilter"].as_u64() == Some(9728),
+            // 9728 NEAREST, 9729 LINEAR, 9984 NEAREST_MIPMAP_NEAREST,
+            // 9985 LINEAR_MIPMAP_NEAREST, 9986 NEAREST_MIPMAP_LINEAR, 9987 LINEAR_MIPMAP_LINEAR
+            min_nearest: matches!(min, Some(9728 | 9984 | 9986)),
+            mip: match min {
+                Some(9728 | 9729) => None,
+                Some(9984 | 9985) => Some(MipFilter::Nearest),
+                _ => Some(MipFilter::Linear),
+            },
+            wrap_u: wrap("wrapS"),
+            wrap_v: wrap("wrapT"),
+        };
+        Texture {
+            width: img.width(),
+            height: img.height(),
+            rgba: img.into_raw(),
+            sampler,
+        }
     }
 
     /// Decodes accessor `a` to floats.

@@ -230,11 +230,14 @@ impl GltfRenderer {
         // mipmapped sampler gets a mip chain; the alpha of a texture that a MASK material tests
         // keeps its coverage at every cutoff (see the module notes).
         let white = gpu::upload_rgba_texture(gpu, 1, 1, &[255; 4], gpu::Mips::None);
-        let textures: Vec<(wgpu::TextureView, wgpu::Sampler)> = asset
+        // A texture the viewer could not decode (`None`) binds white: its material draws from
+        // its factor.
+        let textures: Vec<Option<(wgpu::TextureView, wgpu::Sampler)>> = asset
             .textures
             .iter()
             .enumerate()
             .map(|(i, t)| {
+                let t = t.as_ref()?;
                 let alpha_tested = asset
                     .materials
                     .iter()
@@ -244,10 +247,10 @@ impl GltfRenderer {
                     (Some(_), true, MaskMips::CoveragePreserving) => gpu::Mips::CoverageAlpha,
                     (Some(_), _, _) => gpu::Mips::Box,
                 };
-                (
+                Some((
                     gpu::upload_rgba_texture(gpu, t.width, t.height, &t.rgba, mips),
                     make_sampler(gpu, t.sampler),
-                )
+                ))
             })
             .collect();
         let default_sampler = make_sampler(gpu, SamplerDesc::default());
@@ -270,11 +273,14 @@ impl GltfRenderer {
         let mut material_groups: Vec<wgpu::BindGroup> = asset
             .materials
             .iter()
-            .map(|m| match m.texture.and_then(|t| textures.get(t)) {
-                Some((view, sampler)) => group(view, sampler),
-                // none, or an index the document's checks do not cover (an extension's)
-                None => group(&white, &default_sampler),
-            })
+            .map(
+                |m| match m.texture.and_then(|t| textures.get(t)?.as_ref()) {
+                    Some((view, sampler)) => group(view, sampler),
+                    // none, an index the document's checks do not cover (an extension's), or a
+                    // texture that could not be decoded
+                    None => group(&white, &default_sampler),
+                },
+            )
             .collect();
         material_groups.push(group(&white, &default_sampler)); // the default material
 
