@@ -1000,6 +1000,64 @@ fn an_obj_keeps_its_mtl_materials_and_map_kd_texture() {
     assert!(differing_pixels(&fur, &rgb(&png("hidden.png"))) > 2000);
 }
 
+#[test]
+fn an_obj_face_without_vt_keeps_its_object_s_uvs_and_vertex_colours_become_color_0() {
+    // a textured box whose last face is written `f v` (no vt), its vertices coloured in sRGB
+    // as Blender writes them; a bare `o` starts an untextured lid
+    let dir = scratch("asset-obj-partial");
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 120, 40]))
+        .save(dir.join("tex.png"))
+        .unwrap();
+    std::fs::write(
+        dir.join("box.mtl"),
+        "newmtl fur_box\nKd 1 1 1\nmap_Kd tex.png\nnewmtl plain\nKd 0.5 0.5 0.5\n",
+    )
+    .unwrap();
+    let mut obj = String::from("mtllib box.mtl\no box\n");
+    for v in common::UNIT_CUBE {
+        obj += &format!("v {} {} {} 0.5 1 0\n", v[0], v[1], v[2]);
+    }
+    obj += "vt 0.1 0.1\nvt 0.9 0.1\nvt 0.9 0.9\nvt 0.1 0.9\nusemtl fur_box\n";
+    for (k, f) in common::UNIT_CUBE_FACES.iter().enumerate() {
+        match k {
+            4 => obj += &format!("f {} {} {} {}\n", f[0], f[1], f[2], f[3]),
+            5 => obj += &format!("o\nusemtl plain\nf {} {} {} {}\n", f[0], f[1], f[2], f[3]),
+            _ => obj += &format!("f {}/1 {}/2 {}/3 {}/4\n", f[0], f[1], f[2], f[3]),
+        }
+    }
+    let input = dir.join("box.obj");
+    std::fs::write(&input, obj).unwrap();
+    let (glb, report) = bake(&input, &dir, "box-fur.glb", &["--only", "material=fur_*"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let out = Glb::parse(&std::fs::read(&glb).unwrap());
+    let box_ = &out.json["meshes"][0];
+    assert_eq!(box_["name"], "box");
+    assert_eq!(out.json["meshes"][1]["name"], "object1");
+    let prim = &box_["primitives"][0];
+    let attribute = |name: &str| out.accessor(prim["attributes"][name].as_u64().unwrap() as usize);
+    let uvs = attribute("TEXCOORD_0");
+    // vt 0.9 0.1, v pointing down the image
+    let near = |t: &[f64], u: f64, v: f64| (t[0] - u).abs() < 1e-6 && (t[1] - v).abs() < 1e-6;
+    assert!(uvs.iter().any(|t| near(t, 0.9, 0.9)), "{uvs:?}");
+    assert!(
+        uvs.iter().any(|t| t == &[0.0, 1.0]),
+        "the face without vt: {uvs:?}"
+    );
+    // sRGB 0.5 is linear 0.214
+    let colors = attribute("COLOR_0");
+    for c in &colors {
+        assert!(
+            (c[0] - 0.214).abs() < 0.002 && c[1] == 1.0 && c[2] == 0.0,
+            "{c:?}"
+        );
+    }
+    let warnings = report["asset"]["warnings"].to_string();
+    assert!(
+        warnings.contains("object 'box': of its 5 face(s), 1 without texture coordinates"),
+        "{warnings}"
+    );
+}
+
 /// CIELAB of a linear RGB colour.
 fn lab_of(c: glam::Vec3) -> [f64; 3] {
     let lin = c.as_dvec3();

@@ -1,4 +1,5 @@
-//! Wavefront OBJ: our own parallel reader for the bake, tobj for an OBJ asset with materials.
+//! Wavefront OBJ: our own parallel reader, for the bake and for an OBJ asset with materials
+//! (tobj reads the `.mtl` files, and the OBJ where the reader declines it).
 //!
 //! **The reader** ([`read`]) cuts the file into line-aligned chunks of [`CHUNK_BYTES`] and reads
 //! them in parallel (rayon): each chunk's `v`, `vt` and `vn` values, its faces' corners as
@@ -14,7 +15,25 @@
 //! including tobj's quirks (`v x y z w` divides by w; of a `v x y z r g b` the colours up to the
 //! first unreadable one are kept; an object is split at `o` and `g` only once it has faces, and
 //! the last one is kept even when empty). The same bytes come out for any chunk size and thread
-//! count; the differential tests below hold the reader to tobj. On the dragon (9.8 MB, 100k
+//! count; the differential tests below hold the reader to tobj. Where it departs from tobj
+//! on purpose, the reference path is given text rewritten to match ([`for_tobj`]):
+//!
+//! - **Comments**: a `#` that starts a word ends the statement (`f 1 2 3  # tri`, which tobj
+//!   and the check refused as a bad index); one inside a word (`usemtl fur#2`) is part of it.
+//! - **Unnamed objects**: an `o` or `g` naming nothing starts `object1`, `object2`, … (in the
+//!   order of such statements), not tobj's one `unnamed_object`, which merged them into one
+//!   node of an asset. Faces before any `o`/`g` are still `unnamed_object`.
+//! - **Faces without `vt` or `vn`** in an object whose other faces have them: tobj keeps an
+//!   object's texture coordinates (normals) only when every vertex has one, so one face
+//!   written `f v//vn` lost the object all its UVs, and an asset a textured primitive without
+//!   `TEXCOORD_0` (which glTF-Validator refuses). The reader keeps each vertex's own;
+//!   [`object_mesh`] gives a corner without a UV (0, 0) as the OBJ writes it, and without a
+//!   normal the area-weighted normal of the triangles around it (the face's own, for a face
+//!   alone; a vertex is shared by the faces that write the same `v/vt/vn`), with one warning
+//!   per object counting the faces. An object with none keeps none (the bake projects UVs),
+//!   unless its material has a texture: then every corner gets (0, 0).
+//!
+//! On the dragon (9.8 MB, 100k
 //! vertices) the load stage took ~200 ms on two cores with tobj (serial, beside [`prescan`]'s
 //! pass), ~100 ms with the reader: ~38 ms to read and build the mesh (~53 ms on one thread),
 //! most of the rest the box projection of its missing UVs.
@@ -37,6 +56,22 @@
 //! normal, which keeps every triangle facing the polygon's way. A polygon with no ear to clip
 //! (self-intersecting, badly non-planar) or more than [`MAX_EAR_CLIP`] corners falls back to the
 //! fan, with a warning counting such polygons.
+//!
+//! **An asset** ([`asset_document`]) is read by the same reader, an object also split where
+//! `usemtl` names another material (as tobj splits it), each piece's material found by name
+//! in the `.mtl` files tobj reads ([`materials`]), keywords in any case (`MAP_KD`: tobj knows
+//! one spelling, and dropped the texture without a word) and comments left out
+//! ([`mtl_for_tobj`]).
+//!
+//! **Vertex colours** (`v x y z r g b`, an extension of the format) carry no colour space.
+//! Blender's exporter writes its colour attribute encoded to sRGB (`linearrgb_to_srgb_v3_v3`
+//! in its `obj_export_file_writer.cc`) and its importer decodes them; MeshLab and ZBrush write
+//! display colours. So an asset's `COLOR_0` (linear float VEC3) holds them decoded from sRGB,
+//! after the 8-bit quantization [`Mesh::colors`] holds (a `v` colour is one of 256 levels,
+//! as any painted colour is), and the fur takes them as a glTF's `COLOR_0`. `Kd` stays
+//! linear (as obj2gltf reads it). A plain mesh's [`Mesh::colors`] keep the numbers as
+//! written: the density, length and comb maps read them as data (`COLOR_0.r`, a flow
+//! direction about 0.5), which a decode would bend.
 //!
 //! **Lines and points** (`l`, `p`) are not surfaces: tobj would turn an `l` of three or more
 //! vertices into a triangle, so `l` statements are left out (removed before tobj parses), with
@@ -77,16 +112,20 @@ struct Object {
     name: String,
     /// Vertex positions (`v` after any division by w).
     world: Vec<DVec3>,
-    /// Normals as written (`None` unless every vertex has one).
-    normals: Option<Vec<DVec3>>,
-    /// Texture coordinates as written (`None` unless every vertex has one).
-    texcoords: Option<Vec<[f64; 2]>>,
+    /// Normals as written, `None` for a vertex without (`None` when no vertex has one).
+    normals: Option<Vec<Option<DVec3>>>,
+    /// Texture coordinates as written, `None` for a vertex without (`None` when no vertex has
+    /// one).
+    texcoords: Option<Vec<Option<[f64; 2]>>>,
     /// Vertex colours as written (`None` unless the file has declared some by the object's end).
     colors: Option<Vec<[f64; 3]>>,
     /// The polygons' vertices, `arities[i]` for polygon `i`.
     corners: Vec<u32>,
     /// Corners of each polygon (3 or more).
     arities: Vec<u32>,
+    /// The material its faces name (`usemtl`), when read by material ([`read`]'s
+    /// `by_material`); `None` otherwise.
+    material: Option<String>,
 }
 
 impl Object {
@@ -98,10 +137,16 @@ impl Object {
         Object {
             name: model.name,
             world: m.positions.chunks_exact(3).map(DVec3::from_slice).collect(),
-            normals: every(&m.normals, 3)
-                .then(|| m.normals.chunks_exact(3).map(DVec3::from_slice).collect()),
-            texcoords: every(&m.texcoords, 2)
-                .then(|| m.texcoords.chunks_exact(2).map(|t| [t[0], t[1]]).collect()),
+            normals: every(&m.normals, 3).then(|| {
+                (m.normals.chunks_exact(3))
+                    .map(|n| Some(DVec3::from_slice(n)))
+                    .collect()
+            }),
+            texcoords: every(&m.texcoords, 2).then(|| {
+                (m.texcoords.chunks_exact(2))
+                    .map(|t| Some([t[0], t[1]]))
+                    .collect()
+            }),
             colors: every(&m.vertex_color, 3).then(|| {
                 m.vertex_color
                     .chunks_exact(3)
@@ -113,7 +158,25 @@ impl Object {
                 false => m.face_arities.into_iter().filter(|&a| a > 0).collect(),
             },
             corners: m.indices,
+            material: None,
         }
+    }
+
+    /// The object as tobj reads it: texture coordinates and normals only where every vertex
+    /// has one (what the differential tests compare).
+    #[cfg(test)]
+    fn into_tobj_view(mut self) -> Object {
+        fn every<T>(values: &mut Option<Vec<Option<T>>>) {
+            if values
+                .as_ref()
+                .is_some_and(|v| v.iter().any(Option::is_none))
+            {
+                *values = None;
+            }
+        }
+        every(&mut self.normals);
+        every(&mut self.texcoords);
+        self
     }
 }
 
@@ -139,8 +202,8 @@ fn parse(text: &[u8]) -> tobj::LoadResult {
 
 /// The objects of the file, by [`read`] or, for a file it declines, by the reference path; `l`
 /// statements are left out, with a warning added to `scene`.
-fn objects(path: &Path, bytes: &[u8], scene: &mut Scene) -> Result<Vec<Object>> {
-    let (objects, lines) = match read(bytes, CHUNK_BYTES) {
+fn objects(path: &Path, bytes: &[u8], by_material: bool, scene: &mut Scene) -> Result<Vec<Object>> {
+    let (objects, lines) = match read(bytes, CHUNK_BYTES, by_material) {
         Some(read) => (read.objects, read.lines),
         None => reference(path, bytes)?,
     };
@@ -153,17 +216,12 @@ fn objects(path: &Path, bytes: &[u8], scene: &mut Scene) -> Result<Vec<Object>> 
     Ok(objects)
 }
 
-/// The objects of the file by [`prescan`] (which names the line of any error) and tobj, and
-/// its number of `l` statements.
+/// The objects of the file by [`prescan`] (which names the line of any error) and tobj (given
+/// the text as [`for_tobj`] rewrites it), and its number of `l` statements.
 fn reference(path: &Path, bytes: &[u8]) -> Result<(Vec<Object>, usize)> {
-    // the check and the parse run side by side; the check's verdict comes first, and a file
-    // with `l` statements is parsed again without them
-    let (lines, parsed) = rayon::join(|| prescan(path, bytes), || parse(bytes));
+    // the check and the parse run side by side; the check's verdict comes first
+    let (lines, parsed) = rayon::join(|| prescan(path, bytes), || parse(&for_tobj(bytes)));
     let lines = lines?;
-    let parsed = match lines {
-        0 => parsed,
-        _ => parse(&without_lines(bytes)),
-    };
     let models = parsed.map(|(models, _)| models).map_err(|e| {
         Error::invalid(
             path,
@@ -174,35 +232,92 @@ fn reference(path: &Path, bytes: &[u8]) -> Result<(Vec<Object>, usize)> {
     Ok((models.into_iter().map(Object::from_tobj).collect(), lines))
 }
 
-/// The meshes of OBJ `bytes`, one per object, with warnings for what was left out or fanned.
+/// The meshes of OBJ `bytes`, one per object, with warnings for what was left out, fanned or
+/// filled in.
 pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
     let bytes = without_bom(bytes);
     let mut scene = Scene::default();
-    let objects = objects(path, bytes, &mut scene)?;
-    let meshes: Vec<Result<(Mesh, usize)>> = objects
-        .par_iter()
-        .enumerate()
-        .map(|(k, object)| object_mesh(path, k, object))
+    let objects = objects(path, bytes, false, &mut scene)?;
+    let meshes = meshes(path, &objects, |_| false, &mut scene.warnings)?;
+    scene.meshes = meshes;
+    Ok(scene)
+}
+
+/// The meshes of `objects` ([`object_mesh`], in parallel), with warnings added to `warnings`:
+/// one per object (consecutive pieces of one name counted together) whose faces' corners lack
+/// texture coordinates or normals that others have, and one counting the polygons fanned.
+/// `textured`: whether an object's faces need texture coordinates, every corner getting one.
+fn meshes(
+    path: &Path,
+    objects: &[Object],
+    textured: impl Fn(&Object) -> bool + Sync,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<Mesh>> {
+    let made: Vec<Result<(Mesh, Filled)>> = (objects.par_iter().enumerate())
+        .map(|(k, object)| object_mesh(path, k, object, textured(object)))
         .collect();
+    let mut meshes = Vec::with_capacity(made.len());
     let mut fanned = 0usize;
-    for mesh in meshes {
-        let (mesh, fans) = mesh?;
-        scene.meshes.push(mesh);
-        fanned += fans;
+    // (object name, faces, faces without a texture coordinate, without a normal)
+    let mut filled: Vec<(&str, usize, usize, usize)> = Vec::new();
+    for (object, made) in objects.iter().zip(made) {
+        let (mesh, f) = made?;
+        meshes.push(mesh);
+        fanned += f.fanned;
+        match filled.last_mut().filter(|last| last.0 == object.name) {
+            Some(last) => {
+                (last.1, last.2, last.3) = (last.1 + f.faces, last.2 + f.uvs, last.3 + f.normals)
+            }
+            None => filled.push((&object.name, f.faces, f.uvs, f.normals)),
+        }
+    }
+    for (name, faces, uvs, normals) in filled {
+        let mut what = Vec::new();
+        if uvs > 0 {
+            what.push(format!(
+                "{uvs} without texture coordinates (given UV (0, 0))"
+            ));
+        }
+        if normals > 0 {
+            what.push(format!(
+                "{normals} without normals (given those of the faces around each corner)"
+            ));
+        }
+        if !what.is_empty() {
+            warnings.push(format!(
+                "{}: object '{}': of its {faces} face(s), {}",
+                path.display(),
+                super::escape(name),
+                what.join(" and ")
+            ));
+        }
     }
     if fanned > 0 {
-        scene.warnings.push(format!(
+        warnings.push(format!(
             "{}: {fanned} polygon(s) self-intersecting, non-planar or over {MAX_EAR_CLIP} corners \
              were fanned; check their triangles",
             path.display()
         ));
     }
-    Ok(scene)
+    Ok(meshes)
+}
+
+/// What [`object_mesh`] did beside reading: polygons fanned as a fallback, and faces with a
+/// corner given a texture coordinate or a normal, of `faces`.
+#[derive(Default)]
+struct Filled {
+    fanned: usize,
+    faces: usize,
+    uvs: usize,
+    normals: usize,
 }
 
 /// The mesh of object `k` of the file: indices and coordinates checked, positions relative to
-/// its first vertex, polygons triangulated; with the number of polygons fanned as a fallback.
-fn object_mesh(path: &Path, k: usize, object: &Object) -> Result<(Mesh, usize)> {
+/// its first vertex, polygons triangulated. A vertex without the texture coordinate or normal
+/// that others of the object have gets one: UV (0, 0) as the OBJ writes it (also every vertex,
+/// when `textured`: its material has a texture), and the normalized area-weighted sum of the
+/// normals of the triangles around it (its face's normal, for a face alone).
+fn object_mesh(path: &Path, k: usize, object: &Object, textured: bool) -> Result<(Mesh, Filled)> {
     let world = &object.world;
     let nv = world.len();
     let element = || format!("object {k} ('{}')", super::escape(&object.name));
@@ -216,19 +331,46 @@ fn object_mesh(path: &Path, k: usize, object: &Object) -> Result<(Mesh, usize)> 
     super::check_range(path, &element(), world)?;
     let origin = world.first().copied().unwrap_or_default();
     let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
-    let mut fanned = 0;
+    let mut filled = Filled {
+        faces: object.arities.len(),
+        ..Filled::default()
+    };
+    // faces with a corner that lacks a value: counted once each
+    let lacking = |has: &dyn Fn(usize) -> bool| {
+        let mut at = 0;
+        (object.arities.iter())
+            .filter(|&&n| {
+                let poly = &object.corners[at..at + n as usize];
+                at += n as usize;
+                poly.iter().any(|&i| !has(i as usize))
+            })
+            .count()
+    };
+    let texcoords = match (&object.texcoords, textured && nv > 0) {
+        (Some(t), _) => Some(t.clone()),
+        (None, true) => Some(vec![None; nv]),
+        (None, false) => None,
+    };
+    if let Some(t) = &texcoords {
+        filled.uvs = lacking(&|i| t[i].is_some());
+    }
+    let indices = triangulate(world, &object.corners, &object.arities, &mut filled.fanned);
     let mut mesh = Mesh {
         origin,
         positions,
-        normals: object.normals.as_ref().map(|n| normals(n)),
-        uvs: object.texcoords.as_ref().map(|t| uvs(t)),
+        normals: None,
+        uvs: texcoords.map(|t| uvs(&t)),
         colors: object.colors.as_ref().map(|c| colors(c)),
         texture_uvs: None,
         albedo: None,
-        indices: triangulate(world, &object.corners, &object.arities, &mut fanned),
+        indices,
         skin: None,
         morphs: Vec::new(),
     };
+    if let Some(n) = &object.normals {
+        filled.normals = lacking(&|i| n[i].is_some());
+        mesh.normals = Some(normals(n, &mesh));
+    }
     if mesh
         .uvs
         .as_ref()
@@ -248,19 +390,36 @@ fn object_mesh(path: &Path, k: usize, object: &Object) -> Result<(Mesh, usize)> 
         mesh.normals = None;
     }
     mesh.recentre();
-    Ok((mesh, fanned))
+    Ok((mesh, filled))
 }
 
-/// Normals, normalized.
-fn normals(n: &[DVec3]) -> Vec<Vec3> {
-    n.iter()
-        .map(|n| n.as_vec3().normalize_or(Vec3::ZERO))
+/// Normals, normalized; a vertex without one gets the normalized area-weighted sum of the
+/// normals of `mesh`'s triangles around it (+z where they have no area).
+fn normals(n: &[Option<DVec3>], mesh: &Mesh) -> Vec<Vec3> {
+    let mut around = vec![Vec3::ZERO; n.len()];
+    if n.iter().any(Option::is_none) {
+        for t in mesh.indices.chunks_exact(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+            // twice the area, along the normal
+            let w = (b - a).cross(c - a);
+            for &i in t {
+                around[i as usize] += w;
+            }
+        }
+    }
+    (n.iter().zip(around))
+        .map(|(n, around)| match n {
+            Some(n) => n.as_vec3().normalize_or(Vec3::ZERO),
+            None => around.normalize_or(Vec3::Z),
+        })
         .collect()
 }
 
-/// Texture coordinates, v flipped: OBJ's v points up the image, glTF's down.
-fn uvs(t: &[[f64; 2]]) -> Vec<Vec2> {
+/// Texture coordinates, v flipped: OBJ's v points up the image, glTF's down; a vertex without
+/// one gets (0, 0) as the OBJ would write it.
+fn uvs(t: &[Option<[f64; 2]>]) -> Vec<Vec2> {
     t.iter()
+        .map(|t| t.unwrap_or([0.0; 2]))
         .map(|t| Vec2::new(t[0] as f32, 1.0 - t[1] as f32))
         .collect()
 }
@@ -280,11 +439,13 @@ struct Read {
 /// The objects of OBJ `bytes` (without a byte-order mark), read in parallel in chunks of about
 /// `chunk` bytes (see the module doc); `None` when the reference path must read the file: it
 /// does not load (its error is `prescan`'s or tobj's to report), or it has a line the reader
-/// does not model.
-fn read(bytes: &[u8], chunk: usize) -> Option<Read> {
+/// does not model. `by_material`: an object is also split where `usemtl` names another
+/// material, each piece naming its material (as tobj splits them for a file with a `.mtl`),
+/// and an `l` set off by non-ASCII whitespace is a line, not declined.
+fn read(bytes: &[u8], chunk: usize, by_material: bool) -> Option<Read> {
     let mut pieces = split_lines(bytes, chunk)
         .into_par_iter()
-        .map(Piece::read)
+        .map(|chunk| Piece::read(chunk, by_material))
         .collect::<Option<Vec<Piece>>>()?;
     // what came before each chunk: `v`, `vt`, `vn`; faces, corners, colour numbers
     let mut before = Vec::with_capacity(pieces.len());
@@ -304,26 +465,42 @@ fn read(bytes: &[u8], chunk: usize) -> Option<Read> {
         .zip(&before)
         .for_each(|(p, before)| p.resolve(before));
     let file = File::concat(&pieces);
-    // as tobj splits objects: at an `o` or `g` once the object has faces, and at the end
+    // as tobj splits objects: at an `o` or `g` (or a `usemtl` naming another material) once
+    // the object has faces, and at the end; an `o` or `g` naming nothing is the next
+    // `object{n}`
     let mut spans = Vec::new();
     let (mut name, mut face, mut corner) = (UNNAMED.to_string(), 0, 0);
+    let (mut material, mut unnamed) = (None::<String>, 0);
     for (p, before) in pieces.iter_mut().zip(&before) {
         for start in p.starts.drain(..) {
             let at = before[3] + start.face;
-            if at > face {
+            let splits = match start.material {
+                false => true,
+                true => by_material && material.as_ref() != start.name.as_ref(),
+            };
+            if splits && at > face {
                 spans.push(Span {
-                    name: std::mem::take(&mut name),
+                    name: name.clone(),
+                    material: material.clone(),
                     faces: face..at,
                     corner,
                     colors: before[5] + start.colors,
                 });
                 (face, corner) = (at, before[4] + start.corner);
             }
-            name = start.name;
+            match (start.material, start.name) {
+                (true, m) => material = m.filter(|_| by_material),
+                (false, Some(n)) => name = n,
+                (false, None) => {
+                    unnamed += 1;
+                    name = unnamed_name(unnamed);
+                }
+            }
         }
     }
     spans.push(Span {
         name,
+        material,
         faces: face..file.arities.len(),
         corner,
         colors: file.colors.len(),
@@ -334,6 +511,29 @@ fn read(bytes: &[u8], chunk: usize) -> Option<Read> {
         .collect::<Option<Vec<Object>>>()?;
     let lines = pieces.iter().map(|p| p.lines).sum();
     Some(Read { objects, lines })
+}
+
+/// The name of the `n`th `o` or `g` statement (from 1) that names nothing.
+fn unnamed_name(n: usize) -> String {
+    format!("object{n}")
+}
+
+/// `line` up to its comment: a `#` that starts a word (first on the line, or after
+/// whitespace). A `#` inside a word (`usemtl fur#2`) is part of it.
+fn code(line: &str) -> &str {
+    let mut at = 0;
+    while let Some(i) = line[at..].find('#') {
+        let i = at + i;
+        if line[..i]
+            .chars()
+            .next_back()
+            .is_none_or(char::is_whitespace)
+        {
+            return &line[..i];
+        }
+        at = i + 1;
+    }
+    line
 }
 
 /// `bytes` cut into pieces of about `size` bytes, each ending at the end of a line.
@@ -355,7 +555,7 @@ fn split_lines(bytes: &[u8], size: usize) -> Vec<&[u8]> {
     pieces
 }
 
-/// The first word of `line`, split at ASCII whitespace (how [`without_lines`] finds an `l`).
+/// The first word of `line`, split at ASCII whitespace (how [`for_tobj`] finds an `l`).
 fn first_ascii_word(line: &[u8]) -> Option<&[u8]> {
     line.split(u8::is_ascii_whitespace).find(|w| !w.is_empty())
 }
@@ -384,7 +584,7 @@ struct Piece {
     relative: Vec<(usize, usize, i64)>,
     /// Corners of each `f`, points and lines (1 and 2 corners) included.
     arities: Vec<u32>,
-    /// `o` and `g` statements.
+    /// `o`, `g` and `usemtl` statements.
     starts: Vec<Start>,
     /// Least number of `v`, `vt`, `vn` before the chunk that its indices need.
     need: [i64; 3],
@@ -392,28 +592,34 @@ struct Piece {
     lines: usize,
 }
 
-/// An `o` or `g` statement: the name it gives and the chunk's counts before it.
+/// An `o`, `g` or `usemtl` statement: the name it gives (`None`: an `o` or `g` naming nothing)
+/// and the chunk's counts before it.
 struct Start {
-    name: String,
+    name: Option<String>,
+    /// A `usemtl` (else an `o` or `g`).
+    material: bool,
     face: usize,
     corner: usize,
     colors: usize,
 }
 
 impl Piece {
-    /// The statements of `chunk` (whole lines); `None` for what [`read`] declines.
-    fn read(chunk: &[u8]) -> Option<Piece> {
+    /// The statements of `chunk` (whole lines), comments left out; `None` for what [`read`]
+    /// declines (`lines`: an `l` tobj would read as a face is a line).
+    fn read(chunk: &[u8], lines: bool) -> Option<Piece> {
         let text = std::str::from_utf8(chunk).ok()?;
         // split_whitespace and split_ascii_whitespace agree on ASCII text without \v
         let plain = chunk.is_ascii() && !chunk.contains(&0x0b);
         let mut piece = Piece::default();
         for line in text.split('\n') {
+            let line = code(line);
             if plain || (line.is_ascii() && !line.contains('\x0b')) {
                 piece.statement(line, line.split_ascii_whitespace())?;
             } else {
                 let mut words = line.split_whitespace();
                 // an `l` that the reference path would not remove: tobj reads it as a face
-                if words.clone().next() == Some("l")
+                if !lines
+                    && words.clone().next() == Some("l")
                     && first_ascii_word(line.as_bytes()) != Some(b"l")
                 {
                     return None;
@@ -452,22 +658,28 @@ impl Piece {
                 // as tobj names it: the line after its first character, trimmed
                 let first = line.chars().next()?.len_utf8();
                 let name = line[first..].trim();
-                self.starts.push(Start {
-                    name: if name.is_empty() { UNNAMED } else { name }.to_string(),
-                    face: self.arities.len(),
-                    corner: self.corners.len(),
-                    colors: self.colors.len(),
-                });
+                self.start((!name.is_empty()).then(|| name.to_string()), false);
                 Some(())
             }
-            // tobj refuses a `usemtl` that names nothing (found as tobj finds it); with no
-            // materials loaded, one that names something changes nothing
+            // tobj refuses a `usemtl` that names nothing (found as tobj finds it)
             Some("usemtl") => {
                 let name = line.split_once(' ').unwrap_or_default().1.trim();
+                self.start(Some(name.to_string()), true);
                 (!name.is_empty()).then_some(())
             }
             _ => Some(()),
         }
+    }
+
+    /// Notes an `o`/`g` (naming `name`, or nothing) or a `usemtl` (`material`) here.
+    fn start(&mut self, name: Option<String>, material: bool) {
+        self.starts.push(Start {
+            name,
+            material,
+            face: self.arities.len(),
+            corner: self.corners.len(),
+            colors: self.colors.len(),
+        });
     }
 
     /// A `v` statement's numbers: `x y z`, `x y z w` (w nonzero) or `x y z r g b`.
@@ -572,6 +784,7 @@ struct File {
 /// number of colour numbers declared by its end.
 struct Span {
     name: String,
+    material: Option<String>,
     faces: std::ops::Range<usize>,
     corner: usize,
     colors: usize,
@@ -652,7 +865,7 @@ impl File {
             let (corners, keys) = number_corners(&kept);
             (corners, keys, arities)
         };
-        let every = |slot: usize| !keys.is_empty() && keys.iter().all(|k| k[slot] != ABSENT);
+        let any = |slot: usize| keys.iter().any(|k| k[slot] != ABSENT);
         let colors = match !keys.is_empty() && span.colors > 0 {
             false => None,
             true => Some(
@@ -670,22 +883,26 @@ impl File {
                 .iter()
                 .map(|k| DVec3::from_slice(&self.positions[k[0] as usize * 3..]))
                 .collect(),
-            normals: every(2).then(|| {
-                keys.iter()
-                    .map(|k| DVec3::from_slice(&self.normals[k[2] as usize * 3..]))
-                    .collect()
-            }),
-            texcoords: every(1).then(|| {
+            normals: any(2).then(|| {
                 keys.iter()
                     .map(|k| {
-                        let t = &self.texcoords[k[1] as usize * 2..];
-                        [t[0], t[1]]
+                        let n = self.normals.get(k[2] as usize * 3..)?;
+                        Some(DVec3::from_slice(n))
+                    })
+                    .collect()
+            }),
+            texcoords: any(1).then(|| {
+                keys.iter()
+                    .map(|k| {
+                        let t = self.texcoords.get(k[1] as usize * 2..)?;
+                        Some([t[0], t[1]])
                     })
                     .collect()
             }),
             colors,
             corners,
             arities,
+            material: span.material,
         })
     }
 }
@@ -757,11 +974,29 @@ fn number_corners_hashed(corners: &[[u32; 3]]) -> (Vec<u32>, Vec<[u32; 3]>) {
     (numbers, keys)
 }
 
-/// `bytes` with every `l` statement replaced by an empty line (line numbers are kept).
-fn without_lines(bytes: &[u8]) -> Vec<u8> {
+/// `bytes` as tobj is to read them, line numbers kept: every `l` statement an empty line,
+/// comments left out ([`code`]), and an `o` or `g` naming nothing named as [`read`] names it.
+fn for_tobj(bytes: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(bytes.len());
+    let mut unnamed = 0;
     for line in bytes.split_inclusive(|&b| b == b'\n') {
         if first_ascii_word(line) == Some(b"l") {
+            out.push(b'\n');
+            continue;
+        }
+        // a line that is not UTF-8 is kept: `prescan` refuses the file
+        let Ok(text) = std::str::from_utf8(line) else {
+            out.extend_from_slice(line);
+            continue;
+        };
+        let kept = code(text);
+        let mut words = kept.split_whitespace();
+        let first = kept.chars().next().map_or(0, char::len_utf8);
+        if matches!(words.next(), Some("o" | "g")) && kept[first..].trim().is_empty() {
+            unnamed += 1;
+            out.extend_from_slice(format!("o {}\n", unnamed_name(unnamed)).as_bytes());
+        } else if kept.len() < text.len() {
+            out.extend_from_slice(kept.as_bytes());
             out.push(b'\n');
         } else {
             out.extend_from_slice(line);
@@ -881,7 +1116,7 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
         .map_err(|e| Error::invalid(path, "file", format!("not UTF-8 text: {e}")))?;
     let (mut nv, mut nt, mut nn) = (0i64, 0i64, 0i64);
     for (line_no, raw) in text.lines().enumerate() {
-        let line = raw.trim();
+        let line = code(raw).trim();
         let mut words = line.split_whitespace();
         let Some(tag) = words.next() else { continue };
         let line_no = line_no + 1;
@@ -979,26 +1214,50 @@ fn names_mtl(bytes: &[u8]) -> bool {
     })
 }
 
-/// tobj's objects of the file and its materials (`None`: none could be read), each `.mtl`
-/// read only inside the OBJ's folder.
-fn load_with_materials(
-    path: &Path,
-    bytes: &[u8],
-) -> Result<(Vec<tobj::Model>, Option<Vec<tobj::Material>>)> {
-    let (models, materials) = tobj::load_obj_buf(
-        &mut std::io::BufReader::new(without_bom(bytes)),
-        &load_options(),
-        |name| {
-            let name = name.to_string_lossy();
-            let target = super::document::confined_path(path, &name)
-                .ok_or(tobj::LoadError::OpenFileFailed)?;
-            let text = super::read_regular_file(&target, super::MAX_INPUT_BYTES)
-                .map_err(|_| tobj::LoadError::OpenFileFailed)?;
-            tobj::load_mtl_buf(&mut std::io::BufReader::new(text.as_slice()))
-        },
-    )
-    .map_err(|e| Error::invalid(path, "obj", e.to_string()))?;
-    Ok((models, materials.ok().filter(|m| !m.is_empty())))
+/// The materials of the `.mtl` files the OBJ names, as tobj reads them for the OBJ (`None`:
+/// none could be read), each `.mtl` read only inside the OBJ's folder ([`mtl_for_tobj`]).
+fn materials(path: &Path, bytes: &[u8]) -> Option<Vec<tobj::Material>> {
+    // tobj reads the libraries of an OBJ of its `mtllib` statements alone
+    let libraries: String = (statements(bytes, "mtllib").iter())
+        .map(|lib| format!("mtllib {lib}\n"))
+        .collect();
+    let (_, materials) = tobj::load_obj_buf(&mut libraries.as_bytes(), &load_options(), |name| {
+        let name = name.to_string_lossy();
+        let target =
+            super::document::confined_path(path, &name).ok_or(tobj::LoadError::OpenFileFailed)?;
+        let text = super::read_regular_file(&target, super::MAX_INPUT_BYTES)
+            .map_err(|_| tobj::LoadError::OpenFileFailed)?;
+        tobj::load_mtl_buf(&mut mtl_for_tobj(&text).as_slice())
+    })
+    .ok()?;
+    materials.ok().filter(|m| !m.is_empty())
+}
+
+/// The statements of a `.mtl` file that tobj reads, each spelled as tobj spells it.
+const MTL_KEYWORDS: [&str; 16] = [
+    "newmtl", "Ka", "Kd", "Ks", "Ke", "Ns", "Ni", "d", "illum", "map_Ka", "map_Kd", "map_Ks",
+    "map_Bump", "map_Ns", "map_d", "bump",
+];
+
+/// `.mtl` text as tobj is to read it, line numbers kept: comments left out ([`code`]) and
+/// keywords read whatever their case (`MAP_KD`, `kd`: tobj knows one spelling of each).
+fn mtl_for_tobj(text: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(text.len());
+    for line in String::from_utf8_lossy(text).lines() {
+        let line = code(line);
+        let rest = line.trim_start();
+        let end = rest.find(char::is_whitespace).unwrap_or(rest.len());
+        let (word, tail) = rest.split_at(end);
+        match MTL_KEYWORDS.iter().find(|k| k.eq_ignore_ascii_case(word)) {
+            Some(k) => {
+                out.extend_from_slice(k.as_bytes());
+                out.extend_from_slice(tail.as_bytes());
+            }
+            None => out.extend_from_slice(line.as_bytes()),
+        }
+        out.push(b'\n');
+    }
+    out
 }
 
 /// The asset's binary chunk, its buffer views and accessors, filled as arrays are added.
@@ -1056,6 +1315,16 @@ impl Chunk {
             attributes["TEXCOORD_0"] = json!(self.floats(
                 &v,
                 json!({ "componentType": 5126, "count": n, "type": "VEC2" })
+            ));
+        }
+        if let Some(colors) = &mesh.colors {
+            // the OBJ's sRGB levels as linear floats (see the module doc)
+            let v: Vec<f32> = (colors.iter())
+                .flat_map(|c| [c[0], c[1], c[2]].map(|c| crate::srgb::decode8(c) as f32))
+                .collect();
+            attributes["COLOR_0"] = json!(self.floats(
+                &v,
+                json!({ "componentType": 5126, "count": n, "type": "VEC3" })
             ));
         }
         let ix: Vec<u8> = mesh.indices.iter().flat_map(|i| i.to_le_bytes()).collect();
@@ -1202,16 +1471,32 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
     if !names_mtl(bytes) {
         return Ok(None);
     }
-    // the reader's checks, and its messages naming the line, for a file that does not load;
-    // its warnings (lines left out, polygons fanned) are the asset's: the same polygons are
-    // triangulated again below
-    let read = load(path, bytes)?;
-    let (models, materials) = load_with_materials(path, &without_lines(bytes))?;
-    let Some(materials) = materials else {
+    let Some(materials) = materials(path, bytes) else {
         return Ok(None);
     };
+    // the reader's objects split by material, its checks and its messages naming the line
+    // for a file that does not load; its warnings (lines left out, polygons fanned, values
+    // filled in) are the asset's
+    let bytes = without_bom(bytes);
+    let mut read = Scene::default();
+    let pieces = objects(path, bytes, true, &mut read)?;
+    // the material of a `usemtl` name: the last of that name, as tobj finds it
+    let index = |name: &Option<String>| {
+        let name = name.as_deref()?;
+        materials.iter().rposition(|m| m.name == name)
+    };
+    let textured = |m: Option<usize>| {
+        m.and_then(|m| materials[m].diffuse_texture.as_deref())
+            .is_some_and(|t| map_image(path, t).is_some())
+    };
+    let meshes = meshes(
+        path,
+        &pieces,
+        |piece| textured(index(&piece.material)),
+        &mut read.warnings,
+    )?;
     let used: Vec<bool> = (0..materials.len())
-        .map(|m| models.iter().any(|o| o.mesh.material_id == Some(m)))
+        .map(|m| (pieces.iter()).any(|o| !o.corners.is_empty() && index(&o.material) == Some(m)))
         .collect();
     // a `usemtl` naming no material of the library: its faces draw with none, said
     let mut missing: Vec<String> = Vec::new();
@@ -1231,13 +1516,12 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
         (a.normals.is_some(), a.uvs.is_some(), a.colors.is_some())
             == (b.normals.is_some(), b.uvs.is_some(), b.colors.is_some())
     };
-    for (k, model) in models.into_iter().enumerate() {
-        if model.mesh.indices.is_empty() {
+    for (piece, mesh) in pieces.iter().zip(meshes) {
+        if mesh.indices.is_empty() {
             continue;
         }
-        let material = model.mesh.material_id.filter(|&m| m < materials.len());
-        let name = model.name.clone();
-        let (mesh, _) = object_mesh(path, k, &Object::from_tobj(model))?;
+        let material = index(&piece.material);
+        let name = piece.name.clone();
         let Some((_, pieces)) = objects.last_mut().filter(|(last, _)| *last == name) else {
             objects.push((name, vec![(material, mesh)]));
             continue;
@@ -1313,7 +1597,7 @@ pub(super) fn side_files(path: &Path, bytes: &[u8]) -> Vec<std::path::PathBuf> {
             if files.contains(&mtl) {
                 continue;
             }
-            let text = std::fs::read(&mtl).unwrap_or_default();
+            let text = mtl_for_tobj(&std::fs::read(&mtl).unwrap_or_default());
             files.push(mtl);
             let maps = statements(&text, "map_Kd").into_iter();
             files.extend(maps.filter_map(|map| map_image(path, &map)).map(|(_, f)| f));
@@ -1322,11 +1606,12 @@ pub(super) fn side_files(path: &Path, bytes: &[u8]) -> Vec<std::path::PathBuf> {
     files
 }
 
-/// The values of the statements of `text` (OBJ or MTL) that start with `word`, trimmed.
+/// The values of the statements of `text` (OBJ or MTL) that start with `word`, trimmed,
+/// comments left out.
 fn statements(text: &[u8], word: &str) -> Vec<String> {
     String::from_utf8_lossy(text)
         .lines()
-        .filter_map(|l| l.trim_start().strip_prefix(word))
+        .filter_map(|l| code(l).trim_start().strip_prefix(word))
         .filter(|rest| rest.starts_with(char::is_whitespace))
         .map(|rest| rest.trim().to_string())
         .collect()
@@ -1393,6 +1678,95 @@ mod tests {
     }
 
     #[test]
+    fn faces_without_vt_or_vn_keep_the_others_and_are_given_defaults() {
+        // a face with vt and vn, one with neither (tilted), one with vt only
+        let s = load_str(
+            "o part\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 1\nvt 0.25 0.5\nvn 0 0 1\n\
+             f 1/1/1 2/1/1 3/1/1\nf 2 4 3\nf 1/1 2/1 4/1\n",
+        )
+        .unwrap();
+        let m = &s.meshes[0];
+        let uvs = m
+            .uvs
+            .as_ref()
+            .expect("the texture coordinates the faces have are kept");
+        let normals = m
+            .normals
+            .as_ref()
+            .expect("the normals the faces have are kept");
+        // vertices in order of first use: 1/1/1, 2/1/1, 3/1/1; 2, 4, 3; 1/1, 2/1, 4/1
+        assert_eq!(uvs.len(), 9);
+        assert_eq!(uvs[0], Vec2::new(0.25, 0.5));
+        assert_eq!(
+            uvs[3],
+            Vec2::new(0.0, 1.0),
+            "UV (0, 0) as the OBJ writes it"
+        );
+        assert_eq!(normals[0], Vec3::Z);
+        let tilted = Vec3::new(-1.0, -1.0, 1.0).normalize();
+        assert!(normals[3].abs_diff_eq(tilted, 1e-6), "{}", normals[3]);
+        // 1/1 is on the third face alone; 2/1 too
+        let third = Vec3::new(0.0, -1.0, 1.0).normalize();
+        assert!(normals[6].abs_diff_eq(third, 1e-6), "{}", normals[6]);
+        let w = s.warnings.join("\n");
+        assert!(
+            w.contains("t.obj: object 'part': of its 3 face(s), 1 without texture coordinates")
+                && w.contains("and 2 without normals"),
+            "{w}"
+        );
+        assert_eq!(s.warnings.len(), 1, "{w}");
+        // an object without any keeps none, and says nothing
+        let s = load_str("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert!(s.meshes[0].uvs.is_none() && s.meshes[0].normals.is_none());
+        assert!(s.warnings.is_empty());
+    }
+
+    #[test]
+    fn a_comment_after_a_statement_is_left_out() {
+        let text = "mtllib m.mtl # lib\nv 0 0 0 # a\nv 1 0 0\t#b\nv 0 1 0\n\
+                    o body # main\nusemtl fur#2 # the fur\nf 1 2 3  # tri\nf 3 2 1#x\n";
+        // a `#` inside a word is no comment: `3 2 1#x` is no index
+        let e = load_str(text).unwrap_err().to_string();
+        assert!(e.contains("line 8") && e.contains("'1#x'"), "{e}");
+        let text = text.replace("1#x", "1");
+        let s = load_str(&text).unwrap();
+        assert_eq!(s.meshes[0].indices.len(), 6);
+        same_as_tobj(text.as_bytes());
+        let read = read(text.as_bytes(), CHUNK_BYTES, true).unwrap();
+        assert_eq!(read.objects[0].name, "body");
+        assert_eq!(read.objects[0].material.as_deref(), Some("fur#2"));
+        assert_eq!(statements(text.as_bytes(), "mtllib"), ["m.mtl"]);
+    }
+
+    #[test]
+    fn objects_named_by_a_bare_o_or_g_are_kept_apart() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\no\nf 1 2 3\no \r\nf 3 2 1\ng\t\nf 1 3 2\n";
+        let read = read(text.as_bytes(), 7, false).unwrap();
+        let names: Vec<&str> = read.objects.iter().map(|o| o.name.as_str()).collect();
+        assert_eq!(names, [UNNAMED, "object1", "object2", "object3"]);
+        // the reference path names them alike
+        same_as_tobj(text.as_bytes());
+        assert_eq!(load_str(text).unwrap().meshes.len(), 4);
+    }
+
+    #[test]
+    fn mtl_keywords_are_read_whatever_their_case() {
+        let mtl = "NEWMTL fur # the fur\nkd 0.5 0.25 1\nMAP_KD -s 1 1 1 my tex.png # diffuse\n\
+                   D 0.5\nnewmtl plain\nKD 1 0 0\n";
+        let (materials, _) =
+            tobj::load_mtl_buf(&mut mtl_for_tobj(mtl.as_bytes()).as_slice()).unwrap();
+        assert_eq!(materials.len(), 2);
+        assert_eq!(materials[0].name, "fur");
+        assert_eq!(materials[0].diffuse, Some([0.5, 0.25, 1.0]));
+        assert_eq!(materials[0].dissolve, Some(0.5));
+        assert_eq!(
+            materials[0].diffuse_texture.as_deref(),
+            Some("-s 1 1 1 my tex.png")
+        );
+        assert_eq!(materials[1].diffuse, Some([1.0, 0.0, 0.0]));
+    }
+
+    #[test]
     fn nan_vertex_is_named() {
         let e = load_str("v 0 0 0\nv nan 0 0\nv 1 1 0\nf 1 2 3\n")
             .unwrap_err()
@@ -1423,6 +1797,11 @@ mod tests {
         assert!((span - 0.001).abs() < 1e-7, "{span}");
     }
 
+    /// The reader's `objects` as tobj reads them ([`Object::into_tobj_view`]).
+    fn tobj_view(objects: Vec<Object>) -> Vec<Object> {
+        objects.into_iter().map(Object::into_tobj_view).collect()
+    }
+
     /// The reference path's objects and `l` count for `s`, or its error.
     fn reference_read(s: &[u8]) -> Result<(Vec<Object>, usize)> {
         reference(Path::new("t.obj"), without_bom(s))
@@ -1438,10 +1817,14 @@ mod tests {
                     .num_threads(threads)
                     .build()
                     .unwrap();
-                let read = pool.install(|| read(without_bom(s), chunk));
+                let read = pool.install(|| read(without_bom(s), chunk, false));
                 let read = read.unwrap_or_else(|| panic!("declined (chunk {chunk})"));
                 assert_eq!(read.lines, lines, "chunk {chunk}");
-                assert_eq!(read.objects, expected, "chunk {chunk}, {threads} thread(s)");
+                assert_eq!(
+                    tobj_view(read.objects),
+                    expected,
+                    "chunk {chunk}, {threads} thread(s)"
+                );
             }
         }
     }
@@ -1449,7 +1832,7 @@ mod tests {
     /// Asserts that the reader declines `s` and that loading it fails with the reference
     /// path's error.
     fn same_error_as_tobj(s: &[u8]) {
-        assert!(read(without_bom(s), 16).is_none());
+        assert!(read(without_bom(s), 16, false).is_none());
         let expected = reference_read(s).unwrap_err().to_string();
         let e = load(Path::new("t.obj"), s).unwrap_err().to_string();
         assert_eq!(e, expected);
@@ -1597,11 +1980,11 @@ mod tests {
     #[test]
     fn reader_declines_an_l_that_tobj_reads_as_a_face() {
         let s = "v 0 0 0\nv 1 0 0\nv 0 1 0\nl\u{a0}1 2 3\nl 1 2\n";
-        assert!(read(s.as_bytes(), CHUNK_BYTES).is_none());
+        assert!(read(s.as_bytes(), CHUNK_BYTES, false).is_none());
         let (expected, lines) = reference_read(s.as_bytes()).unwrap();
         let mut scene = Scene::default();
         assert_eq!(
-            objects(Path::new("t.obj"), s.as_bytes(), &mut scene).unwrap(),
+            objects(Path::new("t.obj"), s.as_bytes(), false, &mut scene).unwrap(),
             expected
         );
         assert_eq!(lines, 2);
@@ -1649,6 +2032,11 @@ mod tests {
             "usemtl",
             "mtllib m.mtl",
             "# c",
+            "f 1 2 3 # c",
+            "v 0 0 1 # c",
+            "usemtl m#2 # c",
+            "f 1#2 2 3",
+            "g",
             "",
             "  ",
             "\r",
@@ -1672,11 +2060,13 @@ mod tests {
             }
             match reference_read(s.as_bytes()) {
                 Ok((expected, lines)) => {
-                    let read = read(s.as_bytes(), 8).unwrap_or_else(|| panic!("declined {s:?}"));
-                    assert_eq!((read.objects, read.lines), (expected, lines), "{s:?}");
+                    let read =
+                        read(s.as_bytes(), 8, false).unwrap_or_else(|| panic!("declined {s:?}"));
+                    let objects = tobj_view(read.objects);
+                    assert_eq!((objects, read.lines), (expected, lines), "{s:?}");
                     read_alike += 1;
                 }
-                Err(_) => assert!(read(s.as_bytes(), 8).is_none(), "{s:?}"),
+                Err(_) => assert!(read(s.as_bytes(), 8, false).is_none(), "{s:?}"),
             }
         }
         assert!(read_alike > 300, "{read_alike} files loaded");
