@@ -2167,7 +2167,8 @@ fn an_instanced_part_grows_fur_on_every_instance() {
     let node_rotation = DQuat::from_rotation_x(0.3);
     doc["nodes"][0]["translation"] = json!([0.0, 1.0, 0.0]);
     doc["nodes"][0]["rotation"] = json!(node_rotation.to_array());
-    doc["nodes"][0]["scale"] = json!([2.0, 2.0, 2.0]);
+    // stretched unevenly under its turn: no TRS places the fur, a node between does
+    doc["nodes"][0]["scale"] = json!([2.0, 3.0, 2.0]);
     doc["nodes"][0]["extensions"] = json!({ "EXT_mesh_gpu_instancing": {
         "attributes": { "TRANSLATION": t, "ROTATION": r, "SCALE": sc } } });
     doc["extensionsUsed"] = json!(["EXT_mesh_gpu_instancing"]);
@@ -2212,7 +2213,7 @@ fn an_instanced_part_grows_fur_on_every_instance() {
         .map(|p| (p.node, p.world))
         .collect();
     let node_world =
-        DMat4::from_scale_rotation_translation(DVec3::splat(2.0), node_rotation, DVec3::Y);
+        DMat4::from_scale_rotation_translation(DVec3::new(2.0, 3.0, 2.0), node_rotation, DVec3::Y);
     let mut meshes = Vec::new();
     let mut channels_per_copy = Vec::new();
     for (i, h) in holders.iter().enumerate() {
@@ -2425,7 +2426,7 @@ fn the_fur_reads_the_texture_through_the_uv_set_it_names_and_is_unlit_on_an_unli
         shellbake::output::write::glb_bytes(&glb.json, &glb.bin),
     )
     .unwrap();
-    let args = ["--only", "material=fur_*", "--tessellate"];
+    let args = ["--only", "material=fur_*", "--tessellate", "--sheen"];
     let (out, _) = bake(&input, &dir, "second-fur.glb", &args);
     assert_valid(std::slice::from_ref(&out));
     let doc = json_of(&out);
@@ -2440,6 +2441,18 @@ fn the_fur_reads_the_texture_through_the_uv_set_it_names_and_is_unlit_on_an_unli
     assert!(
         layer_materials.iter().any(|m| !unlit(m)),
         "the tail's material is lit, and so is its fur"
+    );
+    // the sheen only where the fur is lit (an unlit material carried it no further)
+    let sheen = |m: &&&Value| m["extensions"]["KHR_materials_sheen"].is_object();
+    assert!(!body_layers.clone().any(|m| sheen(&m)));
+    assert!(layer_materials.iter().any(|m| sheen(&m)));
+    // and with only the unlit body furred, the file uses no sheen, nor says it does
+    let args = ["--only", "material=fur_body", "--sheen"];
+    let (out, _) = bake(&input, &dir, "second-body.glb", &args);
+    let used = json_of(&out)["extensionsUsed"].to_string();
+    assert!(
+        used.contains("KHR_materials_unlit") && !used.contains("sheen"),
+        "{used}"
     );
 }
 

@@ -1017,8 +1017,9 @@ impl ColorTexture {
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 
 /// `bytes` (PNG or JPEG) decoded to RGBA bytes, up to [`MAX_IMAGE_SIDE`] a side (the image
-/// crate's default limit, 512 MB, refused a 12k texture).
-fn decode_image(bytes: &[u8]) -> image::ImageResult<image::RgbaImage> {
+/// crate's default limit, 512 MB, refused a 12k texture): the bake's colour sampling and the
+/// viewer read images through it.
+pub fn decode_image(bytes: &[u8]) -> image::ImageResult<image::RgbaImage> {
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?;
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_IMAGE_SIDE);

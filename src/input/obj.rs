@@ -71,7 +71,9 @@
 //! as any painted colour is), and the fur takes them as a glTF's `COLOR_0`. `Kd` stays
 //! linear (as obj2gltf reads it). A plain mesh's [`Mesh::colors`] keep the numbers as
 //! written: the density, length and comb maps read them as data (`COLOR_0.r`, a flow
-//! direction about 0.5), which a decode would bend.
+//! direction about 0.5), which a decode would bend. The parts of an OBJ asset (an OBJ with a
+//! `.mtl`) are read back from its `COLOR_0` like a glTF's, so maps over them read the decoded
+//! values (0.5 as written reads 0.214), as they read a glTF's linear `COLOR_0`.
 //!
 //! **Lines and points** (`l`, `p`) are not surfaces: tobj would turn an `l` of three or more
 //! vertices into a triangle, so `l` statements are left out (removed before tobj parses), with

@@ -165,18 +165,24 @@ impl Placing<'_> {
             ));
         }
         let root = self.base.nodes + self.packed.surfaces[s].root;
-        let children = out["nodes"][part.node]["children"].as_array_mut();
-        let Some(at) = children.and_then(|c| {
-            let at = c.iter().position(|c| c.as_u64() == Some(root as u64))?;
-            c.remove(at);
-            Some(at)
-        }) else {
+        // the child holding the fur: its root, or the node between that places it
+        let holds = |c: &Value| {
+            let c = c.as_u64().map_or(usize::MAX, |c| c as usize);
+            let below = out["nodes"][c]["children"].as_array();
+            c == root || below.is_some_and(|b| b.len() == 1 && b[0].as_u64() == Some(root as u64))
+        };
+        let found = (out["nodes"][part.node]["children"].as_array())
+            .and_then(|c| c.iter().position(holds).map(|at| (at, c[at].clone())));
+        let Some((at, root)) = found.and_then(|(at, top)| Some((at, top.as_u64()? as usize)))
+        else {
             // a scene root: the node's transform is no TRS
             return Some(format!(
                 "node '{name}' is instanced (EXT_mesh_gpu_instancing), but its fur is a scene \
                  root (see above): it is drawn once, where the node's own transform puts it"
             ));
         };
+        let children = out["nodes"][part.node]["children"].as_array_mut();
+        children.expect("children").remove(at);
         let mut copies: Vec<(usize, usize)> = Vec::new();
         let mut holders = Vec::with_capacity(part.instances.len());
         for (i, &t) in part.instances.iter().enumerate() {
@@ -869,54 +875,63 @@ const TRS_TOLERANCE: f64 = 1e-6;
 fn trs_of(m: DMat4) -> Option<(DVec3, DQuat, DVec3)> {
     let (s, r, t) = m.to_scale_rotation_translation();
     let back = DMat4::from_scale_rotation_translation(s, r, t);
-    let size = m
-        .to_cols_array()
-        .iter()
-        .fold(0.0f64, |a, v| a.max(v.abs()))
-        .max(1.0);
-    let err = (back - m)
-        .to_cols_array()
-        .iter()
-        .fold(0.0f64, |a, v| a.max(v.abs()));
-    (err <= TRS_TOLERANCE * size && s.is_finite() && r.is_finite() && t.is_finite())
-        .then_some((t, r, s))
+    (places_as(back, m) && s.is_finite() && r.is_finite() && t.is_finite()).then_some((t, r, s))
+}
+
+/// Whether `back` puts the fur where `m` does, to within [`TRS_TOLERANCE`]: its linear part
+/// relative to `m`'s scale (its longest column: the stored positions span about that many
+/// units), its translation relative to the larger of that and `m`'s translation. (Relative to
+/// the largest entry of `m`, as before, a part far from its node's origin let a shear of 0.2 %
+/// through: its translation set the size.)
+fn places_as(back: DMat4, m: DMat4) -> bool {
+    let linear = |x: DMat4| DMat3::from_mat4(x);
+    let columns = linear(m).to_cols_array_2d();
+    let scale = (columns.iter()).fold(0.0f64, |a, c| a.max(DVec3::from_array(*c).length()));
+    let most = |v: &[f64]| v.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let linear_err = most(&(linear(back) - linear(m)).to_cols_array());
+    let (t, t_back) = (m.w_axis.truncate(), back.w_axis.truncate());
+    let span = scale.max(most(&t.to_array()));
+    let err = most(&(t_back - t).to_array());
+    scale > 0.0
+        && linear_err <= TRS_TOLERANCE * scale
+        && err <= TRS_TOLERANCE * span
+        && back.is_finite()
 }
 
 /// `m` (an affine map) as a TRS times a rotation, `m = TRS(t, U, Σ) · R(Vᵀ)`, from the singular
 /// value decomposition of its linear part `U Σ Vᵀ` (`U` and `V` rotations; a mirroring `m` takes
 /// a negative scale): what any invertible affine map is, shear included, so a fur root under a
-/// node of any transform has one. `None` when the map is singular, or the decomposition does
-/// not give `m` back to within [`TRS_TOLERANCE`] of its size.
+/// node of any transform has one. `V` holds the eigenvectors of `LᵀL`; `U`'s first two columns
+/// are `L v / σ` for the two largest singular values, made orthonormal, and its third their
+/// cross product, so `U` is a rotation however unevenly `L` scales (the smallest `σ`, which
+/// squaring the condition number blurs, only scales). `None` when the map is singular, or the
+/// decomposition does not give `m` back ([`places_as`]).
 fn two_trs_of(m: DMat4) -> Option<((DVec3, DQuat, DVec3), DQuat)> {
     let linear = DMat3::from_mat4(m);
-    let (eigenvalues, mut v) = symmetric_eigen(linear.transpose() * linear);
+    let (eigenvalues, v) = symmetric_eigen(linear.transpose() * linear);
+    // largest singular value first
+    let mut order = [0, 1, 2];
+    order.sort_by(|&a, &b| eigenvalues[b].total_cmp(&eigenvalues[a]));
+    let mut v = DMat3::from_cols(v.col(order[0]), v.col(order[1]), v.col(order[2]));
     if v.determinant() < 0.0 {
         v.z_axis = -v.z_axis;
     }
-    let sigma = eigenvalues.max(DVec3::ZERO).to_array().map(f64::sqrt);
-    let largest = sigma.iter().fold(0.0f64, |a, &b| a.max(b));
-    if !(largest.is_finite() && sigma.iter().all(|&s| s > largest * 1e-9)) {
+    let sigma = order.map(|k| eigenvalues[k].max(0.0).sqrt());
+    if !(sigma[0].is_finite() && sigma[2] > sigma[0] * 1e-9) {
         return None;
     }
-    let mut u = DMat3::from_cols(
-        linear * v.x_axis / sigma[0],
-        linear * v.y_axis / sigma[1],
-        linear * v.z_axis / sigma[2],
-    );
-    let mut scale = DVec3::from_array(sigma);
-    if u.determinant() < 0.0 {
-        u.z_axis = -u.z_axis;
-        scale.z = -scale.z;
-    }
-    let (outer, inner) = (DQuat::from_mat3(&u), DQuat::from_mat3(&v.transpose()));
+    let u0 = (linear * v.x_axis).normalize();
+    let u1 = linear * v.y_axis;
+    let u1 = (u1 - u0 * u0.dot(u1)).normalize();
+    let u2 = u0.cross(u1);
+    let u = DMat3::from_cols(u0, u1, u2);
+    // the third scale carries the mirroring, if any
+    let scale = DVec3::new(sigma[0], sigma[1], u2.dot(linear * v.z_axis));
+    let outer = DQuat::from_mat3(&u).normalize();
+    let inner = DQuat::from_mat3(&v.transpose()).normalize();
     let t = m.w_axis.truncate();
     let back = DMat4::from_scale_rotation_translation(scale, outer, t) * DMat4::from_quat(inner);
-    let size = m.to_cols_array().iter().fold(1.0f64, |a, v| a.max(v.abs()));
-    let err = (back - m)
-        .to_cols_array()
-        .iter()
-        .fold(0.0f64, |a, v| a.max(v.abs()));
-    (err <= TRS_TOLERANCE * size && outer.is_finite() && inner.is_finite())
+    (places_as(back, m) && outer.is_finite() && inner.is_finite())
         .then_some(((t, outer, scale), inner))
 }
 
@@ -1033,6 +1048,31 @@ mod tests {
             assert!(outer.is_normalized() && inner.is_normalized());
         }
         assert!(two_trs_of(DMat4::from_scale(DVec3::new(1.0, 0.0, 1.0))).is_none());
+        // nearly flat: U stays a rotation, the flat axis only scales
+        let flat = DMat4::from_rotation_z(0.7)
+            * DMat4::from_scale(DVec3::new(1.0, 1e-7, 1.0))
+            * DMat4::from_rotation_x(0.3);
+        let ((t, outer, scale), inner) = two_trs_of(flat).expect("invertible");
+        let back =
+            DMat4::from_scale_rotation_translation(scale, outer, t) * DMat4::from_quat(inner);
+        let err = (back - flat).to_cols_array();
+        assert!(err.iter().all(|e| e.abs() < 1e-12), "{err:?}");
+        assert!((outer.length() - 1.0).abs() < 1e-12 && (inner.length() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_small_part_far_from_its_node_s_origin_is_judged_by_its_own_size() {
+        // a 2 cm part 70 units from its node's origin, the node turned and stretched by 0.2 %:
+        // no TRS places it (the old tolerance, relative to the translation, let it through)
+        let m = DMat4::from_scale(DVec3::new(1.0, 1.0 / 1.002, 1.0))
+            * DMat4::from_rotation_z(-0.7)
+            * DMat4::from_scale_rotation_translation(
+                DVec3::splat(0.01),
+                DQuat::IDENTITY,
+                DVec3::new(70.0, 0.0, 0.0),
+            );
+        assert!(trs_of(m).is_none());
+        assert!(two_trs_of(m).is_some());
     }
 
     #[test]

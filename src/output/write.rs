@@ -232,7 +232,10 @@ fn add_optional_parts(doc: &mut Value, packed: &Packed) {
     }
     for (used, name) in [
         (
-            packed.materials.iter().any(|m| m.sheen.is_some()),
+            packed
+                .materials
+                .iter()
+                .any(|m| m.sheen.is_some() && !m.unlit),
             "KHR_materials_sheen",
         ),
         (
@@ -486,7 +489,8 @@ fn material_json(m: &Material) -> Value {
             mat.insert("alphaCutoff".into(), num(cutoff));
         }
     }
-    if let Some(s) = m.sheen {
+    // an unlit material draws no sheen: it carries the one or the other
+    if let Some(s) = m.sheen.filter(|_| !m.unlit) {
         mat.insert(
             "extensions".into(),
             json!({ "KHR_materials_sheen": {
@@ -698,7 +702,10 @@ pub fn write_glb(path: &Path, glb: &[u8]) -> Result<()> {
 
 /// Writes a bake's file to `path` and `others` beside it, all or none (see
 /// [`write_all_atomic`]). A path ending in `.gltf` (any case) gets the GLB's JSON, indented,
-/// with its buffer in the file [`binary_of`] names; any other path gets the GLB as it is.
+/// with its buffer in the file [`binary_of`] names; any other path gets the GLB as it is. The
+/// JSON is renamed into place last, so a reader never finds new JSON over an old binary; a
+/// rename of the JSON that fails (after every file was written and synced) leaves the new
+/// binary beside the old JSON.
 pub fn write_output(path: &Path, glb: &[u8], others: &[(&Path, &[u8])]) -> Result<()> {
     let split = match binary_of(path) {
         Some(bin) => Some((gltf_of_glb(path, glb, &bin)?, bin)),

@@ -604,9 +604,9 @@ impl Asset {
                 "(image {source}) has neither a buffer view nor a URI"
             ));
         };
-        Ok(image::load_from_memory(&bytes)
-            .map_err(|e| format!("(image {source}) cannot be decoded ({e})"))?
-            .to_rgba8())
+        // as the bake decodes it, so both draw the same images
+        crate::input::asset::decode_image(&bytes)
+            .map_err(|e| format!("(image {source}) cannot be decoded ({e})"))
     }
 
     /// Texture `tex` with its decoded pixels and its sampler.
