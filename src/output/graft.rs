@@ -860,8 +860,8 @@ fn add_to_scene(out: &mut Value, scene: usize, nodes: impl Iterator<Item = usize
     }
 }
 
-/// Largest difference, relative to the matrix's size, between a part's `W⁻¹ · D` and the
-/// translation-rotation-scale its fur root is given. A file's node transforms are `f32`: an
+/// Largest difference, relative to the part's scale ([`places_as`]), between a part's
+/// `W⁻¹ · D` and the transform its fur root (and the node between, if any) is given. A file's node transforms are `f32`: an
 /// exporter that writes a uniform scale as three separately rounded values (Blender: one ulp
 /// apart) or a quaternion a few ulps from unit length makes a rotated, uniformly scaled node
 /// shear by about 1e-7, which is no reason for a second node. A real non-uniform scale under a
@@ -870,8 +870,7 @@ fn add_to_scene(out: &mut Value, scene: usize, nodes: impl Iterator<Item = usize
 /// node's size: a sixtieth of a 14-bit position step.
 const TRS_TOLERANCE: f64 = 1e-6;
 
-/// `m` as translation, rotation and scale, when it is one (to within [`TRS_TOLERANCE`] of its
-/// size).
+/// `m` as translation, rotation and scale, when it is one ([`places_as`]).
 fn trs_of(m: DMat4) -> Option<(DVec3, DQuat, DVec3)> {
     let (s, r, t) = m.to_scale_rotation_translation();
     let back = DMat4::from_scale_rotation_translation(s, r, t);
