@@ -621,14 +621,19 @@ fn bake_bytes(
     })
 }
 
-/// Refuses `outputs` that would overwrite an input of the bake: a surface's mesh file or one
-/// its mesh reads (a `.gltf`'s buffers and images, an OBJ's `.mtl` and maps), or the scene file.
+/// Refuses outputs that would overwrite an input of the bake or each other: the file `out` (and
+/// a `.gltf`'s binary beside it) and the `report`, against a surface's mesh file or one its
+/// mesh reads (a `.gltf`'s buffers and images, an OBJ's `.mtl` and maps), or the scene file.
 fn check_outputs_of(
     args: &BakeArgs,
     scene: &SceneFile,
-    outputs: &[(&str, &Path)],
+    (out, report): (&Path, Option<&Path>),
 ) -> anyhow::Result<()> {
-    let check = |input: &Path| shellbake::output::write::check_outputs(input, outputs);
+    let binary = shellbake::output::write::binary_of(out);
+    let mut outputs = vec![("output", out)];
+    outputs.extend(binary.as_deref().map(|bin| ("output's binary", bin)));
+    outputs.extend(report.map(|r| ("report", r)));
+    let check = |input: &Path| shellbake::output::write::check_outputs(input, &outputs);
     for s in &scene.surfaces {
         check(&s.mesh)?;
         for side in shellbake::input::asset::Asset::side_files(&s.mesh) {
@@ -644,15 +649,7 @@ fn check_outputs_of(
 fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     let scene = args.scene()?;
     let out = args.output();
-    let binary = shellbake::output::write::binary_of(&out);
-    let mut outputs = vec![("output", out.as_path())];
-    if let Some(bin) = &binary {
-        outputs.push(("output's binary", bin.as_path()));
-    }
-    if let Some(report) = &args.report {
-        outputs.push(("report", report.as_path()));
-    }
-    check_outputs_of(args, &scene, &outputs)?;
+    check_outputs_of(args, &scene, (&out, args.report.as_deref()))?;
     let spinner = (!args.quiet).then(|| {
         let pb = indicatif::ProgressBar::new_spinner();
         pb.set_message(printable(
@@ -894,11 +891,7 @@ fn main() -> ExitCode {
         Command::Verify { bake, verify } => bake.scene().and_then(|scene| {
             let out = bake.output.as_deref();
             if let Some(out) = out {
-                let binary = shellbake::output::write::binary_of(out);
-                let mut outputs = vec![("output", out)];
-                outputs.extend(binary.as_deref().map(|bin| ("output's binary", bin)));
-                check_outputs_of(bake, &scene, &outputs)?;
-                shellbake::output::write::check_outputs(&bake.input, &outputs)?;
+                check_outputs_of(bake, &scene, (out, None))?;
             }
             if let Some(input) = asset_of(bake, &scene)? {
                 // the fur of each part, baked alone with a base layer, against the technique;

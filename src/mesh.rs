@@ -163,6 +163,12 @@ impl Mesh {
         self.positions.len()
     }
 
+    /// The coordinates the asset's base-colour texture reads: [`Mesh::texture_uvs`], else
+    /// [`Mesh::uvs`].
+    pub fn paint_uvs(&self) -> Option<&[Vec2]> {
+        self.texture_uvs.as_deref().or(self.uvs.as_deref())
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }

@@ -836,8 +836,7 @@ impl Paint {
     pub fn albedo(&self, mesh: &Mesh) -> Vec<Vec4> {
         let n = mesh.vertex_count();
         let colors = mesh.colors.as_deref();
-        let uvs = mesh.texture_uvs.as_deref().or(mesh.uvs.as_deref());
-        let (Some(t), Some(uvs)) = (&self.texture, uvs) else {
+        let (Some(t), Some(uvs)) = (&self.texture, mesh.paint_uvs()) else {
             return (0..n)
                 .map(|v| self.colour_at(None, colors.map(|k| k[v])))
                 .collect();
@@ -933,23 +932,7 @@ impl ColorTexture {
     ) -> std::result::Result<ColorTexture, String> {
         let t = info["index"].as_u64().ok_or("has no index")? as usize;
         let texture = &doc.json["textures"][t];
-        let source = texture["source"]
-            .as_u64()
-            .ok_or("has no PNG or JPEG source")? as usize;
-        let image = &doc.json["images"][source];
-        let bytes = if let Some(v) = image["bufferView"].as_u64() {
-            let view = doc.views.get(v as usize).ok_or("names a missing view")?;
-            let data = buffers.get(view.buffer).ok_or("names a missing buffer")?;
-            data.get(view.byte_offset..view.byte_offset + view.byte_length)
-                .ok_or("runs past its buffer")?
-                .to_vec()
-        } else if let Some(uri) = image["uri"].as_str() {
-            doc.read_uri(&format!("image {source}"), uri)
-                .map_err(|e| format!("cannot be read ({e})"))?
-        } else {
-            return Err("has no data".into());
-        };
-        let decoded = decode_image(&bytes).map_err(|e| format!("cannot be decoded ({e})"))?;
+        let decoded = texture_image(doc, buffers, texture)?;
         let (width, height) = decoded.dimensions();
         let texels = decoded.into_raw();
         let sampler = texture["sampler"]
@@ -1011,6 +994,38 @@ impl ColorTexture {
         let bottom = at(i, j + 1).lerp(at(i + 1, j + 1), fx);
         top.lerp(bottom, fy)
     }
+}
+
+/// The pixels of glTF texture `texture`'s `source` image (from a buffer view, or a URI the
+/// document resolves), decoded by [`decode_image`]; the error says why there are none. The
+/// bake's colour sampling and the viewer read textures through it. Only `source` is read: an
+/// `EXT_texture_webp` or `KHR_texture_basisu` texture draws its PNG or JPEG fallback, if any.
+pub fn texture_image(
+    doc: &Document,
+    buffers: &[Vec<u8>],
+    texture: &Value,
+) -> std::result::Result<image::RgbaImage, String> {
+    let source = texture["source"]
+        .as_u64()
+        .ok_or("has no PNG or JPEG source")? as usize;
+    let image = &doc.json["images"][source];
+    let bytes = if let Some(v) = image["bufferView"].as_u64() {
+        let v = v as usize;
+        if v >= doc.views.len() {
+            return Err(format!("(image {source}) names a missing view"));
+        }
+        (doc.view_bytes(buffers, v))
+            .map_err(|m| format!("(image {source}): {m}"))?
+            .to_vec()
+    } else if let Some(uri) = image["uri"].as_str() {
+        doc.read_uri(&format!("image {source}"), uri)
+            .map_err(|e| format!("cannot be read ({e})"))?
+    } else {
+        return Err(format!(
+            "(image {source}) has neither a buffer view nor a URI"
+        ));
+    };
+    decode_image(&bytes).map_err(|e| format!("(image {source}) cannot be decoded ({e})"))
 }
 
 /// The largest side of a base-colour image the bake decodes: 16384, what GPUs draw.

@@ -124,8 +124,15 @@ struct Placing<'a> {
 
 impl Placing<'_> {
     /// Attaches the fur of surface `s` to part `p` of the asset in `out`, each fur root marked
-    /// with the part; returns a warning when the fur cannot follow the part's node.
-    fn attach(&self, out: &mut Value, s: usize, p: usize) -> Option<String> {
+    /// with the part; returns the child a rigid part's fur hangs by under the part's node
+    /// ([`Placing::attach_rigid`]; none for a skinned part, whose layer nodes are scene
+    /// roots), or a warning when the fur cannot follow the node.
+    fn attach(
+        &self,
+        out: &mut Value,
+        s: usize,
+        p: usize,
+    ) -> std::result::Result<Option<usize>, String> {
         let part = &self.asset.parts[p];
         let root = self.base.nodes + self.packed.surfaces[s].root;
         let marker = json!({
@@ -137,13 +144,13 @@ impl Placing<'_> {
         match part.skin {
             Some(skin) => {
                 self.attach_skinned(out, s, skin, &marker);
-                None
+                Ok(None)
             }
-            None => self.attach_rigid(out, s, p),
+            None => self.attach_rigid(out, s, p).map(Some),
         }
     }
 
-    /// Copies the fur of surface `s` to every instance of part `p`'s node, when it is instanced
+    /// Copies the fur of part `p` to every instance of its node, when it is instanced
     /// (`EXT_mesh_gpu_instancing`; `p` rigid, its fur root under the node). The extension draws
     /// the node's mesh once per instance and none of its children, and three.js draws no
     /// instanced mesh with morph targets at all (its loader's `InstancedMesh` carries no morph
@@ -151,8 +158,14 @@ impl Placing<'_> {
     /// instance a node under the part's node with the instance's transform, holding the fur
     /// root (the first) or a copy of it and the nodes below (the meshes shared). Every
     /// animation channel on the fur's nodes (wind, shape keys) gets a twin on each copy.
-    /// Returns a warning when the fur cannot be copied so.
-    fn expand_instances(&self, out: &mut Value, s: usize, p: usize) -> Option<String> {
+    /// `attached` is the child [`Placing::attach_rigid`] hung under the node (the fur root,
+    /// or the node between that places it). Returns a warning when the fur cannot be copied so.
+    fn expand_instances(
+        &self,
+        out: &mut Value,
+        p: usize,
+        attached: Option<usize>,
+    ) -> Option<String> {
         let part = &self.asset.parts[p];
         if part.instances.is_empty() {
             return None;
@@ -164,25 +177,19 @@ impl Placing<'_> {
                  drawn once, bound to the skin"
             ));
         }
-        let root = self.base.nodes + self.packed.surfaces[s].root;
-        // the child holding the fur: its root, or the node between that places it
-        let holds = |c: &Value| {
-            let c = c.as_u64().map_or(usize::MAX, |c| c as usize);
-            let below = out["nodes"][c]["children"].as_array();
-            c == root || below.is_some_and(|b| b.len() == 1 && b[0].as_u64() == Some(root as u64))
-        };
-        let found = (out["nodes"][part.node]["children"].as_array())
-            .and_then(|c| c.iter().position(holds).map(|at| (at, c[at].clone())));
-        let Some((at, root)) = found.and_then(|(at, top)| Some((at, top.as_u64()? as usize)))
-        else {
-            // a scene root: the node's transform is no TRS
+        let Some(root) = attached else {
+            // a scene root: the node's transform cannot be undone
             return Some(format!(
                 "node '{name}' is instanced (EXT_mesh_gpu_instancing), but its fur is a scene \
                  root (see above): it is drawn once, where the node's own transform puts it"
             ));
         };
         let children = out["nodes"][part.node]["children"].as_array_mut();
-        children.expect("children").remove(at);
+        let children = children.expect("the fur attached under the node");
+        let at = (children.iter())
+            .position(|c| c.as_u64() == Some(root as u64))
+            .expect("the fur attached under the node");
+        children.remove(at);
         let mut copies: Vec<(usize, usize)> = Vec::new();
         let mut holders = Vec::with_capacity(part.instances.len());
         for (i, &t) in part.instances.iter().enumerate() {
@@ -364,9 +371,15 @@ impl Placing<'_> {
     /// dequantization relative to the node. Where that is no TRS (a rotation and an uneven
     /// scale meet: a rotated box stretched along one axis), it is split in two ([`two_trs_of`]):
     /// a node between the part's node and the root takes the translation, a rotation and the
-    /// scale, and the root a rotation. A node whose transform cannot be undone (a scale of 0)
-    /// leaves the root in the scene where it was baked, with the warning returned.
-    fn attach_rigid(&self, out: &mut Value, s: usize, p: usize) -> Option<String> {
+    /// scale, and the root a rotation. Returns the child hung under the part's node (the root,
+    /// or the node between). A node whose transform cannot be undone (a scale of 0) leaves the
+    /// root in the scene where it was baked, with the warning returned instead.
+    fn attach_rigid(
+        &self,
+        out: &mut Value,
+        s: usize,
+        p: usize,
+    ) -> std::result::Result<usize, String> {
         let part = &self.asset.parts[p];
         let surface = &self.packed.surfaces[s];
         let root = self.base.nodes + surface.root;
@@ -402,7 +415,7 @@ impl Placing<'_> {
             push_one(out, "nodes", Value::Object(between))
         } else {
             add_to_scene(out, self.scene, std::iter::once(root));
-            return Some(format!(
+            return Err(format!(
                 "node '{}' has a transform that cannot be undone (a scale of 0) at rest: its fur \
                  is a scene root placed where it was baked and does not follow the node's \
                  animation",
@@ -416,7 +429,7 @@ impl Placing<'_> {
             .as_array_mut()
             .expect("children");
         children.push(json!(child));
-        None
+        Ok(child)
     }
 }
 
@@ -474,9 +487,10 @@ pub fn graft(
     };
     let mut warnings = Vec::new();
     for (s, &p) in parts.iter().enumerate() {
-        warnings.extend(placing.attach(&mut out, s, p));
+        let attached = placing.attach(&mut out, s, p);
+        warnings.extend(attached.as_ref().err().cloned());
         warnings.extend(placing.follow_shape_keys(&mut out, &mut bin, s, p));
-        warnings.extend(placing.expand_instances(&mut out, s, p));
+        warnings.extend(placing.expand_instances(&mut out, p, attached.ok().flatten()));
     }
     add_lod_scene(&mut out, packed, base, placing.scene);
     merge_extensions(&mut out, fur_json);

@@ -211,13 +211,13 @@ impl<'a> Subdivision<'a> {
             let v = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
             out.push(v.normalize_or(inn[at(c[0])]));
         }
+        let blend =
+            |inn: &[Vec2]| inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
         if let (Some(out), Some(inn)) = (m.uvs.as_mut(), src.uvs.as_ref()) {
-            let v: Vec2 = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
-            out.push(v);
+            out.push(blend(inn));
         }
         if let (Some(out), Some(inn)) = (m.texture_uvs.as_mut(), src.texture_uvs.as_ref()) {
-            let v: Vec2 = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
-            out.push(v);
+            out.push(blend(inn));
         }
         if let (Some(out), Some(inn)) = (m.colors.as_mut(), src.colors.as_ref()) {
             let mix = |k: usize| {
@@ -228,11 +228,10 @@ impl<'a> Subdivision<'a> {
             };
             out.push([mix(0), mix(1), mix(2), mix(3)]);
         }
+        // the new vertex's coordinates the texture reads ([`Paint::albedo`])
+        let uv = m.paint_uvs().and_then(|u| u.last().copied());
         if let (Some(out), Some(inn)) = (m.albedo.as_mut(), src.albedo.as_ref()) {
-            // the coordinates the texture reads ([`Paint::albedo`])
-            let uv = (m.texture_uvs.as_ref().or(m.uvs.as_ref())).and_then(|u| u.last().copied());
-            let inside = (src.texture_uvs.as_ref().or(src.uvs.as_ref()))
-                .map(|u| (u[at(c[0])] + u[at(c[1])] + u[at(c[2])]) / 3.0);
+            let inside = (src.paint_uvs()).map(|u| (u[at(c[0])] + u[at(c[1])] + u[at(c[2])]) / 3.0);
             // the new vertex's own uv and colour, pushed above; read inside its source triangle,
             // as merge reads the corners (a point on an island's edge takes the island's colour)
             let color = m.colors.as_ref().and_then(|k| k.last().copied());

@@ -575,7 +575,8 @@ impl Asset {
             .iter()
             .enumerate()
         {
-            match self.decode_source(tex) {
+            // as the bake reads and decodes it, so both draw the same images
+            match crate::input::asset::texture_image(&self.doc, &self.buffers, tex) {
                 Ok(img) => out.push(Some(self.texture(tex, img))),
                 Err(why) => {
                     undrawn.push(format!("texture {t} {why}"));
@@ -584,29 +585,6 @@ impl Asset {
             }
         }
         (out, undrawn)
-    }
-
-    /// The pixels of texture `tex`'s `source`; the error says why there are none.
-    fn decode_source(&self, tex: &Value) -> std::result::Result<image::RgbaImage, String> {
-        let source = index(&tex["source"]).ok_or("has no PNG or JPEG source")?;
-        let image = &self.doc.json["images"][source];
-        let bytes: Vec<u8> = if let Some(v) = index(&image["bufferView"]) {
-            self.doc
-                .view_bytes(&self.buffers, v)
-                .map_err(|m| format!("(image {source}): {m}"))?
-                .to_vec()
-        } else if let Some(uri) = image["uri"].as_str() {
-            self.doc
-                .read_uri(&format!("image {source}"), uri)
-                .map_err(|e| format!("cannot be read ({e})"))?
-        } else {
-            return Err(format!(
-                "(image {source}) has neither a buffer view nor a URI"
-            ));
-        };
-        // as the bake decodes it, so both draw the same images
-        crate::input::asset::decode_image(&bytes)
-            .map_err(|e| format!("(image {source}) cannot be decoded ({e})"))
     }
 
     /// Texture `tex` with its decoded pixels and its sampler.
