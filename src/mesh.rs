@@ -184,18 +184,31 @@ impl Mesh {
         self.origin = self.origin * scale + translation;
     }
 
-    /// Axis-aligned bounds of the relative positions, `(min, max)`; zero box when empty.
+    /// Axis-aligned bounds of the relative positions that triangles with area use, `(min,
+    /// max)`: a vertex no triangle draws (a stray point, a vertex buffer shared with other
+    /// primitives) does not count (see [`Mesh::drop_unused`]). Without such a triangle, of every
+    /// position; a zero box when there are none.
     pub fn bounds(&self) -> (Vec3, Vec3) {
+        let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        let join = |(lo, hi): (Vec3, Vec3), (l, h): (Vec3, Vec3)| (lo.min(l), hi.max(h));
+        let drawn = (self.indices.par_chunks_exact(3))
+            .with_min_len(PAR_MIN_LEN)
+            .map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| self.positions[t[k] as usize]);
+                if (b - a).cross(c - a) == Vec3::ZERO {
+                    empty
+                } else {
+                    (a.min(b).min(c), a.max(b).max(c))
+                }
+            })
+            .reduce(|| empty, join);
+        if drawn.0.x <= drawn.1.x {
+            return drawn;
+        }
         if self.positions.is_empty() {
             return (Vec3::ZERO, Vec3::ZERO);
         }
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for &p in &self.positions {
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-        (lo, hi)
+        (self.positions.iter()).fold(empty, |b, &p| join(b, (p, p)))
     }
 
     /// This mesh with its origin added to every position (and a zero origin): positions as
@@ -271,6 +284,45 @@ impl Mesh {
             a.extend_from_slice(b);
         }
         self.indices.extend(other.indices.iter().map(|i| i + base));
+    }
+
+    /// Drops the triangles that draw nothing (exactly no area: a repeated corner, three points
+    /// on a line) and then the vertices no triangle uses, keeping the others in their order. A
+    /// stray point, or a vertex buffer a part shares with the asset's other primitives, must not
+    /// size the fur: its height, density, LOD distances and quantization grid follow the bounds.
+    /// Returns the triangles and vertices dropped.
+    pub fn drop_unused(&mut self) -> (usize, usize) {
+        let before = self.indices.len() / 3;
+        let kept: Vec<u32> = (self.indices.par_chunks_exact(3))
+            .with_min_len(PAR_MIN_LEN)
+            .filter(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| self.positions[t[k] as usize]);
+                (b - a).cross(c - a) != Vec3::ZERO
+            })
+            .flatten()
+            .copied()
+            .collect();
+        let triangles = before - kept.len() / 3;
+        self.indices = kept;
+        let mut number = vec![u32::MAX; self.positions.len()];
+        for &i in &self.indices {
+            number[i as usize] = 0;
+        }
+        let mut source = Vec::with_capacity(number.len());
+        for (v, n) in number.iter_mut().enumerate() {
+            if *n == 0 {
+                *n = source.len() as u32;
+                source.push(v as u32);
+            }
+        }
+        let vertices = self.positions.len() - source.len();
+        if vertices > 0 {
+            self.gather_vertices(&source);
+            for i in &mut self.indices {
+                *i = number[*i as usize];
+            }
+        }
+        (triangles, vertices)
     }
 
     /// Keeps the vertices `source` lists, in that order (repeats allowed: a vertex listed twice

@@ -2686,3 +2686,110 @@ fn a_data_uri_image_is_embedded_as_a_buffer_view() {
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("image 0") && err.contains("base64"), "{err}");
 }
+
+/// A glTF asset of one node and one mesh: a primitive per `(indices, material)` over one shared
+/// vertex buffer (`positions`, their normals and UVs, floats), as exporters that join meshes
+/// write it.
+fn shared_buffer_asset(
+    (positions, normals, uvs): (&[glam::Vec3], &[glam::Vec3], &[glam::Vec2]),
+    primitives: &[(&[u32], &str)],
+) -> Vec<u8> {
+    let mut bin = Vec::new();
+    for ((p, n), uv) in positions.iter().zip(normals).zip(uvs) {
+        for c in [p.x, p.y, p.z, n.x, n.y, n.z, uv.x, uv.y] {
+            bin.extend(c.to_le_bytes());
+        }
+    }
+    let (lo, hi) = positions.iter().fold(
+        (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let n = positions.len();
+    let mut accessors = vec![
+        json!({ "bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": n, "type": "VEC3",
+                "min": lo.to_array(), "max": hi.to_array() }),
+        json!({ "bufferView": 0, "byteOffset": 12, "componentType": 5126, "count": n, "type": "VEC3" }),
+        json!({ "bufferView": 0, "byteOffset": 24, "componentType": 5126, "count": n, "type": "VEC2" }),
+    ];
+    let mut views = vec![json!({ "buffer": 0, "byteOffset": 0, "byteLength": bin.len(), "byteStride": 32 })];
+    let (mut prims, mut materials) = (Vec::new(), Vec::new());
+    for (k, (indices, material)) in primitives.iter().enumerate() {
+        views.push(json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": 4 * indices.len() }));
+        bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+        accessors.push(json!({ "bufferView": views.len() - 1, "componentType": 5125,
+                               "count": indices.len(), "type": "SCALAR" }));
+        prims.push(json!({ "attributes": { "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2 },
+                           "indices": accessors.len() - 1, "material": k }));
+        materials.push(json!({ "name": material, "pbrMetallicRoughness": { "metallicFactor": 0.0 } }));
+    }
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "name": "joined", "mesh": 0 }],
+        "meshes": [{ "name": "joined", "primitives": prims }],
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{ "byteLength": bin.len() }]
+    });
+    shellbake::output::write::glb_bytes(&doc, &bin)
+}
+
+/// Vertices the furred primitive does not draw — a floor sharing its vertex buffer, a stray
+/// point 10 000 units away, a triangle of no area out there — sized the fur: 16 times too long
+/// and sparse, and with the stray point the quantization grid spanned 10 000 units, so every
+/// layer collapsed onto a few positions. The fur is now that of the sphere alone, byte for byte.
+#[test]
+fn vertices_the_furred_primitive_does_not_draw_do_not_size_its_fur() {
+    let dir = scratch("asset-shared-buffer");
+    let sphere = shellbake::fixtures::procedural::sphere(1.0, 16, 32);
+    let (normals, uvs) = (sphere.normals.clone().unwrap(), sphere.uvs.clone().unwrap());
+    let alone = dir.join("alone.glb");
+    std::fs::write(
+        &alone,
+        shared_buffer_asset(
+            (&sphere.positions, &normals, &uvs),
+            &[(&sphere.indices, "fur")],
+        ),
+    )
+    .unwrap();
+    // the same sphere, then a 40 × 40 floor, a stray point and a flat triangle far away
+    let (mut p, mut n, mut t) = (sphere.positions.clone(), normals.clone(), uvs.clone());
+    let v = p.len() as u32;
+    for q in [[-20.0, -20.0], [20.0, -20.0], [20.0, 20.0], [-20.0, 20.0]] {
+        p.push(glam::Vec3::new(q[0], -1.5, q[1]));
+    }
+    p.extend([glam::Vec3::new(10_000.0, 0.0, 0.0); 4]);
+    p.push(glam::Vec3::new(500.0, 0.0, 0.0));
+    n.resize(p.len(), glam::Vec3::Y);
+    t.resize(p.len(), glam::Vec2::ZERO);
+    let floor = [v, v + 2, v + 1, v, v + 3, v + 2];
+    let mut fur = sphere.indices.clone();
+    fur.extend([v + 4, v + 5, v + 6]); // all three at one point: no area
+    let joined = dir.join("joined.glb");
+    std::fs::write(
+        &joined,
+        shared_buffer_asset((&p, &n, &t), &[(&fur, "fur"), (&floor, "floor")]),
+    )
+    .unwrap();
+
+    let only = ["--only", "material=fur"];
+    let (_, a) = bake(&alone, &dir, "alone-fur.glb", &only);
+    let (glb, b) = bake(&joined, &dir, "joined-fur.glb", &only);
+    // beside the sphere's own (its poles' flat triangles and their corners): the floor's 4
+    // vertices and the stray points' 5, and the flat triangle out there
+    let count = |r: &Value, k: &str| stage(r, "merge")["counts"][k].as_f64().unwrap();
+    assert_eq!(count(&b, "unused_vertices") - count(&a, "unused_vertices"), 9.0);
+    assert_eq!(count(&b, "empty_triangles") - count(&a, "empty_triangles"), 1.0);
+    let (a, b) = (&a["surfaces"][0], &b["surfaces"][0]);
+    assert_eq!(a["resolved"], b["resolved"], "height and density");
+    assert_eq!(a["lods"], b["lods"], "switch distances");
+    // the same fur, byte for byte (the JSON names another asset's parts)
+    let mut streams = [a["streams"].clone(), b["streams"].clone()];
+    for s in &mut streams {
+        s.as_object_mut().unwrap().remove("json");
+    }
+    assert_eq!(streams[0], streams[1]);
+    assert_valid(&[glb]);
+}

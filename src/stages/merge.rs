@@ -1,4 +1,6 @@
-//! The merge stage: a surface's meshes become one render mesh, whose positions within a
+//! The merge stage: a surface's meshes become one render mesh — less the triangles of no area
+//! and the vertices no triangle uses (a stray point or a vertex buffer shared with other
+//! primitives would otherwise size the fur: `Mesh::drop_unused`) — whose positions within a
 //! millionth of the diagonal of another are first snapped onto it (`weld::snap_near_twins`: a
 //! seam computed twice must not extrude apart), which takes the asset's colour at each strand
 //! root (DESIGN §10: sampled here, before any stage splits vertices, so the colour rides with
@@ -43,6 +45,9 @@ pub struct Merged<'a> {
     meshes: usize,
     vertices: usize,
     triangles: usize,
+    /// Vertices no triangle uses, and triangles of no area, left out ([`Mesh::drop_unused`]).
+    unused: usize,
+    empty: usize,
     /// Vertices moved onto a near twin (`weld::snap_near_twins`).
     snapped: usize,
     warnings: Vec<String>,
@@ -52,6 +57,10 @@ pub struct Merged<'a> {
 pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<'a> {
     let mut mesh = scene.merged();
     let (vertices, triangles) = (mesh.vertex_count(), mesh.triangle_count());
+    let (empty, unused) = mesh.drop_unused();
+    if unused > 0 {
+        mesh.recentre();
+    }
     let diagonal = mesh.diagonal();
     let snapped = weld::snap_near_twins(&mut mesh.positions, diagonal);
     if let FurColour::Asset { paint, color } = colour {
@@ -99,6 +108,8 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
         meshes: scene.meshes.len(),
         vertices,
         triangles,
+        unused,
+        empty,
         snapped,
         warnings,
     }
@@ -112,6 +123,8 @@ impl Reported for Merged<'_> {
                 ("meshes", self.meshes as f64),
                 ("vertices", self.vertices as f64),
                 ("triangles", self.triangles as f64),
+                ("unused_vertices", self.unused as f64),
+                ("empty_triangles", self.empty as f64),
                 ("snapped_positions", self.snapped as f64),
             ])
         }
