@@ -1082,6 +1082,16 @@ fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
     let image = matches!(maps.density, Some(input::maps::Map::Image(_)))
         || matches!(maps.length, Some(input::maps::Map::Image(_)))
         || matches!(maps.comb, Some(input::maps::Flow::Image(_)));
+    if height <= 0.0 || params.shells.layers <= 1 {
+        run.report.warnings.push(format!(
+            "{}: no shells to draw; the surface is written bare",
+            if params.shells.layers <= 1 {
+                "one layer is the base alone"
+            } else {
+                "the height is 0"
+            }
+        ));
+    }
     if image && *boxed {
         run.report.warnings.push(
             "the strands follow a box projection, and the density, length or comb image map is \

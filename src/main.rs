@@ -629,6 +629,14 @@ fn check_outputs_of(
     scene: &SceneFile,
     (out, report): (&Path, Option<&Path>),
 ) -> anyhow::Result<()> {
+    // a GLB under another name (`-o fur.obj`, a path without an extension) opens nowhere
+    let ext = out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
+        anyhow::bail!(
+            "{}: the output must be a .glb (one file) or a .gltf (its JSON, with a .bin beside it)",
+            printable(&out.display().to_string(), false)
+        );
+    }
     let binary = shellbake::output::write::binary_of(out);
     let mut outputs = vec![("output", out)];
     outputs.extend(binary.as_deref().map(|bin| ("output's binary", bin)));
@@ -666,13 +674,16 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     }
     report.input = args.input.display().to_string();
     report.output = out.display().to_string();
+    // what is written: a `.gltf` output is its JSON and its binary, not the GLB
+    let files = shellbake::output::write::output_files(&out, &glb)?;
+    report.total_bytes = files.iter().map(|(_, b)| b.len()).sum();
     let json = args.report.as_ref().map(|_| report.to_json());
     let mut others = Vec::new();
     if let (Some(path), Some(json)) = (&args.report, &json) {
         others.push((path.as_path(), json.as_bytes()));
     }
     // every file complete before any replaces what was there
-    shellbake::output::write::write_output(&out, &glb, &others)?;
+    shellbake::output::write::write_files(&files, &others)?;
     if !args.quiet {
         print!("{}", printable(&report.summary(), true));
     }

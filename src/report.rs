@@ -387,6 +387,7 @@ pub struct SceneReport {
     pub input: String,
     pub output: String,
     pub plan: Vec<PlanEntry>,
+    /// The bytes written: the GLB's, or a `.gltf` output's JSON and binary together.
     pub total_bytes: usize,
     pub draw_calls: usize,
     pub triangles_drawn: usize,
@@ -490,6 +491,15 @@ fn more_surfaces(rest: &[Report]) -> String {
 }
 
 impl SceneReport {
+    /// The bytes written: "N bytes", and for a `.gltf` output "with its .bin".
+    fn written(&self) -> String {
+        if self.output.to_ascii_lowercase().ends_with(".gltf") {
+            format!("{} bytes with its .bin", self.total_bytes)
+        } else {
+            format!("{} bytes", self.total_bytes)
+        }
+    }
+
     /// The plan's entries with each stage's time summed over the surfaces' sections.
     pub fn plan_entries(plan: &Plan, surfaces: &[Report], write_ms: f64) -> Vec<PlanEntry> {
         plan.stages
@@ -529,10 +539,12 @@ impl SceneReport {
             .as_ref()
             .map_or(String::new(), AssetReport::lines);
         if let [one] = self.surfaces.as_slice() {
-            // an asset's file holds more than its one surface's bytes
-            let file = match &self.asset {
-                Some(_) => format!(": {} bytes", self.total_bytes),
-                None => String::new(),
+            // an asset's file holds more than its one surface's bytes, and a `.gltf` output
+            // is indented JSON and a binary
+            let split = self.total_bytes != one.total_bytes;
+            let file = match (&self.asset, split) {
+                (None, false) => String::new(),
+                _ => format!(": {}", self.written()),
             };
             return format!("{} -> {}{file}\n", self.input, self.output)
                 + &asset
@@ -540,11 +552,11 @@ impl SceneReport {
                 + &self.plan_line();
         }
         let mut s = format!(
-            "{} -> {}: {} surfaces, {} bytes, {} triangles drawn in {} draw call(s)\n",
+            "{} -> {}: {} surfaces, {}, {} triangles drawn in {} draw call(s)\n",
             self.input,
             self.output,
             self.surfaces.len(),
-            self.total_bytes,
+            self.written(),
             self.triangles_drawn,
             self.draw_calls
         );

@@ -480,4 +480,36 @@ fn a_gltf_output_is_the_glb_as_json_with_its_binary_beside_it() {
         "{stderr}"
     );
     assert_eq!(std::fs::read(&bin).unwrap(), before);
+
+    // the report and the summary give the bytes written, the JSON's and the binary's
+    let report = dir.join("report.json");
+    let args = [
+        "bake",
+        &critter,
+        "--only",
+        "material=fur_*",
+        "-o",
+        &out,
+        "--report",
+        &common::path_str(&report),
+    ];
+    let (code, stdout, stderr) = common::shellbake(&args);
+    assert_eq!(code, Some(0), "{stderr}");
+    let written = std::fs::metadata(&gltf).unwrap().len() + std::fs::metadata(&bin).unwrap().len();
+    let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(r["total_bytes"], written, "{r}");
+    assert!(
+        stdout.contains(&format!(" {written} bytes with its .bin")),
+        "{stdout}"
+    );
+
+    // a GLB under another name opens nowhere: refused, nothing written
+    for name in ["fur.obj", "fur"] {
+        let out = dir.join(name);
+        let args = ["bake", &critter, "-o", &common::path_str(&out), "-q"];
+        let (code, _, stderr) = common::shellbake(&args);
+        assert_ne!(code, Some(0));
+        assert!(stderr.contains("must be a .glb"), "{stderr}");
+        assert!(!out.exists());
+    }
 }

@@ -850,7 +850,13 @@ impl Document {
     /// Parses GLB or `.gltf` bytes (see the module doc); `path` names the file in errors and
     /// resolves relative URIs.
     pub fn parse(path: &Path, bytes: &[u8]) -> Result<Document> {
-        let (json, bin) = if bytes.starts_with(b"glTF") {
+        // a `.glb` that is not one (empty, cut short, another format) is told so, not that its
+        // "JSON" does not parse; one holding glTF JSON is read as such, as loaders do
+        let named_glb = (path.extension()).is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+        let json_text = (bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes).iter())
+            .find(|b| !b.is_ascii_whitespace())
+            == Some(&b'{');
+        let (json, bin) = if bytes.starts_with(b"glTF") || (named_glb && !json_text) {
             let (json, bin) = split_glb(bytes).map_err(|m| Error::invalid(path, "GLB", m))?;
             (json, bin.map(<[u8]>::to_vec))
         } else {

@@ -242,6 +242,17 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
     let objects = objects(path, bytes, false, &mut scene)?;
     let meshes = meshes(path, &objects, |_| false, &mut scene.warnings)?;
     scene.meshes = meshes;
+    // an asset's reader takes an OBJ whose library it reads: here it was named and not read
+    if names_mtl(bytes) && materials(path, bytes).is_none() {
+        let names = statements(bytes, "mtllib").join(", ");
+        scene.warnings.push(format!(
+            "{}: its material library ({}) could not be read (no such file beside the OBJ, \
+             outside its folder, or no materials in it): baked as a plain mesh, without its \
+             materials and textures",
+            path.display(),
+            super::escape(&names)
+        ));
+    }
     Ok(scene)
 }
 
@@ -1852,6 +1863,21 @@ mod tests {
         // every corner with a normal, none with a texture coordinate; then the reverse
         same_as_tobj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\nf 3//1 2//1 1//1\n");
         same_as_tobj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.25 0.5\nf 1/1 2/1 3/1\n");
+    }
+
+    #[test]
+    fn a_material_library_that_cannot_be_read_is_named_in_a_warning() {
+        let dir = std::env::temp_dir();
+        let obj = b"mtllib missing.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let scene = load(&dir.join("no-library.obj"), obj).unwrap();
+        assert!(
+            (scene.warnings.iter()).any(|w| w.contains("(missing.mtl) could not be read")),
+            "{:?}",
+            scene.warnings
+        );
+        // none named, none missed
+        let scene = load(&dir.join("plain.obj"), &obj[b"mtllib missing.mtl\n".len()..]).unwrap();
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     }
 
     #[test]

@@ -707,16 +707,32 @@ pub fn write_glb(path: &Path, glb: &[u8]) -> Result<()> {
 /// rename of the JSON that fails (after every file was written and synced) leaves the new
 /// binary beside the old JSON.
 pub fn write_output(path: &Path, glb: &[u8], others: &[(&Path, &[u8])]) -> Result<()> {
-    let split = match binary_of(path) {
-        Some(bin) => Some((gltf_of_glb(path, glb, &bin)?, bin)),
-        None => None,
-    };
-    let mut files: Vec<(&Path, &[u8])> = match &split {
-        Some(((json, data), bin)) => vec![(path, json), (bin, data)],
-        None => vec![(path, glb)],
-    };
-    files.extend_from_slice(others);
-    write_all_atomic(&files)
+    write_files(&output_files(path, glb)?, others)
+}
+
+/// The files a bake's output `path` is written as: the GLB, or for a `.gltf` path its JSON and
+/// then its binary ([`write_output`]). Their sizes are what a report says the output takes.
+pub fn output_files(path: &Path, glb: &[u8]) -> Result<Vec<(std::path::PathBuf, Vec<u8>)>> {
+    Ok(match binary_of(path) {
+        Some(bin) => {
+            let (json, data) = gltf_of_glb(path, glb, &bin)?;
+            vec![(path.to_path_buf(), json), (bin, data)]
+        }
+        None => vec![(path.to_path_buf(), glb.to_vec())],
+    })
+}
+
+/// Writes `files` ([`output_files`]) and `others` beside them, all or none, the first of
+/// `files` last (see [`write_output`]).
+pub fn write_files(
+    files: &[(std::path::PathBuf, Vec<u8>)],
+    others: &[(&Path, &[u8])],
+) -> Result<()> {
+    let mut all: Vec<(&Path, &[u8])> = (files.iter())
+        .map(|(p, b)| (p.as_path(), b.as_slice()))
+        .collect();
+    all.extend_from_slice(others);
+    write_all_atomic(&all)
 }
 
 /// The binary file a `.gltf` output's buffer goes to: `<stem>.bin` beside it (none for any
