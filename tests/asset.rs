@@ -314,6 +314,29 @@ fn skinned_fur_has_its_true_bounds_in_babylon_and_three_js() {
     }
 }
 
+/// A rigid part's fur in Babylon.js, which bounds a mesh by its `POSITION` accessor's `min` and
+/// `max` and adds no morph target: the layers' box was the bare blob's, the fur sticking out of
+/// it by its whole height. The box vertices (`pack::BOX_VERTICES`) put the fur inside it.
+#[test]
+fn a_rigid_part_s_fur_is_inside_its_bounds_in_babylon() {
+    let dir = scratch("asset-rigid-bounds");
+    let (input, _) = shape_key_sphere(&dir);
+    let (glb, report) = bake(&input, &dir, "blob-fur.glb", &["--no-lod"]);
+    let height = report["surfaces"][0]["resolved"]["height"].as_f64().unwrap();
+    let babylon = node("babylon_bounds.mjs", std::slice::from_ref(&glb));
+    let (fur, bare) = (&babylon[0]["fur"], &babylon[0]["bare"]);
+    let at = |b: &Value, end: &str, k: usize| b[end][k].as_f64().unwrap();
+    for k in 0..3 {
+        let what = format!("axis {k}: {babylon:?}");
+        // the outer layer (t = 0.97) reaches 0.97 of the height past the blob
+        assert!(at(fur, "max", k) >= at(bare, "max", k) + 0.95 * height, "{what}");
+        assert!(at(fur, "min", k) <= at(bare, "min", k) - 0.95 * height, "{what}");
+        // and the box is not much larger than that
+        assert!(at(fur, "max", k) <= at(bare, "max", k) + 1.05 * height, "{what}");
+    }
+    assert_valid(&[glb]);
+}
+
 #[test]
 fn two_skinned_characters_a_camera_a_light_and_an_unfurred_ground() {
     let dir = scratch("asset-scene");

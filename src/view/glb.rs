@@ -820,11 +820,14 @@ impl Asset {
     }
 
     /// World-space bounds of everything drawn at LOD 0, morph targets applied with their weights
-    /// (and the base), as an axis-aligned box.
+    /// (and the base), as an axis-aligned box: of the vertices the primitives' triangles use (a
+    /// baked file's box vertices, `pack::BOX_VERTICES`, are drawn by none).
     pub fn bounds(&self) -> Result<Option<(DVec3, DVec3)>> {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
         let mut cache: HashMap<usize, Floats> = HashMap::new();
+        // per (positions, indices): which vertices triangles use
+        let mut used: HashMap<(usize, Option<usize>), Vec<bool>> = HashMap::new();
         for inst in self.instances(0)? {
             for prim in &self.meshes[inst.mesh].primitives {
                 let skin = prim.skin.filter(|_| inst.joints.is_some());
@@ -838,7 +841,18 @@ impl Asset {
                     }
                 }
                 let pos = &cache[&prim.position];
-                for i in 0..pos.count() {
+                let key = (prim.position, prim.indices);
+                if let std::collections::hash_map::Entry::Vacant(e) = used.entry(key) {
+                    let mut drawn = vec![prim.indices.is_none(); pos.count()];
+                    for i in prim.indices.map(|ix| self.indices(ix)).transpose()?.unwrap_or_default() {
+                        if let Some(d) = drawn.get_mut(i as usize) {
+                            *d = true;
+                        }
+                    }
+                    e.insert(drawn);
+                }
+                let drawn = &used[&key];
+                for i in (0..pos.count()).filter(|&i| drawn[i]) {
                     let world = match (skin, &inst.joints) {
                         (Some((j, w)), Some(mats)) => skin_matrix(mats, &cache[&j], &cache[&w], i),
                         _ => inst.world,

@@ -7,7 +7,9 @@
 //! Order of work follows meshoptimizer's recommendation: index order for the vertex cache
 //! (`meshopt_optimizeVertexCache`), then vertex order for fetch (first use in the index buffer,
 //! as `optimizeVertexFetchRemap` does), then quantization. Both are deterministic. Vertices no
-//! triangle uses are dropped.
+//! triangle uses are dropped; a compact surface that is not skinned then gets two of its own,
+//! the corners of the box its fur reaches, so that clients bounding a mesh by its `POSITION`
+//! accessor alone (Babylon.js) hold the fur inside it ([`BOX_VERTICES`]).
 //!
 //! - **compact**: one quantized geometry (POSITION i16, NORMAL i8, TEXCOORD_0 u16, morph target 0
 //!   = extrusion delta i16, see below) shared by every layer; layer `j` is a primitive reusing the same
@@ -1734,14 +1736,22 @@ impl Shared {
         for (new, &old) in order.iter().enumerate() {
             fetch[old as usize] = new as u32;
         }
-        let q: Vec<Vec3> = (order.par_iter())
+        let mut q: Vec<Vec3> = (order.par_iter())
             .with_min_len(PAR_MIN_LEN)
             .map(|&o| g.stored(g.positions[o as usize]))
             .collect();
+        // the box's two corners as vertices no triangle uses (see `BOX_VERTICES`), each with
+        // the attributes of the first vertex and no morph
+        let boxed = shells && g.skin.is_none() && !order.is_empty();
+        let mut rows = order.clone();
+        if boxed {
+            q.extend(fur_box(g, &order, &q));
+            rows.extend([order[0]; BOX_VERTICES]);
+        }
         let position = b.positions("position", &q, &g.grid);
-        let normal = b.normals(&gather(&order, g.normals));
+        let normal = b.normals(&gather(&rows, g.normals));
         let skin = g.skin.map(|s| b.skin(s, &order));
-        let shells = shells.then(|| ShellStreams::new(b, g, &order));
+        let shells = shells.then(|| ShellStreams::new(b, g, (&rows, order.len())));
         Shared {
             order,
             fetch,
@@ -1762,6 +1772,47 @@ impl Shared {
     }
 }
 
+/// Vertices no triangle uses, at the corners of the box the fur reaches, at the end of a compact
+/// surface's vertex streams. Babylon.js takes a mesh's bounds from its `POSITION` accessor's
+/// `min`/`max` and adds no morph target to them, so without them every layer's box was the
+/// bare surface's and the fur stuck out of it by its whole height (culled while its tips still
+/// showed, cut off when a camera framed the model). three.js adds the targets to those bounds
+/// (a box larger by the fur's height), Blender's importer and gltfpack leave such vertices out.
+/// Not for a skinned surface, whose bounds clients compute from the posed vertices.
+const BOX_VERTICES: usize = 2;
+
+/// The two corners of a box around everything the stored vertices `q` (of the input vertices
+/// `order`) reach with their extrusion and bend at full weight, centred on their own box, as
+/// `q` is stored (grid levels, or a plain float file's positions).
+fn fur_box(g: &Geometry, order: &[u32], q: &[Vec3]) -> [Vec3; BOX_VERTICES] {
+    // targets are stored in units of 32767 steps (`Targets::levels`), positions in steps
+    let unit = if g.exact { 1.0 } else { SNORM16 };
+    let none = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    let (lo, hi) = (order.iter().zip(q)).fold(none, |(lo, hi), (&o, &p)| {
+        let d = g.deltas[o as usize] * unit;
+        let b = g.bends.as_ref().map_or(Vec3::ZERO, |b| b[o as usize] * unit);
+        let far = [p + d, p + d + b];
+        (lo.min(p).min(far[0]).min(far[1]), hi.max(p).max(far[0]).max(far[1]))
+    });
+    // centred on the box of the vertices themselves, which is where clients (and `LodSwitch`)
+    // put a chunk's centre from these bounds: the levels' switch distances hold from it
+    let (base_lo, base_hi) = q.iter().fold(none, |(l, h), &p| (l.min(p), h.max(p)));
+    if g.exact {
+        let centre = (base_lo + base_hi) * 0.5;
+        let reach = (hi - centre).max(centre - lo);
+        return [centre - reach, centre + reach];
+    }
+    // grid levels are whole: in half levels, a reach of the centre's parity keeps both
+    // corners whole and the centre exact; within the grid, so a side the grid cannot mirror
+    // is short of the fur there (by what the fur reaches past the base on the other side)
+    let c2 = base_lo + base_hi;
+    let room = c2.min(Vec3::splat(2.0 * g.grid.max_level() as f32) - c2);
+    let reach2 = (2.0 * hi - c2).max(c2 - 2.0 * lo).ceil();
+    let reach2 = reach2 + (c2 + reach2).rem_euclid(Vec3::splat(2.0));
+    let reach2 = reach2.min(room - (c2 + room).rem_euclid(Vec3::splat(2.0)));
+    [(c2 - reach2) * 0.5, (c2 + reach2) * 0.5]
+}
+
 /// The per-vertex values `v` of the input vertices, in fetch order `order`.
 fn gather<T: Copy>(order: &[u32], v: &[T]) -> Vec<T> {
     order.iter().map(|&o| v[o as usize]).collect()
@@ -1770,8 +1821,13 @@ fn gather<T: Copy>(order: &[u32], v: &[T]) -> Vec<T> {
 impl ShellStreams {
     /// A chunk's shell streams in fetch order `order`: texture coordinates, the extrusion
     /// target, the gravity and wind targets, and the root colours with the occlusion's delta.
-    fn new(b: &mut Builder, g: &Geometry, order: &[u32]) -> ShellStreams {
-        let pick = |v: &[Vec3]| gather(order, v);
+    fn new(b: &mut Builder, g: &Geometry, (order, moving): (&[u32], usize)) -> ShellStreams {
+        // the box vertices past `moving` take no morph
+        let pick = |v: &[Vec3]| {
+            let mut d = gather(&order[..moving], v);
+            d.resize(order.len(), Vec3::ZERO);
+            d
+        };
         let texcoord = b.texcoords(&gather(order, g.uvs), g.uv_grid, g.float_uvs, g.tiles);
         let stored = targets(g.exact);
         let delta = b.deltas(&pick(&g.deltas), "extrusion", 0, stored);
