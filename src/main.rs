@@ -629,14 +629,6 @@ fn check_outputs_of(
     scene: &SceneFile,
     (out, report): (&Path, Option<&Path>),
 ) -> anyhow::Result<()> {
-    // a GLB under another name (`-o fur.obj`, a path without an extension) opens nowhere
-    let ext = out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
-        anyhow::bail!(
-            "{}: the output must be a .glb (one file) or a .gltf (its JSON, with a .bin beside it)",
-            printable(&out.display().to_string(), false)
-        );
-    }
     let binary = shellbake::output::write::binary_of(out);
     let mut outputs = vec![("output", out)];
     outputs.extend(binary.as_deref().map(|bin| ("output's binary", bin)));
@@ -650,6 +642,17 @@ fn check_outputs_of(
     }
     if scene.path.is_some() {
         check(&args.input)?;
+    }
+    // a GLB under another name (`-o fur.obj`, a path without an extension) opens nowhere
+    let ext = out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
+        return Err(shellbake::Error::Output {
+            path: out.to_path_buf(),
+            message: "the output must be a .glb (one file) or a .gltf (its JSON, with a .bin \
+                      beside it)"
+                .into(),
+        }
+        .into());
     }
     Ok(())
 }

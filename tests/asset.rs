@@ -1841,7 +1841,11 @@ fn morphed_boxes(file: &Path, time: f32) -> [(glam::DVec3, glam::DVec3); 2] {
                 .map(|&a| asset.floats(a).unwrap())
                 .collect();
             let b = &mut boxes[(inst.node != 0) as usize];
-            for i in 0..pos.count() {
+            // the vertices the triangles draw (not the box vertices past them)
+            let drawn = prim.indices.map_or(pos.count(), |ix| {
+                1 + asset.indices(ix).unwrap().into_iter().max().unwrap_or(0) as usize
+            });
+            for i in 0..drawn {
                 let mut p = glam::Vec3::from(pos.vec3(i));
                 for (t, d) in targets.iter().enumerate() {
                     p += glam::Vec3::from(d.vec3(i)) * inst.weights.get(t).copied().unwrap_or(0.0);
@@ -2093,10 +2097,14 @@ fn outer_layer_density(glb: &Glb) -> Vec<(f64, f64)> {
         .filter(|m| layer(m).is_some())
         .max_by_key(|m| layer(m))
         .unwrap();
-    let attributes = &outer["primitives"][0]["attributes"];
+    let primitive = &outer["primitives"][0];
+    let attributes = &primitive["attributes"];
     let at = |name: &str| glb.accessor(attributes[name].as_u64().unwrap() as usize);
     let (x, colour) = (at("POSITION"), at("COLOR_0"));
-    x.iter().zip(&colour).map(|(p, c)| (p[0], c[3])).collect()
+    // the vertices the triangles draw (not the box vertices past them)
+    let ix = glb.accessor(primitive["indices"].as_u64().unwrap() as usize);
+    let drawn = 1 + ix.iter().map(|i| i[0] as usize).max().unwrap();
+    x.iter().zip(&colour).take(drawn).map(|(p, c)| (p[0], c[3])).collect()
 }
 
 #[test]

@@ -40,12 +40,14 @@ const one = (name) => {
   if (v.length !== 1) throw new Error(`${file}: expected one '${name}' view (a compact, uncompressed bake), found ${v.length}`);
   return bytes(v[0]);
 };
-const pos = new Int16Array(one('position'));
-const nrm = new Int8Array(one('normal'));
-const uvq = new Uint16Array(one('texcoord'));
-const ext = new Int16Array(one('extrusion'));
 const indices = views('indices').map((v) => new Uint32Array(bytes(v)));
-const nv = pos.length / 4;
+// the vertices triangles use: the streams end with the box vertices no triangle draws
+// (`pack::BOX_VERTICES`), which no layout would change
+const nv = 1 + indices.reduce((m, ix) => ix.reduce((a, i) => Math.max(a, i), m), 0);
+const pos = new Int16Array(one('position')).slice(0, 4 * nv);
+const nrm = new Int8Array(one('normal')).slice(0, 4 * nv);
+const uvq = new Uint16Array(one('texcoord')).slice(0, 2 * nv);
+const ext = new Int16Array(one('extrusion')).slice(0, 4 * nv);
 const mat = doc.materials.find((m) => m.pbrMetallicRoughness?.baseColorTexture?.extensions?.KHR_texture_transform);
 const tt = mat.pbrMetallicRoughness.baseColorTexture.extensions.KHR_texture_transform;
 const U = (k) => tt.offset[0] + (tt.scale[0] * uvq[2 * k]) / 65535;

@@ -1703,6 +1703,9 @@ struct LevelCtx<'a> {
 /// streams only shells read (`shells` = false).
 struct Shared {
     order: Vec<u32>,
+    /// The input vertex each stored vertex takes its attributes from: `order`, then the first
+    /// vertex again for each box vertex ([`BOX_VERTICES`]).
+    rows: Vec<u32>,
     /// Input vertex → stored vertex.
     fetch: Vec<u32>,
     position: usize,
@@ -1754,6 +1757,7 @@ impl Shared {
         let shells = shells.then(|| ShellStreams::new(b, g, (&rows, order.len())));
         Shared {
             order,
+            rows,
             fetch,
             position,
             normal,
@@ -2382,7 +2386,7 @@ fn bare_level(
     let colour = if per_vertex { [1.0; 3] } else { fur };
     if per_vertex {
         let mut bytes = Bytes::default();
-        for &o in &s.order {
+        for &o in &s.rows {
             let w = weight.map_or(1.0, |w| w[o as usize]);
             let shade = occlusion.map_or(1.0, |a| 1.0 - 0.5 * a[o as usize]);
             let tint = albedo.map_or(Vec3::ONE, |a| a[o as usize].truncate());
@@ -2392,7 +2396,7 @@ fn bare_level(
             });
             bytes.0.extend_from_slice(&[c[0], c[1], c[2], 255]);
         }
-        let n = s.order.len();
+        let n = s.rows.len();
         let v = b.stream("bare_color", Semantic::Color(0), None, bytes.0, Some(4), n);
         let a = b
             .out
