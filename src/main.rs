@@ -385,9 +385,24 @@ impl BakeArgs {
             if !self.only.is_empty() && self.is_scene() {
                 s.only = self.only.clone();
             }
-            s.params.check().map_err(|e| named(e.to_string()))?;
+            s.params
+                .check()
+                .map_err(|e| named(format!("{}: {}", self.named_by(&e.key), e.message)))?;
         }
         Ok(scene)
+    }
+
+    /// What set parameter `key` (`shells.layers`): the flag given for it (`--layers`), else the
+    /// key, as `--set` and scene files spell it.
+    fn named_by(&self, key: &str) -> String {
+        let flag = match key {
+            "shells.layers" => self.layers.map(|_| "--layers"),
+            "shells.height" => self.height.map(|_| "--height"),
+            "strands.density" => self.density.map(|_| "--density"),
+            "strands.uv_density" => self.uv_density.map(|_| "--uv-density"),
+            _ => None,
+        };
+        flag.map_or(key.to_string(), str::to_string)
     }
 
     /// The first surface's parameters (what a mesh bake uses).
@@ -1061,9 +1076,11 @@ mod tests {
 
     #[test]
     fn out_of_range_flags_are_refused() {
-        assert!(parse(&["bake", "a.obj", "--layers", "500"])
-            .params()
-            .is_err());
+        // the error names the flag given, or the key `--set` gave
+        let e = parse(&["bake", "a.obj", "--layers", "500"]).params().unwrap_err();
+        assert!(e.to_string().contains("--layers: layers must be in"), "{e}");
+        let e = parse(&["bake", "a.obj", "--set", "shells.layers=500"]).params().unwrap_err();
+        assert!(e.to_string().contains("shells.layers: layers must be in"), "{e}");
         assert!(parse(&["bake", "a.obj", "--density=-1"]).params().is_err());
         assert!(Cli::try_parse_from(["shellbake", "bake", "a.obj", "--preset", "hair"]).is_err());
     }
