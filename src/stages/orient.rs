@@ -113,7 +113,7 @@ impl Orientation {
         let mut parts = Vec::new();
         if self.turned_outward > 0 {
             parts.push(format!(
-                "turned {} of {} closed part(s) outward (they were inside out)",
+                "turned {} of {} closed part(s) outward (most of their faces faced in)",
                 self.turned_outward, self.closed
             ));
         }
@@ -285,11 +285,11 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
         if s.closed {
             out.closed += 1;
         }
+        // the minority agrees with its neighbours either way, also in a part then turned
+        out.made_consistent += made;
         if s.closed && volume < 0.0 && volume.abs() > 1e-6 * s.area.powf(1.5) {
             out.turned_outward += 1;
             whole = !whole;
-        } else {
-            out.made_consistent += made;
         }
         turn[r] = whole;
     }
@@ -402,6 +402,24 @@ mod tests {
         // orient swaps the same two corners `reversed` swapped
         assert_eq!(bad.indices, good.indices);
         assert!(o.warning().unwrap().contains("outward"));
+    }
+
+    #[test]
+    fn an_inside_out_torus_with_some_faces_out_counts_both_fixes() {
+        // most faces in, every third one out: the part is turned, and those agree too
+        let good = procedural::torus(1.0, 0.3, 24, 12);
+        let mut bad = reversed(&good);
+        for t in bad.indices.chunks_exact_mut(3).step_by(3) {
+            t.swap(1, 2);
+        }
+        let o = orient(&mut bad, &OrientParams::default());
+        assert_eq!(o.turned_outward, 1);
+        let third = good.triangle_count().div_ceil(3);
+        assert_eq!(o.made_consistent, third);
+        assert_eq!(o.flipped, good.triangle_count() - third);
+        assert_eq!(bad.indices, good.indices);
+        let w = o.warning().unwrap();
+        assert!(w.contains("outward") && w.contains(&format!("flipped {third} triangle(s) to agree")), "{w}");
     }
 
     #[test]
