@@ -1594,7 +1594,7 @@ fn fill_sizes(
         .map(|&m| packed.mesh_triangles(m))
         .sum();
     let stream_total: usize = report.streams.values().sum();
-    let own_json: usize = layer_json.iter().sum();
+    let own_json = write::json_bytes_of_surface(json, packed, s);
     let (total, json) = if several {
         (stream_total + own_json, own_json)
     } else {

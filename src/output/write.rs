@@ -605,6 +605,39 @@ pub fn json_bytes_per_layer(
     out
 }
 
+/// JSON bytes the document spends on surface `s`: the meshes and nodes of its every level and
+/// chunk, the materials they use, and the accessors and buffer views over its streams (what a
+/// file of several surfaces says each one takes; shared objects, the masks' textures and the
+/// scenes, are nobody's).
+pub fn json_bytes_of_surface(doc: &Value, packed: &Packed, s: usize) -> usize {
+    let len = |v: &Value| serde_json::to_vec(v).map_or(0, |b| b.len());
+    let mut materials: Vec<usize> = Vec::new();
+    let mut total = 0;
+    for (m, mesh) in packed.meshes.iter().enumerate() {
+        if mesh.tag.surface == s {
+            total += len(&doc["meshes"][m]);
+            materials.extend(mesh.primitives.iter().map(|p| p.material));
+        }
+    }
+    materials.sort_unstable();
+    materials.dedup();
+    total += materials.iter().map(|&m| len(&doc["materials"][m])).sum::<usize>();
+    let nodes = packed.nodes.iter().enumerate();
+    total += (nodes.filter(|(_, n)| n.tag.surface == s))
+        .map(|(i, _)| len(&doc["nodes"][i]))
+        .sum::<usize>();
+    let own = |stream: usize| packed.streams[stream].tag.surface == s;
+    total += (packed.accessors.iter().enumerate())
+        .filter(|(_, a)| own(a.stream))
+        .map(|(i, _)| len(&doc["accessors"][i]))
+        .sum::<usize>();
+    total += (0..packed.streams.len())
+        .filter(|&v| own(v))
+        .map(|v| len(&doc["bufferViews"][v]))
+        .sum::<usize>();
+    total
+}
+
 /// A GLB container around `doc` and `bin`.
 pub fn glb_bytes(doc: &Value, bin: &[u8]) -> Vec<u8> {
     glb_with(doc, bin.len(), |out| out.extend_from_slice(bin))
