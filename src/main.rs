@@ -712,6 +712,7 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
 fn plan(args: &BakeArgs) -> anyhow::Result<()> {
     let mut scene = args.scene()?;
     let asset = asset_of(args, &scene)?;
+    let surfaces = scene.surfaces.len();
     let (loaded, estimate) = match &asset {
         // an asset's plan: one surface per part to fur
         Some(AssetInput { asset, chosen }) => {
@@ -722,11 +723,24 @@ fn plan(args: &BakeArgs) -> anyhow::Result<()> {
         None => load_checked(args, &scene)?,
     };
     let plan = shellbake::scene::plan(&scene);
-    let mut text = format!(
-        "{}: {} surface(s)\n",
-        args.input.display(),
-        scene.surfaces.len()
-    );
+    // an asset's surfaces are the parts they fur (a surface's, named `<surface>_<part>`)
+    let mut text = match &asset {
+        Some(_) if args.is_scene() => format!(
+            "{}: {} part(s) to fur, chosen by {surfaces} surface(s)\n",
+            args.input.display(),
+            scene.surfaces.len()
+        ),
+        Some(_) => format!(
+            "{}: {} part(s) to fur\n",
+            args.input.display(),
+            scene.surfaces.len()
+        ),
+        None => format!(
+            "{}: {} surface(s)\n",
+            args.input.display(),
+            scene.surfaces.len()
+        ),
+    };
     for (s, l) in scene.surfaces.iter().zip(&loaded) {
         let triangles: usize = l.scene.meshes.iter().map(|m| m.triangle_count()).sum();
         let effects: Vec<&str> = s.effects.iter().map(|e| e.name()).collect();
