@@ -70,7 +70,14 @@ pub struct Frames {
     pub direction: Vec<Vec3>,
     /// How many welded vertices used each rule, in [`Fallback`] order.
     pub fallbacks: [usize; 5],
+    /// Render vertices whose input shading normal points against their extrusion direction
+    /// (into the surface), of those with one: flipped normals, which shade the fur (as the
+    /// asset) dark. A warning names them past [`INWARD_WARNING`] of the vertices.
+    pub inward_normals: (usize, usize),
 }
+
+/// The share of vertices with inward shading normals from which a warning names them.
+pub const INWARD_WARNING: f64 = 0.1;
 
 const VANISH: f32 = 1e-4;
 
@@ -155,6 +162,13 @@ pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Fram
         .with_min_len(PAR_MIN_LEN)
         .map(|&w| frames.welded[w as usize])
         .collect();
+    if let Some(ns) = input_normals {
+        let inward = (ns.par_iter().zip(&frames.direction))
+            .with_min_len(PAR_MIN_LEN)
+            .filter(|(n, d)| n.dot(**d) < 0.0)
+            .count();
+        frames.inward_normals = (inward, ns.len());
+    }
     debug_assert!(frames
         .direction
         .iter()
@@ -164,14 +178,23 @@ pub fn extrusion_frames(welded: &Welded, input_normals: Option<&[Vec3]>) -> Fram
 
 impl Reported for Frames {
     fn facts(&self) -> Facts {
-        Facts {
-            counts: Fallback::ALL
-                .iter()
-                .zip(self.fallbacks)
-                .map(|(rule, n)| (rule.name(), n as f64))
-                .collect(),
+        let (inward, of) = self.inward_normals;
+        let mut counts: Vec<(&'static str, f64)> = (Fallback::ALL.iter().zip(self.fallbacks))
+            .map(|(rule, n)| (rule.name(), n as f64))
+            .collect();
+        counts.push(("inward_normals", inward as f64));
+        let mut facts = Facts {
+            counts,
             ..Default::default()
+        };
+        if of > 0 && inward as f64 >= INWARD_WARNING * of as f64 {
+            facts.warnings.push(format!(
+                "{inward} of {of} vertices have shading normals pointing into the surface (against \
+                 their faces): the asset's normals look flipped, and the fur is shaded dark there \
+                 as the asset is"
+            ));
         }
+        facts
     }
 }
 
@@ -182,6 +205,24 @@ mod tests {
 
     fn frames_of(p: &[Vec3], ix: &[u32]) -> Frames {
         extrusion_frames(&weld(p, ix), None)
+    }
+
+    #[test]
+    fn flipped_shading_normals_are_counted_and_named() {
+        let mut m = crate::fixtures::procedural::sphere(1.0, 8, 16);
+        let welded = weld(&m.positions, &m.indices);
+        let own = extrusion_frames(&welded, m.normals.as_deref());
+        assert_eq!(own.inward_normals, (0, m.positions.len()));
+        assert!(own.facts().warnings.is_empty());
+        for n in m.normals.as_mut().unwrap() {
+            *n = -*n;
+        }
+        let flipped = extrusion_frames(&welded, m.normals.as_deref());
+        // all but the poles' copies that only flat triangles use
+        let (inward, of) = flipped.inward_normals;
+        assert!(of == m.positions.len() && inward >= of - 2, "{inward} of {of}");
+        assert_eq!(flipped.welded, own.welded, "the directions come from the faces");
+        assert!(flipped.facts().warnings[0].contains("look flipped"));
     }
 
     #[test]
