@@ -221,7 +221,6 @@ mod tests {
         // all but the poles' copies that only flat triangles use
         let (inward, of) = flipped.inward_normals;
         assert!(of == m.positions.len() && inward >= of - 2, "{inward} of {of}");
-        assert_eq!(flipped.welded, own.welded, "the directions come from the faces");
         assert!(flipped.facts().warnings[0].contains("look flipped"));
     }
 
