@@ -958,9 +958,26 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
     let oriented = run.report.run_stage(Stage::Orient, || {
         orient::oriented(&mut mesh, &params.orient)
     });
+    // a mesh whose edges are already shorter than its strands has no facets to round off
+    let fine = run.runs(Stage::Tessellation).then(|| {
+        let height = params.resolved_height(mesh.diagonal());
+        (tessellate::mean_edge(&mesh), height)
+    });
     let tessellated = run.gate(Stage::Tessellation, || {
         tessellate::tessellate(&mut mesh, &params.tessellation, paint)
     });
+    if let (Some(t), Some((edge, height))) = (&tessellated, fine) {
+        if 4.0 * edge < height as f64 && t.factor > 1 {
+            run.report.warnings.push(format!(
+                "tessellation: the mesh's edges (mean {edge:.4}) are under a quarter of its \
+                 strands' length ({height:.4}), too fine for facets to show under the fur; \
+                 cutting each triangle into {} made {} triangles of {}",
+                t.factor * t.factor,
+                t.triangles_after,
+                t.triangles_before
+            ));
+        }
+    }
     let topology = match tessellated {
         Some(t) => {
             run.report.tell(Stage::Tessellation, &t);

@@ -119,3 +119,19 @@ fn edge_length_picks_the_factor_and_bakes_repeat() {
         f
     }]);
 }
+
+/// Tessellating a mesh whose edges are far shorter than its strands buys nothing but triangles:
+/// a warning says so (the coarse sphere's edges are 0.3–0.6; strands of 4 are 7 to 13 times
+/// longer), and none with its default strands.
+#[test]
+fn tessellating_a_mesh_finer_than_its_strands_is_named() {
+    let scene = coarse_sphere();
+    let with = [Effect::Tessellation];
+    let mut p = params(Layout::Compact, 2, 0.75);
+    let warned = |b: &shellbake::Baked| {
+        (b.report.warnings.iter()).any(|w| w.starts_with("tessellation: the mesh's edges"))
+    };
+    assert!(!warned(&shellbake::bake_with(&scene, &p, &with)));
+    p.shells.height = Some(4.0);
+    assert!(warned(&shellbake::bake_with(&scene, &p, &with)));
+}

@@ -93,17 +93,21 @@ impl TessellationParams {
         let Some(target) = self.edge_length else {
             return self.factor;
         };
-        let (mut sum, mut count) = (0.0f64, 0usize);
-        for t in mesh.indices.chunks_exact(3) {
-            for k in 0..3 {
-                let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
-                sum += mesh.positions[a].distance(mesh.positions[b]) as f64;
-                count += 1;
-            }
-        }
-        let mean = sum / count.max(1) as f64;
-        ((mean / target as f64).ceil() as u32).clamp(1, MAX_FACTOR)
+        ((mean_edge(mesh) / target as f64).ceil() as u32).clamp(1, MAX_FACTOR)
     }
+}
+
+/// The mean length of `mesh`'s triangle edges (each counted once per triangle).
+pub fn mean_edge(mesh: &Mesh) -> f64 {
+    let (mut sum, mut count) = (0.0f64, 0usize);
+    for t in mesh.indices.chunks_exact(3) {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            sum += mesh.positions[a].distance(mesh.positions[b]) as f64;
+            count += 1;
+        }
+    }
+    sum / count.max(1) as f64
 }
 
 /// What the stage did.
