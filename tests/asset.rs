@@ -1938,14 +1938,16 @@ fn the_fur_follows_the_asset_s_shape_keys() {
         targets.sort_unstable();
         assert_eq!(targets, layers, "{name}: every layer node once");
     }
-    // Babylon.js, each clip played alone to its end: the skin's key and every layer's follow
-    let babylon = &node("babylon_weights.mjs", std::slice::from_ref(&glb))[0]["clips"];
-    for (clip, lod, w) in [
-        ("stretch", "lod0", 1.0),
-        ("stretch_lod", "lod1", 1.0),
-        ("ease", "lod0", 0.5),
+    // Babylon.js, each clip played alone to its end: the skin's key and every layer's follow,
+    // a coarser level's by its `_lod` clip while the loader reads the levels, LOD 0's once it
+    // has read them all
+    let babylon = &node("babylon_weights.mjs", std::slice::from_ref(&glb))[0];
+    for (phase, clip, lod, w) in [
+        ("clips", "stretch", "lod0", 1.0),
+        ("loading", "stretch_lod", "lod1", 1.0),
+        ("clips", "ease", "lod0", 0.5),
     ] {
-        let meshes = babylon[clip]
+        let meshes = babylon[phase][clip]
             .as_object()
             .unwrap_or_else(|| panic!("no clip {clip}"));
         let layers: Vec<_> = meshes.iter().filter(|(n, _)| n.starts_with(lod)).collect();
