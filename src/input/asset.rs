@@ -106,17 +106,39 @@ impl std::fmt::Display for Selector {
     }
 }
 
-/// Whether `name` matches `glob` (`*`: any run of characters, `?`: one character).
+/// One piece of a glob: `*`, `?`, or a character itself.
+#[derive(Clone, Copy, PartialEq)]
+enum Glob {
+    Any,
+    One,
+    Is(char),
+}
+
+/// Whether `name` matches `glob` (`*`: any run of characters, `?`: one character; `\*`, `\?`
+/// and `\\` stand for the character itself, so a name with a star can be chosen alone; any
+/// other backslash is itself).
 pub fn glob_matches(glob: &str, name: &str) -> bool {
-    let (g, n): (Vec<char>, Vec<char>) = (glob.chars().collect(), name.chars().collect());
+    let mut g = Vec::with_capacity(glob.len());
+    let mut chars = glob.chars().peekable();
+    while let Some(c) = chars.next() {
+        g.push(match c {
+            '\\' if matches!(chars.peek(), Some('*' | '?' | '\\')) => {
+                Glob::Is(chars.next().expect("peeked"))
+            }
+            '*' => Glob::Any,
+            '?' => Glob::One,
+            c => Glob::Is(c),
+        });
+    }
+    let n: Vec<char> = name.chars().collect();
     // the classic two-pointer match with one backtrack point
     let (mut gi, mut ni) = (0, 0);
     let mut star: Option<(usize, usize)> = None;
     while ni < n.len() {
-        if gi < g.len() && (g[gi] == '?' || g[gi] == n[ni]) {
+        if gi < g.len() && (g[gi] == Glob::One || g[gi] == Glob::Is(n[ni])) {
             gi += 1;
             ni += 1;
-        } else if gi < g.len() && g[gi] == '*' {
+        } else if gi < g.len() && g[gi] == Glob::Any {
             star = Some((gi, ni));
             gi += 1;
         } else if let Some((sg, sn)) = star {
@@ -127,7 +149,7 @@ pub fn glob_matches(glob: &str, name: &str) -> bool {
             return false;
         }
     }
-    g[gi..].iter().all(|&c| c == '*')
+    g[gi..].iter().all(|&c| c == Glob::Any)
 }
 
 /// The names a part is selected by.
@@ -1370,6 +1392,11 @@ mod tests {
         assert!(!glob_matches("fox", "fox_body"));
         assert!(!glob_matches("*eye", "eyes"));
         assert!(glob_matches("a*b*c", "aXbYbZc"));
+        // escaped, a star or a question mark is itself
+        assert!(glob_matches(r"Body[1]\*\?", "Body[1]*?"));
+        assert!(!glob_matches(r"Body[1]\*\?", "Body[1]xy"));
+        assert!(glob_matches(r"a\\b", r"a\b"));
+        assert!(glob_matches(r"C:\fur*", r"C:\fur_body"));
     }
 
     #[test]
