@@ -659,7 +659,10 @@ fn check_outputs_of(
         check(&args.input)?;
     }
     // a GLB under another name (`-o fur.obj`, a path without an extension) opens nowhere
-    let ext = out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
     if !matches!(ext.as_deref(), Some("glb" | "gltf")) {
         return Err(shellbake::Error::Output {
             path: out.to_path_buf(),
@@ -1091,10 +1094,17 @@ mod tests {
     #[test]
     fn out_of_range_flags_are_refused() {
         // the error names the flag given, or the key `--set` gave
-        let e = parse(&["bake", "a.obj", "--layers", "500"]).params().unwrap_err();
+        let e = parse(&["bake", "a.obj", "--layers", "500"])
+            .params()
+            .unwrap_err();
         assert!(e.to_string().contains("--layers: layers must be in"), "{e}");
-        let e = parse(&["bake", "a.obj", "--set", "shells.layers=500"]).params().unwrap_err();
-        assert!(e.to_string().contains("shells.layers: layers must be in"), "{e}");
+        let e = parse(&["bake", "a.obj", "--set", "shells.layers=500"])
+            .params()
+            .unwrap_err();
+        assert!(
+            e.to_string().contains("shells.layers: layers must be in"),
+            "{e}"
+        );
         assert!(parse(&["bake", "a.obj", "--density=-1"]).params().is_err());
         assert!(Cli::try_parse_from(["shellbake", "bake", "a.obj", "--preset", "hair"]).is_err());
     }

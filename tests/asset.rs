@@ -322,17 +322,28 @@ fn a_rigid_part_s_fur_is_inside_its_bounds_in_babylon() {
     let dir = scratch("asset-rigid-bounds");
     let (input, _) = shape_key_sphere(&dir);
     let (glb, report) = bake(&input, &dir, "blob-fur.glb", &["--no-lod"]);
-    let height = report["surfaces"][0]["resolved"]["height"].as_f64().unwrap();
+    let height = report["surfaces"][0]["resolved"]["height"]
+        .as_f64()
+        .unwrap();
     let babylon = node("babylon_bounds.mjs", std::slice::from_ref(&glb));
     let (fur, bare) = (&babylon[0]["fur"], &babylon[0]["bare"]);
     let at = |b: &Value, end: &str, k: usize| b[end][k].as_f64().unwrap();
     for k in 0..3 {
         let what = format!("axis {k}: {babylon:?}");
         // the outer layer (t = 0.97) reaches 0.97 of the height past the blob
-        assert!(at(fur, "max", k) >= at(bare, "max", k) + 0.95 * height, "{what}");
-        assert!(at(fur, "min", k) <= at(bare, "min", k) - 0.95 * height, "{what}");
+        assert!(
+            at(fur, "max", k) >= at(bare, "max", k) + 0.95 * height,
+            "{what}"
+        );
+        assert!(
+            at(fur, "min", k) <= at(bare, "min", k) - 0.95 * height,
+            "{what}"
+        );
         // and the box is not much larger than that
-        assert!(at(fur, "max", k) <= at(bare, "max", k) + 1.05 * height, "{what}");
+        assert!(
+            at(fur, "max", k) <= at(bare, "max", k) + 1.05 * height,
+            "{what}"
+        );
     }
     assert_valid(&[glb]);
 }
@@ -2106,7 +2117,11 @@ fn outer_layer_density(glb: &Glb) -> Vec<(f64, f64)> {
     // the vertices the triangles draw (not the box vertices past them)
     let ix = glb.accessor(primitive["indices"].as_u64().unwrap() as usize);
     let drawn = 1 + ix.iter().map(|i| i[0] as usize).max().unwrap();
-    x.iter().zip(&colour).take(drawn).map(|(p, c)| (p[0], c[3])).collect()
+    x.iter()
+        .zip(&colour)
+        .take(drawn)
+        .map(|(p, c)| (p[0], c[3]))
+        .collect()
 }
 
 #[test]
@@ -2744,16 +2759,23 @@ fn shared_buffer_asset(
         json!({ "bufferView": 0, "byteOffset": 12, "componentType": 5126, "count": n, "type": "VEC3" }),
         json!({ "bufferView": 0, "byteOffset": 24, "componentType": 5126, "count": n, "type": "VEC2" }),
     ];
-    let mut views = vec![json!({ "buffer": 0, "byteOffset": 0, "byteLength": bin.len(), "byteStride": 32 })];
+    let mut views =
+        vec![json!({ "buffer": 0, "byteOffset": 0, "byteLength": bin.len(), "byteStride": 32 })];
     let (mut prims, mut materials) = (Vec::new(), Vec::new());
     for (k, (indices, material)) in primitives.iter().enumerate() {
-        views.push(json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": 4 * indices.len() }));
+        views
+            .push(json!({ "buffer": 0, "byteOffset": bin.len(), "byteLength": 4 * indices.len() }));
         bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
-        accessors.push(json!({ "bufferView": views.len() - 1, "componentType": 5125,
-                               "count": indices.len(), "type": "SCALAR" }));
-        prims.push(json!({ "attributes": { "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2 },
-                           "indices": accessors.len() - 1, "material": k }));
-        materials.push(json!({ "name": material, "pbrMetallicRoughness": { "metallicFactor": 0.0 } }));
+        accessors.push(
+            json!({ "bufferView": views.len() - 1, "componentType": 5125,
+                               "count": indices.len(), "type": "SCALAR" }),
+        );
+        prims.push(
+            json!({ "attributes": { "POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2 },
+                           "indices": accessors.len() - 1, "material": k }),
+        );
+        materials
+            .push(json!({ "name": material, "pbrMetallicRoughness": { "metallicFactor": 0.0 } }));
     }
     let doc = json!({
         "asset": { "version": "2.0" },
@@ -2813,8 +2835,14 @@ fn vertices_the_furred_primitive_does_not_draw_do_not_size_its_fur() {
     // beside the sphere's own (its poles' flat triangles and their corners): the floor's 4
     // vertices and the stray points' 5, and the flat triangle out there
     let count = |r: &Value, k: &str| stage(r, "merge")["counts"][k].as_f64().unwrap();
-    assert_eq!(count(&b, "unused_vertices") - count(&a, "unused_vertices"), 9.0);
-    assert_eq!(count(&b, "empty_triangles") - count(&a, "empty_triangles"), 1.0);
+    assert_eq!(
+        count(&b, "unused_vertices") - count(&a, "unused_vertices"),
+        9.0
+    );
+    assert_eq!(
+        count(&b, "empty_triangles") - count(&a, "empty_triangles"),
+        1.0
+    );
     let (a, b) = (&a["surfaces"][0], &b["surfaces"][0]);
     assert_eq!(a["resolved"], b["resolved"], "height and density");
     assert_eq!(a["lods"], b["lods"], "switch distances");

@@ -432,23 +432,16 @@ fn the_size_estimate_counts_the_animations_the_fur_writes() {
 fn a_gltf_output_is_the_glb_as_json_with_its_binary_beside_it() {
     let dir = scratch("outputs_gltf");
     let critter = common::path_str(&fixture("critter.glb"));
-    let bake = |out: &Path| {
+    let bake = |out: &Path, more: &[&str]| {
         let out = common::path_str(out);
-        let args = [
-            "bake",
-            &critter,
-            "--only",
-            "material=fur_*",
-            "-o",
-            &out,
-            "-q",
-        ];
+        let mut args = vec!["bake", &critter, "--only", "material=fur_*", "-o", &out];
+        args.extend_from_slice(more);
         common::shellbake(&args)
     };
     let glb = dir.join("critter.glb");
     let gltf = dir.join("critter fur.gltf");
     for out in [&glb, &gltf] {
-        let (code, _, stderr) = bake(out);
+        let (code, _, stderr) = bake(out, &["-q"]);
         assert_eq!(code, Some(0), "{stderr}");
     }
     let bin = dir.join("critter fur.bin");
@@ -483,17 +476,7 @@ fn a_gltf_output_is_the_glb_as_json_with_its_binary_beside_it() {
 
     // the report and the summary give the bytes written, the JSON's and the binary's
     let report = dir.join("report.json");
-    let args = [
-        "bake",
-        &critter,
-        "--only",
-        "material=fur_*",
-        "-o",
-        &out,
-        "--report",
-        &common::path_str(&report),
-    ];
-    let (code, stdout, stderr) = common::shellbake(&args);
+    let (code, stdout, stderr) = bake(&gltf, &["--report", &common::path_str(&report)]);
     assert_eq!(code, Some(0), "{stderr}");
     let written = std::fs::metadata(&gltf).unwrap().len() + std::fs::metadata(&bin).unwrap().len();
     let r: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();

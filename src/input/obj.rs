@@ -1876,7 +1876,11 @@ mod tests {
             scene.warnings
         );
         // none named, none missed
-        let scene = load(&dir.join("plain.obj"), &obj[b"mtllib missing.mtl\n".len()..]).unwrap();
+        let scene = load(
+            &dir.join("plain.obj"),
+            &obj[b"mtllib missing.mtl\n".len()..],
+        )
+        .unwrap();
         assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     }
 

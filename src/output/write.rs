@@ -621,7 +621,10 @@ pub fn json_bytes_of_surface(doc: &Value, packed: &Packed, s: usize) -> usize {
     }
     materials.sort_unstable();
     materials.dedup();
-    total += materials.iter().map(|&m| len(&doc["materials"][m])).sum::<usize>();
+    total += materials
+        .iter()
+        .map(|&m| len(&doc["materials"][m]))
+        .sum::<usize>();
     let nodes = packed.nodes.iter().enumerate();
     total += (nodes.filter(|(_, n)| n.tag.surface == s))
         .map(|(i, _)| len(&doc["nodes"][i]))

@@ -220,7 +220,10 @@ mod tests {
         let flipped = extrusion_frames(&welded, m.normals.as_deref());
         // all but the poles' copies that only flat triangles use
         let (inward, of) = flipped.inward_normals;
-        assert!(of == m.positions.len() && inward >= of - 2, "{inward} of {of}");
+        assert!(
+            of == m.positions.len() && inward >= of - 2,
+            "{inward} of {of}"
+        );
         assert!(flipped.facts().warnings[0].contains("look flipped"));
     }
 

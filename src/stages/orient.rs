@@ -419,7 +419,10 @@ mod tests {
         assert_eq!(o.flipped, good.triangle_count() - third);
         assert_eq!(bad.indices, good.indices);
         let w = o.warning().unwrap();
-        assert!(w.contains("outward") && w.contains(&format!("flipped {third} triangle(s) to agree")), "{w}");
+        assert!(
+            w.contains("outward") && w.contains(&format!("flipped {third} triangle(s) to agree")),
+            "{w}"
+        );
     }
 
     #[test]

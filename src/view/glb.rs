@@ -844,7 +844,12 @@ impl Asset {
                 let key = (prim.position, prim.indices);
                 if let std::collections::hash_map::Entry::Vacant(e) = used.entry(key) {
                     let mut drawn = vec![prim.indices.is_none(); pos.count()];
-                    for i in prim.indices.map(|ix| self.indices(ix)).transpose()?.unwrap_or_default() {
+                    for i in prim
+                        .indices
+                        .map(|ix| self.indices(ix))
+                        .transpose()?
+                        .unwrap_or_default()
+                    {
                         if let Some(d) = drawn.get_mut(i as usize) {
                             *d = true;
                         }

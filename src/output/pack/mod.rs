@@ -9,7 +9,7 @@
 //! as `optimizeVertexFetchRemap` does), then quantization. Both are deterministic. Vertices no
 //! triangle uses are dropped; a compact surface that is not skinned then gets two of its own,
 //! the corners of the box its fur reaches, so that clients bounding a mesh by its `POSITION`
-//! accessor alone (Babylon.js) hold the fur inside it ([`BOX_VERTICES`]).
+//! accessor alone (Babylon.js) hold the fur inside it (`BOX_VERTICES`).
 //!
 //! - **compact**: one quantized geometry (POSITION i16, NORMAL i8, TEXCOORD_0 u16, morph target 0
 //!   = extrusion delta i16, see below) shared by every layer; layer `j` is a primitive reusing the same
@@ -1794,9 +1794,15 @@ fn fur_box(g: &Geometry, order: &[u32], q: &[Vec3]) -> [Vec3; BOX_VERTICES] {
     let none = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     let (lo, hi) = (order.iter().zip(q)).fold(none, |(lo, hi), (&o, &p)| {
         let d = g.deltas[o as usize] * unit;
-        let b = g.bends.as_ref().map_or(Vec3::ZERO, |b| b[o as usize] * unit);
+        let b = g
+            .bends
+            .as_ref()
+            .map_or(Vec3::ZERO, |b| b[o as usize] * unit);
         let far = [p + d, p + d + b];
-        (lo.min(p).min(far[0]).min(far[1]), hi.max(p).max(far[0]).max(far[1]))
+        (
+            lo.min(p).min(far[0]).min(far[1]),
+            hi.max(p).max(far[0]).max(far[1]),
+        )
     });
     // centred on the box of the vertices themselves, which is where clients (and `LodSwitch`)
     // put a chunk's centre from these bounds: the levels' switch distances hold from it
