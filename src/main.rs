@@ -727,23 +727,16 @@ fn plan(args: &BakeArgs) -> anyhow::Result<()> {
     };
     let plan = shellbake::scene::plan(&scene);
     // an asset's surfaces are the parts they fur (a surface's, named `<surface>_<part>`)
-    let mut text = match &asset {
-        Some(_) if args.is_scene() => format!(
-            "{}: {} part(s) to fur, chosen by {surfaces} surface(s)\n",
-            args.input.display(),
-            scene.surfaces.len()
-        ),
-        Some(_) => format!(
-            "{}: {} part(s) to fur\n",
-            args.input.display(),
-            scene.surfaces.len()
-        ),
-        None => format!(
-            "{}: {} surface(s)\n",
-            args.input.display(),
-            scene.surfaces.len()
-        ),
+    let what = match &asset {
+        Some(_) if args.is_scene() => format!("part(s) to fur, chosen by {surfaces} surface(s)"),
+        Some(_) => "part(s) to fur".into(),
+        None => "surface(s)".into(),
     };
+    let mut text = format!(
+        "{}: {} {what}\n",
+        args.input.display(),
+        scene.surfaces.len()
+    );
     for (s, l) in scene.surfaces.iter().zip(&loaded) {
         let triangles: usize = l.scene.meshes.iter().map(|m| m.triangle_count()).sum();
         let effects: Vec<&str> = s.effects.iter().map(|e| e.name()).collect();

@@ -195,10 +195,10 @@ impl Mesh {
             .with_min_len(PAR_MIN_LEN)
             .map(|t| {
                 let [a, b, c] = [0, 1, 2].map(|k| self.positions[t[k] as usize]);
-                if (b - a).cross(c - a) == Vec3::ZERO {
-                    empty
-                } else {
+                if self.has_area(t) {
                     (a.min(b).min(c), a.max(b).max(c))
+                } else {
+                    empty
                 }
             })
             .reduce(|| empty, join);
@@ -286,6 +286,13 @@ impl Mesh {
         self.indices.extend(other.indices.iter().map(|i| i + base));
     }
 
+    /// Whether triangle `t` (its three indices) has any area: exactly none for a repeated
+    /// corner or three points on a line.
+    fn has_area(&self, t: &[u32]) -> bool {
+        let [a, b, c] = [0, 1, 2].map(|k| self.positions[t[k] as usize]);
+        (b - a).cross(c - a) != Vec3::ZERO
+    }
+
     /// Drops the triangles that draw nothing (exactly no area: a repeated corner, three points
     /// on a line) and then the vertices no triangle uses, keeping the others in their order. A
     /// stray point, or a vertex buffer a part shares with the asset's other primitives, must not
@@ -295,10 +302,7 @@ impl Mesh {
         let before = self.indices.len() / 3;
         let kept: Vec<u32> = (self.indices.par_chunks_exact(3))
             .with_min_len(PAR_MIN_LEN)
-            .filter(|t| {
-                let [a, b, c] = [0, 1, 2].map(|k| self.positions[t[k] as usize]);
-                (b - a).cross(c - a) != Vec3::ZERO
-            })
+            .filter(|t| self.has_area(t))
             .flatten()
             .copied()
             .collect();
