@@ -1187,7 +1187,8 @@ fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, (mask, ms): (Mask, 
             mask.cells_per_tile,
         )
     });
-    run.report.file(Stage::Tiling, tiling.facts(&shape.fur_uv));
+    run.report
+        .file(Stage::Tiling, tiling.facts(&shape.fur_uv, mask.size));
     let mut shells = run.report.run_stage(Stage::Shells, || {
         shells::build_shells(
             &shape.frames.direction,

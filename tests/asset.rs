@@ -409,6 +409,33 @@ fn two_skinned_characters_a_camera_a_light_and_an_unfurred_ground() {
     assert_eq!(children.len(), 1, "the ground's fur hangs under it");
     let root = &after["nodes"][children[0].as_u64().unwrap() as usize];
     assert_eq!(root["extras"]["shellbake_fur"]["node"], ground);
+    assert_eq!(root["name"], "ground_fur");
+    assert_new_names_unique(&before, &after);
+}
+
+/// The nodes a bake adds take names no other node of the file has: engines bind animation by
+/// node path (Unity) or rename duplicates on import (Godot, Blender).
+fn assert_new_names_unique(input: &Value, output: &Value) {
+    let names = |v: &Value| -> Vec<String> {
+        v["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n["name"].as_str().unwrap_or("").to_string())
+            .collect()
+    };
+    let (old, all) = (names(input), names(output));
+    let mut seen = std::collections::BTreeSet::new();
+    for name in &all[old.len()..] {
+        assert!(
+            !old.contains(name),
+            "an added node is named '{name}' as an input node is"
+        );
+        assert!(
+            seen.insert(name.clone()),
+            "two added nodes are named '{name}'"
+        );
+    }
 }
 
 #[test]

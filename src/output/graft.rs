@@ -141,6 +141,13 @@ impl Placing<'_> {
             "primitive": part.primitive,
         });
         out["nodes"][root]["extras"]["shellbake_fur"] = marker.clone();
+        // the part's node keeps its name to itself: engines that bind animation by node path
+        // (Unity) or make names unique on import (Godot, Blender) see one node per name
+        let name = format!(
+            "{}_fur",
+            out["nodes"][root]["name"].as_str().unwrap_or("shellbake")
+        );
+        out["nodes"][root]["name"] = json!(name);
         match part.skin {
             Some(skin) => {
                 self.attach_skinned(out, s, skin, &marker);

@@ -25,6 +25,12 @@ use glam::{DVec2, DVec3, Vec2};
 use crate::facts::Facts;
 use crate::mesh::Mesh;
 
+/// Mask texels across a UV range above which 32-bit texture coordinates (24 significant bits,
+/// as GPUs interpolate and scale them) no longer place a sample within an eighth of a texel:
+/// `2^24 / 8`. A density typed with a few zeros too many (10⁹ strands per unit) gave a tiling
+/// of 10⁸ tiles and a mask sampled at random, without a word.
+pub const FLOAT_TEXELS: f64 = (1u64 << 21) as f64;
+
 /// Spread (90th / 10th percentile of the UV-to-world scale, by area) above which the bake warns.
 pub const SPREAD_WARNING: f64 = 2.0;
 
@@ -170,6 +176,20 @@ impl Tiling {
         }
     }
 
+    /// The warning for a mask repeated past what 32-bit texture coordinates place within an
+    /// eighth of a `mask_size` texel ([`FLOAT_TEXELS`]), if it is.
+    pub fn precision_warning(&self, mask_size: u32) -> Option<String> {
+        let across = self.tiles_across[0].max(self.tiles_across[1]) as f64;
+        (across * mask_size as f64 > FLOAT_TEXELS).then(|| {
+            format!(
+                "the strand mask repeats {across:.0} times across the UV range, past the {:.0} \
+                 that 32-bit texture coordinates place within an eighth of a texel: strands \
+                 smear into noise (lower --density)",
+                FLOAT_TEXELS / mask_size as f64
+            )
+        })
+    }
+
     /// The warning for a mesh whose strand size varies, if it does.
     pub fn warning(&self) -> Option<String> {
         (self.spread > SPREAD_WARNING).then(|| {
@@ -296,9 +316,10 @@ pub fn mask_tiling(
 
 impl Tiling {
     /// The tiling stage's facts; `fur_uv` says which UVs the strands follow and why.
-    pub fn facts(&self, fur_uv: &str) -> Facts {
+    pub fn facts(&self, fur_uv: &str, mask_size: u32) -> Facts {
         let mut facts = Facts::default().with_note(format!("strands follow {fur_uv}"));
         facts.warnings.extend(self.warning());
+        facts.warnings.extend(self.precision_warning(mask_size));
         facts
     }
 }
@@ -370,6 +391,18 @@ mod tests {
         let t = mask_tiling(&m, 64.0, None, 8);
         let w = t.warning().expect("uneven layout warns");
         assert!(t.spread > 3.0 && w.contains("varies"), "{w}");
+    }
+
+    #[test]
+    fn a_mask_repeated_past_float_precision_warns() {
+        let m = procedural::sphere(1.0, 16, 32);
+        assert!(mask_tiling(&m, 64.0, None, 32)
+            .precision_warning(256)
+            .is_none());
+        let w = mask_tiling(&m, 1e9, None, 32).precision_warning(256);
+        assert!(w
+            .expect("1e9 strands per unit warns")
+            .contains("lower --density"));
     }
 
     #[test]
