@@ -191,3 +191,43 @@ fn bad_knobs_and_settings_are_refused() {
     assert!(err.contains("texcoord_bits"), "{err}");
     assert!(!dir.join("x.glb").exists(), "nothing written");
 }
+
+/// An asset with two furred parts (the creature's body and tail, one skinned mesh): the exact
+/// anchor matches the reference, each part measured alone in the frame it is drawn in (the
+/// grafted fur is in its skin's bind space, and the reference draws one surface: before, the
+/// anchor read FLIP 0.28 over a third of the pixels), and a point's bytes are the file its
+/// command writes, asset and fur.
+#[test]
+fn quick_study_of_a_two_part_asset() {
+    let dir = scratch("study-asset");
+    let critter = path_str(&fixture("critter.glb"));
+    let out = path_str(&dir.join("study"));
+    let base = ["--only", "material=fur_*"];
+    let mut argv = vec![
+        "study", &critter, "--quick", "--knobs", "bits", "--out", &out, "-q",
+    ];
+    argv.extend(base);
+    let (code, _, err) = shellbake(&argv);
+    assert_eq!(code, Some(0), "{err}");
+    let rows = rows(&std::fs::read_to_string(dir.join("study/study.csv")).unwrap());
+    let num = |r: &HashMap<String, String>, k: &str| r[k].parse::<f64>().unwrap();
+    let exact = rows.iter().find(|r| r["knob"] == "exact").unwrap();
+    assert_eq!(num(exact, "differing_pixels"), 0.0, "{exact:?}");
+    // two parts, four views each
+    assert_eq!(num(exact, "pixels"), 2.0 * 4.0 * 128.0 * 128.0, "{exact:?}");
+    let point = rows
+        .iter()
+        .find(|r| r["knob"] == "bits" && r["value"] == "10")
+        .unwrap();
+    assert!(num(point, "differing_pixels") > 0.0);
+    let mut argv = words(&point["command"]);
+    let file = dir.join("bits-10.glb");
+    argv.extend(["-o".into(), path_str(&file), "-q".into()]);
+    let args: Vec<&str> = argv[1..].iter().map(String::as_str).collect();
+    let (code, _, err) = shellbake(&args);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(
+        std::fs::metadata(&file).unwrap().len() as f64,
+        num(point, "bytes")
+    );
+}

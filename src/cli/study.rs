@@ -423,13 +423,26 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
 }
 
 /// A point's bake: the fur it baked (an asset's fur alone, as `verify` checks it), the scene
-/// it was baked from, the bytes of the file its command writes (an asset's with its fur), and
-/// min/median/max time in ms.
+/// it was baked from, each surface baked alone when there are several (an asset's furred
+/// parts: the reference draws one surface), the bytes of the file its command writes (an
+/// asset's with its fur), and min/median/max time in ms.
 struct Baked {
     baked: shellbake::BakedScene,
     scene: SceneFile,
+    alone: Vec<shellbake::BakedScene>,
     bytes: usize,
     ms: [f64; 3],
+}
+
+impl Baked {
+    /// What the error is measured on: each surface's bake alone, or the one surface's.
+    fn parts(&self) -> &[shellbake::BakedScene] {
+        if self.alone.is_empty() {
+            std::slice::from_ref(&self.baked)
+        } else {
+            &self.alone
+        }
+    }
 }
 
 /// Parses `shellbake bake <tokens>` and bakes it `runs` times.
@@ -443,7 +456,8 @@ fn bake(tokens: &[String], runs: usize) -> anyhow::Result<Baked> {
         unreachable!("parsed as bake")
     };
     let scene = args.scene()?;
-    // an asset bakes as `bake` bakes it: its parts' fur, grafted onto the asset
+    // an asset bakes as `bake` bakes it (its parts' fur, grafted onto the asset): the time and
+    // the bytes
     let asset = crate::asset_of(&args, &scene)?;
     let mut times = Vec::new();
     let mut last = None;
@@ -454,13 +468,13 @@ fn bake(tokens: &[String], runs: usize) -> anyhow::Result<Baked> {
                 let (parts, loaded, _) =
                     crate::load_parts_of(&args, &scene, &input.asset, &input.chosen)?;
                 let whole = shellbake::bake_asset(&input.asset, &input.parts(), (&parts, &loaded))?;
-                (whole.fur, Some(parts), whole.glb.len())
+                (None, Some(input), whole.glb.len())
             }
             None => {
                 let (loaded, _) = crate::load_checked(&args, &scene)?;
                 let baked = shellbake::bake_scene(&scene, &loaded);
                 let bytes = baked.glb.len();
-                (baked, None, bytes)
+                (Some(baked), None, bytes)
             }
         };
         times.push(start.elapsed().as_secs_f64() * 1e3);
@@ -468,9 +482,35 @@ fn bake(tokens: &[String], runs: usize) -> anyhow::Result<Baked> {
     }
     times.sort_by(f64::total_cmp);
     let (baked, parts, bytes) = last.expect("one run at least");
+    // the pictures: an asset's fur as `verify` bakes it, each part with its base layer in the
+    // frame it is drawn in (grafted fur is in its skin's bind space), each part alone when there
+    // are several (the reference draws one surface)
+    let (baked, scene, alone) = match (baked, parts) {
+        (Some(baked), _) => (baked, scene, Vec::new()),
+        (None, Some(input)) => {
+            let (parts, loaded) =
+                shellbake::asset_scene_of(&scene, &input.asset, &input.chosen, false)?;
+            let alone = if parts.surfaces.len() > 1 {
+                (parts.surfaces.iter().enumerate())
+                    .map(|(i, surface)| {
+                        let one = SceneFile {
+                            surfaces: vec![surface.clone()],
+                            ..parts.clone()
+                        };
+                        shellbake::bake_scene(&one, &loaded[i..=i])
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            (shellbake::bake_scene(&parts, &loaded), parts, alone)
+        }
+        (None, None) => unreachable!("a mesh bakes its scene, an asset its parts"),
+    };
     Ok(Baked {
         baked,
-        scene: parts.unwrap_or(scene),
+        scene,
+        alone,
         bytes,
         ms: [times[0], times[times.len() / 2], times[times.len() - 1]],
     })
@@ -563,14 +603,18 @@ impl Study {
         }
     }
 
-    /// The reference pictures of bake `b` from every camera.
-    fn reference_of(&self, b: &Baked) -> Vec<image::RgbaImage> {
-        study::reference_pictures(
-            &self.gpu,
-            ReferenceInput::from_baked(&b.baked.surfaces[0], &b.scene.surfaces[0].params),
-            &self.cameras,
-            self.settings.size,
-        )
+    /// The reference pictures of bake `b` from every camera, one set per surface.
+    fn reference_of(&self, b: &Baked) -> Vec<Vec<image::RgbaImage>> {
+        (b.parts().iter().zip(&b.scene.surfaces))
+            .map(|(baked, surface)| {
+                study::reference_pictures(
+                    &self.gpu,
+                    ReferenceInput::from_baked(&baked.surfaces[0], &surface.params),
+                    &self.cameras,
+                    self.settings.size,
+                )
+            })
+            .collect()
     }
 
     /// Point `plan` of `knob`, baked as `b`: its error against `reference`, its frame cost,
@@ -580,9 +624,13 @@ impl Study {
         knob: &str,
         plan: &Plan,
         b: &Baked,
-        reference: &[image::RgbaImage],
+        reference: &[Vec<image::RgbaImage>],
     ) -> anyhow::Result<Point> {
-        let (error, _) = study::image_error(&self.gpu, &b.baked.glb, reference, &self.cameras)?;
+        let parts: Vec<(&[u8], &[image::RgbaImage])> = (b.parts().iter())
+            .zip(reference)
+            .map(|(baked, r)| (baked.glb.as_slice(), r.as_slice()))
+            .collect();
+        let error = study::image_error(&self.gpu, &parts, &self.cameras)?;
         let s = &self.settings;
         let cost = study::frame_cost(&self.gpu, &b.baked.glb, &self.cameras, s.gpu_size, s.frames)?;
         Ok(Point {
@@ -603,7 +651,7 @@ impl Study {
         &self,
         knob: &str,
         k: &KnobPlan,
-        exact_reference: &[image::RgbaImage],
+        exact_reference: &[Vec<image::RgbaImage>],
         points: &mut Vec<Point>,
     ) -> anyhow::Result<(String, String, String)> {
         let own;

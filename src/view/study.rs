@@ -8,7 +8,10 @@
 //!   every point is seen alike: the FLIP mean over the four pictures, the 99th percentile of the
 //!   per-pixel FLIP error pooled over them, and the pixels that differ by more than
 //!   [`super::compare::PIXEL_LEVELS`]. The baked file is drawn as a client would draw it: LOD
-//!   levels picked by distance, culled layers absent.
+//!   levels picked by distance, culled layers absent. On an asset each furred part is measured
+//!   alone, as `verify` measures it (its fur with its base layer, in the frame the reference
+//!   draws it in: grafted fur is in its skin's bind space), and the error pools every part's
+//!   pictures; bytes and bake time stay the whole file's.
 //! - **Frame cost**: the mean GPU time of a frame over the four views (timestamp queries; the
 //!   wall time where the adapter has none), the triangles drawn and the draw calls, per view.
 //! - Bake time and bytes come from the binary (the bake of the point, timed whole: load and
@@ -106,33 +109,36 @@ pub struct ImageError {
     pub pixels: usize,
 }
 
-/// The baked file `glb` drawn from each error camera (LOD picked by distance), against
-/// `references` (from [`reference_pictures`], same cameras and size). Returns the error and the
-/// front view's picture.
+/// Baked files drawn from each error camera (LOD picked by distance), each against its
+/// `references` (from [`reference_pictures`], same cameras and size): one pair per furred part
+/// of an asset (each part baked alone, as `verify` checks it: the reference draws one surface),
+/// one for a mesh. The error pools every picture of every pair.
 pub fn image_error(
     gpu: &Gpu,
-    glb: &[u8],
-    references: &[RgbaImage],
+    parts: &[(&[u8], &[RgbaImage])],
     cameras: &Cameras,
-) -> Result<(ImageError, RgbaImage)> {
-    let mut r = GltfRenderer::from_glb(gpu, glb)?;
+) -> Result<ImageError> {
     let light = Light::default();
     let mut e = ImageError::default();
     let mut pooled: Vec<f32> = Vec::new();
-    let mut front = None;
-    for ((_, camera), reference) in cameras.error.iter().zip(references) {
-        let size = reference.dimensions();
-        let picture = super::render_gltf(gpu, &mut r, camera, &light, size);
-        let c = compare(reference, &picture);
-        e.flip_mean += c.flip_mean as f64 / references.len() as f64;
-        e.differing += c.differing;
-        e.pixels += c.pixels;
-        pooled.extend_from_slice(&c.flip);
-        front.get_or_insert(picture);
+    let pictures: usize = parts.iter().map(|(_, r)| r.len()).sum();
+    for (glb, references) in parts {
+        let mut r = GltfRenderer::from_glb(gpu, glb)?;
+        for ((_, camera), reference) in cameras.error.iter().zip(references.iter()) {
+            let size = reference.dimensions();
+            let picture = super::render_gltf(gpu, &mut r, camera, &light, size);
+            let c = compare(reference, &picture);
+            e.flip_mean += c.flip_mean as f64 / pictures as f64;
+            e.differing += c.differing;
+            e.pixels += c.pixels;
+            pooled.extend_from_slice(&c.flip);
+        }
+    }
+    if pictures == 0 {
+        return Err(ViewError::Verify("no views".into()));
     }
     e.flip_p99 = percentile(&mut pooled, 0.99);
-    let front = front.ok_or_else(|| ViewError::Verify("no views".into()))?;
-    Ok((e, front))
+    Ok(e)
 }
 
 /// The `q` quantile of `values` (nearest rank; 0 when empty).
