@@ -260,6 +260,20 @@ pub fn asset_scene_of(
         let mut geometry = part.scene.clone();
         let (paint, paint_warning) = asset.paint(i);
         geometry.warnings.extend(paint_warning);
+        let required = asset.doc.json["extensionsRequired"].as_array();
+        let quantized = required.is_some_and(|r| r.iter().any(|e| e == "KHR_mesh_quantization"));
+        if graft
+            && quantized
+            && surface.params.pack.quantize == pack::Quantize::None
+            && names.len() == 1
+        {
+            geometry.warnings.push(format!(
+                "{}: the asset's own meshes are quantized (it requires KHR_mesh_quantization), \
+                 and the file still does: --quantize none stores the fur's streams as floats, not \
+                 the asset's",
+                asset.doc.path.display()
+            ));
+        }
         // the fur follows the shape keys only in the asset that has them
         let (shape_rest, shape_names, shape_key_clips) = match (&part.shape_keys, graft) {
             (Some(keys), true) => (keys.rest.clone(), keys.names.clone(), keys.clips()),

@@ -549,11 +549,26 @@ fn load_parts_of(
     chosen: &[(usize, usize)],
 ) -> anyhow::Result<(SceneFile, Vec<shellbake::Loaded>, u64)> {
     if chosen.is_empty() {
+        let bare: Vec<String> = (0..asset.parts.len())
+            .filter(|&i| !asset.parts[i].furred)
+            .map(|i| {
+                format!(
+                    "'{}'",
+                    printable(&asset.parts[i].label(asset.primitives(i)), false)
+                )
+            })
+            .collect();
         let why = if asset.parts.is_empty() {
             "no triangle primitive has a triangle with an area (every triangle collapses, or \
              there are none)"
+                .to_string()
+        } else if bare.is_empty() {
+            "every triangle primitive carries shellbake fur already".to_string()
         } else {
-            "every triangle primitive carries shellbake fur already"
+            format!(
+                "the parts --only chooses carry shellbake fur already; without fur: {}",
+                bare.join(", ")
+            )
         };
         anyhow::bail!("{}: nothing to fur: {why}", args.input.display());
     }

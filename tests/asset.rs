@@ -659,6 +659,48 @@ fn a_furred_asset_read_again_is_not_furred_twice() {
     assert_eq!(code, Some(1));
     assert!(err.contains("carries shellbake fur already"), "{err}");
     assert!(!out.exists());
+
+    // a tool dropped every extras (gltfpack without -ke, Blender's exporter): the layers are
+    // known by their names, not furred as parts of their own, and their parts count as furred
+    let glb = Glb::parse(&std::fs::read(&once).unwrap());
+    let mut doc = glb.json.clone();
+    for list in ["nodes", "meshes", "materials", "scenes"] {
+        for item in doc[list].as_array_mut().unwrap() {
+            item.as_object_mut().unwrap().remove("extras");
+        }
+    }
+    doc.as_object_mut().unwrap().remove("extras");
+    let stripped = dir.join("stripped.glb");
+    std::fs::write(
+        &stripped,
+        shellbake::output::write::glb_bytes(&doc, &glb.bin),
+    )
+    .unwrap();
+    let (again, report) = bake(&stripped, &dir, "again.glb", &[]);
+    assert_valid(std::slice::from_ref(&again));
+    assert!(
+        report.to_string().contains("without its marks"),
+        "the warning is in the report"
+    );
+    let furred = report["asset"]["furred"].as_array().unwrap();
+    assert_eq!(
+        furred.len(),
+        2,
+        "the eyes and the paws, nothing else: {furred:?}"
+    );
+    let (code, _, err) = shellbake(&[
+        "bake",
+        &path_str(&stripped),
+        "--only",
+        "material=fur_*",
+        "-o",
+        &path_str(&out),
+    ]);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("the parts --only chooses carry shellbake fur already; without fur: 'critter_0_2', 'critter_0_3'"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -1404,6 +1446,33 @@ fn material_extensions_the_fur_does_not_need_pass_through_and_draco_says_what_to
         warnings.contains("is emissive") && warnings.contains("its fur keeps the colours"),
         "{warnings}"
     );
+    // an asset that requires KHR_mesh_quantization still does with --quantize none: said once
+    let mut quantized = doc.clone();
+    quantized["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    quantized["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+    quantized.as_object_mut().unwrap().remove("extensions");
+    quantized["textures"][0] = json!({ "sampler": 0, "source": 0 });
+    quantized["meshes"][0]["primitives"][0]
+        .as_object_mut()
+        .unwrap()
+        .remove("extensions");
+    let q = dir.join("quantized.glb");
+    std::fs::write(
+        &q,
+        shellbake::output::write::glb_bytes(&quantized, &glb.bin),
+    )
+    .unwrap();
+    let args = ["--only", "material=fur_*", "--quantize", "none"];
+    let (out, report) = bake(&q, &dir, "quantized-fur.glb", &args);
+    assert_eq!(
+        json_of(&out)["extensionsRequired"][0],
+        "KHR_mesh_quantization"
+    );
+    let said = report
+        .to_string()
+        .matches("and the file still does")
+        .count();
+    assert_eq!(said, 1, "{report}");
     // and only then: a bake of the eyes reads no body texture and says nothing of it
     let (_, eyes) = bake(&input, &dir, "basis-eyes.glb", &["--only", "material=eye"]);
     assert!(!eyes.to_string().contains("base colour texture"), "{eyes}");
@@ -2880,4 +2949,37 @@ fn vertices_the_furred_primitive_does_not_draw_do_not_size_its_fur() {
     }
     assert_eq!(streams[0], streams[1]);
     assert_valid(&[glb]);
+}
+
+/// A skinned part's fur (its layers are scene roots) is in every scene that draws the part,
+/// not only the default one: a viewer opening the other scene showed the creature bare.
+#[test]
+fn skinned_fur_is_in_every_scene_that_holds_its_part() {
+    let dir = scratch("asset-two-scenes");
+    let glb = Glb::parse(&critter_glb(Critters::default()));
+    let mut doc = glb.json.clone();
+    let first = doc["scenes"][0].clone();
+    doc["scenes"].as_array_mut().unwrap().push(first);
+    doc["scene"] = json!(1);
+    let input = dir.join("two-scenes.glb");
+    std::fs::write(&input, shellbake::output::write::glb_bytes(&doc, &glb.bin)).unwrap();
+    let (out, _) = bake(
+        &input,
+        &dir,
+        "two-scenes-fur.glb",
+        &["--only", "material=fur_*"],
+    );
+    assert_valid(std::slice::from_ref(&out));
+    let after = json_of(&out);
+    assert_eq!(after["scene"], 1);
+    let fur_roots = |k: usize| {
+        (after["scenes"][k]["nodes"].as_array().unwrap().iter())
+            .filter(|n| {
+                let n = n.as_u64().unwrap() as usize;
+                after["nodes"][n]["extras"].get("shellbake_fur").is_some()
+            })
+            .count()
+    };
+    assert!(fur_roots(1) > 0);
+    assert_eq!(fur_roots(0), fur_roots(1));
 }

@@ -426,7 +426,9 @@ impl Asset {
         let buffers = doc.load_buffers()?;
         let mut warnings = Vec::new();
         let furred = furred_parts(&doc);
-        let fur = fur_subtrees(&doc);
+        let mut fur = fur_subtrees(&doc);
+        let (unmarked, said) = named_like_fur(&doc, &mut fur);
+        warnings.extend(said);
         let mut parts = Vec::new();
         let mut bare = Vec::new();
         let mut total: u64 = 0;
@@ -561,6 +563,14 @@ impl Asset {
                 });
             }
         }
+        // a part whose unmarked layers are named after it (`<part>_lod0_layer_001`) is furred
+        let owners: Vec<&str> = unmarked.iter().filter_map(|n| layer_owner(n)).collect();
+        for i in 0..parts.len() {
+            let label = parts[i].label(doc.meshes[parts[i].mesh].primitives.len());
+            if owners.contains(&label.as_str()) {
+                parts[i].furred = true;
+            }
+        }
         Ok(Asset {
             doc,
             buffers,
@@ -643,6 +653,80 @@ impl Asset {
 pub fn is_fur_node(json: &Value, n: usize) -> bool {
     json["nodes"][n]["extras"].get("shellbake").is_some()
         || json["nodes"][n]["extras"].get("shellbake_fur").is_some()
+}
+
+/// The surface a layer's node name names (`body` of `body_lod0_layer_001` or
+/// `body_layer_001`), if it is one.
+fn layer_owner(name: &str) -> Option<&str> {
+    let name = match name.rsplit_once('.') {
+        Some((stem, n)) if n.len() == 3 && n.bytes().all(|b| b.is_ascii_digit()) => stem,
+        _ => name,
+    };
+    let (before, _) = name.rsplit_once("layer_")?;
+    let before = before.strip_suffix('_')?;
+    let owner = match before.rsplit_once("_lod") {
+        Some((owner, k)) if !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()) => owner,
+        _ => before,
+    };
+    Some(owner)
+}
+
+/// Whether `name` is one shellbake gives a layer's node, mesh or material (`<surface>_lod0_layer_001`,
+/// `layer_000`), with or without the `.001` an importer appends to a repeated name.
+fn layer_named(name: &str) -> bool {
+    let name = match name.rsplit_once('.') {
+        Some((stem, n)) if n.len() == 3 && n.bytes().all(|b| b.is_ascii_digit()) => stem,
+        _ => name,
+    };
+    let Some((before, digits)) = name.rsplit_once("layer_") else {
+        return false;
+    };
+    digits.len() == 3
+        && digits.bytes().all(|b| b.is_ascii_digit())
+        && (before.is_empty() || before.ends_with('_'))
+}
+
+/// Adds to `fur` the nodes that draw shellbake's layers without its marks — named as it names
+/// a layer's node or mesh, every primitive's material too — and warns: tools that drop `extras`
+/// (gltfpack without `-ke`, Blender's exporter by default) turned a baked file into one whose
+/// every layer would grow fur of its own (96 surfaces and 24× the triangles on the creature).
+/// Returns those nodes' names and the warning.
+fn named_like_fur(
+    doc: &Document,
+    fur: &mut std::collections::HashSet<usize>,
+) -> (Vec<String>, Option<String>) {
+    let name = |list: &str, i: usize| doc.json[list][i]["name"].as_str().unwrap_or("");
+    let found: Vec<usize> = (0..doc.nodes.len())
+        .filter(|&n| !fur.contains(&n))
+        .filter(|&n| {
+            let Some(m) = doc.nodes[n].mesh else {
+                return false;
+            };
+            (layer_named(name("nodes", n)) || layer_named(name("meshes", m)))
+                && (doc.meshes[m].primitives.iter()).all(|p| {
+                    p.material
+                        .is_some_and(|k| layer_named(name("materials", k)))
+                })
+        })
+        .collect();
+    let Some(&first) = found.first() else {
+        return (Vec::new(), None);
+    };
+    fur.extend(&found);
+    let said = format!(
+        "{}: {} node(s) draw shellbake's fur layers without its marks (their extras were \
+         dropped), '{}' first: taken as fur, and their parts as furred",
+        doc.path.display(),
+        found.len(),
+        super::escape(name("nodes", first))
+    );
+    (
+        found
+            .iter()
+            .map(|&n| name("nodes", n).to_string())
+            .collect(),
+        Some(said),
+    )
 }
 
 /// The nodes shellbake added (see [`is_fur_node`]) and everything under them (a rigid part's

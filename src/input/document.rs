@@ -1378,14 +1378,19 @@ pub fn confined_path(asset: &Path, uri: &str) -> Option<PathBuf> {
     Some(asset.parent().unwrap_or(Path::new("")).join(rel))
 }
 
+/// `%XX` decoded; a `%` not followed by two hex digits stays itself (`50%.png`, which exporters
+/// write unescaped and Blender's importer reads, was refused as leaving the folder).
 fn percent_decode(s: &str) -> Option<String> {
     let b = s.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
     while i < b.len() {
-        if b[i] == b'%' {
-            let hex = std::str::from_utf8(b.get(i + 1..i + 3)?).ok()?;
-            out.push(u8::from_str_radix(hex, 16).ok()?);
+        let hex = (b.get(i + 1..i + 3))
+            .and_then(|h| std::str::from_utf8(h).ok())
+            .filter(|h| h.bytes().all(|c| c.is_ascii_hexdigit()))
+            .and_then(|h| u8::from_str_radix(h, 16).ok());
+        if let (b'%', Some(byte)) = (b[i], hex) {
+            out.push(byte);
             i += 3;
         } else {
             out.push(b[i]);
@@ -1480,6 +1485,15 @@ mod tests {
         assert_eq!(confined_path(a, "%2e%2e/secret.bin"), None);
         assert_eq!(confined_path(a, "file:///etc/passwd"), None);
         assert_eq!(confined_path(a, "C:\\x.bin"), None);
+        // a `%` that starts no escape is itself
+        assert_eq!(
+            confined_path(a, "my%20tex/50%.png"),
+            Some(PathBuf::from("assets/my tex/50%.png"))
+        );
+        assert_eq!(
+            confined_path(a, "100%zz%2"),
+            Some(PathBuf::from("assets/100%zz%2"))
+        );
     }
 
     #[test]

@@ -248,7 +248,7 @@ impl Placing<'_> {
     }
 
     /// Binds the layer nodes of surface `s` to `skin` (marked as the root is) and makes them
-    /// and the surface's root roots of the scene.
+    /// and the surface's root roots of every scene that holds the part's node.
     fn attach_skinned(&self, out: &mut Value, s: usize, skin: usize, marker: &Value) {
         let (packed, base) = (self.packed, self.base);
         let surface = &packed.surfaces[s];
@@ -265,8 +265,17 @@ impl Placing<'_> {
             node["skin"] = json!(skin);
             node["extras"]["shellbake_fur"] = marker.clone();
         }
-        let roots = std::iter::once(root).chain(layers.iter().map(|&n| base.nodes + n));
-        add_to_scene(out, self.scene, roots);
+        // every scene that draws the part draws its fur (the file's default one when none
+        // reaches it): a viewer opening another scene showed the creature bare
+        let part = marker["node"].as_u64().expect("the part's node") as usize;
+        let mut scenes = scenes_reaching(out, part);
+        if scenes.is_empty() {
+            scenes.push(self.scene);
+        }
+        for scene in scenes {
+            let roots = std::iter::once(root).chain(layers.iter().map(|&n| base.nodes + n));
+            add_to_scene(out, scene, roots);
+        }
     }
 
     /// Makes the layer nodes of surface `s` follow the shape keys of part `p`, whose targets
@@ -871,6 +880,31 @@ fn add_lod_scene(out: &mut Value, packed: &Packed, base: Base, shown: usize) {
 
 /// Adds `nodes` to scene `scene`'s roots (when the file has scenes; otherwise a parentless node
 /// is a root already).
+/// The scenes of `out` whose node trees hold `node`, in order.
+fn scenes_reaching(out: &Value, node: usize) -> Vec<usize> {
+    let scenes = out["scenes"].as_array().map_or(&[][..], Vec::as_slice);
+    let ids = |v: &Value| -> Vec<usize> {
+        (v.as_array().into_iter().flatten())
+            .filter_map(|n| n.as_u64().map(|n| n as usize))
+            .collect()
+    };
+    (0..scenes.len())
+        .filter(|&k| {
+            let mut seen = std::collections::HashSet::new();
+            let mut stack = ids(&scenes[k]["nodes"]);
+            while let Some(n) = stack.pop() {
+                if n == node {
+                    return true;
+                }
+                if seen.insert(n) {
+                    stack.extend(ids(&out["nodes"][n]["children"]));
+                }
+            }
+            false
+        })
+        .collect()
+}
+
 fn add_to_scene(out: &mut Value, scene: usize, nodes: impl Iterator<Item = usize>) {
     let Some(s) = out.pointer_mut(&format!("/scenes/{scene}")) else {
         return;

@@ -872,16 +872,51 @@ fn same_file(a: &Path, b: &Path) -> bool {
         use std::os::unix::fs::MetadataExt as _;
         return (x.dev(), x.ino()) == (y.dev(), y.ino());
     }
-    let canonical = |p: &Path| {
-        p.canonicalize().ok().or_else(|| {
-            let dir = folder_of(p).canonicalize().ok()?;
-            Some(dir.join(p.file_name()?))
-        })
-    };
-    match (canonical(a), canonical(b)) {
+    match (resolved(a), resolved(b)) {
         (Some(x), Some(y)) => x == y,
         _ => a == b,
     }
+}
+
+/// The file `path` names once written: its nearest existing ancestor made canonical, then the
+/// rest of it, where `..` undoes a folder the write creates (`out/new/../in.glb` is `out/in.glb`
+/// once `out/new` exists: compared as written, it overwrote the input).
+fn resolved(path: &Path) -> Option<std::path::PathBuf> {
+    use std::path::Component;
+    if let Ok(p) = path.canonicalize() {
+        return Some(p);
+    }
+    let mut rest = Vec::new();
+    let mut existing = path;
+    let base = loop {
+        match existing.parent() {
+            Some(parent) => {
+                rest.push(existing.components().next_back()?);
+                existing = parent;
+                let at = if existing.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    existing
+                };
+                if let Ok(base) = at.canonicalize() {
+                    break base;
+                }
+            }
+            None => return None,
+        }
+    };
+    let mut out = base;
+    for c in rest.into_iter().rev() {
+        match c {
+            Component::Normal(name) => out.push(name),
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::CurDir => {}
+            Component::RootDir | Component::Prefix(_) => return None,
+        }
+    }
+    Some(out)
 }
 
 /// Removes temporaries in `dir` left by a write that never finished (a killed bake): files named
@@ -950,6 +985,27 @@ mod tests {
         );
         let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
         assert_eq!(json_len % 4, 0);
+    }
+
+    #[test]
+    fn an_output_through_a_folder_to_be_made_and_back_is_the_input() {
+        let dir = std::env::temp_dir().join(format!("shellbake-resolve-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let input = dir.join("in.glb");
+        std::fs::write(&input, b"glTF").unwrap();
+        for spelling in [
+            "new/../in.glb",
+            "new/deeper/../../in.glb",
+            "./new/./../in.glb",
+        ] {
+            let out = dir.join(spelling);
+            let refused = check_outputs(&input, &[("GLB", &out)]);
+            assert!(refused.is_err(), "{spelling} overwrites the input");
+        }
+        for elsewhere in ["new/in.glb", "new/../other.glb", "new/deeper/../in.glb"] {
+            check_outputs(&input, &[("GLB", &dir.join(elsewhere))]).unwrap();
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
