@@ -418,7 +418,19 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
             let mut loaded = if s.only.is_empty() {
                 input::load(&s.mesh)?
             } else {
-                load_parts(&s.mesh, &s.only)?
+                let mut parts = load_parts(&s.mesh, &s.only)?;
+                let why = fur_alone_because(scene);
+                parts.warnings.extend(why.map(|why| {
+                    format!(
+                        "{}: surface '{}' takes parts of this asset, but the scene writes its \
+                     surfaces' fur alone ({why}): the asset's other parts, materials and clips are \
+                     not in the output; every surface choosing parts of one asset, in place, \
+                     keeps it",
+                        s.mesh.display(),
+                        input::escape(&s.name),
+                    )
+                }));
+                parts
             };
             for m in &mut loaded.meshes {
                 m.place(glam::DVec3::from(s.translation), s.scale);
@@ -506,6 +518,39 @@ pub fn scene_asset(scene: &SceneFile) -> Result<Option<(input::asset::Asset, Par
         .filter_map(|(i, k)| k.map(|k| (i, k)))
         .collect();
     Ok(Some((asset, chosen)))
+}
+
+/// Why a scene whose surfaces take parts of an asset writes their fur alone: the first surface
+/// that names another mesh, chooses no parts, or is placed ([`scene_asset`]'s rule); `None`
+/// when the scene keeps the asset.
+fn fur_alone_because(scene: &SceneFile) -> Option<String> {
+    let first = scene.surfaces.first()?;
+    let other = (scene.surfaces.iter()).find(|s| {
+        !one_mesh_file(&SceneFile {
+            surfaces: vec![first.clone(), (*s).clone()],
+            ..scene.clone()
+        })
+    });
+    if let Some(s) = other {
+        return Some(format!(
+            "surface '{}' names another mesh",
+            input::escape(&s.name)
+        ));
+    }
+    if let Some(s) = (scene.surfaces.iter()).find(|s| s.only.is_empty()) {
+        return Some(format!(
+            "surface '{}' chooses no parts",
+            input::escape(&s.name)
+        ));
+    }
+    (scene.surfaces.iter())
+        .find(|s| s.translation != [0.0; 3] || s.scale != 1.0)
+        .map(|s| {
+            format!(
+                "surface '{}' is placed (scale or translation)",
+                input::escape(&s.name)
+            )
+        })
 }
 
 /// Whether every surface of `scene` names one mesh file, however its path is spelled (`./`, a

@@ -631,9 +631,15 @@ fn a_scene_whose_surfaces_take_parts_of_one_asset_keeps_the_asset() {
         "[[surface]]\nmesh = \"critters.glb\"\nonly = [\"node=critter_0\"]\nscale = 2.0\n",
     )
     .unwrap();
-    let (alone, _) = bake(&file, &dir, "alone.glb", &[]);
+    let (alone, report) = bake(&file, &dir, "alone.glb", &[]);
     let names = json_of(&alone)["materials"].to_string();
     assert!(!names.contains("\"eye\""), "no asset: {names}");
+    // and says so, with the reason
+    let said = report.to_string();
+    assert!(
+        said.contains("writes its surfaces' fur alone") && said.contains("is placed (scale"),
+        "{said}"
+    );
 }
 
 #[test]
