@@ -565,10 +565,10 @@ impl Asset {
         }
         // a part whose unmarked layers are named after it (`<part>_lod0_layer_001`) is furred
         let owners: Vec<&str> = unmarked.iter().filter_map(|n| layer_owner(n)).collect();
-        for i in 0..parts.len() {
-            let label = parts[i].label(doc.meshes[parts[i].mesh].primitives.len());
+        for part in &mut parts {
+            let label = part.label(doc.meshes[part.mesh].primitives.len());
             if owners.contains(&label.as_str()) {
-                parts[i].furred = true;
+                part.furred = true;
             }
         }
         Ok(Asset {
@@ -655,35 +655,31 @@ pub fn is_fur_node(json: &Value, n: usize) -> bool {
         || json["nodes"][n]["extras"].get("shellbake_fur").is_some()
 }
 
-/// The surface a layer's node name names (`body` of `body_lod0_layer_001` or
-/// `body_layer_001`), if it is one.
+/// The surface a name shellbake gives a layer's node, mesh or material names: `body` of
+/// `body_lod0_layer_001` or `body_layer_001`, `` of `layer_000` (a plain mesh's), with or
+/// without the `.001` an importer appends to a repeated name; `None` for any other name.
 fn layer_owner(name: &str) -> Option<&str> {
     let name = match name.rsplit_once('.') {
         Some((stem, n)) if n.len() == 3 && n.bytes().all(|b| b.is_ascii_digit()) => stem,
         _ => name,
     };
-    let (before, _) = name.rsplit_once("layer_")?;
+    let (before, digits) = name.rsplit_once("layer_")?;
+    if digits.len() != 3 || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    if before.is_empty() {
+        return Some("");
+    }
     let before = before.strip_suffix('_')?;
-    let owner = match before.rsplit_once("_lod") {
+    Some(match before.rsplit_once("_lod") {
         Some((owner, k)) if !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()) => owner,
         _ => before,
-    };
-    Some(owner)
+    })
 }
 
-/// Whether `name` is one shellbake gives a layer's node, mesh or material (`<surface>_lod0_layer_001`,
-/// `layer_000`), with or without the `.001` an importer appends to a repeated name.
+/// Whether `name` is one shellbake gives a layer ([`layer_owner`]).
 fn layer_named(name: &str) -> bool {
-    let name = match name.rsplit_once('.') {
-        Some((stem, n)) if n.len() == 3 && n.bytes().all(|b| b.is_ascii_digit()) => stem,
-        _ => name,
-    };
-    let Some((before, digits)) = name.rsplit_once("layer_") else {
-        return false;
-    };
-    digits.len() == 3
-        && digits.bytes().all(|b| b.is_ascii_digit())
-        && (before.is_empty() || before.ends_with('_'))
+    layer_owner(name).is_some()
 }
 
 /// Adds to `fur` the nodes that draw shellbake's layers without its marks — named as it names
@@ -1322,6 +1318,23 @@ pub fn texture_transform(t: &Value) -> glam::Affine2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn layer_names_name_their_surface() {
+        assert_eq!(layer_owner("body_lod0_layer_001"), Some("body"));
+        assert_eq!(layer_owner("critter_0_1_layer_031"), Some("critter_0_1"));
+        assert_eq!(layer_owner("my_lodge_layer_002.001"), Some("my_lodge"));
+        assert_eq!(layer_owner("layer_000"), Some(""));
+        for other in [
+            "body",
+            "layer_1",
+            "body_layer_0001",
+            "bodylayer_001",
+            "layer_abc",
+        ] {
+            assert_eq!(layer_owner(other), None, "{other}");
+        }
+    }
 
     /// A 4 × 4 texture: the top two rows blue, the bottom two yellow; alpha 0 in the right
     /// half when `cut`.
