@@ -18,6 +18,13 @@
 //! normal cone for `α ≤ 1`, so silhouettes round off without the overshoot PN triangles show on
 //! coarse meshes.
 //!
+//! **Hard edges stay hard.** A position whose copies carry shading normals more than 10° apart
+//! (a hard edge the asset draws: a box, a faceted rock, a flat-shaded creature) is a crease: its
+//! normal is taken as zero, so it curves no triangle, and a face whose corners are all creases
+//! stays flat. The asset still draws its own faceted base under the fur, and the fur grown on a
+//! rounded copy floated off it (a 2 cm rug under a dome of carpet 0.45 m high). A mesh without
+//! normals, or with one normal per position (smooth shading), rounds as before.
+//!
 //! **Seams stay welded.** The normals `nᵢ` are not the render vertices' (which split at hard
 //! edges and would open cracks, the well-known failure of both Phong and PN tessellation): they
 //! are the angle-weighted face normals gathered per *position*, the same for every copy of a
@@ -138,10 +145,32 @@ fn position_normals(mesh: &Mesh, ids: &[u32], unique: usize) -> Vec<Vec3> {
             }
         }
     }
+    // a hard edge the shading draws (copies of a position with normals apart) is a crease: its
+    // corners do not curve the triangles they touch (a zero normal projects nothing)
+    let mut first: Vec<Option<Vec3>> = vec![None; unique];
+    let mut crease = vec![false; unique];
+    for (v, &s) in slot.iter().enumerate() {
+        let Some(n) = mesh.normals.as_ref().map(|n| n[v].normalize_or_zero()) else {
+            break;
+        };
+        match first[s] {
+            None => first[s] = Some(n),
+            Some(f) => crease[s] |= f.dot(n) < CREASE_COS,
+        }
+    }
     slot.iter()
-        .map(|&s| sum[s].normalize_or_zero().as_vec3())
+        .map(|&s| match crease[s] {
+            true => Vec3::ZERO,
+            false => sum[s].normalize_or_zero().as_vec3(),
+        })
         .collect()
 }
+
+/// Cosine of the angle between two copies' shading normals past which their position is a
+/// crease (10°: exporters split normals at UV seams without turning them, and a crease an
+/// artist means is tens of degrees). Rounding a hard-edged box by its corners' mean normals
+/// blew a 2 cm rug into a dome 0.45 m high, over the flat rug the asset still draws.
+const CREASE_COS: f32 = 0.984_807_75;
 
 /// The Phong-tessellated point at barycentrics `w` of corners `p` with normals `n`.
 fn phong(p: [Vec3; 3], n: [Vec3; 3], w: [f32; 3], alpha: f32) -> Vec3 {
@@ -467,6 +496,59 @@ mod tests {
         let (facets, round) = (flat(0.0), flat(0.75));
         assert!((facets - 1.0 / 3f32.sqrt()).abs() < 0.02, "{facets}");
         assert!(round > facets + 0.15, "{round} vs {facets}");
+    }
+
+    /// A flat-shaded cube of half-side 1: every corner three copies, one per face, with that
+    /// face's normal.
+    fn flat_cube() -> Mesh {
+        let mut m = Mesh::default();
+        let mut normals = Vec::new();
+        for axis in 0..3 {
+            for sign in [1.0f32, -1.0] {
+                let n = Vec3::AXES[axis] * sign;
+                let (u, v) = (Vec3::AXES[(axis + 1) % 3], Vec3::AXES[(axis + 2) % 3]);
+                let base = m.positions.len() as u32;
+                for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                    m.positions.push(n + u * a + v * b);
+                    normals.push(n);
+                }
+                let quad = if sign > 0.0 {
+                    [0, 1, 2, 0, 2, 3]
+                } else {
+                    [0, 2, 1, 0, 3, 2]
+                };
+                m.indices.extend(quad.map(|k| base + k));
+            }
+        }
+        m.normals = Some(normals);
+        m
+    }
+
+    #[test]
+    fn a_hard_edged_box_stays_a_box() {
+        let reach = |mut m: Mesh| {
+            let p = TessellationParams {
+                factor: 4,
+                ..TessellationParams::default()
+            };
+            tessellate(&mut m, &p, None);
+            let side = |p: &Vec3| p.abs().max_element();
+            let lo = m.positions.iter().map(side).fold(f32::MAX, f32::min);
+            let hi = m.positions.iter().map(side).fold(0.0f32, f32::max);
+            (lo, hi)
+        };
+        // every point on the cube's faces
+        let (lo, hi) = reach(flat_cube());
+        assert!(
+            (lo - 1.0).abs() < 1e-5 && (hi - 1.0).abs() < 1e-5,
+            "{lo}..{hi}"
+        );
+        // the same cube with no shading normals rounds
+        let (_, hi) = reach(Mesh {
+            normals: None,
+            ..flat_cube()
+        });
+        assert!(hi > 1.05, "{hi}");
     }
 
     #[test]
