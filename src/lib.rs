@@ -1282,7 +1282,8 @@ fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, (mask, ms): (Mask, 
     shells.occlusion = heights.occlusion.take();
     let fins = run.gate(Stage::Fins, || {
         let top = shells.t.last().copied().unwrap_or(0.0);
-        let scale = (&params.shade, top, heights.density);
+        // the asset's neutral ramp where the part has its colours (the fin vertices carry them)
+        let scale = (&shape.shade, top, heights.density);
         fins::fins(mesh, &mask, scale, &params.fins, params.strands.seed)
     });
     let outline = run.gate(Stage::Outline, || {

@@ -13,7 +13,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{assert_valid, node, path_str, scratch, shellbake, Glb};
+use common::{assert_valid, fixture, node, path_str, scratch, shellbake, Glb};
 use serde_json::{json, Value};
 use shellbake::fixtures::critter::{critter_glb, Critters};
 
@@ -2988,4 +2988,52 @@ fn skinned_fur_is_in_every_scene_that_holds_its_part() {
     };
     assert!(fur_roots(1) > 0);
     assert_eq!(fur_roots(0), fur_roots(1));
+}
+
+/// Fins on a part with its own colour take it (the edge's ends carry it, and the strip holds
+/// the asset's neutral ramp), as the layers do: before, they drew the preset's beige on any
+/// asset, spikes of it across an orange creature. The reference draws them alike: verify passes.
+#[test]
+fn fins_on_an_asset_take_its_colour() {
+    let dir = scratch("asset-fins");
+    let cube = std::fs::read_to_string(fixture("cube.obj")).unwrap();
+    std::fs::write(dir.join("red.mtl"), "newmtl red\nKd 0.8 0.05 0.05\n").unwrap();
+    let input = dir.join("red-cube.obj");
+    std::fs::write(&input, format!("mtllib red.mtl\nusemtl red\n{cube}")).unwrap();
+    let (out, _) = bake(&input, &dir, "red-cube-fins.glb", &["--fins"]);
+    assert_valid(std::slice::from_ref(&out));
+    let glb = Glb::parse(&std::fs::read(&out).unwrap());
+    let fins = (glb.json["meshes"].as_array().unwrap().iter())
+        .find(|m| m["name"].as_str().unwrap_or("").ends_with("fins"))
+        .expect("a fins mesh");
+    let prim = &fins["primitives"][0];
+    let colours = glb.accessor(prim["attributes"]["COLOR_0"].as_u64().expect("COLOR_0") as usize);
+    assert!(
+        colours
+            .iter()
+            .all(|c| c[0] > 5.0 * c[1] && c[0] > 5.0 * c[2]),
+        "{:?}",
+        &colours[..4]
+    );
+    // the strip is grey: the colour comes from the vertices
+    let m = prim["material"].as_u64().unwrap() as usize;
+    let t = glb.json["materials"][m]["pbrMetallicRoughness"]["baseColorTexture"]["index"]
+        .as_u64()
+        .unwrap() as usize;
+    let image = glb.json["textures"][t]["source"].as_u64().unwrap() as usize;
+    let view = &glb.json["bufferViews"]
+        [glb.json["images"][image]["bufferView"].as_u64().unwrap() as usize];
+    let at = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let png = &glb.bin[at..at + view["byteLength"].as_u64().unwrap() as usize];
+    let strip = image::load_from_memory(png).unwrap().to_rgba8();
+    let opaque: Vec<_> = strip.pixels().filter(|p| p.0[3] > 127).collect();
+    assert!(!opaque.is_empty());
+    assert!(
+        opaque
+            .iter()
+            .all(|p| p.0[0].abs_diff(p.0[1]) <= 1 && p.0[1].abs_diff(p.0[2]) <= 1),
+        "{:?}",
+        opaque[0]
+    );
+    verify_passes(&input, &dir, &["--fins"]);
 }

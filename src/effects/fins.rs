@@ -33,7 +33,9 @@
 //! edge with its own length and taper, and the strip is as wide as one mask tile (it repeats
 //! along the edge like the mask repeats over the surface). Its colour is the shells' root-to-tip
 //! gradient ([`crate::stages::shells::layer_color`]) times the strand's shade, sRGB-encoded; alpha is 0
-//! or 255, tested at 0.5 (`MASK`). Along the edge, `u` counts mask tiles (world length ×
+//! or 255, tested at 0.5 (`MASK`). On a part with the asset's colours the gradient is the
+//! asset's neutral ramp ([`crate::stages::shells::asset_shade`]) and the fin's vertices carry
+//! the colour at the edge's ends (`COLOR_0`, written by `pack`), as the layers' roots do. Along the edge, `u` counts mask tiles (world length ×
 //! strands per unit / cells per tile) from a per-edge offset (the same hash), so neighbouring
 //! fins do not repeat one another; `v` is the height `t`.
 //!

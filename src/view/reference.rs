@@ -485,6 +485,11 @@ impl ReferenceRenderer {
             }
         };
 
+        // the fins of a part with the asset's colours take its neutral ramp, as the bake's do
+        let fin_shade = match mesh.albedo {
+            Some(_) => crate::stages::shells::asset_shade(input.shade),
+            None => input.shade.clone(),
+        };
         let extras = super::reference_extras::extras_asset(&super::reference_extras::ExtrasInput {
             mesh,
             delta: &shells.delta,
@@ -492,7 +497,7 @@ impl ReferenceRenderer {
             outline: input.outline,
             strands: input.strands,
             law: &law,
-            shade: input.shade,
+            shade: &fin_shade,
             roughness: input.roughness,
         })
         .map(|asset| {

@@ -134,6 +134,7 @@ pub fn extras_asset(input: &ExtrasInput) -> Option<Asset> {
             .as_deref()
             .expect("the reference needs normals");
         let (mut p, mut n, mut uv, mut ix) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let mut colour = Vec::new();
         for e in &f.edges {
             let (a, b) = (e.a as usize, e.b as usize);
             let (pa, pb) = (mesh.positions[a], mesh.positions[b]);
@@ -145,6 +146,10 @@ pub fn extras_asset(input: &ExtrasInput) -> Option<Asset> {
                 pa + input.delta[a] * f.top,
             ]);
             n.extend([normals[a], normals[b], normals[b], normals[a]]);
+            if let Some(albedo) = &mesh.albedo {
+                let [ca, cb] = [a, b].map(|v| albedo[v].truncate().clamp(Vec3::ZERO, Vec3::ONE));
+                colour.extend([ca, cb, cb, ca]);
+            }
             let u = e.offset + pa.distance(pb) * f.tiles_per_unit;
             uv.extend([
                 Vec2::new(e.offset, 0.0),
@@ -168,11 +173,15 @@ pub fn extras_asset(input: &ExtrasInput) -> Option<Asset> {
             },
             "alphaMode": "MASK",
         }));
-        let attributes = json!({
+        let mut attributes = json!({
             "POSITION": buf.floats(&flat3(&p), "VEC3", p.len()),
             "NORMAL": buf.floats(&flat3(&n), "VEC3", n.len()),
             "TEXCOORD_0": buf.floats(&uv.iter().flat_map(|v| v.to_array()).collect::<Vec<_>>(), "VEC2", uv.len()),
         });
+        // an asset's colour at the edge's ends (its fins take the asset's neutral ramp)
+        if !colour.is_empty() {
+            attributes["COLOR_0"] = json!(buf.floats(&flat3(&colour), "VEC3", colour.len()));
+        }
         let indices = buf.indices(&ix);
         meshes.push(json!({ "primitives": [{ "attributes": attributes, "indices": indices, "material": materials.len() - 1 }] }));
     }

@@ -113,15 +113,35 @@ fn fins(b: &mut Builder, g: &Geometry, input: &PackInput, f: &crate::effects::fi
             unlit: false,
         },
     );
-    let attributes = vec![
+    let mut attributes = vec![
         (Semantic::Position, position),
         (Semantic::Normal, normal),
         (Semantic::TexCoord(0), uv),
     ];
-    let name = format!("{}fins", input.prefix);
-    let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
     // each fin's corners: base a, base b, top b, top a
     let source: Vec<u32> = f.edges.iter().flat_map(|e| [e.a, e.b, e.b, e.a]).collect();
+    // an asset's colour at the edge's ends, as the layers carry it at their roots (the strip
+    // then holds the asset's neutral ramp): before, fins drew the preset's beige on any asset
+    if let Some(albedo) = g.albedo {
+        let mut bytes = Bytes::default();
+        for &o in &source {
+            let c = albedo[o as usize].truncate().clamp(Vec3::ZERO, Vec3::ONE);
+            let q = |v: f32| (v * 65535.0).round() as u16;
+            bytes.u16s(&[q(c.x), q(c.y), q(c.z), u16::MAX], 8);
+        }
+        let v = b.stream(
+            "fin_color",
+            Semantic::Color(0),
+            None,
+            bytes.0,
+            Some(8),
+            source.len(),
+        );
+        let color = (b.out).accessor(v, component::UNSIGNED_SHORT, true, "VEC4", None);
+        attributes.push((Semantic::Color(0), color));
+    }
+    let name = format!("{}fins", input.prefix);
+    let mesh = b.single_primitive_mesh(name.clone(), attributes, indices, material);
     carry_shape_keys(b, g, mesh, &source, "fin_shape_key");
     node(b, name, mesh)
 }
