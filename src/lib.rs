@@ -467,6 +467,10 @@ fn more_influences(asset: &input::asset::Asset, i: usize, what: String) -> Optio
     })
 }
 
+/// Share of a textured surface whose per-vertex fur colour misses its texture
+/// ([`input::asset::Paint::detail_lost`]) past which the bake warns.
+const DETAIL_WARNING: f64 = 0.1;
+
 /// The asset a scene file furs whole, when every surface takes its parts (`only`) from that one
 /// asset and leaves it in place (no `scale` or `translation`): the scene then bakes as `bake`
 /// bakes the asset — the asset kept, each part's fur in the asset's colours, following its node,
@@ -1034,6 +1038,22 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
                 t.factor * t.factor,
                 t.triangles_after,
                 t.triangles_before
+            ));
+        }
+    }
+    // the fur's colour is per vertex: say when the texture's detail is finer than that
+    if let Some(lost) = paint.and_then(|p| p.detail_lost(&mesh)) {
+        if lost > DETAIL_WARNING {
+            run.report.warnings.push(format!(
+                "the fur's colour is one per vertex: on {:.0}% of this surface it differs from \
+                 the texture (ΔE76 over {}), whose detail is finer than the triangles; {}",
+                100.0 * lost,
+                input::asset::DETAIL_DELTA_E,
+                match &tessellated {
+                    Some(t) =>
+                        format!("a tessellation factor over {} follows more of it", t.factor),
+                    None => "--tessellate samples the texture at new vertices".to_string(),
+                }
             ));
         }
     }

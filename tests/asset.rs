@@ -3037,3 +3037,42 @@ fn fins_on_an_asset_take_its_colour() {
     );
     verify_passes(&input, &dir, &["--fins"]);
 }
+
+/// The fur's colour is one per vertex: a texture whose detail is finer than the triangles (the
+/// creature's stripes) is said, with the share of the surface it misses and the way out, and
+/// tessellating shrinks that share; a part without a texture says nothing of it.
+#[test]
+fn texture_detail_finer_than_the_triangles_is_said() {
+    let dir = scratch("asset-detail");
+    let critter = fixture_critter();
+    let share = |report: &Value| -> Vec<f64> {
+        let text = report.to_string();
+        (text.split("one per vertex: on ").skip(1))
+            .map(|rest| rest.split('%').next().unwrap().parse().unwrap())
+            .collect()
+    };
+    let (_, coarse) = bake(&critter, &dir, "coarse.glb", &["--only", "material=fur_*"]);
+    let before = share(&coarse);
+    assert!(
+        !before.is_empty() && before.iter().all(|&s| s > 10.0),
+        "{before:?}"
+    );
+    assert!(coarse
+        .to_string()
+        .contains("--tessellate samples the texture"));
+    let args = [
+        "--only",
+        "material=fur_*",
+        "--tessellate",
+        "--set",
+        "tessellation.factor=6",
+    ];
+    let (_, fine) = bake(&critter, &dir, "fine.glb", &args);
+    let after = share(&fine);
+    assert!(
+        after.iter().sum::<f64>() < 0.5 * before.iter().sum::<f64>(),
+        "{after:?} against {before:?}"
+    );
+    let (_, eyes) = bake(&critter, &dir, "eyes.glb", &["--only", "material=eye"]);
+    assert!(share(&eyes).is_empty());
+}

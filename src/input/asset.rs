@@ -655,6 +655,30 @@ pub fn is_fur_node(json: &Value, n: usize) -> bool {
         || json["nodes"][n]["extras"].get("shellbake_fur").is_some()
 }
 
+/// Colour difference (CIE76) past which [`Paint::detail_lost`] counts a point as lost: about
+/// twice what an eye tells apart side by side, so texture noise and filtering do not count.
+pub const DETAIL_DELTA_E: f64 = 10.0;
+
+/// CIE76 difference of two linear-RGB colours (sRGB primaries, D65 white).
+fn delta_e76(a: Vec3, b: Vec3) -> f64 {
+    let lab = |c: Vec3| {
+        let c = c.clamp(Vec3::ZERO, Vec3::ONE).as_dvec3();
+        let x = (0.4124 * c.x + 0.3576 * c.y + 0.1805 * c.z) / 0.950_47;
+        let y = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+        let z = (0.0193 * c.x + 0.1192 * c.y + 0.9505 * c.z) / 1.088_83;
+        let f = |t: f64| {
+            if t > 216.0 / 24389.0 {
+                t.cbrt()
+            } else {
+                (24389.0 / 27.0 * t + 16.0) / 116.0
+            }
+        };
+        let (fx, fy, fz) = (f(x), f(y), f(z));
+        glam::DVec3::new(116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz))
+    };
+    lab(a).distance(lab(b))
+}
+
 /// The surface a name shellbake gives a layer's node, mesh or material names: `body` of
 /// `body_lod0_layer_001` or `body_layer_001`, `` of `layer_000` (a plain mesh's), with or
 /// without the `.001` an importer appends to a repeated name; `None` for any other name.
@@ -991,6 +1015,56 @@ impl Paint {
             }
         }
         albedo
+    }
+
+    /// The share of `mesh`'s area (by four points a triangle) where its per-vertex fur colour
+    /// (`mesh.albedo`, interpolated as a client draws it) differs from the texture by more than
+    /// [`DETAIL_DELTA_E`] (CIE76): the detail finer than the triangles that the fur cannot show
+    /// (a striped rug of two triangles grew a plain yellow carpet, a path painted across a
+    /// ground grew a zig-zag of its triangles). `None` without a texture or vertex colours.
+    pub fn detail_lost(&self, mesh: &Mesh) -> Option<f64> {
+        use rayon::prelude::*;
+        let (Some(t), Some(uvs), Some(albedo)) =
+            (&self.texture, mesh.paint_uvs(), mesh.albedo.as_deref())
+        else {
+            return None;
+        };
+        let colors = mesh.colors.as_deref();
+        // the centroid, and a point toward each corner (which lends its vertex colour)
+        const AT: [([f32; 3], usize); 4] = [
+            ([1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0], 0),
+            ([2.0 / 3.0, 1.0 / 6.0, 1.0 / 6.0], 0),
+            ([1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0], 1),
+            ([1.0 / 6.0, 1.0 / 6.0, 2.0 / 3.0], 2),
+        ];
+        let sums: Vec<(f64, f64)> = (mesh.indices.par_chunks(3 * 4096))
+            .map(|block| {
+                let (mut lost, mut total) = (0.0f64, 0.0f64);
+                for f in block.chunks_exact(3) {
+                    let v = [0, 1, 2].map(|k| f[k] as usize);
+                    let p = v.map(|v| mesh.positions[v]);
+                    let area = (p[1] - p[0]).cross(p[2] - p[0]).length() as f64 / 2.0;
+                    if area.is_nan() || area <= 0.0 {
+                        continue;
+                    }
+                    for (w, near) in AT {
+                        let drawn: Vec4 = (0..3).map(|k| albedo[v[k]] * w[k]).sum();
+                        let uv: Vec2 = (0..3).map(|k| uvs[v[k]] * w[k]).sum();
+                        let truth = self.shade(t.sample(uv), colors.map(|c| c[v[near]]));
+                        if truth.w < 0.5 || drawn.w <= 0.0 {
+                            continue;
+                        }
+                        total += area;
+                        if delta_e76(drawn.truncate(), truth.truncate()) > DETAIL_DELTA_E {
+                            lost += area;
+                        }
+                    }
+                }
+                (lost, total)
+            })
+            .collect();
+        let (lost, total) = (sums.iter()).fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        (total > 0.0).then(|| lost / total)
     }
 
     /// The fur's colour at one point, given its `TEXCOORD_0` and `COLOR_0` (see

@@ -170,7 +170,7 @@ fn position_normals(mesh: &Mesh, ids: &[u32], unique: usize) -> Vec<Vec3> {
 /// crease (10°: exporters split normals at UV seams without turning them, and a crease an
 /// artist means is tens of degrees). Rounding a hard-edged box by its corners' mean normals
 /// blew a 2 cm rug into a dome 0.45 m high, over the flat rug the asset still draws.
-const CREASE_COS: f32 = 0.984_807_75;
+const CREASE_COS: f32 = 0.984_807_7;
 
 /// The Phong-tessellated point at barycentrics `w` of corners `p` with normals `n`.
 fn phong(p: [Vec3; 3], n: [Vec3; 3], w: [f32; 3], alpha: f32) -> Vec3 {
