@@ -878,8 +878,6 @@ fn add_lod_scene(out: &mut Value, packed: &Packed, base: Base, shown: usize) {
     add_to_scene(out, at, levels.into_iter().map(|n| base.nodes + n));
 }
 
-/// Adds `nodes` to scene `scene`'s roots (when the file has scenes; otherwise a parentless node
-/// is a root already).
 /// The scenes of `out` whose node trees hold `node`, in order.
 fn scenes_reaching(out: &Value, node: usize) -> Vec<usize> {
     let scenes = out["scenes"].as_array().map_or(&[][..], Vec::as_slice);
@@ -905,6 +903,8 @@ fn scenes_reaching(out: &Value, node: usize) -> Vec<usize> {
         .collect()
 }
 
+/// Adds `nodes` to scene `scene`'s roots (when the file has scenes; otherwise a parentless node
+/// is a root already).
 fn add_to_scene(out: &mut Value, scene: usize, nodes: impl Iterator<Item = usize>) {
     let Some(s) = out.pointer_mut(&format!("/scenes/{scene}")) else {
         return;
