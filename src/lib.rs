@@ -1050,8 +1050,11 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
                 100.0 * lost,
                 input::asset::DETAIL_DELTA_E,
                 match &tessellated {
-                    Some(t) =>
-                        format!("a tessellation factor over {} follows more of it", t.factor),
+                    Some(t) => format!(
+                        "a tessellation factor over {} (--set tessellation.factor=N) \
+                             follows more of it",
+                        t.factor
+                    ),
                     None => "--tessellate samples the texture at new vertices".to_string(),
                 }
             ));
