@@ -697,6 +697,16 @@ pub fn bake_with(scene: &Scene, params: &BakeParams, effects: &[Effect]) -> Bake
     }
 }
 
+/// Bakes surface `i` of `scene` alone (its mesh `loaded[i]`): what `verify` and `study` compare
+/// with the runtime reference, which draws one surface.
+pub fn bake_surface_alone(scene: &SceneFile, loaded: &[Loaded], i: usize) -> BakedScene {
+    let one = SceneFile {
+        surfaces: vec![scene.surfaces[i].clone()],
+        ..scene.clone()
+    };
+    bake_scene(&one, &loaded[i..=i])
+}
+
 /// Bakes every surface of `scene` (meshes from [`load_surfaces`], in the same order) into one
 /// GLB, running the scene's plan. Never fails; every surface's parameters must pass
 /// [`BakeParams::check`] (asserted).
@@ -1076,10 +1086,7 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
     let frames = run.report.run_stage(Stage::Frames, || {
         frames::extrusion_frames(&welded, mesh.normals.as_deref())
     });
-    let shade = match &mesh.albedo {
-        Some(_) => shells::asset_shade(&params.shade),
-        None => params.shade.clone(),
-    };
+    let shade = shells::surface_shade(&params.shade, mesh.albedo.is_some());
     Shape {
         mesh,
         welded,

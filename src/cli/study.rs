@@ -491,14 +491,8 @@ fn bake(tokens: &[String], runs: usize) -> anyhow::Result<Baked> {
             let (parts, loaded) =
                 shellbake::asset_scene_of(&scene, &input.asset, &input.chosen, false)?;
             let alone = if parts.surfaces.len() > 1 {
-                (parts.surfaces.iter().enumerate())
-                    .map(|(i, surface)| {
-                        let one = SceneFile {
-                            surfaces: vec![surface.clone()],
-                            ..parts.clone()
-                        };
-                        shellbake::bake_scene(&one, &loaded[i..=i])
-                    })
+                (0..parts.surfaces.len())
+                    .map(|i| shellbake::bake_surface_alone(&parts, &loaded, i))
                     .collect()
             } else {
                 Vec::new()

@@ -192,6 +192,15 @@ pub fn asset_shade(shade: &ShadeParams) -> ShadeParams {
     }
 }
 
+/// The shade a surface's layers (and fins) are drawn with: [`asset_shade`] where the surface
+/// takes its asset's colours per vertex, else the preset's own.
+pub fn surface_shade(shade: &ShadeParams, asset_colours: bool) -> ShadeParams {
+    match asset_colours {
+        true => asset_shade(shade),
+        false => shade.clone(),
+    }
+}
+
 /// Colour of a layer at normalised height `t`.
 pub fn layer_color(shade: &ShadeParams, t: f32) -> [f32; 3] {
     let occ = (1.0 - shade.occlusion) + shade.occlusion * t;

@@ -440,11 +440,7 @@ pub fn verify(
         let baked = match &whole {
             Some(baked) if !several => baked,
             _ => {
-                let one = SceneFile {
-                    surfaces: vec![surface.clone()],
-                    ..scene.clone()
-                };
-                alone = crate::bake_scene(&one, &loaded[i..=i]);
+                alone = crate::bake_surface_alone(scene, loaded, i);
                 &alone
             }
         };

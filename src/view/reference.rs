@@ -486,10 +486,7 @@ impl ReferenceRenderer {
         };
 
         // the fins of a part with the asset's colours take its neutral ramp, as the bake's do
-        let fin_shade = match mesh.albedo {
-            Some(_) => crate::stages::shells::asset_shade(input.shade),
-            None => input.shade.clone(),
-        };
+        let fin_shade = crate::stages::shells::surface_shade(input.shade, mesh.albedo.is_some());
         let extras = super::reference_extras::extras_asset(&super::reference_extras::ExtrasInput {
             mesh,
             delta: &shells.delta,

@@ -123,21 +123,10 @@ fn fins(b: &mut Builder, g: &Geometry, input: &PackInput, f: &crate::effects::fi
     // an asset's colour at the edge's ends, as the layers carry it at their roots (the strip
     // then holds the asset's neutral ramp): before, fins drew the preset's beige on any asset
     if let Some(albedo) = g.albedo {
-        let mut bytes = Bytes::default();
-        for &o in &source {
-            let c = albedo[o as usize].truncate().clamp(Vec3::ZERO, Vec3::ONE);
-            let q = |v: f32| (v * 65535.0).round() as u16;
-            bytes.u16s(&[q(c.x), q(c.y), q(c.z), u16::MAX], 8);
-        }
-        let v = b.stream(
-            "fin_color",
-            Semantic::Color(0),
-            None,
-            bytes.0,
-            Some(8),
-            source.len(),
-        );
-        let color = (b.out).accessor(v, component::UNSIGNED_SHORT, true, "VEC4", None);
+        let colours = source
+            .iter()
+            .map(|&o| (albedo[o as usize].truncate(), u16::MAX));
+        let color = super::u16_colors(b, "fin_color", colours, source.len());
         attributes.push((Semantic::Color(0), color));
     }
     let name = format!("{}fins", input.prefix);

@@ -1878,6 +1878,25 @@ fn root_shade(g: &Geometry, o: u32) -> u8 {
         .map_or(255, |a| color_byte(1.0 - a[o as usize] as f64))
 }
 
+/// A `COLOR_0` of `n` linear colours (clamped to [0, 1]) and alphas as normalized `u16`, so that
+/// dark albedos keep their hue: the layers' roots and the fins carry the asset's colour so.
+fn u16_colors(
+    b: &mut Builder,
+    name: &'static str,
+    colours: impl Iterator<Item = (Vec3, u16)>,
+    n: usize,
+) -> usize {
+    let mut bytes = Bytes::default();
+    let q = |v: f32| (v * 65535.0).round() as u16;
+    for (c, alpha) in colours {
+        let c = c.clamp(Vec3::ZERO, Vec3::ONE);
+        bytes.u16s(&[q(c.x), q(c.y), q(c.z), alpha], 8);
+    }
+    let v = b.stream(name, Semantic::Color(0), None, bytes.0, Some(8), n);
+    b.out
+        .accessor(v, component::UNSIGNED_SHORT, true, "VEC4", None)
+}
+
 /// A chunk's `COLOR_0` in fetch order `order`: the root's occlusion shade `1 − a` (rgb, times the
 /// asset's colour when it has one) and the density (alpha); the extrusion target adds `a` to the
 /// rgb, so layer t shows `1 − a + a·t`. None without colour, density and occlusion.
@@ -1887,19 +1906,12 @@ fn root_colors(b: &mut Builder, g: &Geometry, order: &[u32]) -> Option<usize> {
         // the asset's colour at the root, darkened by the occlusion: u16, so that dark
         // albedos keep their hue
         Some(albedo) => {
-            let mut bytes = Bytes::default();
-            for &o in order {
+            let colours = order.iter().map(|&o| {
                 let shade = g.occlusion.map_or(1.0, |a| 1.0 - a[o as usize]);
-                let c = (albedo[o as usize].truncate() * shade).clamp(Vec3::ZERO, Vec3::ONE);
                 let d = g.density.map_or(u16::MAX, |d| d[o as usize] as u16 * 257);
-                let q = |v: f32| (v * 65535.0).round() as u16;
-                bytes.u16s(&[q(c.x), q(c.y), q(c.z), d], 8);
-            }
-            let v = b.stream("albedo", Semantic::Color(0), None, bytes.0, Some(8), n);
-            Some(
-                b.out
-                    .accessor(v, component::UNSIGNED_SHORT, true, "VEC4", None),
-            )
+                (albedo[o as usize].truncate() * shade, d)
+            });
+            Some(u16_colors(b, "albedo", colours, n))
         }
         None => (g.density.is_some() || g.occlusion.is_some()).then(|| {
             let mut bytes = Bytes::default();
