@@ -260,6 +260,11 @@ pub fn asset_scene_of(
         let mut geometry = part.scene.clone();
         let (paint, paint_warning) = asset.paint(i);
         geometry.warnings.extend(paint_warning);
+        // the fur is no shinier than the part it grows from: a matte (0.9) part under the fur
+        // preset's 0.75 grew grey, glossy fur over near-black skin
+        if let Some(p) = &paint {
+            s.params.shade.roughness = s.params.shade.roughness.max(p.roughness);
+        }
         let required = asset.doc.json["extensionsRequired"].as_array();
         let quantized = required.is_some_and(|r| r.iter().any(|e| e == "KHR_mesh_quantization"));
         if graft

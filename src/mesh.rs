@@ -132,9 +132,9 @@ pub struct Mesh {
     /// a material whose `textureInfo` (or its `KHR_texture_transform`) names `TEXCOORD_1` or
     /// later ([`crate::input::asset::Paint::albedo`]). Carried like `uvs`.
     pub texture_uvs: Option<Vec<Vec2>>,
-    /// Vertex colours (glTF `COLOR_0`, or an OBJ `v x y z r g b`) as bytes, RGBA (alpha 255
-    /// where the input has three channels); they can drive the density and length maps.
-    pub colors: Option<Vec<[u8; 4]>>,
+    /// Vertex colours (glTF `COLOR_0`, or an OBJ `v x y z r g b`) as [`Rgba16`] levels, RGBA
+    /// (alpha 1 where the input has three channels); they can drive the density and length maps.
+    pub colors: Option<Vec<Rgba16>>,
     /// The asset's base colour at each vertex (linear RGB; `w`: how much of the surface around
     /// the vertex its material draws, which scales the fur's density), when the fur takes it
     /// (DESIGN §10; [`crate::input::asset::Paint::albedo`]): sampled where the asset's own UVs
@@ -432,6 +432,30 @@ pub fn color_byte(v: f64) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0).round() as u8
 }
 
+/// A vertex colour, RGBA in [0, 1] as 16-bit levels (`u16::MAX` is 1): the widest normalized
+/// form glTF's `COLOR_0` takes. An 8-bit input keeps each of its levels (× 257) and a float or
+/// 16-bit one keeps its darks: held as 8 linear bits, every sRGB level up to 12 of 255 read as
+/// black and the dark levels above it in steps of up to 13, so dark painted fur banded.
+pub type Rgba16 = [u16; 4];
+
+/// The colour of a mesh without vertex colours: white, opaque.
+pub const WHITE16: Rgba16 = [u16::MAX; 4];
+
+/// A colour component in [0, 1] as a 16-bit level (out-of-range values clamp; NaN reads as 0).
+pub fn color_level(v: f64) -> u16 {
+    (v.clamp(0.0, 1.0) * 65535.0).round() as u16
+}
+
+/// A 16-bit colour level as a value in [0, 1].
+pub fn level_unit(c: u16) -> f32 {
+    c as f32 / 65535.0
+}
+
+/// A 16-bit colour level as the nearest byte (an 8-bit input's own level, exactly).
+pub fn level_byte(c: u16) -> u8 {
+    ((c as u32 * 255 + 32767) / 65535) as u8
+}
+
 /// What `load` returns: the meshes of one input file, world transforms applied (a skinned
 /// mesh's bind pose as it is).
 #[derive(Clone, Debug, Default)]
@@ -469,7 +493,7 @@ impl Scene {
                 m.texture_uvs = None;
             }
             if any_colors && m.colors.is_none() {
-                m.colors = Some(vec![[255; 4]; m.vertex_count()]);
+                m.colors = Some(vec![WHITE16; m.vertex_count()]);
             }
             if !same_morphs {
                 m.morphs.clear();

@@ -8,7 +8,15 @@ pub fn decode8(v: u8) -> f64 {
 }
 
 fn decode(v: u8) -> f64 {
-    let c = v as f64 / 255.0;
+    unit(v as f64 / 255.0)
+}
+
+/// A 16-bit level of an sRGB-encoded value ([`crate::mesh::Rgba16`]) as linear light in [0, 1].
+pub fn decode_unit(v: u16) -> f64 {
+    unit(v as f64 / 65535.0)
+}
+
+fn unit(c: f64) -> f64 {
     if c <= 0.04045 {
         c / 12.92
     } else {

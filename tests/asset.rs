@@ -3076,3 +3076,85 @@ fn texture_detail_finer_than_the_triangles_is_said() {
     let (_, eyes) = bake(&critter, &dir, "eyes.glb", &["--only", "material=eye"]);
     assert!(share(&eyes).is_empty());
 }
+
+/// A flat strip of `n` columns, its vertices coloured by `colour(x)` (float `COLOR_0`), drawn
+/// with one material `fur_strip` of roughness `roughness` and no texture.
+fn painted_strip(n: usize, colour: impl Fn(f32) -> [f32; 3], roughness: f64) -> Vec<u8> {
+    let (mut bin, mut indices) = (Vec::new(), Vec::new());
+    for z in [0.0f32, 0.25] {
+        for i in 0..=n {
+            let x = i as f32 / n as f32;
+            for c in [x, 0.0, z, 0.0, 1.0, 0.0] {
+                bin.extend(c.to_le_bytes());
+            }
+            for c in colour(x) {
+                bin.extend(c.to_le_bytes());
+            }
+        }
+    }
+    let row = n as u16 + 1;
+    for i in 0..n as u16 {
+        indices.extend_from_slice(&[i, row + i, i + 1, i + 1, row + i, row + i + 1]);
+    }
+    let vertices = 2 * (n + 1);
+    let index_at = bin.len();
+    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    bin.resize(bin.len().next_multiple_of(4), 0);
+    let doc = json!({
+        "asset": { "version": "2.0" },
+        "scene": 0,
+        "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "name": "strip", "mesh": 0 }],
+        "meshes": [{ "name": "strip", "primitives": [{
+            "attributes": { "POSITION": 0, "NORMAL": 1, "COLOR_0": 2 }, "indices": 3, "material": 0 }] }],
+        "materials": [{ "name": "fur_strip",
+            "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": roughness } }],
+        "accessors": [
+            { "bufferView": 0, "byteOffset": 0, "componentType": 5126, "count": vertices, "type": "VEC3",
+              "min": [0.0, 0.0, 0.0], "max": [1.0, 0.0, 0.25] },
+            { "bufferView": 0, "byteOffset": 12, "componentType": 5126, "count": vertices, "type": "VEC3" },
+            { "bufferView": 0, "byteOffset": 24, "componentType": 5126, "count": vertices, "type": "VEC3" },
+            { "bufferView": 1, "componentType": 5123, "count": indices.len(), "type": "SCALAR" }
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": index_at, "byteStride": 36 },
+            { "buffer": 0, "byteOffset": index_at, "byteLength": 2 * indices.len() }
+        ],
+        "buffers": [{ "byteLength": bin.len() }]
+    });
+    shellbake::output::write::glb_bytes(&doc, &bin)
+}
+
+#[test]
+fn dark_vertex_colours_keep_their_levels_and_the_fur_is_no_shinier_than_its_part() {
+    // a dark brown ramp, linear 0 to 0.03 (sRGB 0 to 48 of 255): held as 8 linear bits it was
+    // at most 9 levels, sRGB 0-12 one black, and the fur banded; a matte part (0.95) grew fur
+    // at the preset's 0.75, grey and glossy over it
+    let dir = scratch("asset-dark-ramp");
+    let n = 64;
+    let input = dir.join("strip.glb");
+    let ramp = |x: f32| [0.03 * x * x, 0.017 * x * x, 0.009 * x * x];
+    std::fs::write(&input, painted_strip(n, ramp, 0.95)).unwrap();
+    let (glb, _) = bake(&input, &dir, "strip-fur.glb", &["--only", "material=fur_*"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let out = Glb::parse(&std::fs::read(&glb).unwrap());
+    let layers: Vec<&Value> = (out.json["meshes"].as_array().unwrap().iter())
+        .filter(|m| m["name"].as_str().unwrap_or("").contains("_layer_"))
+        .collect();
+    assert!(!layers.is_empty());
+    for m in &layers {
+        let material = &out.json["materials"][m["primitives"][0]["material"].as_u64().unwrap() as usize];
+        assert_eq!(material["pbrMetallicRoughness"]["roughnessFactor"], 0.95, "{material}");
+    }
+    let prim = &layers[0]["primitives"][0];
+    let colours = out.accessor(prim["attributes"]["COLOR_0"].as_u64().unwrap() as usize);
+    let drawn = 2 * (n + 1);
+    let mut reds: Vec<u64> = (colours.iter().take(drawn))
+        .map(|c| (c[0] * 65535.0).round() as u64)
+        .collect();
+    reds.sort_unstable();
+    reds.dedup();
+    assert!(reds.len() > 50, "{} levels of red: {reds:?}", reds.len());
+    // the darkest painted columns are not black
+    assert!(reds.iter().filter(|&&r| r > 0 && r < 65535 / 255).count() > 5, "{reds:?}");
+}

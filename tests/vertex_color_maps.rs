@@ -119,7 +119,7 @@ fn a_channel_of_a_mesh_without_colours_is_refused() {
 }
 
 #[test]
-fn gltf_colour_accessors_are_read_as_bytes() {
+fn gltf_colour_accessors_are_read_as_16_bit_levels() {
     let mut bin = Vec::new();
     for p in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
         for c in p {
@@ -129,7 +129,7 @@ fn gltf_colour_accessors_are_read_as_bytes() {
     // VEC4 unsigned byte, normalized
     bin.extend([0u8, 128, 255, 64, 255, 0, 0, 255, 10, 20, 30, 40]);
     // VEC3 float
-    for c in [[0.5f32, 0.0, 1.0], [2.0, -1.0, 0.25], [0.0, 0.0, 0.0]] {
+    for c in [[0.5f32, 0.0, 1.0], [2.0, -1.0, 0.25], [0.001, 0.0, 0.0]] {
         for v in c {
             bin.extend(v.to_le_bytes());
         }
@@ -164,12 +164,16 @@ fn gltf_colour_accessors_are_read_as_bytes() {
                 .unwrap();
         s.meshes[0].colors.clone().unwrap()
     };
-    assert_eq!(
-        read(g(1)),
-        vec![[0, 128, 255, 64], [255, 0, 0, 255], [10, 20, 30, 40]]
-    );
+    // 8-bit inputs keep their levels exactly (× 257)
+    let bytes = [[0u16, 128, 255, 64], [255, 0, 0, 255], [10, 20, 30, 40]];
+    assert_eq!(read(g(1)), bytes.map(|c| c.map(|b| b * 257)));
+    // floats keep 16 bits: a dark value 8 linear bits made black stays apart from black
     assert_eq!(
         read(g(2)),
-        vec![[128, 0, 255, 255], [255, 0, 64, 255], [0, 0, 0, 255]]
+        vec![
+            [32768, 0, 65535, 65535],
+            [65535, 0, 16384, 65535],
+            [66, 0, 0, 65535]
+        ]
     );
 }

@@ -829,6 +829,9 @@ pub struct Paint {
     /// The material is `KHR_materials_unlit`: the fur grafted onto the part is unlit too, so it
     /// keeps the flat colours the part is drawn in.
     pub unlit: bool,
+    /// The material's roughness ([`roughness`]): the fur is drawn no shinier than the part it
+    /// grows from.
+    pub roughness: f32,
     /// The base-colour `textureInfo` and the element it belongs to, not decoded yet: reading
     /// an asset decodes no image, [`Asset::paint`] decodes those of the parts the bake furs.
     pending: Option<(Value, String)>,
@@ -905,6 +908,19 @@ pub fn base_colour(material: &Value) -> (&Value, &Value) {
     }
 }
 
+/// A material's roughness as the client draws it: `roughnessFactor` (1 when not given, as glTF
+/// defaults it), or for a specular-glossiness material without a metallic-roughness fallback
+/// `1 − glossinessFactor` (glossiness 1 when not given). The texture's channel is not read.
+pub fn roughness(material: &Value) -> f32 {
+    let pbr = &material["pbrMetallicRoughness"];
+    let sg = &material["extensions"]["KHR_materials_pbrSpecularGlossiness"];
+    let r = match (pbr.is_object(), sg.is_object()) {
+        (false, true) => 1.0 - sg["glossinessFactor"].as_f64().unwrap_or(1.0),
+        _ => pbr["roughnessFactor"].as_f64().unwrap_or(1.0),
+    };
+    r.clamp(0.0, 1.0) as f32
+}
+
 impl Paint {
     /// The paint of primitive `prim`, its texture not decoded yet ([`Asset::paint`]), `None`
     /// when the primitive has neither a material nor vertex colours.
@@ -917,6 +933,7 @@ impl Paint {
                 vertex_colors,
                 alpha: AlphaMode::Opaque,
                 unlit: false,
+                roughness: 1.0,
                 pending: None,
             });
         };
@@ -934,6 +951,7 @@ impl Paint {
             vertex_colors,
             alpha: AlphaMode::of(material),
             unlit: material["extensions"]["KHR_materials_unlit"].is_object(),
+            roughness: roughness(material),
             pending: info
                 .is_object()
                 .then(|| (info.clone(), format!("{element}: material {m}'s"))),
@@ -1069,7 +1087,7 @@ impl Paint {
 
     /// The fur's colour at one point, given its `TEXCOORD_0` and `COLOR_0` (see
     /// [`Paint::albedo`]).
-    pub fn colour_at(&self, uv: Option<Vec2>, color: Option<[u8; 4]>) -> Vec4 {
+    pub fn colour_at(&self, uv: Option<Vec2>, color: Option<crate::mesh::Rgba16>) -> Vec4 {
         let texel = match (&self.texture, uv) {
             (Some(t), Some(uv)) => t.sample(uv),
             _ => Vec4::ONE,
@@ -1080,7 +1098,12 @@ impl Paint {
     /// [`Paint::colour_at`] read up to half a texel from `uv` toward `inside` (a point inside
     /// the face the point lies on, such as its UV centroid), as [`Paint::albedo`] reads corners:
     /// a point on a UV island's edge takes the island's colour, not the texel across the edge.
-    pub fn colour_toward(&self, uv: Vec2, inside: Vec2, color: Option<[u8; 4]>) -> Vec4 {
+    pub fn colour_toward(
+        &self,
+        uv: Vec2,
+        inside: Vec2,
+        color: Option<crate::mesh::Rgba16>,
+    ) -> Vec4 {
         let texel = match &self.texture {
             Some(t) => t.sample_toward(uv, inside),
             None => Vec4::ONE,
@@ -1089,10 +1112,10 @@ impl Paint {
     }
 
     /// Factor × texel × vertex colour, the alpha turned into coverage.
-    fn shade(&self, texel: Vec4, color: Option<[u8; 4]>) -> Vec4 {
+    fn shade(&self, texel: Vec4, color: Option<crate::mesh::Rgba16>) -> Vec4 {
         let mut c = Vec4::from(self.factor) * texel;
         if let (true, Some(k)) = (self.vertex_colors, color) {
-            c *= Vec4::from(k.map(|b| b as f32)) / 255.0;
+            c *= Vec4::from(k.map(crate::mesh::level_unit));
         }
         let c = c.clamp(Vec4::ZERO, Vec4::ONE);
         c.truncate().extend(self.alpha.coverage(c.w))

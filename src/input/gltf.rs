@@ -307,10 +307,10 @@ impl PrimitiveData<'_> {
         Ok(uvs)
     }
 
-    /// The vertex colours `COLOR_0` as bytes: VEC3 or VEC4 (float, or normalized unsigned
+    /// The vertex colours `COLOR_0` as 16-bit levels ([`crate::mesh::Rgba16`]): VEC3 or VEC4 (float, or normalized unsigned
     /// byte/short), linear values in [0, 1] (none when missing or not one per each of `nv`
     /// vertices).
-    fn colors(&self, nv: usize) -> Result<Option<Vec<[u8; 4]>>> {
+    fn colors(&self, nv: usize) -> Result<Option<Vec<crate::mesh::Rgba16>>> {
         let Some(a) = self.prim.attribute("COLOR_0") else {
             return Ok(None);
         };
@@ -327,10 +327,10 @@ impl PrimitiveData<'_> {
             self.buffers,
             ("COLOR_0", kind, &[5126, 5121, 5123], Zeros::Refused),
         )?;
-        let colors: Vec<[u8; 4]> = values
+        let colors: Vec<crate::mesh::Rgba16> = values
             .chunks_exact(n)
             .map(|c| {
-                let at = |k: usize| c.get(k).map_or(255, |&v| crate::mesh::color_byte(v));
+                let at = |k: usize| c.get(k).map_or(u16::MAX, |&v| crate::mesh::color_level(v));
                 [at(0), at(1), at(2), at(3)]
             })
             .collect();

@@ -59,7 +59,9 @@ impl Map {
         match self {
             Map::Image(m) => m.per_vertex(mesh.uvs.as_deref().unwrap_or(&[])),
             Map::VertexColor(c) => match &mesh.colors {
-                Some(colors) => colors.iter().map(|rgba| rgba[*c]).collect(),
+                Some(colors) => (colors.iter())
+                    .map(|rgba| crate::mesh::level_byte(rgba[*c]))
+                    .collect(),
                 None => vec![255; mesh.vertex_count()],
             },
         }
@@ -153,7 +155,7 @@ impl Flow {
             Flow::VertexColors => match &mesh.colors {
                 Some(colors) => colors
                     .iter()
-                    .map(|c| decode_flow(c[0] as f32, c[1] as f32))
+                    .map(|c| decode_flow(c[0] as f32 / 257.0, c[1] as f32 / 257.0))
                     .collect(),
                 None => vec![Vec2::ZERO; mesh.vertex_count()],
             },
@@ -248,7 +250,11 @@ mod tests {
         // vertex colours: red and green, as stored
         let mesh = crate::mesh::Mesh {
             positions: vec![glam::Vec3::ZERO; 2],
-            colors: Some(vec![[255, 128, 128, 255], [128, 128, 0, 0]]),
+            colors: Some(
+                [[255, 128, 128, 255], [128, 128, 0, 0u16]]
+                    .map(|c| c.map(|b| b * 257))
+                    .to_vec(),
+            ),
             ..Default::default()
         };
         assert_eq!(

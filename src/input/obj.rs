@@ -437,10 +437,12 @@ fn uvs(t: &[Option<[f64; 2]>]) -> Vec<Vec2> {
         .collect()
 }
 
-/// Vertex colours (`v x y z r g b`: colours in [0, 1]) as bytes.
-fn colors(c: &[[f64; 3]]) -> Vec<[u8; 4]> {
-    let b = |v: f64| crate::mesh::color_byte(v);
-    c.iter().map(|c| [b(c[0]), b(c[1]), b(c[2]), 255]).collect()
+/// Vertex colours (`v x y z r g b`: colours in [0, 1]) as 16-bit levels.
+fn colors(c: &[[f64; 3]]) -> Vec<crate::mesh::Rgba16> {
+    let b = |v: f64| crate::mesh::color_level(v);
+    c.iter()
+        .map(|c| [b(c[0]), b(c[1]), b(c[2]), u16::MAX])
+        .collect()
 }
 
 /// What [`read`] makes of a file: its objects and its number of `l` statements.
@@ -1333,7 +1335,7 @@ impl Chunk {
         if let Some(colors) = &mesh.colors {
             // the OBJ's sRGB levels as linear floats (see the module doc)
             let v: Vec<f32> = (colors.iter())
-                .flat_map(|c| [c[0], c[1], c[2]].map(|c| crate::srgb::decode8(c) as f32))
+                .flat_map(|c| [c[0], c[1], c[2]].map(|c| crate::srgb::decode_unit(c) as f32))
                 .collect();
             attributes["COLOR_0"] = json!(self.floats(
                 &v,

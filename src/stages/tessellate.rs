@@ -257,7 +257,7 @@ impl<'a> Subdivision<'a> {
                 let v = inn[at(c[0])][k] as f32 * w[0]
                     + inn[at(c[1])][k] as f32 * w[1]
                     + inn[at(c[2])][k] as f32 * w[2];
-                v.round().clamp(0.0, 255.0) as u8
+                v.round().clamp(0.0, 65535.0) as u16
             };
             out.push([mix(0), mix(1), mix(2), mix(3)]);
         }
