@@ -315,6 +315,17 @@ pub struct SurfaceMaps {
     pub comb: Option<input::maps::Flow>,
 }
 
+impl SurfaceMaps {
+    /// Whether a map reads the mesh's vertex colours.
+    pub fn reads_colours(&self) -> bool {
+        let map =
+            |m: &Option<input::maps::Map>| matches!(m, Some(input::maps::Map::VertexColor(_)));
+        map(&self.density)
+            || map(&self.length)
+            || matches!(self.comb, Some(input::maps::Flow::VertexColors))
+    }
+}
+
 /// An asset baked whole: the fur-only bake of its parts, and the asset with the fur grafted on.
 pub struct AssetBake {
     /// The fur alone (one surface per furred part, no base layers): what `verify` checks.
@@ -444,6 +455,15 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
                 k.place(glam::DVec3::from(s.translation), s.scale);
             }
             let maps = surface_maps(s, &loaded)?;
+            let obj = (s.mesh.extension()).is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+            if obj && loaded.meshes.iter().any(|m| m.colors.is_some()) && !maps.reads_colours() {
+                loaded.warnings.push(format!(
+                    "{}: the mesh's vertex colours do not colour a plain mesh's fur (it takes the \
+                     preset's): name a material library (`mtllib`) to bake it as an asset whose \
+                     fur takes them, or read them as a map (`density_map = \"COLOR_0.r\"`)",
+                    s.mesh.display()
+                ));
+            }
             Ok(Loaded {
                 scene: loaded,
                 maps,

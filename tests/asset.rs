@@ -3143,8 +3143,12 @@ fn dark_vertex_colours_keep_their_levels_and_the_fur_is_no_shinier_than_its_part
         .collect();
     assert!(!layers.is_empty());
     for m in &layers {
-        let material = &out.json["materials"][m["primitives"][0]["material"].as_u64().unwrap() as usize];
-        assert_eq!(material["pbrMetallicRoughness"]["roughnessFactor"], 0.95, "{material}");
+        let material =
+            &out.json["materials"][m["primitives"][0]["material"].as_u64().unwrap() as usize];
+        assert_eq!(
+            material["pbrMetallicRoughness"]["roughnessFactor"], 0.95,
+            "{material}"
+        );
     }
     let prim = &layers[0]["primitives"][0];
     let colours = out.accessor(prim["attributes"]["COLOR_0"].as_u64().unwrap() as usize);
@@ -3156,5 +3160,8 @@ fn dark_vertex_colours_keep_their_levels_and_the_fur_is_no_shinier_than_its_part
     reds.dedup();
     assert!(reds.len() > 50, "{} levels of red: {reds:?}", reds.len());
     // the darkest painted columns are not black
-    assert!(reds.iter().filter(|&&r| r > 0 && r < 65535 / 255).count() > 5, "{reds:?}");
+    assert!(
+        reds.iter().filter(|&&r| r > 0 && r < 65535 / 255).count() > 5,
+        "{reds:?}"
+    );
 }

@@ -99,6 +99,15 @@ fn painted_vertex_colours_thin_and_shorten_the_fur() {
         assert_eq!(l[j], d[j], "layer {j}: length 0 culls as density 0 does");
     }
     assert_eq!(b, p, "a white channel changes nothing");
+    // colours no map reads are said not to colour a plain mesh's fur (they were dropped
+    // without a word)
+    let unread = |r: &Value| {
+        r["surfaces"][0]["warnings"]
+            .to_string()
+            .contains("do not colour")
+    };
+    assert!(unread(&plain), "{}", plain["surfaces"][0]["warnings"]);
+    assert!(!unread(&density) && !unread(&length));
 }
 
 #[test]
