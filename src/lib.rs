@@ -220,6 +220,23 @@ pub fn asset_scene(
     asset_scene_of(template, asset, &pairs, graft)
 }
 
+/// The diagonal of the box holding every mesh of `scene`, in world units.
+fn world_diagonal(scene: &Scene) -> f32 {
+    let (mut lo, mut hi) = (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY);
+    for m in &scene.meshes {
+        let (a, b) = m.bounds();
+        if a.is_finite() && b.is_finite() {
+            lo = lo.min(m.origin + a.as_dvec3());
+            hi = hi.max(m.origin + b.as_dvec3());
+        }
+    }
+    if lo.is_finite() && hi.is_finite() {
+        (hi - lo).length() as f32
+    } else {
+        0.0
+    }
+}
+
 /// [`asset_scene`] with each chosen part's settings from a surface of its own: `chosen` holds
 /// (part, surface of `template`) pairs ([`scene_asset`]).
 pub fn asset_scene_of(
@@ -260,6 +277,20 @@ pub fn asset_scene_of(
         let mut geometry = part.scene.clone();
         let (paint, paint_warning) = asset.paint(i);
         geometry.warnings.extend(paint_warning);
+        if s.params.shells.height.is_none() {
+            let height = s.params.resolved_height(world_diagonal(&geometry));
+            let tallest = surface.preset.tallest();
+            if height > tallest {
+                geometry.warnings.push(format!(
+                    "{}: part '{}' takes a default height of {height:.3} m (a fraction of its \
+                     size), taller than {} grows ({tallest} m at most); glTF's lengths are \
+                     metres: give --height (and --density) for what you mean",
+                    asset.doc.path.display(),
+                    input::escape(&s.name),
+                    surface.preset.name(),
+                ));
+            }
+        }
         // the fur is no shinier than the part it grows from: a matte (0.9) part under the fur
         // preset's 0.75 grew grey, glossy fur over near-black skin
         if let Some(p) = &paint {

@@ -53,6 +53,17 @@ impl Preset {
         }
     }
 
+    /// The tallest the preset's strands are in life, in metres, generously: an asset's default
+    /// height past it (a fraction of the part's diagonal: 114 m blades on a 1 km terrain) is
+    /// said in a warning, since glTF's lengths are metres.
+    pub fn tallest(self) -> f32 {
+        match self {
+            Preset::Fur => 1.0,
+            Preset::Carpet | Preset::Moss => 0.2,
+            Preset::Grass => 3.0,
+        }
+    }
+
     /// The preset called `name`.
     pub fn from_name(name: &str) -> Option<Preset> {
         Preset::ALL.into_iter().find(|p| p.name() == name)

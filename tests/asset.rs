@@ -3077,9 +3077,15 @@ fn texture_detail_finer_than_the_triangles_is_said() {
     assert!(share(&eyes).is_empty());
 }
 
-/// A flat strip of `n` columns, its vertices coloured by `colour(x)` (float `COLOR_0`), drawn
-/// with one material `fur_strip` of roughness `roughness` and no texture.
-fn painted_strip(n: usize, colour: impl Fn(f32) -> [f32; 3], roughness: f64) -> Vec<u8> {
+/// A flat strip of `n` columns, 1 by 0.25 times `scale` (its node's), its vertices coloured by
+/// `colour(x)` (float `COLOR_0`), drawn with one material `fur_strip` of roughness `roughness`
+/// and no texture.
+fn painted_strip(
+    n: usize,
+    colour: impl Fn(f32) -> [f32; 3],
+    roughness: f64,
+    scale: f64,
+) -> Vec<u8> {
     let (mut bin, mut indices) = (Vec::new(), Vec::new());
     for z in [0.0f32, 0.25] {
         for i in 0..=n {
@@ -3104,7 +3110,7 @@ fn painted_strip(n: usize, colour: impl Fn(f32) -> [f32; 3], roughness: f64) -> 
         "asset": { "version": "2.0" },
         "scene": 0,
         "scenes": [{ "nodes": [0] }],
-        "nodes": [{ "name": "strip", "mesh": 0 }],
+        "nodes": [{ "name": "strip", "mesh": 0, "scale": [scale, scale, scale] }],
         "meshes": [{ "name": "strip", "primitives": [{
             "attributes": { "POSITION": 0, "NORMAL": 1, "COLOR_0": 2 }, "indices": 3, "material": 0 }] }],
         "materials": [{ "name": "fur_strip",
@@ -3134,7 +3140,7 @@ fn dark_vertex_colours_keep_their_levels_and_the_fur_is_no_shinier_than_its_part
     let n = 64;
     let input = dir.join("strip.glb");
     let ramp = |x: f32| [0.03 * x * x, 0.017 * x * x, 0.009 * x * x];
-    std::fs::write(&input, painted_strip(n, ramp, 0.95)).unwrap();
+    std::fs::write(&input, painted_strip(n, ramp, 0.95, 1.0)).unwrap();
     let (glb, _) = bake(&input, &dir, "strip-fur.glb", &["--only", "material=fur_*"]);
     assert_valid(std::slice::from_ref(&glb));
     let out = Glb::parse(&std::fs::read(&glb).unwrap());
@@ -3164,4 +3170,28 @@ fn dark_vertex_colours_keep_their_levels_and_the_fur_is_no_shinier_than_its_part
         reds.iter().filter(|&&r| r > 0 && r < 65535 / 255).count() > 5,
         "{reds:?}"
     );
+}
+
+#[test]
+fn a_default_height_taller_than_the_preset_grows_is_said() {
+    // glTF lengths are metres: grass on a 1 km strip took 35 m blades (3.5 % of its size)
+    let dir = scratch("asset-huge-default");
+    let input = dir.join("field.glb");
+    std::fs::write(&input, painted_strip(8, |_| [0.2, 0.5, 0.1], 1.0, 1000.0)).unwrap();
+    let said = |args: &[&str]| {
+        let (_, report) = bake(&input, &dir, "field-grass.glb", args);
+        report["surfaces"][0]["warnings"]
+            .to_string()
+            .contains("taller than grass grows")
+    };
+    assert!(said(&["--preset", "grass", "--no-lod"]));
+    assert!(!said(&[
+        "--preset",
+        "grass",
+        "--no-lod",
+        "--height",
+        "0.3",
+        "--density",
+        "20"
+    ]));
 }

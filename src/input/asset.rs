@@ -1491,6 +1491,7 @@ mod tests {
                 vertex_colors: false,
                 alpha: AlphaMode::Opaque,
                 unlit: false,
+                roughness: 1.0,
                 pending: None,
             };
             let mesh = strip(4);
@@ -1520,6 +1521,7 @@ mod tests {
                 vertex_colors: false,
                 alpha,
                 unlit: false,
+                roughness: 1.0,
                 pending: None,
             };
             let albedo = paint.albedo(&mesh);
@@ -1545,6 +1547,7 @@ mod tests {
             vertex_colors: false,
             alpha: AlphaMode::Blend,
             unlit: false,
+            roughness: 1.0,
             pending: None,
         };
         for c in half.albedo(&mesh) {
