@@ -3195,3 +3195,52 @@ fn a_default_height_taller_than_the_preset_grows_is_said() {
         "20"
     ]));
 }
+
+#[test]
+fn parts_alike_share_their_layer_materials() {
+    // the critter's body and tail take the same preset: their layers' materials are alike
+    // but for their names, and were written twice (200 such parts: 11 809 materials, 68
+    // distinct, 4.2 MB of JSON)
+    let dir = scratch("asset-shared-materials");
+    let (glb, _) = bake(
+        &fixture_critter(),
+        &dir,
+        "critter.glb",
+        &["--only", "material=fur_*"],
+    );
+    let out = Glb::parse(&std::fs::read(&glb).unwrap());
+    let input = json_of(&fixture_critter());
+    let kept = input["materials"].as_array().unwrap().len();
+    let materials = out.json["materials"].as_array().unwrap();
+    let unnamed = |m: &Value| {
+        let mut m = m.clone();
+        m.as_object_mut().unwrap().remove("name");
+        m
+    };
+    let added: Vec<Value> = materials[kept..].iter().map(unnamed).collect();
+    for (i, a) in added.iter().enumerate() {
+        assert!(
+            !added[..i].contains(a),
+            "material {} repeats an earlier one",
+            kept + i
+        );
+    }
+    // every layer of both parts draws with one of them
+    let layer_materials = |part: &str| -> std::collections::BTreeSet<u64> {
+        (out.json["meshes"].as_array().unwrap().iter())
+            .filter(|m| m["name"].as_str().unwrap().starts_with(part))
+            .filter(|m| m["name"].as_str().unwrap().contains("_layer_"))
+            .flat_map(|m| m["primitives"].as_array().unwrap().clone())
+            .map(|p| p["material"].as_u64().unwrap())
+            .collect()
+    };
+    let (body, tail) = (
+        layer_materials("critter_0_0"),
+        layer_materials("critter_0_1"),
+    );
+    assert!(!body.is_empty() && !tail.is_empty());
+    assert_eq!(
+        body, tail,
+        "the body's and the tail's layers share their materials"
+    );
+}
