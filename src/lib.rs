@@ -277,7 +277,8 @@ pub fn asset_scene_of(
         let mut geometry = part.scene.clone();
         let (paint, paint_warning) = asset.paint(i);
         geometry.warnings.extend(paint_warning);
-        if s.params.shells.height.is_none() {
+        // a skinned part is read in its bind space, whose unit the armature may scale
+        if s.params.shells.height.is_none() && part.skin.is_none() {
             let height = s.params.resolved_height(world_diagonal(&geometry));
             let tallest = surface.preset.tallest();
             if height > tallest {
@@ -291,10 +292,13 @@ pub fn asset_scene_of(
                 ));
             }
         }
-        // the fur is no shinier than the part it grows from: a matte (0.9) part under the fur
-        // preset's 0.75 grew grey, glossy fur over near-black skin
-        if let Some(p) = &paint {
-            s.params.shade.roughness = s.params.shade.roughness.max(p.roughness);
+        // the fur is no shinier than the part it grows from (a matte, 0.9, part under the fur
+        // preset's 0.75 grew grey, glossy fur over near-black skin), unless the surface sets
+        // its own roughness
+        let preset_roughness = BakeParams::preset(surface.preset).shade.roughness;
+        let own = s.params.shade.roughness != preset_roughness;
+        if let (false, Some(r)) = (own, paint.as_ref().and_then(|p| p.roughness)) {
+            s.params.shade.roughness = s.params.shade.roughness.max(r);
         }
         let required = asset.doc.json["extensionsRequired"].as_array();
         let quantized = required.is_some_and(|r| r.iter().any(|e| e == "KHR_mesh_quantization"));
@@ -489,9 +493,10 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
             let obj = (s.mesh.extension()).is_some_and(|e| e.eq_ignore_ascii_case("obj"));
             if obj && loaded.meshes.iter().any(|m| m.colors.is_some()) && !maps.reads_colours() {
                 loaded.warnings.push(format!(
-                    "{}: the mesh's vertex colours do not colour a plain mesh's fur (it takes the \
-                     preset's): name a material library (`mtllib`) to bake it as an asset whose \
-                     fur takes them, or read them as a map (`density_map = \"COLOR_0.r\"`)",
+                    "{}: the mesh's vertex colours do not colour this surface's fur, baked as a \
+                     plain mesh (it takes the preset's colours): an OBJ with a material library \
+                     (`mtllib`) baked as an asset takes them, or read them as a map \
+                     (`density_map = \"COLOR_0.r\"`)",
                     s.mesh.display()
                 ));
             }

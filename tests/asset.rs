@@ -3156,6 +3156,18 @@ fn dark_vertex_colours_keep_their_levels_and_the_fur_is_no_shinier_than_its_part
             "{material}"
         );
     }
+    // a roughness the surface sets is its own
+    let (set, _) = bake(
+        &input,
+        &dir,
+        "strip-set.glb",
+        &["--only", "material=fur_*", "--set", "shade.roughness=0.3"],
+    );
+    let set = Glb::parse(&std::fs::read(&set).unwrap());
+    let layer = (set.json["materials"].as_array().unwrap().iter())
+        .find(|m| m["name"].as_str().unwrap_or("").contains("_layer_"))
+        .unwrap();
+    assert_eq!(layer["pbrMetallicRoughness"]["roughnessFactor"], 0.3);
     let prim = &layers[0]["primitives"][0];
     let colours = out.accessor(prim["attributes"]["COLOR_0"].as_u64().unwrap() as usize);
     let drawn = 2 * (n + 1);

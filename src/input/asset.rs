@@ -830,8 +830,8 @@ pub struct Paint {
     /// keeps the flat colours the part is drawn in.
     pub unlit: bool,
     /// The material's roughness ([`roughness`]): the fur is drawn no shinier than the part it
-    /// grows from.
-    pub roughness: f32,
+    /// grows from. `None` where a texture sets it.
+    pub roughness: Option<f32>,
     /// The base-colour `textureInfo` and the element it belongs to, not decoded yet: reading
     /// an asset decodes no image, [`Asset::paint`] decodes those of the parts the bake furs.
     pending: Option<(Value, String)>,
@@ -910,15 +910,19 @@ pub fn base_colour(material: &Value) -> (&Value, &Value) {
 
 /// A material's roughness as the client draws it: `roughnessFactor` (1 when not given, as glTF
 /// defaults it), or for a specular-glossiness material without a metallic-roughness fallback
-/// `1 − glossinessFactor` (glossiness 1 when not given). The texture's channel is not read.
-pub fn roughness(material: &Value) -> f32 {
+/// `1 − glossinessFactor` (glossiness 1 when not given). `None` where a texture scales it
+/// (`metallicRoughnessTexture`, `specularGlossinessTexture`): the factor alone says nothing
+/// then (exporters write 1 under a texture).
+pub fn roughness(material: &Value) -> Option<f32> {
     let pbr = &material["pbrMetallicRoughness"];
     let sg = &material["extensions"]["KHR_materials_pbrSpecularGlossiness"];
     let r = match (pbr.is_object(), sg.is_object()) {
+        (false, true) if sg["specularGlossinessTexture"].is_object() => return None,
         (false, true) => 1.0 - sg["glossinessFactor"].as_f64().unwrap_or(1.0),
+        _ if pbr["metallicRoughnessTexture"].is_object() => return None,
         _ => pbr["roughnessFactor"].as_f64().unwrap_or(1.0),
     };
-    r.clamp(0.0, 1.0) as f32
+    Some(r.clamp(0.0, 1.0) as f32)
 }
 
 impl Paint {
@@ -933,7 +937,7 @@ impl Paint {
                 vertex_colors,
                 alpha: AlphaMode::Opaque,
                 unlit: false,
-                roughness: 1.0,
+                roughness: Some(1.0),
                 pending: None,
             });
         };
@@ -1414,6 +1418,26 @@ pub fn texture_transform(t: &Value) -> glam::Affine2 {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn roughness_is_the_factor_unless_a_texture_scales_it() {
+        use serde_json::json;
+        let of = |m: Value| super::roughness(&m);
+        assert_eq!(of(json!({})), Some(1.0));
+        assert_eq!(
+            of(json!({"pbrMetallicRoughness": {"roughnessFactor": 0.4}})),
+            Some(0.4)
+        );
+        let textured = json!({"pbrMetallicRoughness": {"metallicRoughnessTexture": {"index": 0}}});
+        assert_eq!(of(textured), None);
+        let sg = |e: Value| json!({"extensions": {"KHR_materials_pbrSpecularGlossiness": e}});
+        assert_eq!(of(sg(json!({"glossinessFactor": 0.25}))), Some(0.75));
+        assert_eq!(
+            of(sg(json!({"specularGlossinessTexture": {"index": 0}}))),
+            None
+        );
+    }
+
     use super::*;
 
     #[test]
@@ -1491,7 +1515,7 @@ mod tests {
                 vertex_colors: false,
                 alpha: AlphaMode::Opaque,
                 unlit: false,
-                roughness: 1.0,
+                roughness: Some(1.0),
                 pending: None,
             };
             let mesh = strip(4);
@@ -1521,7 +1545,7 @@ mod tests {
                 vertex_colors: false,
                 alpha,
                 unlit: false,
-                roughness: 1.0,
+                roughness: Some(1.0),
                 pending: None,
             };
             let albedo = paint.albedo(&mesh);
@@ -1547,7 +1571,7 @@ mod tests {
             vertex_colors: false,
             alpha: AlphaMode::Blend,
             unlit: false,
-            roughness: 1.0,
+            roughness: Some(1.0),
             pending: None,
         };
         for c in half.albedo(&mesh) {

@@ -607,20 +607,27 @@ pub fn json_bytes_per_layer(
 
 /// JSON bytes the document spends on surface `s`: the meshes and nodes of its every level and
 /// chunk, the materials they use, and the accessors and buffer views over its streams (what a
-/// file of several surfaces says each one takes; shared objects, the masks' textures and the
-/// scenes, are nobody's).
+/// file of several surfaces says each one takes; shared objects, the masks' textures, the
+/// materials alike layers of several surfaces share and the scenes, are nobody's).
 pub fn json_bytes_of_surface(doc: &Value, packed: &Packed, s: usize) -> usize {
     let len = |v: &Value| serde_json::to_vec(v).map_or(0, |b| b.len());
     let mut materials: Vec<usize> = Vec::new();
+    let mut others: Vec<usize> = Vec::new();
     let mut total = 0;
     for (m, mesh) in packed.meshes.iter().enumerate() {
+        let used = mesh.primitives.iter().map(|p| p.material);
         if mesh.tag.surface == s {
             total += len(&doc["meshes"][m]);
-            materials.extend(mesh.primitives.iter().map(|p| p.material));
+            materials.extend(used);
+        } else {
+            others.extend(used);
         }
     }
+    // a material surfaces share (alike layers of several parts) is nobody's
+    others.sort_unstable();
     materials.sort_unstable();
     materials.dedup();
+    materials.retain(|m| others.binary_search(m).is_err());
     total += materials
         .iter()
         .map(|&m| len(&doc["materials"][m]))

@@ -146,6 +146,20 @@ pub struct Material {
     pub unlit: bool,
 }
 
+impl Material {
+    /// The material without its name, as text (floats in their shortest exact form): alike
+    /// materials have one key.
+    pub fn key(&self) -> String {
+        format!(
+            "{:?}",
+            Material {
+                name: String::new(),
+                ..self.clone()
+            }
+        )
+    }
+}
+
 /// A texture: an image stream, sampled with the file's one sampler.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Texture {
@@ -343,6 +357,9 @@ pub struct Packed {
     pub animations: Vec<Animation>,
     pub skins: Vec<Skin>,
     pub surfaces: Vec<PackedSurface>,
+    /// Each layer material, nameless ([`Material::key`]), by the first surface that made it and
+    /// its index: what a later surface's alike material shares.
+    pub material_keys: std::collections::HashMap<String, (usize, usize)>,
 }
 
 impl Packed {
