@@ -220,23 +220,6 @@ pub fn asset_scene(
     asset_scene_of(template, asset, &pairs, graft)
 }
 
-/// The diagonal of the box holding every mesh of `scene`, in world units.
-fn world_diagonal(scene: &Scene) -> f32 {
-    let (mut lo, mut hi) = (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY);
-    for m in &scene.meshes {
-        let (a, b) = m.bounds();
-        if a.is_finite() && b.is_finite() {
-            lo = lo.min(m.origin + a.as_dvec3());
-            hi = hi.max(m.origin + b.as_dvec3());
-        }
-    }
-    if lo.is_finite() && hi.is_finite() {
-        (hi - lo).length() as f32
-    } else {
-        0.0
-    }
-}
-
 /// [`asset_scene`] with each chosen part's settings from a surface of its own: `chosen` holds
 /// (part, surface of `template`) pairs ([`scene_asset`]).
 pub fn asset_scene_of(
@@ -279,7 +262,7 @@ pub fn asset_scene_of(
         geometry.warnings.extend(paint_warning);
         // a skinned part is read in its bind space, whose unit the armature may scale
         if s.params.shells.height.is_none() && part.skin.is_none() {
-            let height = s.params.resolved_height(world_diagonal(&geometry));
+            let height = s.params.resolved_height(geometry.diagonal());
             let tallest = surface.preset.tallest();
             if height > tallest {
                 geometry.warnings.push(format!(

@@ -469,6 +469,24 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The diagonal of the box holding every mesh, in world units (0 for none): what
+    /// [`Mesh::diagonal`] gives the merged mesh, without merging.
+    pub fn diagonal(&self) -> f32 {
+        let (mut lo, mut hi) = (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY);
+        for m in &self.meshes {
+            let (a, b) = m.bounds();
+            if a.is_finite() && b.is_finite() {
+                lo = lo.min(m.origin + a.as_dvec3());
+                hi = hi.max(m.origin + b.as_dvec3());
+            }
+        }
+        if lo.is_finite() && hi.is_finite() {
+            (hi - lo).length() as f32
+        } else {
+            0.0
+        }
+    }
+
     /// All meshes as one, relative to the common bounding-box centre. Normals are kept only if
     /// every mesh has them (the bake fills them otherwise); UVs likewise. Vertex colours are
     /// kept if any mesh has them, white where a mesh has none (full density and length).

@@ -1418,11 +1418,12 @@ pub fn texture_transform(t: &Value) -> glam::Affine2 {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
 
     #[test]
     fn roughness_is_the_factor_unless_a_texture_scales_it() {
         use serde_json::json;
-        let of = |m: Value| super::roughness(&m);
+        let of = |m: Value| roughness(&m);
         assert_eq!(of(json!({})), Some(1.0));
         assert_eq!(
             of(json!({"pbrMetallicRoughness": {"roughnessFactor": 0.4}})),
@@ -1437,8 +1438,6 @@ mod tests {
             None
         );
     }
-
-    use super::*;
 
     #[test]
     fn layer_names_name_their_surface() {

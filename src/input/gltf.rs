@@ -307,9 +307,9 @@ impl PrimitiveData<'_> {
         Ok(uvs)
     }
 
-    /// The vertex colours `COLOR_0` as 16-bit levels ([`crate::mesh::Rgba16`]): VEC3 or VEC4 (float, or normalized unsigned
-    /// byte/short), linear values in [0, 1] (none when missing or not one per each of `nv`
-    /// vertices).
+    /// The vertex colours `COLOR_0` as 16-bit levels ([`crate::mesh::Rgba16`]): VEC3 or VEC4
+    /// (float, or normalized unsigned byte/short), linear values in [0, 1] (none when missing
+    /// or not one per each of `nv` vertices).
     fn colors(&self, nv: usize) -> Result<Option<Vec<crate::mesh::Rgba16>>> {
         let Some(a) = self.prim.attribute("COLOR_0") else {
             return Ok(None);

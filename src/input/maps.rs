@@ -153,6 +153,7 @@ impl Flow {
         match self {
             Flow::Image(m) => m.per_vertex(mesh.uvs.as_deref().unwrap_or(&[])),
             Flow::VertexColors => match &mesh.colors {
+                // on the byte scale decode_flow reads (an 8-bit input's own levels, exactly)
                 Some(colors) => colors
                     .iter()
                     .map(|c| decode_flow(c[0] as f32 / 257.0, c[1] as f32 / 257.0))
