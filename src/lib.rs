@@ -88,7 +88,7 @@ pub mod view;
 use effects::{fins, gravity, occlusion, outline, wind};
 use output::{compress, graft, pack, write};
 use stages::{
-    clamp, cull, frames, lod, merge, orient, shells, skin, strands, tessellate, tiling, weld,
+    clamp, colour, cull, frames, lod, merge, orient, shells, skin, strands, tessellate, tiling, weld,
 };
 
 use std::path::Path;
@@ -235,7 +235,8 @@ pub fn asset_scene_of(
         surfaces: Vec::new(),
     };
     let mut loaded = Vec::new();
-    for &(i, k) in chosen {
+    let sizes = character_sizes(asset, chosen);
+    for (&(i, k), &shared) in chosen.iter().zip(&sizes) {
         let surface = &template.surfaces[k];
         let start = Instant::now();
         let part = &asset.parts[i];
@@ -262,7 +263,8 @@ pub fn asset_scene_of(
         geometry.warnings.extend(paint_warning);
         // a skinned part is read in its bind space, whose unit the armature may scale
         if s.params.shells.height.is_none() && part.skin.is_none() {
-            let height = s.params.resolved_height(geometry.diagonal());
+            let size = shared.unwrap_or_else(|| geometry.diagonal());
+            let height = s.params.resolved_height(size);
             let tallest = surface.preset.tallest();
             if height > tallest {
                 geometry.warnings.push(format!(
@@ -274,6 +276,12 @@ pub fn asset_scene_of(
                     surface.preset.name(),
                 ));
             }
+        }
+        // one fur across a character: the height and density it defaults to are its own
+        if let Some(size) = shared {
+            let p = &mut s.params;
+            p.shells.height = Some(p.shells.height.unwrap_or(p.resolved_height(size)));
+            p.strands.density = Some(p.strands.density.unwrap_or(p.resolved_density(size)));
         }
         // the fur is no shinier than the part it grows from (a matte, 0.9, part under the fur
         // preset's 0.75 grew grey, glossy fur over near-black skin), unless the surface sets
@@ -322,6 +330,35 @@ pub fn asset_scene_of(
         });
     }
     Ok((scene, loaded))
+}
+
+/// The size each chosen part's default height and density come from (the diagonal of a box),
+/// where it shares them: the box of every part its surface chooses that shares its character —
+/// the parts of one skin (in their bind space), or every rigid part (in world space) — so that
+/// one character has one fur. Sized part by part, a robot's parts took heights 9× apart (0.017
+/// to 0.148) and a jointed figure's thin arms grew long spiky tufts over its torso's short
+/// felt. `None` for a part alone in its character (it is sized by its own triangles, as
+/// before) or one without extent.
+fn character_sizes(asset: &input::asset::Asset, chosen: &[(usize, usize)]) -> Vec<Option<f32>> {
+    type Character = (usize, Option<usize>);
+    let key = |&(i, k): &(usize, usize)| -> Character { (k, asset.parts[i].skin) };
+    let mut boxes: Vec<(Character, glam::DVec3, glam::DVec3, usize)> = Vec::new();
+    for c in chosen {
+        let (lo, hi) = asset.parts[c.0].scene.world_bounds();
+        if !(lo.is_finite() && hi.is_finite()) {
+            continue;
+        }
+        match boxes.iter_mut().find(|b| b.0 == key(c)) {
+            Some(b) => (b.1, b.2, b.3) = (b.1.min(lo), b.2.max(hi), b.3 + 1),
+            None => boxes.push((key(c), lo, hi, 1)),
+        }
+    }
+    let size = |c: &(usize, usize)| {
+        let b = boxes.iter().find(|b| b.0 == key(c))?;
+        let size = (b.2 - b.1).length() as f32;
+        (b.3 > 1 && size > 0.0).then_some(size)
+    };
+    chosen.iter().map(size).collect()
 }
 
 /// The density, length and flow maps of a surface, when its scene names them.
@@ -1095,32 +1132,52 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
             ));
         }
     }
-    // the fur's colour is per vertex: say when the texture's detail is finer than that
+    // the asset's colour at strand detail: the triangles cut where it has detail
+    let refined = run.report.run_stage(Stage::Colour, || match paint {
+        Some(paint) => {
+            let density = params.resolved_density(mesh.diagonal());
+            colour::refine(&mut mesh, paint, density, &params.colour)
+        }
+        None => colour::Refined {
+            note: "no asset colour to follow".into(),
+            ..Default::default()
+        },
+    });
+    // say when the texture's detail is finer than what the fur's vertices carry
     if let Some(lost) = paint.and_then(|p| p.detail_lost(&mesh)) {
         if lost > DETAIL_WARNING {
+            let how = if params.colour.detail == colour::Detail::Vertex {
+                "--set colour.detail=strand follows it".to_string()
+            } else if refined.budget_hit {
+                format!(
+                    "the colour stage stopped at {}x the triangles: --set colour.max_growth=N \
+                     follows more of it",
+                    params.colour.max_growth
+                )
+            } else {
+                format!(
+                    "its detail is finer than the strands ({:.4} apart): --density or \
+                     --set colour.spacing=0.5 follows more of it",
+                    refined.spacing
+                )
+            };
             run.report.warnings.push(format!(
-                "the fur's colour is one per vertex: on {:.0}% of this surface it differs from \
-                 the texture (ΔE76 over {}), whose detail is finer than the triangles; {}",
-                100.0 * lost,
+                "the fur's colour differs from the texture (ΔE76 over {}) on {:.0}% of this \
+                 surface; {how}",
                 input::asset::DETAIL_DELTA_E,
-                match &tessellated {
-                    Some(t) => format!(
-                        "a tessellation factor over {} (--set tessellation.factor=N) \
-                             follows more of it",
-                        t.factor
-                    ),
-                    None => "--tessellate samples the texture at new vertices".to_string(),
-                }
+                100.0 * lost,
             ));
         }
     }
-    let topology = match tessellated {
-        Some(t) => {
-            run.report.tell(Stage::Tessellation, &t);
-            // the new vertices and triangles need their own topology
-            weld::Topology::new(&mesh.positions, &mesh.indices)
-        }
-        None => oriented.topology,
+    let retopologise = tessellated.is_some() || refined.triangles_after != refined.triangles_before;
+    if let Some(t) = tessellated {
+        run.report.tell(Stage::Tessellation, &t);
+    }
+    let topology = if retopologise {
+        // the new vertices and triangles need their own topology
+        weld::Topology::new(&mesh.positions, &mesh.indices)
+    } else {
+        oriented.topology
     };
     let welded = run
         .report

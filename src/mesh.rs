@@ -472,6 +472,16 @@ impl Scene {
     /// The diagonal of the box holding every mesh, in world units (0 for none): what
     /// [`Mesh::diagonal`] gives the merged mesh, without merging.
     pub fn diagonal(&self) -> f32 {
+        let (lo, hi) = self.world_bounds();
+        if lo.is_finite() && hi.is_finite() {
+            (hi - lo).length() as f32
+        } else {
+            0.0
+        }
+    }
+
+    /// The box of every mesh's drawn triangles, placed (infinite where none has any).
+    pub fn world_bounds(&self) -> (glam::DVec3, glam::DVec3) {
         let (mut lo, mut hi) = (glam::DVec3::INFINITY, glam::DVec3::NEG_INFINITY);
         for m in &self.meshes {
             let (a, b) = m.bounds();
@@ -480,11 +490,7 @@ impl Scene {
                 hi = hi.max(m.origin + b.as_dvec3());
             }
         }
-        if lo.is_finite() && hi.is_finite() {
-            (hi - lo).length() as f32
-        } else {
-            0.0
-        }
+        (lo, hi)
     }
 
     /// All meshes as one, relative to the common bounding-box centre. Normals are kept only if

@@ -95,6 +95,8 @@ pub struct BakeParams {
     pub gravity: crate::effects::gravity::GravityParams,
     /// The `tessellation` effect's factor and shape.
     pub tessellation: crate::stages::tessellate::TessellationParams,
+    /// How finely the fur's colour follows an asset's (the colour stage).
+    pub colour: crate::stages::colour::ColourParams,
     /// The `occlusion` effect's rays and strength.
     pub occlusion: crate::effects::occlusion::OcclusionParams,
     /// The `sheen` effect's colour and roughness (per preset).
@@ -162,6 +164,7 @@ impl BakeParams {
         self.tessellation
             .check()
             .map_err(|e| e.within("tessellation"))?;
+        self.colour.check().map_err(|e| e.within("colour"))?;
         self.sheen.check().map_err(|e| e.within("sheen"))?;
         self.wind.check().map_err(|e| e.within("wind"))?;
         self.fins.check().map_err(|e| e.within("fins"))?;

@@ -176,6 +176,7 @@ pub enum Stage {
     Merge,
     Orient,
     Tessellation,
+    Colour,
     Weld,
     Frames,
     Smooth,
@@ -197,11 +198,12 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 22] = [
+    pub const ALL: [Stage; 23] = [
         Stage::Load,
         Stage::Merge,
         Stage::Orient,
         Stage::Tessellation,
+        Stage::Colour,
         Stage::Weld,
         Stage::Frames,
         Stage::Smooth,
@@ -229,6 +231,7 @@ impl Stage {
             Stage::Merge => "merge",
             Stage::Orient => "orient",
             Stage::Tessellation => "tessellation",
+            Stage::Colour => "colour",
             Stage::Weld => "weld",
             Stage::Frames => "frames",
             Stage::Smooth => "smooth",

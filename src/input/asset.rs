@@ -660,7 +660,7 @@ pub fn is_fur_node(json: &Value, n: usize) -> bool {
 pub const DETAIL_DELTA_E: f64 = 10.0;
 
 /// CIE76 difference of two linear-RGB colours (sRGB primaries, D65 white).
-fn delta_e76(a: Vec3, b: Vec3) -> f64 {
+pub fn delta_e76(a: Vec3, b: Vec3) -> f64 {
     let lab = |c: Vec3| {
         let c = c.clamp(Vec3::ZERO, Vec3::ONE).as_dvec3();
         let x = (0.4124 * c.x + 0.3576 * c.y + 0.1805 * c.z) / 0.950_47;
@@ -963,6 +963,10 @@ impl Paint {
     }
 
     /// The texture coordinate set its texture reads, when it has one ([`texture_set`]).
+    pub fn has_detail(&self) -> bool {
+        self.texture.is_some()
+    }
+
     pub fn texture_set(&self) -> Option<u32> {
         let pending = self.pending.as_ref().map(|(info, _)| texture_set(info));
         pending.or(self.texture.as_ref().map(|t| t.set))

@@ -236,55 +236,7 @@ impl<'a> Subdivision<'a> {
     /// Adds a vertex to `m` at `position`, its attributes from corners `c` at barycentrics
     /// `w`; returns its index.
     fn push(&self, m: &mut Mesh, position: Vec3, c: [u32; 3], w: [f32; 3]) -> u32 {
-        let src = &self.src;
-        let id = m.positions.len() as u32;
-        m.positions.push(position);
-        let at = |v: u32| v as usize;
-        if let (Some(out), Some(inn)) = (m.normals.as_mut(), src.normals.as_ref()) {
-            let v = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
-            out.push(v.normalize_or(inn[at(c[0])]));
-        }
-        let blend =
-            |inn: &[Vec2]| inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
-        if let (Some(out), Some(inn)) = (m.uvs.as_mut(), src.uvs.as_ref()) {
-            out.push(blend(inn));
-        }
-        if let (Some(out), Some(inn)) = (m.texture_uvs.as_mut(), src.texture_uvs.as_ref()) {
-            out.push(blend(inn));
-        }
-        if let (Some(out), Some(inn)) = (m.colors.as_mut(), src.colors.as_ref()) {
-            let mix = |k: usize| {
-                let v = inn[at(c[0])][k] as f32 * w[0]
-                    + inn[at(c[1])][k] as f32 * w[1]
-                    + inn[at(c[2])][k] as f32 * w[2];
-                v.round().clamp(0.0, 65535.0) as u16
-            };
-            out.push([mix(0), mix(1), mix(2), mix(3)]);
-        }
-        // the new vertex's coordinates the texture reads ([`Paint::albedo`])
-        let uv = m.paint_uvs().and_then(|u| u.last().copied());
-        if let (Some(out), Some(inn)) = (m.albedo.as_mut(), src.albedo.as_ref()) {
-            let inside = (src.paint_uvs()).map(|u| (u[at(c[0])] + u[at(c[1])] + u[at(c[2])]) / 3.0);
-            // the new vertex's own uv and colour, pushed above; read inside its source triangle,
-            // as merge reads the corners (a point on an island's edge takes the island's colour)
-            let color = m.colors.as_ref().and_then(|k| k.last().copied());
-            out.push(match (self.paint, uv, inside) {
-                (Some(paint), Some(uv), Some(inside)) => paint.colour_toward(uv, inside, color),
-                (Some(paint), uv, _) => paint.colour_at(uv, color),
-                (None, _, _) => inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2],
-            });
-        }
-        if let (Some(out), Some(inn)) = (m.skin.as_mut(), src.skin.as_ref()) {
-            let near = (0..3)
-                .max_by(|&a, &b| w[a].total_cmp(&w[b]).then(b.cmp(&a)))
-                .expect("three corners");
-            out.joints.push(inn.joints[at(c[near])]);
-            out.weights.push(inn.weights[at(c[near])]);
-        }
-        for (out, inn) in m.morphs.iter_mut().zip(&src.morphs) {
-            out.push(inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2]);
-        }
-        id
+        push_blended(m, &self.src, self.paint, (position, c, w), Joints::Nearest)
     }
 
     /// Point `k` of `n` from corner `i` to corner `j` of `t`. The edge's points are made once,
@@ -366,6 +318,106 @@ impl<'a> Subdivision<'a> {
         }
         grid_triangles(n, &grid, indices);
     }
+}
+
+/// How a vertex made between corners takes their bone influences.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Joints {
+    /// The nearest corner's four (the tessellation's curved points).
+    Nearest,
+    /// The corners' influences summed by the barycentrics, the four largest kept and
+    /// renormalised: a point on a flat triangle moves as the skinned triangle around it does, to
+    /// first order.
+    Blended,
+}
+
+/// Adds a vertex to `m` at `position`, its attributes from corners `c` of `src` at
+/// barycentrics `w` (the texture coordinates, normals, colours and shape keys blended, the
+/// albedo read again from `paint` where given, inside the corners' triangle); returns its index.
+pub(crate) fn push_blended(
+    m: &mut Mesh,
+    src: &Mesh,
+    paint: Option<&Paint>,
+    (position, c, w): (Vec3, [u32; 3], [f32; 3]),
+    joints: Joints,
+) -> u32 {
+    let id = m.positions.len() as u32;
+    m.positions.push(position);
+    let at = |v: u32| v as usize;
+    if let (Some(out), Some(inn)) = (m.normals.as_mut(), src.normals.as_ref()) {
+        let v = inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
+        out.push(v.normalize_or(inn[at(c[0])]));
+    }
+    let blend = |inn: &[Vec2]| inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2];
+    if let (Some(out), Some(inn)) = (m.uvs.as_mut(), src.uvs.as_ref()) {
+        out.push(blend(inn));
+    }
+    if let (Some(out), Some(inn)) = (m.texture_uvs.as_mut(), src.texture_uvs.as_ref()) {
+        out.push(blend(inn));
+    }
+    if let (Some(out), Some(inn)) = (m.colors.as_mut(), src.colors.as_ref()) {
+        let mix = |k: usize| {
+            let v = inn[at(c[0])][k] as f32 * w[0]
+                + inn[at(c[1])][k] as f32 * w[1]
+                + inn[at(c[2])][k] as f32 * w[2];
+            v.round().clamp(0.0, 65535.0) as u16
+        };
+        out.push([mix(0), mix(1), mix(2), mix(3)]);
+    }
+    // the new vertex's coordinates the texture reads ([`Paint::albedo`])
+    let uv = m.paint_uvs().and_then(|u| u.last().copied());
+    if let (Some(out), Some(inn)) = (m.albedo.as_mut(), src.albedo.as_ref()) {
+        let inside = (src.paint_uvs()).map(|u| (u[at(c[0])] + u[at(c[1])] + u[at(c[2])]) / 3.0);
+        // the new vertex's own uv and colour, pushed above; read inside its source triangle,
+        // as merge reads the corners (a point on an island's edge takes the island's colour)
+        let color = m.colors.as_ref().and_then(|k| k.last().copied());
+        out.push(match (paint, uv, inside) {
+            (Some(paint), Some(uv), Some(inside)) => paint.colour_toward(uv, inside, color),
+            (Some(paint), uv, _) => paint.colour_at(uv, color),
+            (None, _, _) => inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2],
+        });
+    }
+    if let (Some(out), Some(inn)) = (m.skin.as_mut(), src.skin.as_ref()) {
+        let (j, k) = match joints {
+            Joints::Nearest => {
+                let near = (0..3)
+                    .max_by(|&a, &b| w[a].total_cmp(&w[b]).then(b.cmp(&a)))
+                    .expect("three corners");
+                (inn.joints[at(c[near])], inn.weights[at(c[near])])
+            }
+            Joints::Blended => {
+                let mut sum: Vec<(u16, f32)> = Vec::with_capacity(12);
+                for (corner, &wc) in c.iter().zip(&w) {
+                    let v = at(*corner);
+                    for (&joint, &weight) in inn.joints[v].iter().zip(&inn.weights[v]) {
+                        match sum.iter_mut().find(|s| s.0 == joint) {
+                            Some(s) => s.1 += weight * wc,
+                            None => sum.push((joint, weight * wc)),
+                        }
+                    }
+                }
+                // the largest first, ties by joint, so the order is the same on any machine
+                sum.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+                sum.truncate(4);
+                let total: f32 = sum.iter().map(|s| s.1).sum();
+                let (mut j, mut k) = ([0u16; 4], [0f32; 4]);
+                for (slot, s) in sum.iter().enumerate() {
+                    j[slot] = s.0;
+                    k[slot] = if total > 0.0 { s.1 / total } else { 0.0 };
+                }
+                if !(total > 0.0) {
+                    k[0] = 1.0;
+                }
+                (j, k)
+            }
+        };
+        out.joints.push(j);
+        out.weights.push(k);
+    }
+    for (out, inn) in m.morphs.iter_mut().zip(&src.morphs) {
+        out.push(inn[at(c[0])] * w[0] + inn[at(c[1])] * w[1] + inn[at(c[2])] * w[2]);
+    }
+    id
 }
 
 /// Appends to `indices` the triangles of a grid of factor `n` (two per cell, winding kept).

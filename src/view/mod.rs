@@ -41,6 +41,7 @@ pub mod compare;
 pub mod glb;
 pub mod gltf;
 pub mod gpu;
+pub mod pattern;
 pub mod reference;
 pub mod reference_extras;
 pub mod study;
