@@ -118,6 +118,10 @@ pub struct BakedSurface {
     pub packed: PackedSurface,
     /// Mask tiles per UV unit.
     pub tiles_per_uv: Vec2,
+    /// The world distance between neighbouring strands on most of the surface (the strand cell
+    /// at the median UV-to-world scale, [`tiling::Tiling::texel`]): what the density asked for
+    /// on an even layout, a hundredth of it where the tiling went wrong.
+    pub strand_spacing: f64,
     /// Density per render vertex (`COLOR_0` alpha bytes), when a density map was given.
     pub density: Option<Vec<u8>>,
     /// The layers each triangle of `mesh` shows in (LOD 0).
@@ -195,6 +199,10 @@ pub struct PartOf {
     pub shape_rest: Vec<f32>,
     /// Their names, when the asset names them (`extras.targetNames`).
     pub shape_names: Vec<String>,
+    /// The triangles of the asset's parts left bare that the fur could reach (eyes, teeth,
+    /// badges: the parts no surface chose, in the part's frame: world space, or the bind space
+    /// of its skin), which the fur yields to ([`clamp::bare_bound`]).
+    pub bare: Vec<[glam::DVec3; 3]>,
     /// The animation channels on those weights and their keys summed (three a key for
     /// `CUBICSPLINE`), which the fur's channels repeat: for the size estimate
     /// ([`params::BakeParams::estimate_animation_bytes`]).
@@ -313,6 +321,12 @@ pub fn asset_scene_of(
                 (vec![], vec![], (0, 0))
             }
         };
+        let reach = {
+            let p = &s.params;
+            let height = p.resolved_height(shared.unwrap_or_else(|| geometry.diagonal()));
+            height as f64 / p.clamp.bare_slope.max(f32::MIN_POSITIVE) as f64
+        };
+        let bare = bare_near(asset, chosen, i, reach);
         let maps = surface_maps(&s, &geometry)?;
         scene.surfaces.push(s);
         loaded.push(Loaded {
@@ -324,6 +338,7 @@ pub fn asset_scene_of(
                 graft,
                 shape_rest,
                 shape_names,
+                bare,
                 shape_key_clips,
                 instances: if graft { part.instances.len() } else { 0 },
             }),
@@ -359,6 +374,40 @@ fn character_sizes(asset: &input::asset::Asset, chosen: &[(usize, usize)]) -> Ve
         (b.3 > 1 && size > 0.0).then_some(size)
     };
     chosen.iter().map(size).collect()
+}
+
+/// The triangles of the parts of `asset` that no surface chose (and that carry no fur of an
+/// earlier bake) within `reach` of part `i`'s box, in part `i`'s frame: the same skin's bind
+/// space for a skinned part, world space for a rigid one (parts of another frame are left out:
+/// their rest places are not comparable).
+fn bare_near(
+    asset: &input::asset::Asset,
+    chosen: &[(usize, usize)],
+    i: usize,
+    reach: f64,
+) -> Vec<[glam::DVec3; 3]> {
+    let part = &asset.parts[i];
+    let (lo, hi) = part.scene.world_bounds();
+    if !(lo.is_finite() && hi.is_finite() && reach.is_finite()) {
+        return Vec::new();
+    }
+    let (lo, hi) = (lo - reach, hi + reach);
+    let mut bare = Vec::new();
+    for (j, other) in asset.parts.iter().enumerate() {
+        if other.skin != part.skin || other.furred || chosen.iter().any(|c| c.0 == j) {
+            continue;
+        }
+        for m in &other.scene.meshes {
+            for t in m.indices.chunks_exact(3) {
+                let tri = [0, 1, 2].map(|k| m.origin + m.positions[t[k] as usize].as_dvec3());
+                let (a, b) = (tri[0].min(tri[1]).min(tri[2]), tri[0].max(tri[1]).max(tri[2]));
+                if a.cmple(hi).all() && b.cmpge(lo).all() {
+                    bare.push(tri);
+                }
+            }
+        }
+    }
+    bare
 }
 
 /// The density, length and flow maps of a surface, when its scene names them.
@@ -970,7 +1019,8 @@ fn prepare<'a>(job: &Job<'a>, masks: &MaskCache) -> Prepared<'a> {
         None => merge::FurColour::Preset,
     };
     let mut shape = shape(&mut run, scene, colour);
-    let mut heights = heights(&mut run, &mut shape, job.maps);
+    let bare = job.part.map_or(&[][..], |p| p.bare.as_slice());
+    let mut heights = heights(&mut run, &mut shape, job.maps, bare);
     let look = look(
         &mut run,
         &shape,
@@ -1038,6 +1088,11 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
     };
     report.fill(&surface_packed, &shape.mesh, &look.shells, resolved, params);
     report.total_ms = start.elapsed().as_secs_f64() * 1e3;
+    let strand_spacing = {
+        let (size, cells) = (look.mask.size as f64, look.mask.cells_per_tile as f64);
+        let nominal = cells / (heights.density as f64 * size);
+        look.tiling.texel(look.mask.size, nominal) * size / cells
+    };
     BakedSurface {
         report,
         mesh: shape.mesh,
@@ -1045,6 +1100,7 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
         mask: look.mask,
         packed: surface_packed,
         tiles_per_uv: look.tiling.tiles_per_uv,
+        strand_spacing,
         density: heights.density_map,
         culled: chain.culled.into_iter().next().expect("LOD 0"),
         levels: chain.levels,
@@ -1144,7 +1200,11 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
         },
     });
     // say when the texture's detail is finer than what the fur's vertices carry
-    if let Some(lost) = paint.and_then(|p| p.detail_lost(&mesh)) {
+    let coarser_than = match params.colour.detail {
+        colour::Detail::Strand => refined.spacing,
+        colour::Detail::Vertex => 0.0,
+    };
+    if let Some(lost) = paint.and_then(|p| p.detail_lost(&mesh, coarser_than)) {
         if lost > DETAIL_WARNING {
             let how = if params.colour.detail == colour::Detail::Vertex {
                 "--set colour.detail=strand follows it".to_string()
@@ -1249,7 +1309,12 @@ fn drawn_density(map: Option<Vec<u8>>, albedo: Option<&[glam::Vec4]>) -> Option<
 }
 
 /// Smooth, collision, clamp, occlusion: how far each strand may reach.
-fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
+fn heights(
+    run: &mut Run,
+    shape: &mut Shape,
+    maps: &SurfaceMaps,
+    bare: &[[glam::DVec3; 3]],
+) -> Heights {
     let params = run.params;
     let Shape {
         mesh,
@@ -1275,14 +1340,29 @@ fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
         })
         .unwrap_or_default();
     run.report.tell(Stage::Collision, &collision);
+    // the parts left bare: the fur yields to them, within the inversion bound like any other
+    let slope = params.clamp.bare_slope;
+    let yielded = if !bare.is_empty() && slope > 0.0 {
+        let origin = mesh.origin;
+        let bare: Vec<[glam::Vec3; 3]> = (bare.iter())
+            .map(|t| t.map(|p| (p - origin).as_vec3()))
+            .collect();
+        clamp::bare_bound(&welded.positions, &bare, height / slope, slope)
+    } else {
+        None
+    };
+    let by_bare = (yielded.as_ref()).map_or(0, |b| b.iter().filter(|&&b| b < height as f64).count());
+    let combined: Vec<f64>;
+    let bound = match (collision.bound.as_deref(), yielded.as_deref()) {
+        (Some(c), Some(b)) => {
+            combined = c.iter().zip(b).map(|(c, b)| c.min(*b)).collect();
+            Some(combined.as_slice())
+        }
+        (c, None) => c,
+        (None, b) => b,
+    };
     let mut clamp = run.report.run(Stage::Clamp.name(), || {
-        clamp::clamp_heights(
-            welded,
-            smoothed,
-            height,
-            &params.clamp,
-            collision.bound.as_deref(),
-        )
+        clamp::clamp_heights(welded, smoothed, height, &params.clamp, bound)
     });
     // an image map is read through the UVs the strands follow: a box projection the bake chose
     // over the mesh's own puts it elsewhere
@@ -1318,7 +1398,8 @@ fn heights(run: &mut Run, shape: &mut Shape, maps: &SurfaceMaps) -> Heights {
     );
     let comb_map = maps.comb.as_ref().map(|m| m.per_vertex(mesh));
     frames.direction = clamp.directions(welded);
-    let facts = clamp.facts(length.is_some(), run.runs(Stage::Collision));
+    let mut facts = clamp.facts(length.is_some(), run.runs(Stage::Collision));
+    facts.counts.push(("yielded_to_bare_parts", by_bare as f64));
     run.report.file(Stage::Clamp, facts);
     if mesh.normals.is_none() {
         run.report

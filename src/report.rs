@@ -301,8 +301,15 @@ impl Report {
         }
         if let Some(c) = self.stage("clamp") {
             let n = |k: &str| c.counts.get(k).copied().unwrap_or(0.0);
+            // the collision count holds the vertices yielding to bare parts (one bound)
+            let bare = n("yielded_to_bare_parts");
+            let bare = if bare > 0.0 {
+                format!(", of them {bare} yielding to parts left bare")
+            } else {
+                String::new()
+            };
             s += &format!(
-                "  clamp: {} directions smoothed, {} vertices limited (by inversion {}, collision {}; height kept: min {:.0}%, mean {:.0}%)\n",
+                "  clamp: {} directions smoothed, {} vertices limited (by inversion {}, collision {}{bare}; height kept: min {:.0}%, mean {:.0}%)\n",
                 n("smoothed_directions"),
                 n("limited_by_inversion") + n("limited_by_collision"),
                 n("limited_by_inversion"),

@@ -1047,8 +1047,10 @@ impl Paint {
     /// (`mesh.albedo`, interpolated as a client draws it) differs from the texture by more than
     /// [`DETAIL_DELTA_E`] (CIE76): the detail finer than the triangles that the fur cannot show
     /// (a striped rug of two triangles grew a plain yellow carpet, a path painted across a
-    /// ground grew a zig-zag of its triangles). `None` without a texture or vertex colours.
-    pub fn detail_lost(&self, mesh: &Mesh) -> Option<f64> {
+    /// ground grew a zig-zag of its triangles). Only triangles whose longest edge is over
+    /// `coarser_than` count (those the colour stage could have cut further: what it left under
+    /// it is the strands' own resolution). `None` without a texture or vertex colours.
+    pub fn detail_lost(&self, mesh: &Mesh, coarser_than: f32) -> Option<f64> {
         use rayon::prelude::*;
         let (Some(t), Some(uvs), Some(albedo)) =
             (&self.texture, mesh.paint_uvs(), mesh.albedo.as_deref())
@@ -1073,6 +1075,8 @@ impl Paint {
                     if area.is_nan() || area <= 0.0 {
                         continue;
                     }
+                    let longest = (0..3).map(|k| p[k].distance(p[(k + 1) % 3]));
+                    let cut = longest.fold(0.0f32, f32::max) > coarser_than;
                     for (w, near) in AT {
                         let drawn: Vec4 = (0..3).map(|k| albedo[v[k]] * w[k]).sum();
                         let uv: Vec2 = (0..3).map(|k| uvs[v[k]] * w[k]).sum();
@@ -1081,7 +1085,7 @@ impl Paint {
                             continue;
                         }
                         total += area;
-                        if delta_e76(drawn.truncate(), truth.truncate()) > DETAIL_DELTA_E {
+                        if cut && delta_e76(drawn.truncate(), truth.truncate()) > DETAIL_DELTA_E {
                             lost += area;
                         }
                     }

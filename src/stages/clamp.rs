@@ -98,6 +98,10 @@ pub struct ClampParams {
     /// ears and tails take fur in proportion ([`thickness_bound`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub thin: Option<f32>,
+    /// Near a part of the asset left bare (eyes, teeth, a badge), the fur is at most this many
+    /// times its distance from it ([`bare_bound`]): it yields around the part instead of
+    /// burying it. 0: off.
+    pub bare_slope: f32,
 }
 
 impl Default for ClampParams {
@@ -107,6 +111,7 @@ impl Default for ClampParams {
             ray_keep: 0.45,
             inversion_keep: 0.9,
             thin: None,
+            bare_slope: 1.0,
         }
     }
 }
@@ -114,6 +119,7 @@ impl Default for ClampParams {
 impl ClampParams {
     /// Checks ranges; the error names the parameter.
     pub fn check(&self) -> Result<(), ParamError> {
+        ParamError::in_range("bare_slope", self.bare_slope, 0.0, 100.0)?;
         for (key, v) in [
             ("ray_keep", self.ray_keep),
             ("inversion_keep", self.inversion_keep),
@@ -637,6 +643,101 @@ pub fn collision_bound_brute_force(
             }
         })
         .collect()
+}
+
+/// Bare triangles whose box covers more grid cells than this are tested against every vertex
+/// (a ground plane), not bucketed.
+const BARE_BIG: i64 = 4096;
+
+/// The free distance each welded vertex's fur has beside the parts of the asset left bare
+/// (`bare`: their triangles, in the surface's frame): `slope` times its distance to the nearest
+/// of them, within `reach` (the fur's height over the slope; farther, nothing is bound: `None`
+/// without any bare triangle in reach). A creature whose eyes are separate meshes sitting on its
+/// head had them half buried by the head's fur, which grows as tall as an eye stands out: now
+/// the fur falls to nothing at the eye's rim and rises at the slope away from it (at 1, seen
+/// from 45° above the surface or more the eye shows whole), and a vertex under an eyeball is as
+/// short as it is deep. Bucketed in a grid of cells `reach` wide; a minimum, so the same for
+/// any order.
+pub fn bare_bound(positions: &[Vec3], bare: &[[Vec3; 3]], reach: f32, slope: f32) -> Option<Vec<f64>> {
+    use rayon::prelude::*;
+    if bare.is_empty() || !(reach > 0.0 && reach.is_finite() && slope > 0.0) {
+        return None;
+    }
+    let cell = |p: Vec3| (p / reach).floor().as_ivec3();
+    let mut grid: std::collections::HashMap<glam::IVec3, Vec<u32>> = Default::default();
+    let mut big = Vec::new();
+    for (t, tri) in bare.iter().enumerate() {
+        let lo = cell(tri[0].min(tri[1]).min(tri[2]) - Vec3::splat(reach));
+        let hi = cell(tri[0].max(tri[1]).max(tri[2]) + Vec3::splat(reach));
+        let span = (hi - lo + glam::IVec3::ONE).as_i64vec3();
+        if span.x * span.y * span.z > BARE_BIG {
+            big.push(t as u32);
+            continue;
+        }
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    grid.entry(glam::IVec3::new(x, y, z)).or_default().push(t as u32);
+                }
+            }
+        }
+    }
+    let none: Vec<u32> = Vec::new();
+    let bound: Vec<f64> = (positions.par_iter())
+        .map(|&p| {
+            let near = grid.get(&cell(p)).unwrap_or(&none);
+            let d = (near.iter().chain(&big))
+                .map(|&t| point_triangle_distance(p, &bare[t as usize]))
+                .fold(f32::INFINITY, f32::min);
+            if d < reach {
+                (d * slope) as f64
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect();
+    bound.iter().any(|b| b.is_finite()).then_some(bound)
+}
+
+/// The distance from `p` to the triangle `t` (the closest point by its Voronoi regions).
+fn point_triangle_distance(p: Vec3, [a, b, c]: &[Vec3; 3]) -> f32 {
+    let (ab, ac, ap) = (*b - *a, *c - *a, p - *a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return ap.length();
+    }
+    let bp = p - *b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return bp.length();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (p - (*a + ab * v)).length();
+    }
+    let cp = p - *c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return cp.length();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (p - (*a + ac * w)).length();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (p - (*b + (*c - *b) * w)).length();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    if !denom.is_finite() {
+        // a degenerate triangle: the nearest of its corners
+        return ap.length().min(bp.length()).min(cp.length());
+    }
+    let (v, w) = (vb * denom, vc * denom);
+    (p - (*a + ab * v + ac * w)).length()
 }
 
 /// The clamp stage's bound: per-vertex height scales from the inversion bound and, when the

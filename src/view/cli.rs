@@ -476,6 +476,7 @@ pub fn verify(
             for l in &result.levels {
                 println!("  {}", l.line());
             }
+            println!("  {}", result.strands_line());
         }
         checked.0 += result.views.len();
         checked.1 += result.levels.len();

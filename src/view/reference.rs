@@ -82,6 +82,10 @@ pub struct ReferenceInput<'a> {
     pub outline: Option<&'a crate::effects::outline::Outline>,
     /// The layer colours' gradient (the fins' strip carries it).
     pub shade: &'a crate::stages::shells::ShadeParams,
+    /// The world distance between strands on most of the surface
+    /// ([`BakedSurface::strand_spacing`]): what `verify` holds against the pixels of its close
+    /// view, where the reference, made from the same tiling, cannot tell.
+    pub strand_spacing: f64,
 }
 
 impl<'a> ReferenceInput<'a> {
@@ -102,6 +106,7 @@ impl<'a> ReferenceInput<'a> {
             fins: baked.fins.as_ref(),
             outline: baked.outline.as_ref(),
             shade: &params.shade,
+            strand_spacing: baked.strand_spacing,
         }
     }
 }

@@ -197,9 +197,18 @@ impl From<&crate::stages::lod::LodParams> for Viewport {
     }
 }
 
+/// Strands closer than this many pixels at the close view draw as a solid shell: the bake is
+/// held against the asset, not only against the reference made from the same choices (a horse
+/// whose tiling a few near-degenerate UV triangles blew up grew strands a fortieth of a pixel
+/// apart, and both sides agreed).
+pub const MIN_STRAND_PX: f64 = 1.0;
+
 /// Everything verify measured.
 pub struct Verification {
     pub adapter: String,
+    /// The pixels between neighbouring strands at the close view (the surface's strand spacing
+    /// at the distance of the bounds' centre, [`MIN_STRAND_PX`] at least to pass).
+    pub strand_px: f64,
     /// LOD 0 against the reference from [`VIEWS`].
     pub views: Vec<ViewResult>,
     /// Each coarser level against the reference at its switch distance.
@@ -208,7 +217,29 @@ pub struct Verification {
 
 impl Verification {
     pub fn passed(&self) -> bool {
-        self.views.iter().all(ViewResult::passed) && self.levels.iter().all(LevelResult::passed)
+        self.views.iter().all(ViewResult::passed)
+            && self.levels.iter().all(LevelResult::passed)
+            && self.strands_seen()
+    }
+
+    /// The strands are [`MIN_STRAND_PX`] or more apart at the close view.
+    pub fn strands_seen(&self) -> bool {
+        self.strand_px >= MIN_STRAND_PX
+    }
+
+    /// One line: the strands' spacing at the close view, verdict.
+    pub fn strands_line(&self) -> String {
+        format!(
+            "strands {:.2} px apart at the close view (min {MIN_STRAND_PX}){}",
+            self.strand_px,
+            if self.strands_seen() {
+                "  ok".to_string()
+            } else {
+                "  FAIL: finer than a pixel close up, the fur draws as a solid shell (check the \
+                 UV layout, --fur-uv box, or --density)"
+                    .to_string()
+            }
+        )
     }
 
     /// Names of the views and levels that failed.
@@ -218,6 +249,7 @@ impl Verification {
         views
             .map(|v| v.view.name().to_string())
             .chain(levels.map(|l| format!("lod{}", l.level)))
+            .chain((!self.strands_seen()).then(|| "strands (finer than a pixel)".to_string()))
             .collect()
     }
 
@@ -269,6 +301,12 @@ pub fn verify(
         times.dedup();
     }
     times.insert(0, None);
+    let strand_px = {
+        let camera = Camera::frame(baked.bounds, NamedView::Close.orbit(), 1.0);
+        let d = camera.eye.distance(camera.target);
+        let per_unit = size as f64 / (2.0 * d * (camera.fov_y_deg.to_radians() * 0.5).tan());
+        input.strand_spacing * per_unit
+    };
     let mut reference = ReferenceRenderer::new(gpu, input);
     let light = Light::default();
     let mut views = Vec::new();
@@ -294,6 +332,7 @@ pub fn verify(
     let levels = verify_levels(gpu, &mut baked, &mut reference, size, viewport)?;
     Ok(Verification {
         adapter: gpu.adapter_name(),
+        strand_px,
         views,
         levels,
     })
