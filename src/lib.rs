@@ -122,6 +122,8 @@ pub struct BakedSurface {
     /// at the median UV-to-world scale, [`tiling::Tiling::texel`]): what the density asked for
     /// on an even layout, a hundredth of it where the tiling went wrong.
     pub strand_spacing: f64,
+    /// What the density asked for: `1 / density` (world units).
+    pub asked_spacing: f64,
     /// Density per render vertex (`COLOR_0` alpha bytes), when a density map was given.
     pub density: Option<Vec<u8>>,
     /// The layers each triangle of `mesh` shows in (LOD 0).
@@ -1093,6 +1095,15 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
         let nominal = cells / (heights.density as f64 * size);
         look.tiling.texel(look.mask.size, nominal) * size / cells
     };
+    let asked = 1.0 / heights.density as f64;
+    if params.strands.uv_density.is_none() && strand_spacing * 4.0 < asked {
+        report.warnings.push(format!(
+            "the strands come out {:.0}x finer than the density asks on most of the surface \
+             ({strand_spacing:.2e} apart against {asked:.2e}): the UV layout's scale is uneven; \
+             --fur-uv box gives them a box projection",
+            asked / strand_spacing
+        ));
+    }
     BakedSurface {
         report,
         mesh: shape.mesh,
@@ -1101,6 +1112,7 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
         packed: surface_packed,
         tiles_per_uv: look.tiling.tiles_per_uv,
         strand_spacing,
+        asked_spacing: 1.0 / heights.density as f64,
         density: heights.density_map,
         culled: chain.culled.into_iter().next().expect("LOD 0"),
         levels: chain.levels,

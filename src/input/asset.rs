@@ -29,8 +29,9 @@
 //!   `KHR_texture_transform` on it may override, as three.js reads it; a set other than
 //!   `TEXCOORD_0` is carried as [`Mesh::texture_uvs`]). A set the primitive lacks, or an image
 //!   that cannot be decoded, falls back to the factor with a warning. A part whose material is
-//!   `KHR_materials_unlit` gets unlit fur ([`Paint::unlit`]). A primitive without a material and
-//!   without `COLOR_0` says nothing about colour: its fur keeps the preset's colours, as a plain
+//!   `KHR_materials_unlit` gets unlit fur ([`Paint::unlit`]). A primitive without a material is
+//!   drawn in glTF's default material, white: its fur is white (times its `COLOR_0`), and the
+//!   summary names the part. Before, such a primitive's fur kept the preset's colours, as a plain
 //!   mesh's does.
 
 use std::path::Path;
@@ -587,7 +588,21 @@ impl Asset {
             return (None, None);
         };
         let Some((info, element)) = paint.pending.take() else {
-            return (Some(paint), None);
+            let part = &self.parts[i];
+            let default = self.doc.json["meshes"][part.mesh]["primitives"][part.primitive]
+                .get("material")
+                .is_none();
+            let said = default.then(|| {
+                format!(
+                    "{}: node '{}' (mesh '{}' primitive {}) has no material: its fur takes glTF's \
+                     default, white (--set 'shade.color=[r,g,b]' gives another)",
+                    self.doc.path.display(),
+                    super::escape(&part.names.node),
+                    super::escape(&part.names.mesh),
+                    part.primitive
+                )
+            });
+            return (Some(paint), said);
         };
         match ColorTexture::read(&self.doc, &self.buffers, &info) {
             Ok(t) => {
@@ -926,12 +941,13 @@ pub fn roughness(material: &Value) -> Option<f32> {
 }
 
 impl Paint {
-    /// The paint of primitive `prim`, its texture not decoded yet ([`Asset::paint`]), `None`
-    /// when the primitive has neither a material nor vertex colours.
+    /// The paint of primitive `prim`, its texture not decoded yet ([`Asset::paint`]). A
+    /// primitive without a material is drawn in glTF's default, white: its fur is white too
+    /// (it grew the preset's brown, a colour the asset never showed).
     fn of(doc: &Document, prim: &super::document::Primitive, element: &str) -> Option<Paint> {
         let vertex_colors = prim.attribute("COLOR_0").is_some();
         let Some(m) = prim.material else {
-            return vertex_colors.then_some(Paint {
+            return Some(Paint {
                 factor: [1.0; 4],
                 texture: None,
                 vertex_colors,

@@ -86,6 +86,8 @@ pub struct ReferenceInput<'a> {
     /// ([`BakedSurface::strand_spacing`]): what `verify` holds against the pixels of its close
     /// view, where the reference, made from the same tiling, cannot tell.
     pub strand_spacing: f64,
+    /// What the density asked for ([`BakedSurface::asked_spacing`]).
+    pub asked_spacing: f64,
 }
 
 impl<'a> ReferenceInput<'a> {
@@ -107,6 +109,7 @@ impl<'a> ReferenceInput<'a> {
             outline: baked.outline.as_ref(),
             shade: &params.shade,
             strand_spacing: baked.strand_spacing,
+            asked_spacing: baked.asked_spacing,
         }
     }
 }
