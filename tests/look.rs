@@ -359,6 +359,37 @@ fn one_fur_across_a_character_and_white_fur_without_a_material() {
     let (r, g, b) = (mean(0), mean(1), mean(2));
     // grey to white, not the fur preset's brown (red well over blue)
     assert!(drawn.len() > 1000 && (r - b).abs() < 12.0, "{r} {g} {b}");
+
+    // the robot in pale-blue chrome: its fur takes a quarter of the base colour, said
+    let glb_in = Glb::parse(&std::fs::read(&robot.file).unwrap());
+    let mut doc = glb_in.json;
+    for m in doc["materials"].as_array_mut().unwrap() {
+        m["pbrMetallicRoughness"] = json!({
+            "baseColorFactor": [0.6, 0.75, 0.95, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.2
+        });
+    }
+    let chrome = dir.join("chrome.glb");
+    std::fs::write(&chrome, shellbake::output::write::glb_bytes(&doc, &glb_in.bin)).unwrap();
+    let (glb, report) = bake(&chrome, &dir, "chrome-fur.glb", &[]);
+    assert!(report.to_string().contains("is metal"), "{report}");
+    let doc = Glb::parse(&std::fs::read(&glb).unwrap()).json;
+    // the layers' colour rides in their vertex colours; the layer materials stay non-metal
+    let layers = (doc["materials"].as_array().unwrap().iter())
+        .filter(|m| m["name"].as_str().unwrap_or("").contains("layer"));
+    for m in layers {
+        assert_eq!(m["pbrMetallicRoughness"]["metallicFactor"].as_f64(), Some(0.0), "{m}");
+    }
+    let png = dir.join("chrome.png");
+    render(&[job(&glb, &png, robot.far, false)], &dir);
+    let img = image::open(&png).unwrap().to_rgb8();
+    let bg = *img.get_pixel(0, 0);
+    let lit: Vec<f64> = (img.pixels())
+        .filter(|p| (0..3).map(|k| (p[k] as i32 - bg[k] as i32).abs()).sum::<i32>() > 6)
+        .map(|p| p[2] as f64)
+        .collect();
+    let blue = lit.iter().sum::<f64>() / lit.len() as f64;
+    // pale-blue felt would read near 200 in blue
+    assert!(blue < 150.0, "{blue}");
 }
 
 /// `verify` holds the bake against the pixels its close view gives a strand: a tiling gone

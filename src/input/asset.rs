@@ -587,12 +587,22 @@ impl Asset {
         let Some(mut paint) = self.parts[i].paint.clone() else {
             return (None, None);
         };
+        let part = &self.parts[i];
+        let prim = &self.doc.json["meshes"][part.mesh]["primitives"][part.primitive];
+        let metal_note = prim["material"].as_u64().and_then(|m| {
+            let m = metal(&self.doc.json["materials"][m as usize])?;
+            Some(format!(
+                "{}: node '{}' (material '{}') is metal (metallicFactor {m}): its fur, no metal, \
+                 takes {:.0}% of its base colour, about as light as the metal shows \
+                 (--set 'shade.color=[r,g,b]' gives another)",
+                self.doc.path.display(),
+                super::escape(&part.names.node),
+                super::escape(&part.names.material),
+                100.0 * (1.0 - (1.0 - METAL_DIFFUSE) * m)
+            ))
+        });
         let Some((info, element)) = paint.pending.take() else {
-            let part = &self.parts[i];
-            let default = self.doc.json["meshes"][part.mesh]["primitives"][part.primitive]
-                .get("material")
-                .is_none();
-            let said = default.then(|| {
+            let said = prim.get("material").is_none().then(|| {
                 format!(
                     "{}: node '{}' (mesh '{}' primitive {}) has no material: its fur takes glTF's \
                      default, white (--set 'shade.color=[r,g,b]' gives another)",
@@ -602,12 +612,12 @@ impl Asset {
                     part.primitive
                 )
             });
-            return (Some(paint), said);
+            return (Some(paint), said.or(metal_note));
         };
         match ColorTexture::read(&self.doc, &self.buffers, &info) {
             Ok(t) => {
                 paint.texture = Some(t);
-                (Some(paint), None)
+                (Some(paint), metal_note)
             }
             Err(why) => {
                 let warning = format!(
@@ -940,6 +950,22 @@ pub fn roughness(material: &Value) -> Option<f32> {
     Some(r.clamp(0.0, 1.0) as f32)
 }
 
+/// The share of a metal's base colour its fur takes: a metal's base colour is the tint of its
+/// reflections, drawn dark wherever little is reflected, and the fur is no metal (glTF's
+/// metallic 0): at its base colour, a near-black chrome visor whose base colour was pale blue
+/// grew pale-blue felt. A quarter keeps the tint at about the lightness the metal shows under a
+/// plain sky.
+pub const METAL_DIFFUSE: f32 = 0.25;
+
+/// The material's `metallicFactor` where it says the surface is mostly metal (0.5 or more,
+/// written out, with no `metallicRoughnessTexture` to vary it): an omitted factor is glTF's 1,
+/// which converters and hand-written files leave out without meaning metal, and is not taken.
+pub fn metal(material: &Value) -> Option<f32> {
+    let pbr = &material["pbrMetallicRoughness"];
+    let m = pbr["metallicFactor"].as_f64()?;
+    (m >= 0.5 && !pbr["metallicRoughnessTexture"].is_object()).then_some(m.min(1.0) as f32)
+}
+
 impl Paint {
     /// The paint of primitive `prim`, its texture not decoded yet ([`Asset::paint`]). A
     /// primitive without a material is drawn in glTF's default, white: its fur is white too
@@ -964,6 +990,10 @@ impl Paint {
             for (k, v) in f.iter().take(4).enumerate() {
                 factor[k] = v.as_f64().unwrap_or(1.0).clamp(0.0, 1.0) as f32;
             }
+        }
+        if let Some(m) = metal(material) {
+            let dim = 1.0 - (1.0 - METAL_DIFFUSE) * m;
+            factor.iter_mut().take(3).for_each(|c| *c *= dim);
         }
         Some(Paint {
             factor,
