@@ -3277,3 +3277,38 @@ fn parts_alike_share_their_layer_materials() {
         "the body's and the tail's layers share their materials"
     );
 }
+
+/// An asset with 15 shape keys (the shape-key sphere's targets repeated) bakes, and `render`
+/// draws the file bake wrote (it refused it: "15 morph targets (at most 8)"), saying what it
+/// left at rest.
+#[test]
+fn render_draws_a_bake_of_an_asset_with_many_shape_keys() {
+    let dir = scratch("asset-many-keys");
+    let (input, mut doc) = shape_key_sphere(&dir);
+    let bin = Glb::parse(&std::fs::read(&input).unwrap()).bin;
+    for mesh in doc["meshes"].as_array_mut().unwrap() {
+        for p in mesh["primitives"].as_array_mut().unwrap() {
+            if let Some(t) = p["targets"].as_array().cloned().filter(|t| !t.is_empty()) {
+                p["targets"] = json!((0..15).map(|i| t[i % t.len()].clone()).collect::<Vec<_>>());
+            }
+        }
+        if let Some(w) = mesh["weights"].as_array().cloned().filter(|w| !w.is_empty()) {
+            mesh["weights"] = json!((0..15).map(|i| w[i % w.len()].clone()).collect::<Vec<_>>());
+        }
+        mesh.as_object_mut().unwrap().remove("extras");
+    }
+    for node in doc["nodes"].as_array_mut().unwrap() {
+        if let Some(w) = node["weights"].as_array().cloned().filter(|w| !w.is_empty()) {
+            node["weights"] = json!((0..15).map(|i| w[i % w.len()].clone()).collect::<Vec<_>>());
+        }
+    }
+    doc.as_object_mut().unwrap().remove("animations");
+    let many = dir.join("many.glb");
+    std::fs::write(&many, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
+    let (glb, _) = bake(&many, &dir, "many-fur.glb", &[]);
+    let png = dir.join("many.png");
+    let (code, out, err) = shellbake(&["render", glb.to_str().unwrap(), "-o", png.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert!(format!("{out}{err}").contains("morph targets"), "{out}{err}");
+    assert!(png.exists());
+}

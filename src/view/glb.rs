@@ -27,7 +27,9 @@
 //!   failed to load, with one warning ([`Asset::warnings`]); sampler filters (mipmapped
 //!   ones get a mip chain, see `gltf.rs`; a sampler without `minFilter` is read as
 //!   `LINEAR_MIPMAP_LINEAR`, as three.js does) and wrap modes.
-//! - **Morph targets**: `POSITION` deltas, at most [`MAX_MORPH_TARGETS`] per primitive, and one
+//! - **Morph targets**: `POSITION` deltas, the first [`MAX_MORPH_TARGETS`] of a primitive (more
+//!   are left at rest, with a warning: `render` refused a file `bake` wrote of an asset with
+//!   15 shape keys), and one
 //!   `COLOR_0` delta (shellbake's occlusion puts one in the extrusion target).
 //! - **Animations** of morph `weights` (`STEP`, `LINEAR` or `CUBICSPLINE`, evaluated as node
 //!   channels are, `stages::skin::sample`; other paths are ignored here): with a
@@ -346,6 +348,7 @@ impl Asset {
             crate::Error::invalid(&doc.path, element, message).into()
         };
         let mut meshes = Vec::new();
+        let mut over_targets: Vec<String> = Vec::new();
         for (m, mesh) in doc.meshes.iter().enumerate() {
             let texture_set = |material: Option<usize>| {
                 let material = material.map_or(&Value::Null, |m| &doc.json["materials"][m]);
@@ -366,7 +369,7 @@ impl Asset {
                 let position = prim
                     .attribute("POSITION")
                     .ok_or_else(|| invalid(element(), "has no POSITION".into()))?;
-                let targets: Vec<usize> = prim
+                let mut targets: Vec<usize> = prim
                     .targets
                     .iter()
                     .filter_map(|t| t.iter().find(|(n, _)| n == "POSITION").map(|&(_, a)| a))
@@ -375,13 +378,10 @@ impl Asset {
                     t.iter().find(|(n, _)| n == "COLOR_0").map(|&(_, a)| (i, a))
                 });
                 if targets.len() > MAX_MORPH_TARGETS {
-                    return Err(invalid(
-                        element(),
-                        format!(
-                            "{} morph targets (at most {MAX_MORPH_TARGETS})",
-                            targets.len()
-                        ),
-                    ));
+                    // drawn with the first ones (shellbake's extrusion is its layers' first):
+                    // an asset with many shape keys, which `bake` keeps, still renders
+                    over_targets.push(format!("{} ({} targets)", element(), targets.len()));
+                    targets.truncate(MAX_MORPH_TARGETS);
                 }
                 primitives.push(Primitive {
                     position,
@@ -455,6 +455,13 @@ impl Asset {
             skins: Vec::new(),
             time: None,
         };
+        if let Some(first) = over_targets.first() {
+            asset.warnings.push(format!(
+                "{} primitive(s) have more than {MAX_MORPH_TARGETS} morph targets ({first}, …): \
+                 drawn with their first {MAX_MORPH_TARGETS}, the rest at rest",
+                over_targets.len()
+            ));
+        }
         let (textures, undrawn) = asset.parse_textures();
         asset.textures = textures;
         if !undrawn.is_empty() {
