@@ -88,7 +88,8 @@ pub mod view;
 use effects::{fins, gravity, occlusion, outline, wind};
 use output::{compress, graft, pack, write};
 use stages::{
-    clamp, colour, cull, frames, lod, merge, orient, shells, skin, strands, tessellate, tiling, weld,
+    clamp, colour, cull, frames, lod, merge, orient, shells, skin, strands, tessellate, tiling,
+    weld,
 };
 
 use std::path::Path;
@@ -402,7 +403,10 @@ fn bare_near(
         for m in &other.scene.meshes {
             for t in m.indices.chunks_exact(3) {
                 let tri = [0, 1, 2].map(|k| m.origin + m.positions[t[k] as usize].as_dvec3());
-                let (a, b) = (tri[0].min(tri[1]).min(tri[2]), tri[0].max(tri[1]).max(tri[2]));
+                let (a, b) = (
+                    tri[0].min(tri[1]).min(tri[2]),
+                    tri[0].max(tri[1]).max(tri[2]),
+                );
                 if a.cmple(hi).all() && b.cmpge(lo).all() {
                     bare.push(tri);
                 }
@@ -1363,7 +1367,8 @@ fn heights(
     } else {
         None
     };
-    let by_bare = (yielded.as_ref()).map_or(0, |b| b.iter().filter(|&&b| b < height as f64).count());
+    let by_bare =
+        (yielded.as_ref()).map_or(0, |b| b.iter().filter(|&&b| b < height as f64).count());
     let combined: Vec<f64>;
     let bound = match (collision.bound.as_deref(), yielded.as_deref()) {
         (Some(c), Some(b)) => {

@@ -3062,9 +3062,11 @@ fn texture_detail_finer_than_the_triangles_is_said() {
     let critter = fixture_critter();
     let share = |report: &Value| -> Vec<f64> {
         let text = report.to_string();
-        (text.split("differs from the texture (ΔE76 over 10) on ").skip(1))
-            .map(|rest| rest.split('%').next().unwrap().parse().unwrap())
-            .collect()
+        (text
+            .split("differs from the texture (ΔE76 over 10) on ")
+            .skip(1))
+        .map(|rest| rest.split('%').next().unwrap().parse().unwrap())
+        .collect()
     };
     // by default the colour stage follows the texture's detail: nothing to say
     let (_, strand) = bake(&critter, &dir, "strand.glb", &["--only", "material=fur_*"]);
@@ -3292,13 +3294,21 @@ fn render_draws_a_bake_of_an_asset_with_many_shape_keys() {
                 p["targets"] = json!((0..15).map(|i| t[i % t.len()].clone()).collect::<Vec<_>>());
             }
         }
-        if let Some(w) = mesh["weights"].as_array().cloned().filter(|w| !w.is_empty()) {
+        if let Some(w) = mesh["weights"]
+            .as_array()
+            .cloned()
+            .filter(|w| !w.is_empty())
+        {
             mesh["weights"] = json!((0..15).map(|i| w[i % w.len()].clone()).collect::<Vec<_>>());
         }
         mesh.as_object_mut().unwrap().remove("extras");
     }
     for node in doc["nodes"].as_array_mut().unwrap() {
-        if let Some(w) = node["weights"].as_array().cloned().filter(|w| !w.is_empty()) {
+        if let Some(w) = node["weights"]
+            .as_array()
+            .cloned()
+            .filter(|w| !w.is_empty())
+        {
             node["weights"] = json!((0..15).map(|i| w[i % w.len()].clone()).collect::<Vec<_>>());
         }
     }
@@ -3307,8 +3317,12 @@ fn render_draws_a_bake_of_an_asset_with_many_shape_keys() {
     std::fs::write(&many, shellbake::output::write::glb_bytes(&doc, &bin)).unwrap();
     let (glb, _) = bake(&many, &dir, "many-fur.glb", &[]);
     let png = dir.join("many.png");
-    let (code, out, err) = shellbake(&["render", glb.to_str().unwrap(), "-o", png.to_str().unwrap()]);
+    let (code, out, err) =
+        shellbake(&["render", glb.to_str().unwrap(), "-o", png.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{out}{err}");
-    assert!(format!("{out}{err}").contains("morph targets"), "{out}{err}");
+    assert!(
+        format!("{out}{err}").contains("morph targets"),
+        "{out}{err}"
+    );
     assert!(png.exists());
 }

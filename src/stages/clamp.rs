@@ -658,7 +658,12 @@ const BARE_BIG: i64 = 4096;
 /// from 45° above the surface or more the eye shows whole), and a vertex under an eyeball is as
 /// short as it is deep. Bucketed in a grid of cells `reach` wide; a minimum, so the same for
 /// any order.
-pub fn bare_bound(positions: &[Vec3], bare: &[[Vec3; 3]], reach: f32, slope: f32) -> Option<Vec<f64>> {
+pub fn bare_bound(
+    positions: &[Vec3],
+    bare: &[[Vec3; 3]],
+    reach: f32,
+    slope: f32,
+) -> Option<Vec<f64>> {
     use rayon::prelude::*;
     if bare.is_empty() || !(reach > 0.0 && reach.is_finite() && slope > 0.0) {
         return None;
@@ -677,7 +682,9 @@ pub fn bare_bound(positions: &[Vec3], bare: &[[Vec3; 3]], reach: f32, slope: f32
         for z in lo.z..=hi.z {
             for y in lo.y..=hi.y {
                 for x in lo.x..=hi.x {
-                    grid.entry(glam::IVec3::new(x, y, z)).or_default().push(t as u32);
+                    grid.entry(glam::IVec3::new(x, y, z))
+                        .or_default()
+                        .push(t as u32);
                 }
             }
         }

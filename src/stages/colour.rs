@@ -159,7 +159,7 @@ fn asks(m: &Mesh, paint: &Paint, t: [usize; 3], spacing: f32, delta_e: f64) -> b
     let longest = (0..3)
         .map(|k| p[k].distance(p[(k + 1) % 3]))
         .fold(0.0f32, f32::max);
-    if !(longest > spacing) {
+    if longest.is_nan() || longest <= spacing {
         return false;
     }
     let (Some(albedo), Some(uvs)) = (m.albedo.as_deref(), m.paint_uvs()) else {
@@ -178,9 +178,7 @@ fn asks(m: &Mesh, paint: &Paint, t: [usize; 3], spacing: f32, delta_e: f64) -> b
             })
         });
         let truth = paint.colour_toward(at, inside, color);
-        truth.w >= 0.5
-            && drawn.w > 0.0
-            && delta_e76(drawn.truncate(), truth.truncate()) > delta_e
+        truth.w >= 0.5 && drawn.w > 0.0 && delta_e76(drawn.truncate(), truth.truncate()) > delta_e
     })
 }
 
@@ -215,7 +213,11 @@ pub fn refine(mesh: &mut Mesh, paint: &Paint, density: f32, params: &ColourParam
             (x.min(y), x.max(y))
         };
         let added: usize = (mesh.indices.chunks_exact(3))
-            .map(|t| (0..3).filter(|&k| marked.contains(&key(t[k], t[(k + 1) % 3]))).count())
+            .map(|t| {
+                (0..3)
+                    .filter(|&k| marked.contains(&key(t[k], t[(k + 1) % 3])))
+                    .count()
+            })
             .sum();
         if mesh.triangle_count() + added > budget {
             done.budget_hit = true;
@@ -251,8 +253,7 @@ fn marked_edges(m: &Mesh, paint: &Paint, spacing: f32, delta_e: f64) -> HashSet<
         .map(|t| {
             let t = [t[0] as usize, t[1] as usize, t[2] as usize];
             // two corners at one position: the weld drops the triangle
-            (0..3).all(|k| ids[t[k]] != ids[t[(k + 1) % 3]])
-                && asks(m, paint, t, spacing, delta_e)
+            (0..3).all(|k| ids[t[k]] != ids[t[(k + 1) % 3]]) && asks(m, paint, t, spacing, delta_e)
         })
         .collect();
     let mut marked = HashSet::new();

@@ -405,7 +405,7 @@ pub(crate) fn push_blended(
                     j[slot] = s.0;
                     k[slot] = if total > 0.0 { s.1 / total } else { 0.0 };
                 }
-                if !(total > 0.0) {
+                if total.is_nan() || total <= 0.0 {
                     k[0] = 1.0;
                 }
                 (j, k)

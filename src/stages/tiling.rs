@@ -250,7 +250,7 @@ fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64, f64)> {
     // the areas summed as the means below sum them
     let area_of = |b: &Vec<UvTriangle>| b.iter().fold(0.0f64, |s, t| s + t[3]);
     let total = (blocks.iter()).fold(0.0f64, |acc, b| acc + area_of(b));
-    if !(total > 0.0) {
+    if total.is_nan() || total <= 0.0 {
         return None;
     }
     // the area-weighted percentile `q` of figure `k`, on a total order (figure, then area), so
@@ -284,7 +284,9 @@ fn uv_to_world(mesh: &Mesh) -> Option<(DVec2, f64, f64)> {
             }
             sums
         })
-        .fold([0.0; 3], |acc, s| [acc[0] + s[0], acc[1] + s[1], acc[2] + s[2]]);
+        .fold([0.0; 3], |acc, s| {
+            [acc[0] + s[0], acc[1] + s[1], acc[2] + s[2]]
+        });
     if !(total > 0.0 && su > 0.0 && sv > 0.0) {
         return None;
     }

@@ -24,12 +24,23 @@ const DRAWN: i32 = 6;
 /// The pattern correlation of `furred` against `bare` at blur `sigma` (pixels), and the pixels
 /// it was read over; `None` when fewer than 16 pixels are drawn in both, or one has no
 /// variation at all. The background is `bare`'s top-left pixel.
-pub fn pattern_correlation(bare: &RgbaImage, furred: &RgbaImage, sigma: f32) -> Option<(f64, usize)> {
-    assert_eq!(bare.dimensions(), furred.dimensions(), "one camera, one size");
+pub fn pattern_correlation(
+    bare: &RgbaImage,
+    furred: &RgbaImage,
+    sigma: f32,
+) -> Option<(f64, usize)> {
+    assert_eq!(
+        bare.dimensions(),
+        furred.dimensions(),
+        "one camera, one size"
+    );
     let (w, h) = bare.dimensions();
     let bg = bare.get_pixel(0, 0).0;
     let drawn = |p: &image::Rgba<u8>| {
-        (0..3).map(|k| (p.0[k] as i32 - bg[k] as i32).abs()).sum::<i32>() > DRAWN
+        (0..3)
+            .map(|k| (p.0[k] as i32 - bg[k] as i32).abs())
+            .sum::<i32>()
+            > DRAWN
     };
     let mask: Vec<f32> = (bare.pixels().zip(furred.pixels()))
         .map(|(a, b)| (drawn(a) && drawn(b)) as u8 as f32)
@@ -134,7 +145,7 @@ mod tests {
             if x < 4 || y < 4 || x >= w - 4 || y >= w - 4 {
                 return image::Rgba([10, 20, 30, 255]);
             }
-            if ((x + phase) / period) % 2 == 0 {
+            if ((x + phase) / period).is_multiple_of(2) {
                 image::Rgba([tint[0], tint[1], tint[2], 255])
             } else {
                 image::Rgba([200, 180, 40, 255])
