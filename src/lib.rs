@@ -28,11 +28,12 @@
 //! | shape | merge | [`merge::merge`] (the asset's colour at each strand root; the fur's UVs) |
 //! | | orient | [`orient::oriented`] |
 //! | | tessellation (`tessellate`) | [`tessellate::tessellate`] |
+//! | | colour (an asset's texture) | [`colour::refine`] (flat cuts where the colour has detail) |
 //! | | weld | [`weld::weld_on`], [`weld::Welded::apply_to`] |
 //! | | frames | [`frames::extrusion_frames`] |
 //! | heights | smooth | [`clamp::smooth`] |
 //! | | collision (`collision`) | [`clamp::collision`] (on a [`clamp::MeshBvh`], shared with occlusion) |
-//! | | clamp (always) | [`clamp::clamp_heights`] |
+//! | | clamp (always) | [`clamp::clamp_heights`] (with [`clamp::bare_bound`]: the fur yields to an asset's parts left bare) |
 //! | | occlusion (`occlusion`) | [`occlusion::occlude`] |
 //! | look | strands | [`strands::bake_mask`] (once per distinct strand parameters) |
 //! | | tiling | [`tiling::mask_tiling`] |
