@@ -273,9 +273,10 @@ pub fn asset_scene_of(
         let mut geometry = part.scene.clone();
         let (paint, paint_warning) = asset.paint(i);
         geometry.warnings.extend(paint_warning);
+        // the size its default height and density come from: its character's, or its own
+        let size = shared.unwrap_or_else(|| geometry.diagonal());
         // a skinned part is read in its bind space, whose unit the armature may scale
         if s.params.shells.height.is_none() && part.skin.is_none() {
-            let size = shared.unwrap_or_else(|| geometry.diagonal());
             let height = s.params.resolved_height(size);
             let tallest = surface.preset.tallest();
             if height > tallest {
@@ -290,7 +291,7 @@ pub fn asset_scene_of(
             }
         }
         // one fur across a character: the height and density it defaults to are its own
-        if let Some(size) = shared {
+        if shared.is_some() {
             let p = &mut s.params;
             p.shells.height = Some(p.shells.height.unwrap_or(p.resolved_height(size)));
             p.strands.density = Some(p.strands.density.unwrap_or(p.resolved_density(size)));
@@ -325,11 +326,8 @@ pub fn asset_scene_of(
                 (vec![], vec![], (0, 0))
             }
         };
-        let reach = {
-            let p = &s.params;
-            let height = p.resolved_height(shared.unwrap_or_else(|| geometry.diagonal()));
-            height as f64 / p.clamp.bare_slope.max(f32::MIN_POSITIVE) as f64
-        };
+        let slope = s.params.clamp.bare_slope.max(f32::MIN_POSITIVE);
+        let reach = s.params.resolved_height(size) as f64 / slope as f64;
         let bare = bare_near(asset, chosen, i, reach);
         let maps = surface_maps(&s, &geometry)?;
         scene.surfaces.push(s);
@@ -1117,7 +1115,7 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
         packed: surface_packed,
         tiles_per_uv: look.tiling.tiles_per_uv,
         strand_spacing,
-        asked_spacing: 1.0 / heights.density as f64,
+        asked_spacing: asked,
         density: heights.density_map,
         culled: chain.culled.into_iter().next().expect("LOD 0"),
         levels: chain.levels,

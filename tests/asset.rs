@@ -13,7 +13,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{assert_valid, fixture, node, path_str, scratch, shellbake, Glb};
+use common::{assert_valid, bake, fixture, node, path_str, render, scratch, shellbake, Glb};
 use serde_json::{json, Value};
 use shellbake::fixtures::critter::{critter_glb, Critters};
 
@@ -22,26 +22,6 @@ fn critters(dir: &Path, name: &str, what: Critters) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, critter_glb(what)).unwrap();
     path
-}
-
-/// Bakes `input` into `dir/<out>` with `args`, a report beside it; returns the file and report.
-fn bake(input: &Path, dir: &Path, out: &str, args: &[&str]) -> (PathBuf, Value) {
-    let glb = dir.join(out);
-    let report = dir.join(format!("{out}.json"));
-    let mut all = vec![
-        "bake",
-        input.to_str().unwrap(),
-        "-o",
-        glb.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
-        "-q",
-    ];
-    all.extend_from_slice(args);
-    let (code, _, err) = shellbake(&all);
-    assert_eq!(code, Some(0), "{err}");
-    let r = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    (glb, r)
 }
 
 /// Stage `name` of the first surface of a bake's report.
@@ -123,14 +103,6 @@ fn job(glb: &Path, png: &Path, eye: [f32; 3], target: [f32; 3], hide_fur: bool) 
         "ambient": 0.4, "background": [0.55, 0.6, 0.7],
         "hide_fur": hide_fur,
     })
-}
-
-fn render(jobs: &[Value], dir: &Path) {
-    let spec = dir.join("jobs.json");
-    std::fs::write(&spec, serde_json::to_vec(jobs).unwrap()).unwrap();
-    let done = node("three_render.mjs", &[spec]);
-    assert_eq!(done.len(), jobs.len());
-    assert!(done.iter().all(|d| d["ok"] == true), "{done:?}");
 }
 
 fn rgb(png: &Path) -> image::RgbImage {
@@ -3288,29 +3260,23 @@ fn render_draws_a_bake_of_an_asset_with_many_shape_keys() {
     let dir = scratch("asset-many-keys");
     let (input, mut doc) = shape_key_sphere(&dir);
     let bin = Glb::parse(&std::fs::read(&input).unwrap()).bin;
-    for mesh in doc["meshes"].as_array_mut().unwrap() {
-        for p in mesh["primitives"].as_array_mut().unwrap() {
-            if let Some(t) = p["targets"].as_array().cloned().filter(|t| !t.is_empty()) {
-                p["targets"] = json!((0..15).map(|i| t[i % t.len()].clone()).collect::<Vec<_>>());
+    // object `o`'s array `key`, where it has a non-empty one, repeated to 15 entries
+    let fifteen = |o: &mut Value, key: &str| {
+        if let Some(v) = o.get_mut(key) {
+            if let Some(a) = v.as_array().cloned().filter(|a| !a.is_empty()) {
+                *v = json!((0..15).map(|i| a[i % a.len()].clone()).collect::<Vec<_>>());
             }
         }
-        if let Some(w) = mesh["weights"]
-            .as_array()
-            .cloned()
-            .filter(|w| !w.is_empty())
-        {
-            mesh["weights"] = json!((0..15).map(|i| w[i % w.len()].clone()).collect::<Vec<_>>());
+    };
+    for mesh in doc["meshes"].as_array_mut().unwrap() {
+        for p in mesh["primitives"].as_array_mut().unwrap() {
+            fifteen(p, "targets");
         }
+        fifteen(mesh, "weights");
         mesh.as_object_mut().unwrap().remove("extras");
     }
     for node in doc["nodes"].as_array_mut().unwrap() {
-        if let Some(w) = node["weights"]
-            .as_array()
-            .cloned()
-            .filter(|w| !w.is_empty())
-        {
-            node["weights"] = json!((0..15).map(|i| w[i % w.len()].clone()).collect::<Vec<_>>());
-        }
+        fifteen(node, "weights");
     }
     doc.as_object_mut().unwrap().remove("animations");
     let many = dir.join("many.glb");

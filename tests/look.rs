@@ -16,7 +16,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use common::{node, scratch, shellbake, Glb};
+use common::{bake, render, scratch, shellbake, Glb};
 use serde_json::{json, Value};
 
 /// One asset `look_assets.py` made, with its two cameras.
@@ -65,26 +65,6 @@ fn asset(name: &str) -> Asset {
         .clone()
 }
 
-/// Bakes `input` into `dir/<out>` with `args`; returns the file and its report.
-fn bake(input: &Path, dir: &Path, out: &str, args: &[&str]) -> (PathBuf, Value) {
-    let glb = dir.join(out);
-    let report = dir.join(format!("{out}.json"));
-    let mut all = vec![
-        "bake",
-        input.to_str().unwrap(),
-        "-o",
-        glb.to_str().unwrap(),
-        "--report",
-        report.to_str().unwrap(),
-        "-q",
-    ];
-    all.extend_from_slice(args);
-    let (code, _, err) = shellbake(&all);
-    assert_eq!(code, Some(0), "{err}");
-    let r = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
-    (glb, r)
-}
-
 const SIZE: (u32, u32) = (480, 360);
 const FOV_DEG: f32 = 40.0;
 
@@ -96,14 +76,6 @@ fn job(glb: &Path, png: &Path, (eye, target): ([f32; 3], [f32; 3]), hide_fur: bo
         "ambient": 0.4, "background": [0.55, 0.6, 0.7],
         "hide_fur": hide_fur,
     })
-}
-
-fn render(jobs: &[Value], dir: &Path) {
-    let spec = dir.join("jobs.json");
-    std::fs::write(&spec, serde_json::to_vec(jobs).unwrap()).unwrap();
-    let done = node("three_render.mjs", &[spec]);
-    assert_eq!(done.len(), jobs.len());
-    assert!(done.iter().all(|d| d["ok"] == true), "{done:?}");
 }
 
 /// The strand spacing `1 / density` of a bake's first surface, in pixels at the camera's

@@ -686,21 +686,7 @@ pub const DETAIL_DELTA_E: f64 = 10.0;
 
 /// CIE76 difference of two linear-RGB colours (sRGB primaries, D65 white).
 pub fn delta_e76(a: Vec3, b: Vec3) -> f64 {
-    let lab = |c: Vec3| {
-        let c = c.clamp(Vec3::ZERO, Vec3::ONE).as_dvec3();
-        let x = (0.4124 * c.x + 0.3576 * c.y + 0.1805 * c.z) / 0.950_47;
-        let y = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
-        let z = (0.0193 * c.x + 0.1192 * c.y + 0.9505 * c.z) / 1.088_83;
-        let f = |t: f64| {
-            if t > 216.0 / 24389.0 {
-                t.cbrt()
-            } else {
-                (24389.0 / 27.0 * t + 16.0) / 116.0
-            }
-        };
-        let (fx, fy, fz) = (f(x), f(y), f(z));
-        glam::DVec3::new(116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz))
-    };
+    let lab = |c: Vec3| glam::DVec3::from(crate::srgb::lab(c.as_dvec3().to_array()));
     lab(a).distance(lab(b))
 }
 
@@ -1008,11 +994,12 @@ impl Paint {
         })
     }
 
-    /// The texture coordinate set its texture reads, when it has one ([`texture_set`]).
+    /// Whether a texture colours it (vertex colours and a factor alone interpolate exactly).
     pub fn has_detail(&self) -> bool {
         self.texture.is_some()
     }
 
+    /// The texture coordinate set its texture reads, when it has one ([`texture_set`]).
     pub fn texture_set(&self) -> Option<u32> {
         let pending = self.pending.as_ref().map(|(info, _)| texture_set(info));
         pending.or(self.texture.as_ref().map(|t| t.set))

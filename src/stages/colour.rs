@@ -203,19 +203,15 @@ pub fn refine(mesh: &mut Mesh, paint: &Paint, density: f32, params: &ColourParam
     let budget = ((before as f64 * params.max_growth as f64) as usize).max(before + GROWTH_FLOOR);
     let delta_e = params.delta_e as f64;
     for _ in 0..MAX_ROUNDS {
-        let marked = marked_edges(mesh, paint, spacing, delta_e);
+        let (ids, _) = crate::stages::weld::position_ids(&mesh.positions);
+        let marked = marked_edges(mesh, &ids, paint, spacing, delta_e);
         if marked.is_empty() {
             break;
         }
-        let (ids, _) = crate::stages::weld::position_ids(&mesh.positions);
-        let key = |a: u32, b: u32| {
-            let (x, y) = (ids[a as usize], ids[b as usize]);
-            (x.min(y), x.max(y))
-        };
         let added: usize = (mesh.indices.chunks_exact(3))
             .map(|t| {
                 (0..3)
-                    .filter(|&k| marked.contains(&key(t[k], t[(k + 1) % 3])))
+                    .filter(|&k| marked.contains(&edge(&ids, t[k], t[(k + 1) % 3])))
                     .count()
             })
             .sum();
@@ -245,10 +241,21 @@ pub fn refine(mesh: &mut Mesh, paint: &Paint, density: f32, params: &ColourParam
     done
 }
 
-/// The edges (by their ends' position ids, lower first) of every triangle that asks, over the
-/// spacing.
-fn marked_edges(m: &Mesh, paint: &Paint, spacing: f32, delta_e: f64) -> HashSet<(u32, u32)> {
-    let (ids, _) = crate::stages::weld::position_ids(&m.positions);
+/// Edge `a`–`b` by its ends' position ids, lower first: the same for every copy of the edge.
+fn edge(ids: &[u32], a: u32, b: u32) -> (u32, u32) {
+    let (x, y) = (ids[a as usize], ids[b as usize]);
+    (x.min(y), x.max(y))
+}
+
+/// The edges ([`edge`]) of every triangle that asks, over
+/// the spacing.
+fn marked_edges(
+    m: &Mesh,
+    ids: &[u32],
+    paint: &Paint,
+    spacing: f32,
+    delta_e: f64,
+) -> HashSet<(u32, u32)> {
     let asking: Vec<bool> = (m.indices.par_chunks(3))
         .map(|t| {
             let t = [t[0] as usize, t[1] as usize, t[2] as usize];
@@ -259,10 +266,9 @@ fn marked_edges(m: &Mesh, paint: &Paint, spacing: f32, delta_e: f64) -> HashSet<
     let mut marked = HashSet::new();
     for (t, _) in m.indices.chunks_exact(3).zip(&asking).filter(|(_, &a)| a) {
         for k in 0..3 {
-            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
-            if m.positions[a].distance(m.positions[b]) > spacing {
-                let (x, y) = (ids[a], ids[b]);
-                marked.insert((x.min(y), x.max(y)));
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if m.positions[a as usize].distance(m.positions[b as usize]) > spacing {
+                marked.insert(edge(ids, a, b));
             }
         }
     }
@@ -280,14 +286,17 @@ fn split(mesh: &mut Mesh, paint: &Paint, ids: &[u32], marked: &HashSet<(u32, u32
         let mut m = [None; 3];
         for k in 0..3 {
             let (a, b) = (c[k], c[(k + 1) % 3]);
-            let (x, y) = (ids[a as usize], ids[b as usize]);
-            if !marked.contains(&(x.min(y), x.max(y))) {
+            if !marked.contains(&edge(ids, a, b)) {
                 continue;
             }
             let pair = (a.min(b), a.max(b));
             let v = *mids.entry(pair).or_insert_with(|| {
                 // from the lower position id, so that every copy of the edge gets these bits
-                let (lo, hi) = if x <= y { (a, b) } else { (b, a) };
+                let (lo, hi) = if ids[a as usize] <= ids[b as usize] {
+                    (a, b)
+                } else {
+                    (b, a)
+                };
                 let (p, q) = (src.positions[lo as usize], src.positions[hi as usize]);
                 let position: Vec3 = p + (q - p) * 0.5;
                 let third = c[(k + 2) % 3];

@@ -58,7 +58,7 @@ pub fn pattern_correlation(
         (0..mask.len())
             .map(|i| {
                 let cov = coverage[i].max(1e-6);
-                lab([c[0][i] / cov, c[1][i] / cov, c[2][i] / cov])
+                crate::srgb::lab([0, 1, 2].map(|k| (c[k][i] / cov) as f64))
             })
             .collect()
     };
@@ -117,23 +117,6 @@ fn blur(f: &[f32], w: usize, h: usize, sigma: f32) -> Vec<f32> {
         out
     };
     pass(&pass(f, true), false)
-}
-
-/// CIELAB (D65) of a linear sRGB colour.
-fn lab(c: [f32; 3]) -> [f64; 3] {
-    let [r, g, b] = c.map(|v| v.clamp(0.0, 1.0) as f64);
-    let x = (0.4124 * r + 0.3576 * g + 0.1805 * b) / 0.950_47;
-    let y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
-    let z = (0.0193 * r + 0.1192 * g + 0.9505 * b) / 1.088_83;
-    let f = |t: f64| {
-        if t > 216.0 / 24389.0 {
-            t.cbrt()
-        } else {
-            (24389.0 / 27.0 * t + 16.0) / 116.0
-        }
-    };
-    let (fx, fy, fz) = (f(x), f(y), f(z));
-    [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
 }
 
 #[cfg(test)]

@@ -229,6 +229,36 @@ pub fn bake_scene_file(scene: &str, dir: &Path) -> (PathBuf, Value) {
     (glb, r)
 }
 
+/// Bakes `input` into `dir/<out>` with `args` and a report beside it, checking it succeeded;
+/// returns the file and the report.
+pub fn bake(input: &Path, dir: &Path, out: &str, args: &[&str]) -> (PathBuf, Value) {
+    let glb = dir.join(out);
+    let report = dir.join(format!("{out}.json"));
+    let mut all = vec![
+        "bake",
+        input.to_str().unwrap(),
+        "-o",
+        glb.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+        "-q",
+    ];
+    all.extend_from_slice(args);
+    let (code, _, err) = shellbake(&all);
+    assert_eq!(code, Some(0), "{err}");
+    let r = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    (glb, r)
+}
+
+/// Draws `three_render.mjs` jobs (written to `dir/jobs.json`), checking every one drew.
+pub fn render(jobs: &[Value], dir: &Path) {
+    let spec = dir.join("jobs.json");
+    std::fs::write(&spec, serde_json::to_vec(jobs).unwrap()).unwrap();
+    let done = node("three_render.mjs", &[spec]);
+    assert_eq!(done.len(), jobs.len());
+    assert!(done.iter().all(|d| d["ok"] == true), "{done:?}");
+}
+
 /// Runs a Node script from tests/js on `files`, one JSON line per file.
 pub fn node(script: &str, files: &[PathBuf]) -> Vec<Value> {
     let js = repo().join("tests/js");
