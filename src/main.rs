@@ -198,9 +198,9 @@ struct BakeArgs {
     /// attributes; what the runtime reference draws, pixel for pixel) [default: khr].
     #[arg(long, value_parser = named(&Quantize::ALL, |q| q.name()))]
     quantize: Option<Quantize>,
-    /// Where compact layers' morph weights go: `node` (node.weights; lets gltfpack keep the
-    /// shared geometry once) or `mesh` (mesh.weights, for clients that read no node weights)
-    /// [default: node].
+    /// Where compact layers' morph weights go: `both` (mesh.weights and node.weights: every
+    /// reader finds them; Bevy and PlayCanvas read the mesh's only), `node` (node.weights only:
+    /// lets gltfpack keep the shared geometry once) or `mesh` [default: both].
     #[arg(long, value_parser = named(&LayerWeights::ALL, |w| w.name()))]
     layer_weights: Option<LayerWeights>,
     /// Buffer compression: `meshopt` (vertex and index codecs) or `none` [default: the scene's

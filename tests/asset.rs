@@ -320,6 +320,33 @@ fn a_rigid_part_s_fur_is_inside_its_bounds_in_babylon() {
     assert_valid(&[glb]);
 }
 
+/// The box vertices hold the fur's own box, no larger: on a plane, whose fur grows up only,
+/// Babylon.js's box reaches the fur's height above it and nothing below it (a box centred on
+/// the bare plane reached the whole height below it too, where nothing is drawn).
+#[test]
+fn the_bounds_are_the_fur_s_own_box() {
+    let dir = scratch("asset-plane-bounds");
+    let (glb, report) = bake(&fixture("plane.obj"), &dir, "plane.glb", &[]);
+    let height = report["surfaces"][0]["resolved"]["height"]
+        .as_f64()
+        .unwrap();
+    let babylon = node("babylon_bounds.mjs", std::slice::from_ref(&glb));
+    let all = &babylon[0]["all"];
+    let at = |end: &str, k: usize| all[end][k].as_f64().unwrap();
+    let what = format!("height {height}: {babylon:?}");
+    // the outer layer reaches 0.97 of the height; a grid step's rounding either way
+    let step = 1e-3 * height;
+    assert!(at("max", 1) >= 0.95 * height, "{what}");
+    assert!(at("max", 1) <= height + step, "{what}");
+    assert!(at("min", 1) >= -step, "{what}");
+    for k in [0, 2] {
+        assert!(
+            at("min", k) >= -1.0 - step && at("max", k) <= 1.0 + step,
+            "{what}"
+        );
+    }
+}
+
 #[test]
 fn two_skinned_characters_a_camera_a_light_and_an_unfurred_ground() {
     let dir = scratch("asset-scene");
@@ -2327,7 +2354,7 @@ fn an_instanced_part_grows_fur_on_every_instance() {
     let (glb, report) = bake(&input, &dir, "instanced_fur.glb", &["--wind"]);
     assert_valid(std::slice::from_ref(&glb));
     let bytes = std::fs::read(&glb).unwrap();
-    let out = Glb::parse(&bytes).json;
+    let Glb { json: out, bin } = Glb::parse(&bytes);
     let nodes = out["nodes"].as_array().unwrap();
     let holders: Vec<usize> = (out["nodes"][0]["children"].as_array().unwrap().iter())
         .map(|c| c.as_u64().unwrap() as usize)
@@ -2375,19 +2402,28 @@ fn an_instanced_part_grows_fur_on_every_instance() {
         for &n in &drawn {
             let prim = &out["meshes"][nodes[n]["mesh"].as_u64().unwrap() as usize]["primitives"][0];
             let a = &out["accessors"][prim["attributes"]["POSITION"].as_u64().unwrap() as usize];
-            let normalized = a["normalized"].as_bool().unwrap_or(false);
-            let unit = if normalized { 32767.0 } else { 1.0 };
-            let corner = |k: &str| {
-                DVec3::from_slice(
-                    &a[k]
-                        .as_array()
-                        .unwrap()
-                        .iter()
-                        .map(|v| v.as_f64().unwrap() / unit)
-                        .collect::<Vec<_>>(),
-                )
-            };
-            let centre = (corner("min") + corner("max")) / 2.0;
+            // the centre of the card's own vertices: the accessor's box is the fur's
+            // (`pack::BOX_VERTICES`, the last two vertices), which reaches past the card
+            let view = &out["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
+            let at = |v: &Value| v.as_u64().unwrap_or(0) as usize;
+            let (start, stride) = (
+                at(&view["byteOffset"]) + at(&a["byteOffset"]),
+                at(&view["byteStride"]),
+            );
+            assert_eq!(
+                (a["componentType"].as_u64(), stride),
+                (Some(5122), 8),
+                "{a}"
+            );
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            for v in 0..at(&a["count"]) - 2 {
+                let p = DVec3::from_array([0, 1, 2].map(|k| {
+                    let o = start + v * stride + 2 * k;
+                    i16::from_le_bytes([bin[o], bin[o + 1]]) as f64 / 32767.0
+                }));
+                (lo, hi) = (lo.min(p), hi.max(p));
+            }
+            let centre = (lo + hi) / 2.0;
             let got = world[&n].transform_point3(centre);
             assert!(
                 got.distance(want) < 1e-3,

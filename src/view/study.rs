@@ -16,6 +16,12 @@
 //!   wall time where the adapter has none), the triangles drawn and the draw calls, per view.
 //! - Bake time and bytes come from the binary (the bake of the point, timed whole: load and
 //!   bake, without writing).
+//! - **Pattern**, on an asset input: does the fur look like the asset? The whole file the
+//!   point's command writes (asset and fur) and the bare asset, drawn from the same error
+//!   cameras, compared by [`super::pattern::pattern_correlation`] blurred at one strand spacing
+//!   as each camera sees it; the mean over the views. The FLIP error cannot see this: its
+//!   reference is made from the same colour choices as the bake. It is the `colour` knob's own
+//!   figure (per vertex against strand detail), and every other knob's too.
 //!
 //! **The reference at full accuracy.** For a knob the reference does not model (position and
 //! texture-coordinate bits, LOD, culling, compression, `--quality`) it is the runtime technique
@@ -94,6 +100,46 @@ pub fn reference_pictures(
         .iter()
         .map(|(_, c)| super::render_reference_image(gpu, &mut r, c, &light, (size, size)))
         .collect()
+}
+
+/// `renderer`'s pictures from each error camera, `size × size` (LOD picked by distance).
+pub fn pictures(
+    gpu: &Gpu,
+    renderer: &mut GltfRenderer,
+    cameras: &Cameras,
+    size: u32,
+) -> Vec<RgbaImage> {
+    let light = Light::default();
+    (cameras.error.iter())
+        .map(|(_, camera)| super::render_gltf(gpu, renderer, camera, &light, (size, size)))
+        .collect()
+}
+
+/// The pattern correlation of the furred file `glb` (asset and fur) against the bare asset's
+/// `bare` pictures (from [`pictures`], same cameras), each view blurred at one strand spacing
+/// `spacing` (world units) as its camera sees it at its target (at least a pixel): the mean over
+/// the views that have one (`None` when none has: nothing drawn in both, or no variation).
+pub fn pattern(
+    gpu: &Gpu,
+    glb: &[u8],
+    bare: &[RgbaImage],
+    cameras: &Cameras,
+    spacing: f64,
+) -> Result<Option<f64>> {
+    let mut r = GltfRenderer::from_glb(gpu, glb)?;
+    let light = Light::default();
+    let mut found = Vec::new();
+    for ((_, camera), bare) in cameras.error.iter().zip(bare) {
+        let (w, h) = bare.dimensions();
+        let furred = super::render_gltf(gpu, &mut r, camera, &light, (w, h));
+        let d = (camera.eye - camera.target).length();
+        let px_per_unit = h as f64 / (2.0 * d * (camera.fov_y_deg.to_radians() / 2.0).tan());
+        let sigma = (spacing * px_per_unit).max(1.0) as f32;
+        if let Some((c, _)) = super::pattern::pattern_correlation(bare, &furred, sigma) {
+            found.push(c);
+        }
+    }
+    Ok((!found.is_empty()).then(|| found.iter().sum::<f64>() / found.len() as f64))
 }
 
 /// A baked file's pictures against the reference's.
@@ -193,6 +239,8 @@ pub struct Point {
     /// The `shellbake bake` command that makes this point's file.
     pub command: String,
     pub error: ImageError,
+    /// The pattern correlation against the bare asset ([`pattern`]; an asset input only).
+    pub pattern: Option<f64>,
     /// Bake time, ms: min, median, max over the runs.
     pub bake_ms: [f64; 3],
     pub bytes: usize,
@@ -306,7 +354,7 @@ pub fn write(dir: &Path, header: &Header, points: &[Point]) -> Result<Vec<PathBu
     Ok(written)
 }
 
-const CSV_COLUMNS: &str = "knob,value,base,flip_mean,flip_p99,differing_pixels,pixels,bake_ms_median,bake_ms_min,bake_ms_max,bytes,triangles,draw_calls,gpu_ms,adapter,front_bake_time,front_bytes,front_gpu_time,command";
+const CSV_COLUMNS: &str = "knob,value,base,flip_mean,flip_p99,differing_pixels,pixels,pattern,bake_ms_median,bake_ms_min,bake_ms_max,bytes,triangles,draw_calls,gpu_ms,adapter,front_bake_time,front_bytes,front_gpu_time,command";
 
 fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n']) {
@@ -322,7 +370,7 @@ fn csv(header: &Header, points: &[Point], fronts: &[Vec<bool>]) -> String {
     for (i, p) in points.iter().enumerate() {
         let _ = writeln!(
             out,
-            "{},{},{},{:.6},{:.6},{},{},{:.1},{:.1},{:.1},{},{:.0},{:.1},{:.4},{},{},{},{},{}",
+            "{},{},{},{:.6},{:.6},{},{},{},{:.1},{:.1},{:.1},{},{:.0},{:.1},{:.4},{},{},{},{},{}",
             csv_field(&p.knob),
             csv_field(&p.value),
             p.base,
@@ -330,6 +378,7 @@ fn csv(header: &Header, points: &[Point], fronts: &[Vec<bool>]) -> String {
             p.error.flip_p99,
             p.error.differing,
             p.error.pixels,
+            p.pattern.map_or(String::new(), |c| format!("{c:.4}")),
             p.bake_ms[1],
             p.bake_ms[0],
             p.bake_ms[2],
@@ -352,7 +401,7 @@ fn markdown(header: &Header, points: &[Point], fronts: &[Vec<bool>]) -> String {
     let _ = writeln!(md, "# What accuracy costs: `{}`\n", header.input);
     let _ = writeln!(
         md,
-        "Base: `{}`. Image error against the runtime reference at full accuracy over the front, side, close and far views ({}×{} each): FLIP mean, FLIP 99th percentile, pixels differing by more than {} levels. Bake time: median (min–max) of {} run(s) on {} thread(s). Frame cost: mean per view of {} frame(s) at {}×{} on **{}**. ◆ marks the base setting; the front columns mark the Pareto front against bake time (T), bytes (B) and GPU time (G).\n",
+        "Base: `{}`. Image error against the runtime reference at full accuracy over the front, side, close and far views ({}×{} each): FLIP mean, FLIP 99th percentile, pixels differing by more than {} levels. Pattern (an asset input): the correlation of the colour the whole file shows with the bare asset's, from the same cameras, blurred at one strand spacing (1: every stripe and letter where the asset has it; 0: nothing of it). Bake time: median (min–max) of {} run(s) on {} thread(s). Frame cost: mean per view of {} frame(s) at {}×{} on **{}**. ◆ marks the base setting; the front columns mark the Pareto front against bake time (T), bytes (B) and GPU time (G).\n",
         header.base_command,
         header.size,
         header.size,
@@ -382,8 +431,8 @@ fn markdown(header: &Header, points: &[Point], fronts: &[Vec<bool>]) -> String {
     md.push('\n');
     for (name, what, reference) in &header.knobs {
         let _ = writeln!(md, "## `{name}`: {what}\n\nReference: {reference}.\n");
-        md.push_str("| value | FLIP mean | FLIP p99 | differing px | bake ms | bytes | triangles | draws | GPU ms | front | command |\n");
-        md.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
+        md.push_str("| value | FLIP mean | FLIP p99 | differing px | pattern | bake ms | bytes | triangles | draws | GPU ms | front | command |\n");
+        md.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
         for (i, p) in points.iter().enumerate().filter(|(_, p)| &p.knob == name) {
             let front: String = ["T", "B", "G"]
                 .iter()
@@ -393,12 +442,13 @@ fn markdown(header: &Header, points: &[Point], fronts: &[Vec<bool>]) -> String {
                 .collect();
             let _ = writeln!(
                 md,
-                "| {}{} | {:.4} | {:.3} | {} | {:.0} ({:.0}–{:.0}) | {} | {:.0} | {:.1} | {:.3} | {} | `{}` |",
+                "| {}{} | {:.4} | {:.3} | {} | {} | {:.0} ({:.0}–{:.0}) | {} | {:.0} | {:.1} | {:.3} | {} | `{}` |",
                 p.value,
                 if p.base { " ◆" } else { "" },
                 p.error.flip_mean,
                 p.error.flip_p99,
                 p.error.differing,
+                p.pattern.map_or("—".to_string(), |c| format!("{c:.3}")),
                 p.bake_ms[1],
                 p.bake_ms[0],
                 p.bake_ms[2],

@@ -134,23 +134,32 @@ impl Quantize {
 }
 
 /// Where a compact layer's morph weight `t_j` is written.
+///
+/// Readers differ: three.js, Babylon.js, Filament and Unity glTFast (6.13 on) apply
+/// `node.weights`; Bevy (`bevy_gltf`) and PlayCanvas (`glb-parser.js`) read `mesh.weights` only,
+/// and a layer without them sits at weight 0, on the base surface, with no error. So the default
+/// writes both (the node's win where both are read, and they are equal).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum LayerWeights {
-    /// On the layer's node (`node.weights`): a mesh without default weights is one that
-    /// gltfpack may share between layers, so running it over the file keeps the geometry once
-    /// (with mesh weights it copies the geometry into every layer).
+    /// On the layer's mesh and its node: every reader finds them.
     #[default]
+    Both,
+    /// On the layer's node only (`node.weights`): a mesh without default weights is one that
+    /// gltfpack may share between layers, so running it over the file keeps the geometry once
+    /// (with mesh weights it copies the geometry into every layer). Bevy and PlayCanvas then
+    /// draw every layer on the base surface.
     Node,
-    /// On the layer's mesh (`mesh.weights`), for clients that read no node weights.
+    /// On the layer's mesh only (`mesh.weights`).
     Mesh,
 }
 
 impl LayerWeights {
-    pub const ALL: [LayerWeights; 2] = [LayerWeights::Node, LayerWeights::Mesh];
+    pub const ALL: [LayerWeights; 3] = [LayerWeights::Both, LayerWeights::Node, LayerWeights::Mesh];
 
     pub fn name(self) -> &'static str {
         match self {
+            LayerWeights::Both => "both",
             LayerWeights::Node => "node",
             LayerWeights::Mesh => "mesh",
         }
@@ -180,7 +189,7 @@ impl Default for PackParams {
             position_bits: 14,
             quantize: Quantize::Khr,
             texcoord_bits: 16,
-            layer_weights: LayerWeights::Node,
+            layer_weights: LayerWeights::Both,
         }
     }
 }
@@ -1345,6 +1354,7 @@ fn layer_nodes(b: &mut Builder, meshes: &[usize], weights: LayerWeights) -> Vec<
             let mesh = &mut b.out.meshes[m];
             let weights = match weights {
                 LayerWeights::Node => std::mem::take(&mut mesh.weights),
+                LayerWeights::Both => mesh.weights.clone(),
                 LayerWeights::Mesh => vec![],
             };
             let node = Node {
@@ -1785,9 +1795,13 @@ impl Shared {
 /// Not for a skinned surface, whose bounds clients compute from the posed vertices.
 const BOX_VERTICES: usize = 2;
 
-/// The two corners of a box around everything the stored vertices `q` (of the input vertices
-/// `order`) reach with their extrusion and bend at full weight, centred on their own box, as
-/// `q` is stored (grid levels, or a plain float file's positions).
+/// The two corners of the box around everything the stored vertices `q` (of the input vertices
+/// `order`) reach with their extrusion and bend at full weight, as `q` is stored (grid levels,
+/// or a plain float file's positions): the fur's own box, no larger. Its centre is where clients
+/// (and `LodSwitch`) put a chunk's centre from these bounds, and the chunk's box the switch
+/// distances are stated from (`chunk_switch`'s radius) is the same fur box, so the distances
+/// hold from it. (A box centred on the bare surface's would reach past the fur by up to its
+/// height wherever the fur grows to one side only: the ground of a terrain, a horse's back.)
 fn fur_box(g: &Geometry, order: &[u32], q: &[Vec3]) -> [Vec3; BOX_VERTICES] {
     // targets are stored in units of 32767 steps (`Targets::levels`), positions in steps
     let unit = if g.exact { 1.0 } else { SNORM16 };
@@ -1804,23 +1818,16 @@ fn fur_box(g: &Geometry, order: &[u32], q: &[Vec3]) -> [Vec3; BOX_VERTICES] {
             hi.max(p).max(far[0]).max(far[1]),
         )
     });
-    // centred on the box of the vertices themselves, which is where clients (and `LodSwitch`)
-    // put a chunk's centre from these bounds: the levels' switch distances hold from it
-    let (base_lo, base_hi) = q.iter().fold(none, |(l, h), &p| (l.min(p), h.max(p)));
     if g.exact {
-        let centre = (base_lo + base_hi) * 0.5;
-        let reach = (hi - centre).max(centre - lo);
-        return [centre - reach, centre + reach];
+        return [lo, hi];
     }
-    // grid levels are whole: in half levels, a reach of the centre's parity keeps both
-    // corners whole and the centre exact; within the grid, so a side the grid cannot mirror
-    // is short of the fur there (by what the fur reaches past the base on the other side)
-    let c2 = base_lo + base_hi;
-    let room = c2.min(Vec3::splat(2.0 * g.grid.max_level() as f32) - c2);
-    let reach2 = (2.0 * hi - c2).max(c2 - 2.0 * lo).ceil();
-    let reach2 = reach2 + (c2 + reach2).rem_euclid(Vec3::splat(2.0));
-    let reach2 = reach2.min(room - (c2 + room).rem_euclid(Vec3::splat(2.0)));
-    [(c2 - reach2) * 0.5, (c2 + reach2) * 0.5]
+    // grid levels are whole: the nearest levels outside the fur's box, within the grid (which
+    // holds the fully extruded surface, so this is at most a level's rounding)
+    let top = Vec3::splat(g.grid.max_level() as f32);
+    [
+        lo.floor().clamp(Vec3::ZERO, top),
+        hi.ceil().clamp(Vec3::ZERO, top),
+    ]
 }
 
 /// The per-vertex values `v` of the input vertices, in fetch order `order`.
