@@ -18,6 +18,7 @@ use clap::{Args, Parser, Subcommand};
 use image::ImageEncoder as _;
 use shellbake::output::compress::{Compression, MeshoptExtension};
 use shellbake::output::pack::{LayerWeights, Quantize};
+use shellbake::output::target::Target;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::{Effect, Quality, SceneFile};
 use shellbake::stages::orient::OrientMode;
@@ -198,6 +199,12 @@ struct BakeArgs {
     /// attributes; what the runtime reference draws, pixel for pixel) [default: khr].
     #[arg(long, value_parser = named(&Quantize::ALL, |q| q.name()))]
     quantize: Option<Quantize>,
+    /// The engine the file is for: `web` (three.js, Babylon.js), `blender`, `unity`,
+    /// `playcanvas`, `bevy`, `godot`, `unreal` or `portable` (no extension at all): what that
+    /// engine's importer reads (attribute storage, layout, levels of detail, sheen); flags given
+    /// beside it win [default: web, with the surfaces' own settings].
+    #[arg(long, value_parser = named(&Target::ALL, |t| t.name()))]
+    target: Option<Target>,
     /// Where compact layers' morph weights go: `both` (mesh.weights and node.weights: every
     /// reader finds them; Bevy and PlayCanvas read the mesh's only), `node` (node.weights only:
     /// lets gltfpack keep the shared geometry once) or `mesh` [default: both].
@@ -350,7 +357,24 @@ impl BakeArgs {
         if let Some(e) = self.meshopt_extension {
             scene.output.meshopt_extension = e;
         }
+        if let Some(t) = self.target {
+            scene.output.target = Some(t);
+        }
+        if let Some(t) = scene.output.target {
+            let p = t.profile();
+            if scene.output.compress == Compression::Meshopt && !p.meshopt {
+                anyhow::bail!(shellbake::Error::Params(format!(
+                    "--target {}: {} cannot read EXT_meshopt_compression; leave --compress off",
+                    t.name(),
+                    p.engines
+                )));
+            }
+        }
         for s in &mut scene.surfaces {
+            if let Some(t) = scene.output.target {
+                // the target first: what the surface's flags say wins over it
+                shellbake::scene::apply_target(t, &mut s.params, &mut s.effects);
+            }
             if let Some(preset) = self.preset.filter(|&p| p != s.preset) {
                 s.params = s.with_preset(preset);
             }
@@ -382,6 +406,17 @@ impl BakeArgs {
                 .extend(Effect::implied(&s.params, s.comb_map.is_some()));
             s.effects.sort();
             s.effects.dedup();
+            if let Some(t) = scene.output.target.filter(|t| !t.profile().sheen) {
+                if s.effects.contains(&Effect::Sheen) {
+                    return Err(named(format!(
+                        "--target {}: {} drops KHR_materials_sheen (the sheen effect); leave \
+                         --sheen off",
+                        t.name(),
+                        t.profile().engines
+                    ))
+                    .into());
+                }
+            }
             if !self.only.is_empty() && self.is_scene() {
                 s.only = self.only.clone();
             }
@@ -710,6 +745,7 @@ fn bake(args: &BakeArgs) -> anyhow::Result<()> {
     }
     report.input = args.input.display().to_string();
     report.output = out.display().to_string();
+    report.target = scene.output.target.unwrap_or_default().name().to_string();
     // what is written: a `.gltf` output is its JSON and its binary, not the GLB
     let files = shellbake::output::write::output_files(&out, &glb)?;
     report.total_bytes = files.iter().map(|(_, b)| b.len()).sum();

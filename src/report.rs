@@ -406,6 +406,9 @@ pub struct SceneReport {
     /// For an asset kept whole: what was kept, furred and passed through.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub asset: Option<AssetReport>,
+    /// The engine target the file was written for (`web`, `godot`, …; empty: not said).
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub target: String,
 }
 
 /// What a bake of an asset kept whole did with the asset (DESIGN §10).
@@ -579,7 +582,25 @@ impl SceneReport {
 
     fn plan_line(&self) -> String {
         let stages = self.plan.iter().map(|p| (p.name, p.ran, p.ms));
-        stage_line(stages, self.total_ms)
+        self.target_line() + &stage_line(stages, self.total_ms)
+    }
+
+    /// The engines the file is right for, and the flag for the others.
+    fn target_line(&self) -> String {
+        use crate::output::target::Target;
+        let Some(t) = Target::ALL.iter().find(|t| t.name() == self.target) else {
+            return String::new();
+        };
+        let others: Vec<&str> = (Target::ALL.iter())
+            .filter(|&o| o != t)
+            .map(|o| o.name())
+            .collect();
+        format!(
+            "  target: {}, for {}; another engine: --target {}\n",
+            t.name(),
+            t.profile().engines,
+            others.join("|")
+        )
     }
 }
 
@@ -686,6 +707,7 @@ mod tests {
             surfaces,
             total_ms: 0.0,
             asset: None,
+            target: String::new(),
         };
         let s = report.summary();
         assert_eq!(s.matches(" surface rock_").count(), 8, "{s}");

@@ -402,6 +402,23 @@ impl Quality {
     }
 }
 
+/// Applies engine target `target` to a surface's parameters and effects (see
+/// [`crate::output::target`]): its layout where it needs one, its attribute storage and layer
+/// weights, and the coarser levels and the sheen left off where the engine cannot use them.
+pub fn apply_target(
+    target: crate::output::target::Target,
+    p: &mut crate::params::BakeParams,
+    effects: &mut Vec<Effect>,
+) {
+    let t = target.profile();
+    if let Some(layout) = t.layout {
+        p.pack.layout = layout;
+    }
+    p.pack.quantize = t.quantize;
+    p.pack.layer_weights = t.layer_weights;
+    effects.retain(|&e| (t.lod || e != Effect::Lod) && (t.sheen || e != Effect::Sheen));
+}
+
 /// Name of the root node of a one-surface bake.
 pub const SINGLE_SURFACE_NAME: &str = "shellbake";
 

@@ -98,6 +98,9 @@ impl MeshoptExtension {
 pub struct OutputParams {
     pub compress: Compression,
     pub meshopt_extension: MeshoptExtension,
+    /// The engine the file is for (`None`: the default, `web`, without overriding what the
+    /// surfaces set).
+    pub target: Option<crate::output::target::Target>,
 }
 
 /// A compressed view's mode.

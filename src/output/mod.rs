@@ -5,4 +5,5 @@
 pub mod compress;
 pub mod graft;
 pub mod pack;
+pub mod target;
 pub mod write;
