@@ -9,7 +9,7 @@
 //! | [`input`] | reading meshes and assets: OBJ, glTF/GLB ([`input::document`], one reader for the loader and the viewer), the asset kept whole ([`input::asset`]: parts, `--only`, paint), skins, density/length/comb maps ([`input::maps`]) |
 //! | [`stages`] | the core stages every surface runs, in plan order |
 //! | [`effects`] | the stages a surface asks for: occlusion, gravity (comb), wind, sheen, fins, outline |
-//! | [`output`] | [`output::pack`] (glTF streams, nodes, materials), [`output::write`] (JSON, GLB), [`output::compress`] (meshopt), [`output::graft`] (the fur put back into the asset) |
+//! | [`output`] | [`output::pack`] (glTF streams, nodes, materials), [`output::write`] (JSON, GLB), [`output::compress`] (meshopt), [`output::graft`] (the fur put back into the asset), [`output::target`] (what each engine reads: `--target`) |
 //! | [`fixtures`] | procedural inputs for examples and tests (the critter, the skinned tube) |
 //! | [`view`] | the wgpu viewer, the runtime reference, `verify`, `bench`, `study` |
 //! | the ground floor | [`error`], [`facts`] (what a stage reports), [`grid`], [`mesh`], [`srgb`]; then [`params`] (every stage's parameters, presets as data), [`scene`] (scene files, the plan), [`report`], [`batch`] |
