@@ -702,3 +702,154 @@ fn a_short_vertex_line_is_named() {
         assert!(e.contains(line), "{e}");
     }
 }
+
+// 9. Material libraries and their images (round 3).
+
+/// Runs `shellbake args`, killed and failed after 60 s (a file opened that blocks, a FIFO,
+/// would hang it): exit code, stdout, stderr.
+fn shellbake_within_a_minute(args: &[&str]) -> (Option<i32>, String, String) {
+    use std::io::Read as _;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_shellbake"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed().as_secs() > 60 {
+            let _ = child.kill();
+            panic!("shellbake {args:?} still running after 60 s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let (mut out, mut err) = (String::new(), String::new());
+    child
+        .stdout
+        .take()
+        .unwrap()
+        .read_to_string(&mut out)
+        .unwrap();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    (status.code(), out, err)
+}
+
+const TRIANGLE_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n";
+
+/// An OBJ's `mtllib` that is a link to a file outside its folder is not read (its materials
+/// were embedded in the output), nor one that links to a FIFO outside (opening it would block):
+/// the links are resolved before anything is opened, as for buffers and images.
+#[cfg(unix)]
+#[test]
+fn a_material_library_linked_from_outside_is_not_read() {
+    let dir = scratch("hostile_mtl_link");
+    let outside = dir.join("outside");
+    let asset = dir.join("asset");
+    std::fs::create_dir_all(&outside).unwrap();
+    std::fs::create_dir_all(&asset).unwrap();
+    std::fs::write(outside.join("m.mtl"), "newmtl leaked\nKd 1 0 0\n").unwrap();
+    let fifo = outside.join("fifo.mtl");
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    std::os::unix::fs::symlink(outside.join("m.mtl"), asset.join("m.mtl")).unwrap();
+    std::os::unix::fs::symlink(&fifo, asset.join("f.mtl")).unwrap();
+    let obj = asset.join("a.obj");
+    std::fs::write(
+        &obj,
+        format!("mtllib m.mtl\nmtllib f.mtl\nusemtl leaked\n{TRIANGLE_OBJ}"),
+    )
+    .unwrap();
+    let out = dir.join("a.glb");
+    let (code, stdout, err) =
+        shellbake_within_a_minute(&["bake", obj.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let glb = std::fs::read(&out).unwrap();
+    assert!(
+        !String::from_utf8_lossy(&glb).contains("leaked"),
+        "the outside library's material is in the output"
+    );
+    assert!(stdout.contains("could not be read"), "{stdout}");
+}
+
+/// A library named again and again is read once (1 000 `mtllib` lines of one 14-byte file read
+/// and appended it 1 000 times: gigabytes from a 14 kB OBJ).
+#[test]
+fn a_library_named_a_thousand_times_is_read_once() {
+    let dir = scratch("hostile_mtl_repeat");
+    std::fs::write(dir.join("m.mtl"), "newmtl red\nKd 1 0 0\n").unwrap();
+    let obj = dir.join("a.obj");
+    let text = "mtllib m.mtl\n".repeat(1000) + "usemtl red\n" + TRIANGLE_OBJ;
+    std::fs::write(&obj, text).unwrap();
+    let out = dir.join("a.glb");
+    let (code, _, err) = shellbake_within_a_minute(&[
+        "bake",
+        obj.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let json = common::Glb::parse(&std::fs::read(&out).unwrap()).json;
+    let red = (json["materials"].as_array().unwrap().iter())
+        .filter(|m| m["name"] == "red")
+        .count();
+    assert_eq!(red, 1, "{}", json["materials"]);
+}
+
+/// `Kd nan inf -1` wrote `null` into `baseColorFactor`, an invalid file with exit 0: the factor
+/// is clamped into 0–1 (a value that is no number taken as 1), with a warning naming the material.
+#[test]
+fn non_numbers_in_a_material_are_clamped_with_a_warning() {
+    let dir = scratch("hostile_mtl_nan");
+    std::fs::write(dir.join("m.mtl"), "newmtl odd\nKd nan inf -1\nd nan\n").unwrap();
+    let obj = dir.join("a.obj");
+    std::fs::write(&obj, format!("mtllib m.mtl\nusemtl odd\n{TRIANGLE_OBJ}")).unwrap();
+    let out = dir.join("a.glb");
+    let (code, stdout, err) =
+        shellbake_within_a_minute(&["bake", obj.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        stdout.contains("material 'odd'") && stdout.contains("not all numbers in 0–1"),
+        "{stdout}"
+    );
+    let json = common::Glb::parse(&std::fs::read(&out).unwrap()).json;
+    let odd = (json["materials"].as_array().unwrap().iter())
+        .find(|m| m["name"] == "odd")
+        .unwrap();
+    assert_eq!(
+        odd["pbrMetallicRoughness"]["baseColorFactor"],
+        json!([1.0, 1.0, 0.0, 1.0])
+    );
+    common::assert_valid(&[out]);
+}
+
+/// A `map_Kd` naming a text file was embedded as `application/octet-stream` (the validator
+/// rejects it) with exit 0: refused, naming the image, and nothing written.
+#[test]
+fn a_text_file_as_an_image_is_refused_naming_it() {
+    let dir = scratch("hostile_mtl_text_image");
+    std::fs::write(dir.join("notes.txt"), "not an image\n").unwrap();
+    std::fs::write(dir.join("m.mtl"), "newmtl t\nKd 1 1 1\nmap_Kd notes.txt\n").unwrap();
+    let obj = dir.join("a.obj");
+    std::fs::write(&obj, format!("mtllib m.mtl\nusemtl t\n{TRIANGLE_OBJ}")).unwrap();
+    let out = dir.join("a.glb");
+    let (code, _, err) =
+        shellbake_within_a_minute(&["bake", obj.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("notes.txt") && err.contains("not a PNG, JPEG, KTX2 or WebP image"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing written");
+}

@@ -1230,18 +1230,26 @@ fn names_mtl(bytes: &[u8]) -> bool {
 }
 
 /// The materials of the `.mtl` files the OBJ names, as tobj reads them for the OBJ (`None`:
-/// none could be read), each `.mtl` read only inside the OBJ's folder ([`mtl_for_tobj`]).
+/// none could be read), each `.mtl` read only when its real path (links resolved) is a regular
+/// file inside the OBJ's folder ([`super::document::confined_file`], as buffers and images are),
+/// at most [`super::MAX_INPUT_BYTES`], and once however often it is named (a library named again
+/// adds nothing: 1 000 `mtllib` lines of one file read it once) ([`mtl_for_tobj`]).
 fn materials(path: &Path, bytes: &[u8]) -> Option<Vec<tobj::Material>> {
     // tobj reads the libraries of an OBJ of its `mtllib` statements alone
     let libraries: String = (statements(bytes, "mtllib").iter())
         .map(|lib| format!("mtllib {lib}\n"))
         .collect();
+    let read: std::cell::RefCell<Vec<std::path::PathBuf>> = Default::default();
     let (_, materials) = tobj::load_obj_buf(&mut libraries.as_bytes(), &load_options(), |name| {
         let name = name.to_string_lossy();
         let target =
-            super::document::confined_path(path, &name).ok_or(tobj::LoadError::OpenFileFailed)?;
+            super::document::confined_file(path, &name).ok_or(tobj::LoadError::OpenFileFailed)?;
+        if read.borrow().contains(&target) {
+            return tobj::load_mtl_buf(&mut &b""[..]);
+        }
         let text = super::read_regular_file(&target, super::MAX_INPUT_BYTES)
             .map_err(|_| tobj::LoadError::OpenFileFailed)?;
+        read.borrow_mut().push(target);
         tobj::load_mtl_buf(&mut mtl_for_tobj(&text).as_slice())
     })
     .ok()?;
@@ -1366,13 +1374,39 @@ fn material(
     (images, textures): (&mut Vec<Value>, &mut Vec<Value>),
 ) -> (Value, Option<String>) {
     let kd = m.diffuse.unwrap_or([1.0; 3]);
-    let alpha = m.dissolve.unwrap_or(1.0).clamp(0.0, 1.0);
+    let d = m.dissolve.unwrap_or(1.0);
+    // glTF's factors lie in 0–1: a value past them is clamped, one that is no number (`nan`,
+    // `inf`) is the default 1 (JSON has no NaN: it was written as `null`, an invalid file)
+    let unit = |v: f64| {
+        if v.is_finite() {
+            v.clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    };
+    let factor = [unit(kd[0]), unit(kd[1]), unit(kd[2]), unit(d)];
+    let mut warnings = Vec::new();
+    if factor != [kd[0], kd[1], kd[2], d] {
+        warnings.push(format!(
+            "{}: material '{}': Kd {} {} {} and d {} are not all numbers in 0–1; the base colour \
+             is taken as {} {} {} {} (a number clamped into 0–1, one that is not a number as 1)",
+            path.display(),
+            super::escape(&m.name),
+            kd[0],
+            kd[1],
+            kd[2],
+            d,
+            factor[0],
+            factor[1],
+            factor[2],
+            factor[3]
+        ));
+    }
     let mut pbr = json!({
-        "baseColorFactor": [kd[0].clamp(0.0, 1.0), kd[1].clamp(0.0, 1.0), kd[2].clamp(0.0, 1.0), alpha],
+        "baseColorFactor": factor,
         "metallicFactor": 0.0,
         "roughnessFactor": 1.0,
     });
-    let mut warning = None;
     if let Some(map) = m
         .diffuse_texture
         .as_deref()
@@ -1384,20 +1418,18 @@ fn material(
                 textures.push(json!({ "sampler": 0, "source": images.len() - 1 }));
                 pbr["baseColorTexture"] = json!({ "index": textures.len() - 1 });
             }
-            None => {
-                warning = Some(format!(
-                    "{}: material '{}': map_Kd '{}' is not a file in the OBJ's folder (nor is \
-                     its file name); the material keeps its Kd colour",
-                    path.display(),
-                    super::escape(&m.name),
-                    super::escape(&map_file(map).replace('\\', "/"))
-                ))
-            }
+            None => warnings.push(format!(
+                "{}: material '{}': map_Kd '{}' is not a file in the OBJ's folder (nor is \
+                 its file name); the material keeps its Kd colour",
+                path.display(),
+                super::escape(&m.name),
+                super::escape(&map_file(map).replace('\\', "/"))
+            )),
         }
     }
     (
         json!({ "name": m.name, "pbrMetallicRoughness": pbr }),
-        warning,
+        (!warnings.is_empty()).then(|| warnings.join("; ")),
     )
 }
 
@@ -1612,7 +1644,8 @@ pub(super) fn side_files(path: &Path, bytes: &[u8]) -> Vec<std::path::PathBuf> {
             if files.contains(&mtl) {
                 continue;
             }
-            let text = mtl_for_tobj(&std::fs::read(&mtl).unwrap_or_default());
+            let text = super::read_regular_file(&mtl, super::MAX_INPUT_BYTES).unwrap_or_default();
+            let text = mtl_for_tobj(&text);
             files.push(mtl);
             let maps = statements(&text, "map_Kd").into_iter();
             files.extend(maps.filter_map(|map| map_image(path, &map)).map(|(_, f)| f));

@@ -46,7 +46,7 @@
 use glam::{DMat3, DMat4, DQuat, DVec3};
 use serde_json::{json, Map, Value};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::input::asset::Asset;
 use crate::output::pack::Packed;
 
@@ -621,6 +621,9 @@ fn carry_buffers(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) {
     }
 }
 
+/// The image types [`embed_images`] tells by their bytes.
+const SNIFFED: [&str; 4] = ["image/png", "image/jpeg", "image/ktx2", "image/webp"];
+
 /// Embeds every image given by a URI — a file, or a `data:` URI decoded (a GLB's images belong
 /// in its binary chunk: the validator warns `DATA_URI_GLB` otherwise) — as a buffer view of
 /// `bin`; one that cannot be read is an error naming it.
@@ -648,10 +651,20 @@ fn embed_images(asset: &Asset, out: &mut Value, bin: &mut Vec<u8>) -> Result<()>
         } else if bytes.len() > 12 && &bytes[8..12] == b"WEBP" {
             "image/webp"
         } else {
-            image["mimeType"]
-                .as_str()
-                .or(declared)
-                .unwrap_or("application/octet-stream")
+            // a type the bytes do not bear out, or none, would write an invalid file (the
+            // validator rejects it; a `map_Kd` naming a text file did): refused. A declared type
+            // the sniffing above does not know (`image/vnd-ms.dds`) is kept.
+            match image["mimeType"].as_str().or(declared) {
+                Some(m) if !SNIFFED.contains(&m) => m,
+                named => {
+                    let element = format!("image {i} ('{}')", crate::input::escape(uri));
+                    let message = match named {
+                        Some(m) => format!("declared {m}, but its bytes are not one"),
+                        None => "not a PNG, JPEG, KTX2 or WebP image".to_string(),
+                    };
+                    return Err(Error::invalid(&asset.doc.path, element, message));
+                }
+            }
         };
         align(bin);
         let view = out["bufferViews"].as_array().map_or(0, Vec::len);
