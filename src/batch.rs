@@ -170,8 +170,12 @@ pub fn shard_of(name: &str, count: u32) -> u32 {
 }
 
 /// Which shard this process runs: `--shard I/N`, or the index from the environment
-/// (`JOB_COMPLETION_INDEX`; `SLURM_ARRAY_TASK_ID` less `SLURM_ARRAY_TASK_MIN`) with the count
-/// from `--shards N` or `SLURM_ARRAY_TASK_COUNT`; one shard of one otherwise.
+/// (`JOB_COMPLETION_INDEX`, or `SLURM_ARRAY_TASK_ID` itself) with the count from `--shards N`;
+/// one shard of one otherwise. The index is the scheduler's own number, so a partial resubmit
+/// (`sbatch --array=2`, `--array=0-6:2`) runs exactly the shards it names. Slurm's
+/// `SLURM_ARRAY_TASK_COUNT` is the count only for an array of every id from 0 (`MIN` 0, `MAX`
+/// `COUNT − 1`): a partial or strided array counts its tasks, not the shards, so it needs
+/// `--shards`. An index past the count is an error.
 pub fn resolve_shard(
     flag: Option<(u32, u32)>,
     shards: Option<u32>,
@@ -190,11 +194,26 @@ pub fn resolve_shard(
         Some(f) => f,
         None => {
             let k8s = num("JOB_COMPLETION_INDEX")?;
-            let slurm = num("SLURM_ARRAY_TASK_ID")?.map(|id| {
-                id.saturating_sub(num("SLURM_ARRAY_TASK_MIN").ok().flatten().unwrap_or(0))
-            });
+            let slurm = num("SLURM_ARRAY_TASK_ID")?;
             let index = k8s.or(slurm);
-            let count = shards.or(num("SLURM_ARRAY_TASK_COUNT")?);
+            let whole_array = match (
+                num("SLURM_ARRAY_TASK_MIN")?,
+                num("SLURM_ARRAY_TASK_MAX")?,
+                num("SLURM_ARRAY_TASK_COUNT")?,
+            ) {
+                (Some(0), Some(max), Some(n)) if n > 0 && max == n - 1 => Some(n),
+                (min, max, Some(n)) if k8s.is_none() && slurm.is_some() && shards.is_none() => {
+                    let id = |v: Option<u32>| v.map_or("?".to_string(), |v| v.to_string());
+                    return Err(format!(
+                        "this Slurm array runs {n} task(s) of ids {}–{}, not every id from 0: \
+                         give the whole array's size, --shards N",
+                        id(min),
+                        id(max)
+                    ));
+                }
+                _ => None,
+            };
+            let count = shards.or(whole_array.filter(|_| slurm.is_some()));
             match (index, count) {
                 (Some(i), Some(n)) => (i, n),
                 (None, Some(n)) if shards.is_some() => {
@@ -204,7 +223,7 @@ pub fn resolve_shard(
                 }
                 (Some(i), None) => {
                     return Err(format!(
-                        "shard index {i} from the environment needs a count: --shards N (or SLURM_ARRAY_TASK_COUNT)"
+                        "shard index {i} from the environment needs a count: --shards N"
                     ))
                 }
                 _ => (0, 1),
@@ -462,13 +481,34 @@ mod tests {
             resolve_shard(None, None, k8s).is_err(),
             "an index without a count"
         );
-        let slurm = |k: &str| match k {
-            "SLURM_ARRAY_TASK_ID" => Some("12".into()),
-            "SLURM_ARRAY_TASK_MIN" => Some("10".into()),
-            "SLURM_ARRAY_TASK_COUNT" => Some("4".into()),
-            _ => None,
+        // `sbatch --array=ID[-MAX[:STEP]]` as Slurm sets it
+        let array = |id: u32, min: u32, max: u32, count: u32| {
+            move |k: &str| match k {
+                "SLURM_ARRAY_TASK_ID" => Some(id.to_string()),
+                "SLURM_ARRAY_TASK_MIN" => Some(min.to_string()),
+                "SLURM_ARRAY_TASK_MAX" => Some(max.to_string()),
+                "SLURM_ARRAY_TASK_COUNT" => Some(count.to_string()),
+                _ => None,
+            }
         };
-        assert_eq!(resolve_shard(None, None, slurm), Ok((2, 4)));
+        // the whole array 0-15: the index and the count are Slurm's
+        assert_eq!(resolve_shard(None, None, array(3, 0, 15, 16)), Ok((3, 16)));
+        // resubmitting part of it runs the shards named, of the whole array's count
+        assert_eq!(
+            resolve_shard(None, Some(16), array(2, 2, 2, 1)),
+            Ok((2, 16))
+        );
+        assert_eq!(
+            resolve_shard(None, Some(16), array(4, 0, 6, 4)),
+            Ok((4, 16))
+        );
+        // without the count they would have run shard 0 of 1, or 2 of 4: refused
+        for partial in [array(2, 2, 2, 1), array(4, 0, 6, 4), array(12, 10, 13, 4)] {
+            let e = resolve_shard(None, None, partial).unwrap_err();
+            assert!(e.contains("--shards N"), "{e}");
+        }
+        // an id past the count (an array 0-16 for 16 shards)
+        assert!(resolve_shard(None, Some(16), array(16, 0, 16, 17)).is_err());
         assert!(resolve_shard(Some((4, 4)), None, none).is_err());
         assert_eq!(parse_shard("1/3"), Ok((1, 3)));
         assert!(parse_shard("3/3").is_err() && parse_shard("x").is_err());

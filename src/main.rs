@@ -928,6 +928,13 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
 }
 
 fn main() -> ExitCode {
+    // output piped into a reader that stops early (`shellbake batch --merge … | head -1`) ends
+    // the process quietly, as a Unix tool does, where a write to the closed pipe panicked
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread starts
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Bake(args) => bake(args),

@@ -126,6 +126,27 @@ fn shards_bake_the_same_bytes_skip_what_is_done_and_resume() {
     }
     let (code, _) = run(&[&m, "--out", &common::path_str(&three), "--merge"]);
     assert_eq!(code, Some(1), "the merge reports the failures");
+    // its summary into a reader that has stopped (`… | head -1`): the process ends quietly,
+    // where the write to the closed pipe panicked
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let piped = Command::new(env!("CARGO_BIN_EXE_shellbake"))
+        .args(["batch", &m, "--out", &common::path_str(&three), "--merge"])
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&piped.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    // an --out that is a file is named
+    let file = dir.join("a-file");
+    std::fs::write(&file, b"").unwrap();
+    let (code, err) = run(&[&m, "--out", &common::path_str(&file)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("a-file") && err.contains("output folder"),
+        "{err}"
+    );
     let merged: Merged =
         serde_json::from_slice(&std::fs::read(three.join("batch-report.json")).unwrap()).unwrap();
     assert!(

@@ -26,7 +26,8 @@ pub struct BatchArgs {
     pub manifest: PathBuf,
     /// This process's shard, `I/N` (0-based). Without it: the index from `JOB_COMPLETION_INDEX`
     /// (Kubernetes Indexed Job) or `SLURM_ARRAY_TASK_ID` (Slurm array), the count from
-    /// `--shards` or `SLURM_ARRAY_TASK_COUNT`; one shard otherwise.
+    /// `--shards` (or `SLURM_ARRAY_TASK_COUNT` for a whole array of ids 0 to N − 1); one shard
+    /// otherwise.
     #[arg(long, value_parser = batch::parse_shard, conflicts_with = "shards")]
     pub shard: Option<(u32, u32)>,
     /// Shard count when the index comes from the environment.
@@ -58,7 +59,12 @@ pub fn run(args: &BatchArgs) -> anyhow::Result<bool> {
     let (shard, shards) =
         batch::resolve_shard(args.shard, args.shards, env).map_err(anyhow::Error::msg)?;
     let assets = manifest.shard(shard, shards);
-    std::fs::create_dir_all(&args.out)?;
+    std::fs::create_dir_all(&args.out).map_err(|e| {
+        anyhow::anyhow!(
+            "--out {}: cannot make the output folder: {e}",
+            args.out.display()
+        )
+    })?;
     let start = Instant::now();
     let bar = indicatif::ProgressBar::new(assets.len() as u64);
     if args.quiet {
@@ -277,7 +283,10 @@ fn inputs_of(input: &Path, scene: &shellbake::scene::SceneFile) -> Vec<PathBuf> 
 /// `--merge`: joins the shard results of one shard count in `--out`.
 fn merge(args: &BatchArgs, manifest: &Manifest) -> anyhow::Result<bool> {
     let mut results: Vec<ShardResult> = Vec::new();
-    for entry in std::fs::read_dir(&args.out)? {
+    let entries = std::fs::read_dir(&args.out).map_err(|e| {
+        anyhow::anyhow!("--out {}: cannot read the folder: {e}", args.out.display())
+    })?;
+    for entry in entries {
         let path = entry?.path();
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
         if !(name.starts_with("shard-") && name.ends_with(".json")) {
