@@ -593,7 +593,14 @@ fn load_parts_of(
                 )
             })
             .collect();
-        let why = if asset.parts.is_empty() {
+        let baked = (asset.doc.json["nodes"].as_array().into_iter().flatten()).any(|n| {
+            n["extras"].get("shellbake").is_some() || n["extras"].get("shellbake_fur").is_some()
+        });
+        let why = if asset.parts.is_empty() && baked {
+            "it is a file shellbake baked, and holds nothing but its fur (nodes marked \
+             `extras.shellbake`): bake the mesh or the asset it was made from"
+                .to_string()
+        } else if asset.parts.is_empty() {
             "no triangle primitive has a triangle with an area (every triangle collapses, or \
              there are none)"
                 .to_string()

@@ -853,3 +853,33 @@ fn a_text_file_as_an_image_is_refused_naming_it() {
     );
     assert!(!out.exists(), "nothing written");
 }
+
+/// Baking a plain bake's own output again said "no triangle primitive has a triangle with an
+/// area": it says what the file is.
+#[test]
+fn a_plain_bake_baked_again_is_named_as_one() {
+    let dir = scratch("hostile_rebake");
+    let first = dir.join("first.glb");
+    let bunny = fixture("bunny.obj");
+    let (code, _, err) = shellbake_within_a_minute(&[
+        "bake",
+        bunny.to_str().unwrap(),
+        "-o",
+        first.to_str().unwrap(),
+        "-q",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let again = dir.join("again.glb");
+    let (code, _, err) = shellbake_within_a_minute(&[
+        "bake",
+        first.to_str().unwrap(),
+        "-o",
+        again.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("first.glb") && err.contains("a file shellbake baked"),
+        "{err}"
+    );
+    assert!(!again.exists());
+}
