@@ -883,3 +883,50 @@ fn a_plain_bake_baked_again_is_named_as_one() {
     );
     assert!(!again.exists());
 }
+
+/// A file of a few hundred bytes whose meshopt fallback buffer "decodes" to gigabytes: a
+/// compressed normal view declaring 5·10⁸ vertices from 16 bytes aborted the process on a
+/// 12.9 GB allocation; a plain view inside the fallback buffer (which holds no data) read as
+/// many zeros as it declared. Both are refused, naming the view, before anything is allocated.
+#[test]
+fn meshopt_fallback_bombs_are_refused_before_allocating() {
+    let dir = scratch("hostile_meshopt_bomb");
+    for (case, view) in [
+        (
+            "compressed",
+            json!({"buffer": 1, "byteLength": 2_000_000_000u64, "byteStride": 4,
+                   "extensions": {"EXT_meshopt_compression": {"buffer": 2, "byteLength": 16,
+                       "byteStride": 4, "count": 500_000_000u64, "mode": "ATTRIBUTES"}}}),
+        ),
+        (
+            "plain",
+            json!({"buffer": 1, "byteLength": 2_000_000_000u64, "byteStride": 4}),
+        ),
+    ] {
+        let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+        g["buffers"].as_array_mut().unwrap().extend([
+            json!({"byteLength": 2_000_000_000u64,
+                       "extensions": {"EXT_meshopt_compression": {"fallback": true}}}),
+            json!({"uri": data_uri(&[0u8; 16]), "byteLength": 16}),
+        ]);
+        g["bufferViews"].as_array_mut().unwrap().push(view);
+        g["accessors"].as_array_mut().unwrap().push(json!({
+            "bufferView": 1, "componentType": 5120, "normalized": true,
+            "count": 500_000_000u64, "type": "VEC3"}));
+        g["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = json!(1);
+        g["extensionsUsed"] = json!(["EXT_meshopt_compression"]);
+        g["extensionsRequired"] = json!(["EXT_meshopt_compression"]);
+        let input = dir.join(format!("{case}.gltf"));
+        let text = g.to_string();
+        assert!(text.len() < 2000, "{case}: {} bytes", text.len());
+        std::fs::write(&input, text).unwrap();
+        let e = load(&input).unwrap_err().to_string();
+        assert!(e.contains("buffer view 1"), "{case}: {e}");
+        let says = if case == "compressed" {
+            "more than any meshopt codec writes"
+        } else {
+            "holds no data"
+        };
+        assert!(e.contains(says), "{case}: {e}");
+    }
+}

@@ -97,6 +97,17 @@ const MESHOPT: [&str; 2] = ["EXT_meshopt_compression", "KHR_meshopt_compression"
 /// Most bytes the fallback buffers of one file may decode to.
 pub const MAX_DECODED_BYTES: usize = 1 << 31;
 
+/// Most bytes a meshopt-compressed view may decode to per compressed byte, beyond
+/// [`MESHOPT_SLACK`]: twice the codecs' best case (the vertex codec's version 1 marks a byte
+/// channel of a whole block all zero with two bits of a control byte: a block of 256 vertices
+/// of stride 8 in two bytes, 1 024 decoded bytes a byte; our own extrusion deltas reach 265),
+/// so a count no codec could have written is refused before anything is allocated for it (an
+/// 822-byte file declared a normal view of 5·10⁸ vertices and aborted on 12.9 GB).
+pub const MESHOPT_RATIO: usize = 2048;
+
+/// Decoded bytes any compressed view may have besides [`MESHOPT_RATIO`]'s (headers, tails).
+pub const MESHOPT_SLACK: usize = 1 << 16;
+
 /// Deepest node hierarchy walked; deeper is refused.
 pub const MAX_DEPTH: usize = 256;
 
@@ -962,6 +973,7 @@ impl Document {
 
     /// The bytes of every buffer, each cut to its `byteLength` (see the module doc).
     pub fn load_buffers(&self) -> Result<Vec<Vec<u8>>> {
+        self.check_compressed_views()?;
         let mut out = Vec::with_capacity(self.buffers.len());
         let mut decoded = 0usize;
         for (i, buffer) in self.buffers.iter().enumerate() {
@@ -1012,6 +1024,39 @@ impl Document {
         }
         self.decode_meshopt(&mut out)?;
         Ok(out)
+    }
+
+    /// Every view into a fallback buffer is compressed (the buffer holds no bytes of its own:
+    /// a plain view there would read as many zeros as it declares), and no compressed view
+    /// declares more decoded bytes than its compressed bytes could hold ([`MESHOPT_RATIO`]).
+    fn check_compressed_views(&self) -> Result<()> {
+        for (i, view) in self.views.iter().enumerate() {
+            let element = format!("buffer view {i}");
+            let bad = |message: String| Error::invalid(&self.path, &element, message);
+            let fallback = self.buffers.get(view.buffer).is_some_and(|b| b.fallback);
+            match &view.meshopt {
+                None if fallback => {
+                    return Err(bad(format!(
+                        "lies in meshopt fallback buffer {}, which holds no data, and is not \
+                         compressed",
+                        view.buffer
+                    )))
+                }
+                None => {}
+                Some(m) => {
+                    let n = m.count.saturating_mul(m.byte_stride);
+                    let most = m.byte_length.saturating_mul(MESHOPT_RATIO) + MESHOPT_SLACK;
+                    if n > most {
+                        return Err(bad(format!(
+                            "declares {} elements of {} bytes ({n} bytes) from {} compressed \
+                             bytes: more than any meshopt codec writes (at most {most}; refused)",
+                            m.count, m.byte_stride, m.byte_length
+                        )));
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Decodes every compressed view into its place (see [`crate::output::compress`]).
