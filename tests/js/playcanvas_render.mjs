@@ -6,7 +6,9 @@
 //                           "near": n, "far": f },
 //               "light": { "direction": [x,y,z] (towards the light), "intensity": i },
 //               "ambient": a, "background": [r,g,b] (linear),
-//               "timeout_s": s (optional, default 120: the most one job may take) }, ...]
+//               "timeout_s": s (optional, default 120: the most one job may take),
+//               "opacity_from_vertex_alpha": true (optional, NOT stock: what a PlayCanvas user must
+//                       add before COLOR_0's alpha reaches the alpha test; see below) }, ...]
 // The keys only three.js's page knows (`camera.auto`, `msft_lod`, `time`, `hide_fur`) are
 // ignored. Light, ambient and background mean what they mean to three_render.mjs, and the page
 // turns them into PlayCanvas's terms so that both engines light a surface alike: three.js's
@@ -19,7 +21,16 @@
 // `asset.resource.instantiateRenderEntity()` added to the root (every scene of the file, as
 // PlayCanvas instantiates them), a camera entity (vertical field of view, as the job's), a
 // directional light; one frame drawn with preserveDrawingBuffer and read back once PlayCanvas has
-// ended a frame that held the entity.
+// ended a frame that held the entity. One application serves consecutive jobs of one size (a
+// fresh one per job spent most of its time compiling the same shaders again on SwiftShader): after
+// each job its entity, camera and light are destroyed and its asset unloaded and removed, and the
+// pictures are the same to the byte as with an application per job. A job that fails destroys
+// the application; the next job makes a new one.
+// `opacity_from_vertex_alpha` sets `opacityVertexColor` (channel `a`) on every material of the
+// file before it is instantiated. glTF multiplies the base colour's alpha by COLOR_0's alpha
+// before the alpha test; PlayCanvas's glb-parser (`createMaterial`) turns on
+// `diffuseVertexColor` and `specularVertexColor` only (rgb), so stock PlayCanvas alpha-tests
+// the texture's alpha alone. The key is a diagnosis, not how PlayCanvas loads a file.
 // Prints one JSON line per job: { png, ok, meshInstances (mesh instances of the render components
 // under the instantiated entity), drawCalls (PlayCanvas's count for the first of the two frames),
 // error (when not ok) }; exits 1 if any job failed, with the errors on stderr.
@@ -46,27 +57,50 @@ const step = (what, promise, deadline) => Promise.race([promise, new Promise((_,
   setTimeout(() => fail(new Error('timed out after ' + deadline.total / 1000 + ' s waiting for ' + what)),
     Math.max(0, deadline.at - performance.now()));
 })]);
-window.renderJob = async (job, url) => {
-  const deadline = { total: (job.timeout_s ?? 120) * 1000 };
-  deadline.at = performance.now() + deadline.total;
+// The application of the jobs so far ({ app, canvas, width, height }), or null.
+let kept = null;
+const application = (job) => {
+  if (kept && (kept.width !== job.width || kept.height !== job.height)) {
+    kept.app.destroy();
+    kept = null;
+  }
+  if (kept) return kept;
   const canvas = document.createElement('canvas');
   canvas.width = job.width; canvas.height = job.height;
   document.body.replaceChildren(canvas);
   const app = new pc.Application(canvas, {
     graphicsDeviceOptions: { antialias: false, preserveDrawingBuffer: true, alpha: false },
   });
+  kept = { app, canvas, width: job.width, height: job.height };
+  if (!app.graphicsDevice.isWebGL2) throw new Error('PlayCanvas did not get a WebGL 2 device');
+  app.graphicsDevice.maxPixelRatio = 1;
+  app.setCanvasFillMode(pc.FILLMODE_NONE, job.width, job.height);
+  app.setCanvasResolution(pc.RESOLUTION_FIXED, job.width, job.height);
+  app.start();
+  return kept;
+};
+window.renderJob = async (job, url) => {
+  const deadline = { total: (job.timeout_s ?? 120) * 1000 };
+  deadline.at = performance.now() + deadline.total;
+  // what this job added to the application, taken away after it
+  const added = [];
+  let asset = null;
+  let failed = true;
   try {
-    if (!app.graphicsDevice.isWebGL2) throw new Error('PlayCanvas did not get a WebGL 2 device');
-    app.graphicsDevice.maxPixelRatio = 1;
-    app.setCanvasFillMode(pc.FILLMODE_NONE, job.width, job.height);
-    app.setCanvasResolution(pc.RESOLUTION_FIXED, job.width, job.height);
-    app.start();
-
-    const asset = await step('the container asset to load', new Promise((done, fail) => {
+    const { app, canvas } = application(job);
+    asset = await step('the container asset to load', new Promise((done, fail) => {
       app.assets.loadFromUrl(url, 'container', (err, a) => (err ? fail(new Error('loading: ' + err)) : done(a)));
     }), deadline);
+    if (job.opacity_from_vertex_alpha) {
+      for (const m of asset.resource.materials) {
+        m.resource.opacityVertexColor = true;
+        m.resource.opacityVertexColorChannel = 'a';
+        m.resource.update();
+      }
+    }
     const entity = asset.resource.instantiateRenderEntity();
     app.root.addChild(entity);
+    added.push(entity);
     const meshInstances = entity.findComponents('render').reduce((n, r) => n + r.meshInstances.length, 0);
 
     const c = job.camera;
@@ -81,6 +115,7 @@ window.renderJob = async (job, url) => {
     camera.setPosition(...c.eye);
     camera.lookAt(new pc.Vec3(...c.target), new pc.Vec3(...c.up));
     app.root.addChild(camera);
+    added.push(camera);
 
     // A directional light shines down its entity's -Y: turn +Y towards the light.
     const d = new pc.Vec3(...job.light.direction).normalize();
@@ -90,6 +125,7 @@ window.renderJob = async (job, url) => {
     sun.light.color = linear(i, i, i);
     sun.setRotation(new pc.Quat().setFromDirections(pc.Vec3.UP, d));
     app.root.addChild(sun);
+    added.push(sun);
     const y = sun.getWorldTransform().getY(new pc.Vec3()).normalize();
     if (y.distance(d) > 1e-4) throw new Error('light placed wrong: +Y ' + y + ' for ' + d);
     const a = job.ambient / Math.PI;
@@ -107,9 +143,19 @@ window.renderJob = async (job, url) => {
       app.on('frameend', onEnd);
     }), deadline);
     const data = canvas.toDataURL('image/png');
+    failed = false;
     return { data, meshInstances, ...stats };
   } finally {
-    app.destroy();
+    for (const e of added) e.destroy();
+    if (asset) {
+      const registry = asset.registry;
+      asset.unload();
+      registry?.remove(asset);
+    }
+    if (failed && kept) {
+      kept.app.destroy();
+      kept = null;
+    }
   }
 };
 window.ready = true;
