@@ -593,9 +593,8 @@ fn load_parts_of(
                 )
             })
             .collect();
-        let baked = (asset.doc.json["nodes"].as_array().into_iter().flatten()).any(|n| {
-            n["extras"].get("shellbake").is_some() || n["extras"].get("shellbake_fur").is_some()
-        });
+        let nodes = asset.doc.json["nodes"].as_array().map_or(0, Vec::len);
+        let baked = (0..nodes).any(|n| shellbake::input::asset::is_fur_node(&asset.doc.json, n));
         let why = if asset.parts.is_empty() && baked {
             "it is a file shellbake baked, and holds nothing but its fur (nodes marked \
              `extras.shellbake`): bake the mesh or the asset it was made from"
