@@ -9,6 +9,8 @@
 #    and the compression benchmark compares with.
 #  - Blender as a Python module (PyPI `bpy`), which tests/asset.rs imports a furred asset into
 #    and renders with Cycles.
+#  - Bevy's glTF loader (crates.io `bevy` 0.19.1, no renderer), built into tests/bevy/target as
+#    the probe tests/bevy.rs runs: about 4 minutes of 2 cores the first time, nothing after.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -47,3 +49,7 @@ if ! python3 -c "import bpy" >/dev/null 2>&1; then
   echo "setup: installing Blender as a Python module (bpy)"
   python3 -m pip install --quiet --disable-pip-version-check bpy==5.0.1
 fi
+
+# cargo does nothing when the probe is up to date
+echo "setup: building Bevy's glTF loader probe (tests/bevy)"
+cargo build --locked --quiet --manifest-path tests/bevy/Cargo.toml
