@@ -71,6 +71,12 @@ pub struct Manifest {
     pub dir: PathBuf,
 }
 
+/// The largest manifest read: a million assets' lines.
+pub const MANIFEST_BYTES: u64 = 256 << 20;
+
+/// The largest `.key` record read (one key and a size: under 200 bytes).
+const KEY_RECORD_BYTES: u64 = 4 << 10;
+
 /// Flags an asset may not set.
 const OWNED_FLAGS: [&str; 3] = ["-o", "--output", "--report"];
 
@@ -86,7 +92,12 @@ fn manifest_error(path: &Path, key: String, message: String) -> Error {
 impl Manifest {
     /// Reads and checks the manifest at `path`.
     pub fn read(path: &Path) -> Result<Manifest> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        // a regular file (never a FIFO or a device, which would hang or never end) of at most
+        // MANIFEST_BYTES
+        let bytes = crate::input::read_regular_file(path, MANIFEST_BYTES)
+            .map_err(|e| Error::io(path, e))?;
+        let text = String::from_utf8(bytes)
+            .map_err(|_| manifest_error(path, "manifest".into(), "not UTF-8 text".into()))?;
         Manifest::parse(path, &text)
     }
 
@@ -283,10 +294,11 @@ pub fn key_path(glb: &Path) -> PathBuf {
 /// Whether output `glb` is up to date with `key`: its record holds the key and the file has
 /// the recorded size.
 pub fn up_to_date(glb: &Path, key: &str) -> bool {
-    let Ok(text) = std::fs::read_to_string(key_path(glb)) else {
+    // a record that is not a small regular file (a FIFO, a device) is no record
+    let Ok(bytes) = crate::input::read_regular_file(&key_path(glb), KEY_RECORD_BYTES) else {
         return false;
     };
-    let Ok(record) = serde_json::from_str::<KeyRecord>(&text) else {
+    let Ok(record) = serde_json::from_slice::<KeyRecord>(&bytes) else {
         return false;
     };
     record.key == key && std::fs::metadata(glb).is_ok_and(|m| m.len() == record.bytes)

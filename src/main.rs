@@ -531,21 +531,32 @@ fn check_loaded(
     let mut estimate = 0u64;
     for (surface, l) in scene.surfaces.iter().zip(loaded) {
         shellbake::check_bakeable(&l.scene, &surface.mesh)?;
-        estimate += surface.params.estimate_bytes(&l.scene);
-        estimate += surface.params.estimate_extra_bytes(
+        let mut bytes = surface.params.estimate_bytes(&l.scene);
+        bytes += surface.params.estimate_extra_bytes(
             &l.scene,
             surface.asks(Effect::Fins),
             surface.asks(Effect::Outline),
         );
         let clips = l.part.as_ref().map_or((0, 0), |p| p.shape_key_clips);
         let wind = surface.asks(Effect::Wind);
-        estimate += (surface.params).estimate_animation_bytes(&l.scene, wind, clips);
+        bytes += (surface.params).estimate_animation_bytes(&l.scene, wind, clips);
         let copies = l
             .part
             .as_ref()
             .map_or(0, |p| p.instances.saturating_sub(1) as u64);
         let copy = (surface.params).estimate_copy_bytes(&l.scene, wind as u64 + clips.0);
-        estimate = estimate.saturating_add(copies.saturating_mul(copy));
+        bytes = bytes.saturating_add(copies.saturating_mul(copy));
+        // tessellation cuts every triangle into factor² before anything is packed; every term
+        // above grows at most linearly with the triangles, so the factor² bounds the whole
+        if surface.asks(Effect::Tessellation) {
+            let tess = &surface.params.tessellation;
+            let factor = (l.scene.meshes.iter())
+                .map(|m| tess.factor_for(m) as u64)
+                .max()
+                .unwrap_or(1);
+            bytes = bytes.saturating_mul(factor * factor);
+        }
+        estimate = estimate.saturating_add(bytes);
     }
     if estimate > args.max_output {
         anyhow::bail!(

@@ -930,3 +930,126 @@ fn meshopt_fallback_bombs_are_refused_before_allocating() {
         assert!(e.contains(says), "{case}: {e}");
     }
 }
+
+/// `batch` touches no FIFO and no device, in any path it reads: the manifest (a FIFO, a link to
+/// `/dev/zero`), an asset input that is a FIFO, an output's `.key` record that is a FIFO, and a
+/// shard result that links to `/dev/zero` (each hung batch or read until memory ran out). Every
+/// one is refused at once, its error naming the path.
+#[cfg(unix)]
+#[test]
+fn batch_reads_no_fifo_and_no_device() {
+    let dir = scratch("hostile_batch_fifo");
+    let mkfifo = |p: &Path| {
+        let _ = std::fs::remove_file(p);
+        assert!(std::process::Command::new("mkfifo")
+            .arg(p)
+            .status()
+            .unwrap()
+            .success());
+    };
+    let link = |to: &str, p: &Path| {
+        let _ = std::fs::remove_file(p);
+        std::os::unix::fs::symlink(to, p).unwrap();
+    };
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let out = dir.join("out");
+    let _ = std::fs::remove_dir_all(&out);
+
+    // the manifest itself
+    for (name, fifo) in [("fifo.toml", true), ("zero.toml", false)] {
+        let m = dir.join(name);
+        if fifo {
+            mkfifo(&m);
+        } else {
+            link("/dev/zero", &m);
+        }
+        let (code, _, err) = shellbake_within_a_minute(&["batch", &s(&m), "--out", &s(&out)]);
+        assert_ne!(code, Some(0), "{err}");
+        assert!(
+            err.contains(name) && err.contains("not a regular file"),
+            "{name}: {err}"
+        );
+    }
+
+    // an asset that is a FIFO, and one whose output's key record is a FIFO
+    std::fs::write(dir.join("good.obj"), TRIANGLE_OBJ).unwrap();
+    mkfifo(&dir.join("pipe.obj"));
+    let manifest = dir.join("manifest.toml");
+    std::fs::write(
+        &manifest,
+        "[[asset]]\nname = \"good\"\ninput = \"good.obj\"\n\n\
+         [[asset]]\nname = \"pipe\"\ninput = \"pipe.obj\"\n",
+    )
+    .unwrap();
+    std::fs::create_dir_all(&out).unwrap();
+    mkfifo(&out.join("good.glb.key"));
+    let (code, _, err) = shellbake_within_a_minute(&["batch", &s(&manifest), "--out", &s(&out)]);
+    assert_eq!(code, Some(1), "the FIFO asset fails the run: {err}");
+    assert!(
+        err.contains("pipe.obj") && err.contains("not a regular file"),
+        "{err}"
+    );
+    // the record is an output too: a FIFO there is refused, named, before anything is read
+    assert!(
+        err.contains("good.glb.key") && err.contains("not a regular file"),
+        "{err}"
+    );
+    assert!(!out.join("good.glb").exists(), "{err}");
+
+    // a shard result that links to /dev/zero
+    link("/dev/zero", &out.join("shard-0-of-1.json"));
+    let (code, _, err) =
+        shellbake_within_a_minute(&["batch", &s(&manifest), "--out", &s(&out), "--merge"]);
+    assert_ne!(code, Some(0), "{err}");
+    assert!(
+        err.contains("shard-0-of-1.json") && err.contains("not a regular file"),
+        "{err}"
+    );
+}
+
+/// `--max-output` holds under tessellation: the size estimate counts the triangles the
+/// tessellation makes (factor² per triangle), where it counted the input's and a 5 MiB limit
+/// let a 34.5 MB file through.
+#[test]
+fn max_output_holds_under_tessellation() {
+    let dir = scratch("hostile_tessellation_output");
+    // the bunny, every triangle cut into 16
+    let obj = fixture("bunny.obj");
+    let out = dir.join("bunny.glb");
+    let _ = std::fs::remove_file(&out);
+    let args = |limit: &str| -> Vec<String> {
+        [
+            "bake",
+            obj.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "-q",
+            "--tessellate",
+            "--set",
+            "tessellation.factor=4",
+            "--max-output",
+            limit,
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let unlimited = args("4000000000");
+    let (code, _, err) =
+        shellbake_within_a_minute(&unlimited.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(code, Some(0), "{err}");
+    let written = std::fs::metadata(&out).unwrap().len();
+    std::fs::remove_file(&out).unwrap();
+    // a limit a byte under the file it would write is refused before anything is written (the
+    // untessellated estimate, 0.86 MB, let the 1.4 MB file through)
+    let limit = (written - 1).to_string();
+    let limited = args(&limit);
+    let (code, _, err) =
+        shellbake_within_a_minute(&limited.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_ne!(
+        code,
+        Some(0),
+        "a {written}-byte file under a {limit}-byte limit"
+    );
+    assert!(err.contains("--max-output"), "{err}");
+    assert!(!out.exists(), "nothing is written");
+}

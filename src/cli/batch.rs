@@ -198,7 +198,10 @@ fn bake_one(manifest: &Manifest, asset: &batch::Asset, glb: &Path) -> Outcome {
     }
     let mut bytes = Vec::with_capacity(files.len());
     for f in &files {
-        let read = std::fs::read(f).map_err(|e| anyhow::anyhow!("{}: {e}", f.display()));
+        // as the bake reads them: regular files under the input limit (a FIFO or a device
+        // would hang the key or never end)
+        let read = shellbake::input::read_regular_file(f, shellbake::input::MAX_INPUT_BYTES)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", f.display()));
         bytes.push(read.map_err(no_key)?);
     }
     let key = batch::content_key(env!("CARGO_PKG_VERSION"), &settings, &bytes);
@@ -280,6 +283,9 @@ fn inputs_of(input: &Path, scene: &shellbake::scene::SceneFile) -> Vec<PathBuf> 
     files
 }
 
+/// The largest shard result read: a manifest's worth of asset lines.
+const SHARD_RESULT_BYTES: u64 = batch::MANIFEST_BYTES;
+
 /// `--merge`: joins the shard results of one shard count in `--out`.
 fn merge(args: &BatchArgs, manifest: &Manifest) -> anyhow::Result<bool> {
     let mut results: Vec<ShardResult> = Vec::new();
@@ -292,8 +298,10 @@ fn merge(args: &BatchArgs, manifest: &Manifest) -> anyhow::Result<bool> {
         if !(name.starts_with("shard-") && name.ends_with(".json")) {
             continue;
         }
-        let text = std::fs::read_to_string(&path)?;
-        let r: ShardResult = serde_json::from_str(&text)
+        // a shard result is a small regular file: a FIFO or a link to a device is refused
+        let bytes = shellbake::input::read_regular_file(&path, SHARD_RESULT_BYTES)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let r: ShardResult = serde_json::from_slice(&bytes)
             .map_err(|e| anyhow::anyhow!("{}: not a shard result: {e}", path.display()))?;
         results.push(r);
     }

@@ -409,7 +409,8 @@ impl Asset {
                 .collect::<Vec<_>>()
         };
         let buffers = uris("buffers").into_iter();
-        let buffers = buffers.filter_map(|u| super::document::confined_path(path, &u));
+        // resolved as the reader resolves them: a link out of the folder is left out, unread
+        let buffers = buffers.filter_map(|u| super::document::confined_file(path, &u));
         let images = uris("images").into_iter();
         let images = images.filter_map(|u| super::document::confined_file(path, &u));
         buffers.chain(images).collect()

@@ -106,7 +106,7 @@ pub(crate) fn escape(s: &str) -> String {
 /// is opened with `O_NONBLOCK` (so the open returns at once, writer or not) and refused by that
 /// second check, and `O_NOCTTY` keeps a terminal swapped in from becoming the process's. The read
 /// itself stops past `limit`.
-pub(crate) fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+pub fn read_regular_file(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
     use std::io::{Error as IoError, ErrorKind, Read};
     let refuse = |m: String| IoError::new(ErrorKind::InvalidInput, m);
     let not_regular = || refuse("not a regular file; refused".into());
