@@ -27,6 +27,13 @@
 //! for a target that cannot read it, which is refused. The summary names the target and the
 //! engines it is for.
 //!
+//! Where sheen is not read it is left off, not folded into the base colour: the extension's
+//! sheen is a rim light (the Charlie lobe, strongest at grazing angles, `effects::sheen`) whose
+//! energy averaged over directions is `E · sheenColor`, under a tenth of the tips' colour
+//! (`E` = 0.157, the fur preset's tip colour at most 0.55); a constant tint would spread that
+//! tenth over the faces seen head-on, where the runtime technique draws none of it, and darken
+//! nothing at the rim where it does.
+//!
 //! The default is `web`: it is the smallest file with its levels of detail (the bunny: 218 kB;
 //! `bevy`, floats and LOD 0 only, 211 kB; `playcanvas` 166 kB without the levels; single-draw
 //! 3.3 MB quantized for `unreal`, 4.6 MB in floats for `godot` and `portable`: every layer's
