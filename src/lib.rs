@@ -248,6 +248,8 @@ pub fn asset_scene_of(
     };
     let mut loaded = Vec::new();
     let sizes = character_sizes(asset, chosen);
+    let bare_parts = bare_parts(asset, chosen);
+    let mut taken_names = std::collections::HashSet::new();
     for (&(i, k), &shared) in chosen.iter().zip(&sizes) {
         let surface = &template.surfaces[k];
         let start = Instant::now();
@@ -259,7 +261,7 @@ pub fn asset_scene_of(
         }
         let stem = name.clone();
         let mut k = 1;
-        while names.iter().any(|n| n.eq_ignore_ascii_case(&name)) {
+        while !taken_names.insert(name.to_ascii_lowercase()) {
             k += 1;
             name = format!("{stem}_{k}");
         }
@@ -328,7 +330,7 @@ pub fn asset_scene_of(
         };
         let slope = s.params.clamp.bare_slope.max(f32::MIN_POSITIVE);
         let reach = s.params.resolved_height(size) as f64 / slope as f64;
-        let bare = bare_near(asset, chosen, i, reach);
+        let bare = bare_near(asset, &bare_parts, i, reach);
         let maps = surface_maps(&s, &geometry)?;
         scene.surfaces.push(s);
         loaded.push(Loaded {
@@ -378,13 +380,34 @@ fn character_sizes(asset: &input::asset::Asset, chosen: &[(usize, usize)]) -> Ve
     chosen.iter().map(size).collect()
 }
 
-/// The triangles of the parts of `asset` that no surface chose (and that carry no fur of an
-/// earlier bake) within `reach` of part `i`'s box, in part `i`'s frame: the same skin's bind
-/// space for a skinned part, world space for a rigid one (parts of another frame are left out:
-/// their rest places are not comparable).
-fn bare_near(
+/// The parts of `asset` that no surface chose (and that carry no fur of an earlier bake), each
+/// with its skin and world box: what [`bare_near`] looks through, found once for every chosen
+/// part (found again per part, with the chosen list searched for each, 3 000 one-triangle parts
+/// took cubic time).
+fn bare_parts(
     asset: &input::asset::Asset,
     chosen: &[(usize, usize)],
+) -> Vec<(usize, glam::DVec3, glam::DVec3)> {
+    let mut taken = vec![false; asset.parts.len()];
+    for c in chosen {
+        taken[c.0] = true;
+    }
+    (asset.parts.iter().enumerate())
+        .filter(|(j, other)| !other.furred && !taken[*j])
+        .map(|(j, other)| {
+            let (lo, hi) = other.scene.world_bounds();
+            (j, lo, hi)
+        })
+        .collect()
+}
+
+/// The triangles of the [`bare_parts`] within `reach` of part `i`'s box, in part `i`'s frame:
+/// the same skin's bind space for a skinned part, world space for a rigid one (parts of another
+/// frame are left out: their rest places are not comparable). A part whose box is out of reach
+/// is passed over without looking at its triangles.
+fn bare_near(
+    asset: &input::asset::Asset,
+    bare_parts: &[(usize, glam::DVec3, glam::DVec3)],
     i: usize,
     reach: f64,
 ) -> Vec<[glam::DVec3; 3]> {
@@ -395,8 +418,13 @@ fn bare_near(
     }
     let (lo, hi) = (lo - reach, hi + reach);
     let mut bare = Vec::new();
-    for (j, other) in asset.parts.iter().enumerate() {
-        if other.skin != part.skin || other.furred || chosen.iter().any(|c| c.0 == j) {
+    for &(j, other_lo, other_hi) in bare_parts {
+        let other = &asset.parts[j];
+        // a box that is not finite is looked through triangle by triangle, as before
+        let apart = other_lo.is_finite()
+            && other_hi.is_finite()
+            && !(other_lo.cmple(hi).all() && other_hi.cmpge(lo).all());
+        if other.skin != part.skin || apart {
             continue;
         }
         for m in &other.scene.meshes {
@@ -515,7 +543,11 @@ pub fn bake_asset(
             .warnings
             .extend(more_influences(asset, i, describe(i)));
     }
-    for i in (0..asset.parts.len()).filter(|i| !chosen.contains(i)) {
+    let mut furred = vec![false; asset.parts.len()];
+    for &i in chosen {
+        furred[i] = true;
+    }
+    for i in (0..asset.parts.len()).filter(|&i| !furred[i]) {
         let why = if asset.parts[i].furred {
             "carries shellbake fur already"
         } else {
@@ -896,12 +928,19 @@ fn run_plan(
     let glb = write::glb_of_packed_with(&json, bin_len, &packed, &compressed);
     let write_ms = write_start.elapsed().as_secs_f64() * 1e3;
     let json_len = serde_json::to_vec(&json).map_or(0, |b| b.len());
+    let own_json = write::json_bytes_of_surfaces(&json, &packed);
+    let mut streams_of: Vec<Vec<usize>> = vec![Vec::new(); surfaces.len()];
+    for (v, stream) in packed.streams.iter().enumerate() {
+        if let Some(list) = streams_of.get_mut(stream.tag.surface) {
+            list.push(v);
+        }
+    }
     for (s, b) in surfaces.iter_mut().enumerate() {
         b.report.record(Stage::Write.name(), write_ms);
         fill_sizes(
             &mut b.report,
             (&packed, &compressed),
-            s,
+            (s, &streams_of[s], own_json[s]),
             &json,
             (glb.len(), json_len),
             several,
@@ -918,7 +957,7 @@ fn run_plan(
         total_bytes: glb.len(),
         draw_calls: packed.draw_calls(),
         triangles_drawn: packed.triangles_drawn(),
-        streams: stream_bytes(&packed, &compressed, None),
+        streams: stream_bytes(&packed, &compressed, 0..packed.streams.len()),
         surfaces: reports,
         ..Default::default()
     };
@@ -1852,39 +1891,36 @@ pub fn check_bakeable(scene: &Scene, path: &std::path::Path) -> Result<()> {
 fn stream_bytes(
     packed: &Packed,
     compressed: &[Option<write::Encoded>],
-    surface: Option<usize>,
+    streams: impl IntoIterator<Item = usize>,
 ) -> std::collections::BTreeMap<String, usize> {
     let mut out = std::collections::BTreeMap::new();
-    for (i, v) in packed.streams.iter().enumerate() {
-        if surface.is_none_or(|s| v.tag.surface == s) {
-            let stored = match compressed.get(i) {
-                Some(Some(e)) => e.bytes.len(),
-                _ => v.bytes.len(),
-            };
-            *out.entry(v.name.to_string()).or_default() += stored;
-        }
+    for i in streams {
+        let v = &packed.streams[i];
+        let stored = match compressed.get(i) {
+            Some(Some(e)) => e.bytes.len(),
+            _ => v.bytes.len(),
+        };
+        *out.entry(v.name.to_string()).or_default() += stored;
     }
     out
 }
 
-/// The sizes in surface `s`'s report, once the file is written.
+/// The sizes in surface `s`'s report, once the file is written: `streams` are the surface's
+/// own streams, `own_json` the JSON bytes it takes ([`write::json_bytes_of_surfaces`]).
 fn fill_sizes(
     report: &mut Report,
     (packed, compressed): (&Packed, &[Option<write::Encoded>]),
-    s: usize,
+    (s, streams, own_json): (usize, &[usize], usize),
     json: &serde_json::Value,
     (file_len, json_len): (usize, usize),
     several: bool,
 ) {
     let surface = &packed.surfaces[s];
     let layer_json = write::json_bytes_per_layer(json, packed, surface, report.layers);
-    report.streams = stream_bytes(packed, compressed, Some(s));
+    report.streams = stream_bytes(packed, compressed, streams.iter().copied());
     let several_levels = report.lods.len() > 1;
     for (k, entry) in report.lods.iter_mut().enumerate() {
-        entry.bytes = packed
-            .streams
-            .iter()
-            .filter(|v| v.tag.surface == s)
+        entry.bytes = (streams.iter().map(|&v| &packed.streams[v]))
             .filter(|v| !several_levels || v.tag.lod.unwrap_or(0) == k)
             .map(|v| v.bytes.len())
             .sum();
@@ -1900,7 +1936,6 @@ fn fill_sizes(
         .map(|&m| packed.mesh_triangles(m))
         .sum();
     let stream_total: usize = report.streams.values().sum();
-    let own_json = write::json_bytes_of_surface(json, packed, s);
     let (total, json) = if several {
         (stream_total + own_json, own_json)
     } else {
@@ -1912,10 +1947,8 @@ fn fill_sizes(
     report.bytes_per_layer = match surface.layout {
         params::Layout::Compact => layer_json,
         params::Layout::SingleDraw => {
-            let vertex_bytes: usize = packed
-                .streams
-                .iter()
-                .filter(|v| v.tag.surface == s && v.kind == pack::StreamKind::Vertex)
+            let vertex_bytes: usize = (streams.iter().map(|&v| &packed.streams[v]))
+                .filter(|v| v.kind == pack::StreamKind::Vertex)
                 .map(|v| v.bytes.len())
                 .sum();
             vec![vertex_bytes / report.layers.max(1); report.layers]

@@ -34,6 +34,11 @@ use shellbake::stages::orient::OrientMode;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Most bytes one input file's decoded data may take: its accessors (as the f64s they decode
+    /// to), meshopt buffers and images, each charged before it is allocated; past it the file is
+    /// refused naming the element (bytes; K, M, G suffixes).
+    #[arg(long, global = true, default_value = "4G", value_parser = parse_size)]
+    max_memory: u64,
 }
 
 #[derive(Subcommand)]
@@ -953,6 +958,7 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = Cli::parse();
+    shellbake::input::set_max_memory(cli.max_memory);
     let result = match &cli.command {
         Command::Bake(args) => bake(args),
         Command::Plan(args) => plan(args),

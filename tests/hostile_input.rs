@@ -1053,3 +1053,446 @@ fn max_output_holds_under_tessellation() {
     assert!(err.contains("--max-output"), "{err}");
     assert!(!out.exists(), "nothing is written");
 }
+
+// 10. Shared folders and interrupted writes (round 3).
+
+/// A temporary that a bake in another PID namespace is writing survives a bake into the same
+/// folder from this one, where its PID names no process (two of 60 assets failed when Slurm
+/// tasks ran in separate PID namespaces over one folder: each judged the other's temporaries
+/// stale by a PID it looked up in its own `/proc`). The bake runs under `unshare --pid --fork
+/// --mount-proc`, a PID namespace of its own; the temporary is named as this process writes
+/// them, with this process's (live) PID, which is not a process in there.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_temporary_of_another_pid_namespace_is_left_alone() {
+    let dir = scratch("hostile_pid_namespaces");
+    let out = dir.join("cube.glb");
+    let tag = shellbake::output::write::host_tag();
+    let pid = std::process::id();
+    let writing = dir.join(format!(".cube.glb.{tag}.{pid}.AbCdEf.shellbake-tmp"));
+    std::fs::write(&writing, b"being written by this process").unwrap();
+    let bake = |namespace: bool| {
+        let exe = env!("CARGO_BIN_EXE_shellbake");
+        let args = ["bake", fixture("cube.obj").to_str().unwrap(), "-o"]
+            .map(String::from)
+            .into_iter()
+            .chain([out.to_str().unwrap().to_string(), "-q".into()]);
+        let mut cmd = if namespace {
+            let mut c = std::process::Command::new("unshare");
+            c.args(["--pid", "--fork", "--mount-proc", exe]);
+            c
+        } else {
+            std::process::Command::new(exe)
+        };
+        let o = cmd.args(args).output().expect("unshare (util-linux) runs");
+        assert!(
+            o.status.success(),
+            "{}\n(this test needs a new PID namespace: root, or unprivileged user namespaces)",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    bake(true);
+    assert!(out.exists());
+    assert!(
+        writing.exists(),
+        "a bake in another PID namespace removed this process's temporary"
+    );
+    // the control: here, the same name with a PID that is gone is provably stale
+    let dead = dir.join(format!(".cube.glb.{tag}.4294967295.AbCdEf.shellbake-tmp"));
+    std::fs::rename(&writing, &dead).unwrap();
+    bake(false);
+    assert!(
+        !dead.exists(),
+        "a dead writer's temporary of this namespace is removed"
+    );
+}
+
+/// A `.gltf` output is two files, renamed into place one after the other, the binary first: a
+/// bake killed between the two renames leaves the new `.bin` beside the old `.gltf`, the one
+/// window the README's "Writing outputs" names. The kill is injected by `strace` at the second
+/// `rename` of the bake; a `.glb` output (one rename) has no such window, and the next bake
+/// mends the pair.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_kill_between_a_gltf_s_two_renames_is_the_named_window() {
+    let dir = scratch("hostile_rename_window");
+    let out = dir.join("cube.gltf");
+    let bin = dir.join("cube.bin");
+    let bake = |input: &str, kill_at_second_rename: bool| {
+        let exe = env!("CARGO_BIN_EXE_shellbake");
+        let mut cmd = if kill_at_second_rename {
+            let mut c = std::process::Command::new("strace");
+            c.args([
+                "-f",
+                "-qq",
+                "-o",
+                "/dev/null",
+                "-e",
+                "trace=rename,renameat,renameat2",
+                "-e",
+                "inject=rename,renameat,renameat2:signal=KILL:when=2",
+                exe,
+            ]);
+            c
+        } else {
+            std::process::Command::new(exe)
+        };
+        let input = fixture(input);
+        cmd.args([
+            "bake",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "-q",
+        ])
+        .output()
+        .expect("strace runs")
+    };
+    assert!(bake("sphere.obj", false).status.success());
+    let (old_json, old_bin) = (std::fs::read(&out).unwrap(), std::fs::read(&bin).unwrap());
+    let killed = bake("cube.obj", true);
+    assert!(!killed.status.success(), "the bake was killed");
+    // the window: the new binary is in place, the JSON is the old one
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        old_json,
+        "the JSON is the old one"
+    );
+    assert_ne!(
+        std::fs::read(&bin).unwrap(),
+        old_bin,
+        "the binary is the new one"
+    );
+    let temps = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter(|e| {
+            let name = e.as_ref().unwrap().file_name();
+            name.to_string_lossy().ends_with(".shellbake-tmp")
+        })
+        .count();
+    assert_eq!(temps, 1, "the new JSON is left as a temporary");
+    // the next bake mends the pair and removes the killed bake's temporary
+    assert!(bake("cube.obj", false).status.success());
+    let doc: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let len = doc["buffers"][0]["byteLength"].as_u64().unwrap();
+    assert_eq!(std::fs::metadata(&bin).unwrap().len(), len);
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names.len(), 2, "{names:?}");
+}
+
+// 11. The decoded-data budget, --max-memory (round 3).
+
+/// A triangle with UVs whose base colour is the PNG `image` (a URI beside it).
+fn textured_triangle(image: &str) -> Value {
+    let mut g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    let uv = f32_bytes(&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
+    g["buffers"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"uri": data_uri(&uv), "byteLength": 24}));
+    g["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"buffer": 1, "byteLength": 24}));
+    g["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}));
+    g["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(1);
+    g["meshes"][0]["primitives"][0]["material"] = json!(0);
+    g["materials"] = json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);
+    g["textures"] = json!([{"source": 0}]);
+    g["images"] = json!([{"uri": image}]);
+    g
+}
+
+/// Every accessor is charged against `--max-memory` before it is read: a file whose decoded
+/// data would pass the budget is refused naming the file, the element and the flag, and the
+/// default budget reads it.
+#[test]
+fn accessors_are_held_to_max_memory() {
+    let dir = scratch("hostile_max_memory");
+    let path = dir.join("tri.gltf");
+    let g = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    std::fs::write(&path, g.to_string()).unwrap();
+    let out = dir.join("tri.glb");
+    let path = path.to_str().unwrap();
+    let (code, _, err) = shellbake_within_a_minute(&[
+        "--max-memory",
+        "40",
+        "bake",
+        path,
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_ne!(code, Some(0));
+    for words in [
+        "tri.gltf",
+        "accessor 0",
+        "72 bytes",
+        "--max-memory budget of 40",
+    ] {
+        assert!(err.contains(words), "'{words}' missing from: {err}");
+    }
+    assert!(!out.exists(), "nothing is written");
+    let (code, _, err) = shellbake_within_a_minute(&["bake", path, "-o", out.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+}
+
+/// A deflate bomb: an 8 192² 16-bit RGBA PNG of zeros, 512 MiB decoded from a file of a few
+/// hundred kB. Under a 256 MiB budget the image crate's limits stop the decode before it
+/// allocates, the bake warns naming the image and writes a valid file (the fur's colour from
+/// the material's factor), all within 1 GiB of address space (`prlimit --as`: an allocation
+/// past it would abort the bake); with the default budget the texture is read.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_texture_bomb_is_held_to_max_memory() {
+    use image::ImageEncoder as _;
+    let dir = scratch("hostile_texture_bomb");
+    let side = 8192u32;
+    let mut png = Vec::new();
+    {
+        let zeros = vec![0u8; side as usize * side as usize * 8];
+        image::codecs::png::PngEncoder::new_with_quality(
+            &mut png,
+            image::codecs::png::CompressionType::Best,
+            image::codecs::png::FilterType::NoFilter,
+        )
+        .write_image(&zeros, side, side, image::ExtendedColorType::Rgba16)
+        .unwrap();
+    }
+    assert!(png.len() < 2 << 20, "{} bytes", png.len());
+    std::fs::write(dir.join("bomb.png"), &png).unwrap();
+    let asset = dir.join("bomb.gltf");
+    std::fs::write(&asset, textured_triangle("bomb.png").to_string()).unwrap();
+    let out = dir.join("bomb.glb");
+    let bake = |budget: &str, address_space: &str| {
+        std::process::Command::new("prlimit")
+            .arg(format!("--as={address_space}"))
+            .arg(env!("CARGO_BIN_EXE_shellbake"))
+            .args(["--max-memory", budget, "bake"])
+            .arg(&asset)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .expect("prlimit (util-linux) runs")
+    };
+    let said = |o: &std::process::Output| {
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr)
+    };
+    let held = bake("256M", &(1u64 << 30).to_string());
+    let err = said(&held);
+    assert!(held.status.success(), "{err}");
+    assert!(err.contains("image 0") && err.contains("limit"), "{err}");
+    common::assert_valid(&[out.clone()]);
+    let read = bake("4G", &(3u64 << 30).to_string());
+    let err = said(&read);
+    assert!(read.status.success(), "{err}");
+    assert!(!err.contains("image 0"), "{err}");
+}
+
+// 12. Nothing outside the asset's folder is opened, seen by the kernel (round 3).
+
+/// Runs `shellbake args` under `strace -f`, returning the exit code and every path the process
+/// and its threads passed to `open`/`openat`/`openat2`, successful or not.
+#[cfg(target_os = "linux")]
+fn opened_by(args: &[&str]) -> (Option<i32>, Vec<String>, String) {
+    let log = std::env::temp_dir().join(format!(
+        "shellbake-strace-{}-{}",
+        std::process::id(),
+        args.len()
+    ));
+    let o = std::process::Command::new("strace")
+        .args(["-f", "-qq", "-e", "trace=open,openat,openat2", "-o"])
+        .arg(&log)
+        .arg(env!("CARGO_BIN_EXE_shellbake"))
+        .args(args)
+        .output()
+        .expect("strace runs");
+    let text = std::fs::read_to_string(&log).unwrap();
+    std::fs::remove_file(&log).unwrap();
+    let paths = (text.lines())
+        .filter_map(|l| l.split('"').nth(1).map(str::to_string))
+        .collect();
+    (
+        o.status.code(),
+        paths,
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// The kernel's view of round 3's leaks: an OBJ whose `.mtl` is a link out of its folder (and
+/// a `map_Kd` naming `../`), and a glTF whose buffer and image are links out and whose second
+/// image names `../`, baked, planned and keyed by `batch`: strace sees no open of any file in
+/// the folder beside the asset's (the OBJ bakes from what is inside; the glTFs are refused
+/// naming the element).
+#[cfg(target_os = "linux")]
+#[test]
+fn nothing_outside_the_asset_s_folder_is_opened() {
+    let dir = scratch("hostile_strace");
+    let outside = dir.join("outside");
+    let asset = dir.join("asset");
+    std::fs::create_dir_all(&outside).unwrap();
+    std::fs::create_dir_all(&asset).unwrap();
+    std::fs::write(
+        outside.join("m.mtl"),
+        "newmtl leaked\nKd 1 0 0\nmap_Kd ../outside/p.png\n",
+    )
+    .unwrap();
+    let mut png = Vec::new();
+    image::RgbaImage::new(2, 2)
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    std::fs::write(outside.join("p.png"), &png).unwrap();
+    let pos = f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    std::fs::write(outside.join("buf.bin"), &pos).unwrap();
+    std::os::unix::fs::symlink(outside.join("m.mtl"), asset.join("m.mtl")).unwrap();
+    std::os::unix::fs::symlink(outside.join("buf.bin"), asset.join("buf.bin")).unwrap();
+    std::os::unix::fs::symlink(outside.join("p.png"), asset.join("p.png")).unwrap();
+    let obj = asset.join("a.obj");
+    std::fs::write(&obj, format!("mtllib m.mtl\nusemtl leaked\n{TRIANGLE_OBJ}")).unwrap();
+    // a glTF reading its positions from the linked buffer (refused), and one whose buffer is
+    // inside but whose textures are the linked image and `../outside/p.png` (dropped, warned)
+    let mut linked = triangle_gltf(json!([{"mesh": 0}]), json!([{"nodes": [0]}]));
+    linked["buffers"][0] = json!({"uri": "buf.bin", "byteLength": 36});
+    std::fs::write(asset.join("linked.gltf"), linked.to_string()).unwrap();
+    let mut textured = textured_triangle("p.png");
+    textured["images"] = json!([{"uri": "p.png"}, {"uri": "../outside/p.png"}]);
+    textured["textures"] = json!([{"source": 0}, {"source": 1}]);
+    textured["materials"][0]["emissiveTexture"] = json!({"index": 1});
+    std::fs::write(asset.join("textured.gltf"), textured.to_string()).unwrap();
+    let manifest = asset.join("manifest.toml");
+    std::fs::write(
+        &manifest,
+        "[[asset]]\nname = \"obj\"\ninput = \"a.obj\"\n\n\
+         [[asset]]\nname = \"textured\"\ninput = \"textured.gltf\"\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let runs: [Vec<String>; 6] = [
+        vec!["bake".into(), s(&obj), "-o".into(), s(&out.join("a.glb"))],
+        vec!["plan".into(), s(&obj)],
+        vec![
+            "bake".into(),
+            s(&asset.join("textured.gltf")),
+            "-o".into(),
+            s(&out.join("t.glb")),
+        ],
+        vec![
+            "bake".into(),
+            s(&asset.join("linked.gltf")),
+            "-o".into(),
+            s(&out.join("l.glb")),
+        ],
+        vec![
+            "batch".into(),
+            s(&manifest),
+            "--out".into(),
+            s(&out.join("batch")),
+        ],
+        vec![
+            "batch".into(),
+            s(&manifest),
+            "--out".into(),
+            s(&out.join("batch")),
+        ],
+    ];
+    let outside = outside.canonicalize().unwrap();
+    for (i, run) in runs.iter().enumerate() {
+        let args: Vec<&str> = run.iter().map(String::as_str).collect();
+        let (code, paths, err) = opened_by(&args);
+        // the OBJ bakes (and plans) from what is inside; the glTFs naming outside files are
+        // refused, and so the batch that holds one of them fails
+        assert_eq!(code, Some(if i < 2 { 0 } else { 1 }), "{args:?}: {err}");
+        if i >= 2 {
+            assert!(err.contains("leaves the asset's folder"), "{args:?}: {err}");
+        }
+        assert!(paths.len() > 3, "strace saw the opens: {paths:?}");
+        for p in &paths {
+            let resolved = Path::new(p).canonicalize().unwrap_or_else(|_| p.into());
+            assert!(
+                !resolved.starts_with(&outside) && !p.contains("outside"),
+                "{args:?} opened {p}"
+            );
+        }
+    }
+}
+
+// 13. Cost in proportion to the input (round 3).
+
+/// A glTF of one mesh with `n` primitives, a one-triangle each, side by side, its buffer a file
+/// beside it.
+fn many_primitives(dir: &Path, n: usize) -> std::path::PathBuf {
+    let mut bin = Vec::with_capacity(n * 36);
+    let (mut views, mut accessors, mut primitives) = (vec![], vec![], vec![]);
+    for i in 0..n {
+        let (x, y) = ((i % 100) as f32, (i / 100) as f32);
+        views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": 36}));
+        bin.extend(f32_bytes(&[x, y, 0.0, x + 1.0, y, 0.0, x, y + 1.0, 0.0]));
+        accessors.push(json!({"bufferView": i, "componentType": 5126, "count": 3,
+            "type": "VEC3", "min": [x, y, 0], "max": [x + 1.0, y + 1.0, 0]}));
+        primitives.push(json!({"attributes": {"POSITION": i}}));
+    }
+    std::fs::write(dir.join("b.bin"), &bin).unwrap();
+    let g = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": "b.bin", "byteLength": bin.len()}],
+        "bufferViews": views,
+        "accessors": accessors,
+        "meshes": [{"primitives": primitives}],
+        "nodes": [{"mesh": 0}],
+        "scenes": [{"nodes": [0]}],
+        "scene": 0
+    });
+    let path = dir.join(format!("p{n}.gltf"));
+    std::fs::write(&path, g.to_string()).unwrap();
+    path
+}
+
+/// Each primitive of an asset is furred as its own part, so a mesh of many costs time and
+/// memory in proportion to their number, never more: 100 000 one-triangle primitives are
+/// refused by `--max-output` before baking (7.8 s and 0.9 GB here; 94 s before), and 1 000 bake
+/// (1 000 × 32 layer meshes). The bounds held here — 2 GiB of address space (`prlimit --as`)
+/// and a 60 s watchdog (`timeout`) for either — are far from the figures, so that they catch a
+/// return of the per-part scans (the bare-part search went through every part for every part
+/// and searched the chosen list for each: cubic; each surface's JSON size scanned the whole
+/// document: quadratic; 3 000 parts took 37 s, now 8.7 s), not a slow machine.
+#[cfg(target_os = "linux")]
+#[test]
+fn many_primitives_cost_in_proportion() {
+    let dir = scratch("hostile_many_primitives");
+    let run = |input: &Path, out: &Path| {
+        std::process::Command::new("timeout")
+            .args(["60", "prlimit", &format!("--as={}", 2u64 << 30)])
+            .arg(env!("CARGO_BIN_EXE_shellbake"))
+            .arg("bake")
+            .arg(input)
+            .arg("-o")
+            .arg(out)
+            .arg("-q")
+            .output()
+            .unwrap()
+    };
+    let many = run(&many_primitives(&dir, 100_000), &dir.join("many.glb"));
+    let err = String::from_utf8_lossy(&many.stderr);
+    assert_eq!(many.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("p100000.gltf") && err.contains("--max-output"),
+        "{err}"
+    );
+    assert!(!dir.join("many.glb").exists());
+    let out = dir.join("some.glb");
+    let some = run(&many_primitives(&dir, 1_000), &out);
+    assert!(
+        some.status.success(),
+        "{}",
+        String::from_utf8_lossy(&some.stderr)
+    );
+    let json = common::Glb::parse(&std::fs::read(&out).unwrap()).json;
+    let meshes = json["meshes"].as_array().unwrap().len();
+    assert!(meshes > 32 * 1_000, "{meshes} meshes");
+}

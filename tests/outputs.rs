@@ -166,11 +166,14 @@ fn temporaries_are_random_never_followed_and_stale_ones_are_removed() {
     std::fs::write(&victim, b"keep me").unwrap();
     // a dead writer's partial file, an old one of a live process (pid 1), a fresh one of a live
     // process (another bake may be writing it), and a planted link named like a stale temporary
-    let dead = dir.join(".cube.glb.4294967295.AbCdEf.shellbake-tmp");
-    let old = dir.join(".cube.glb.1.GhIjKl.shellbake-tmp");
-    let fresh = dir.join(".cube.glb.1.MnOpQr.shellbake-tmp");
-    let planted = dir.join(".cube.glb.4294967294.StUvWx.shellbake-tmp");
-    for p in [&dead, &old, &fresh] {
+    // (and a dead writer's of another host or PID namespace, kept: its PID means nothing here)
+    let tag = shellbake::output::write::host_tag();
+    let dead = dir.join(format!(".cube.glb.{tag}.4294967295.AbCdEf.shellbake-tmp"));
+    let old = dir.join(format!(".cube.glb.{tag}.1.GhIjKl.shellbake-tmp"));
+    let fresh = dir.join(format!(".cube.glb.{tag}.1.MnOpQr.shellbake-tmp"));
+    let planted = dir.join(format!(".cube.glb.{tag}.4294967294.StUvWx.shellbake-tmp"));
+    let elsewhere = dir.join(".cube.glb.0badc0de.4294967295.YzAbCd.shellbake-tmp");
+    for p in [&dead, &old, &fresh, &elsewhere] {
         std::fs::write(p, b"partial").unwrap();
     }
     let hour_ago = std::time::SystemTime::now() - std::time::Duration::from_secs(7200);
@@ -200,11 +203,15 @@ fn temporaries_are_random_never_followed_and_stale_ones_are_removed() {
         "link removed, not followed"
     );
     assert!(fresh.exists(), "a live writer's fresh temporary is kept");
+    assert!(elsewhere.exists(), "another host's fresh temporary is kept");
     let temps = names(&dir)
         .into_iter()
         .filter(|n| n.ends_with(".shellbake-tmp"))
         .count();
-    assert_eq!(temps, 1, "only the live writer's temporary remains");
+    assert_eq!(
+        temps, 2,
+        "only the live and the foreign writers' temporaries remain"
+    );
     assert_eq!(&std::fs::read(&glb).unwrap()[0..4], b"glTF");
 }
 

@@ -1270,7 +1270,18 @@ pub fn texture_image(
             "(image {source}) has neither a buffer view nor a URI"
         ));
     };
-    decode_image(&bytes).map_err(|e| format!("(image {source}) cannot be decoded ({e})"))
+    let element = || format!("image {source}");
+    let left = doc.budget_left();
+    let rgba = decode_image_within(&bytes, left).map_err(|e| match e {
+        image::ImageError::Limits(_) => format!(
+            "(image {source}) cannot be decoded within {left} bytes (a limit: --max-memory, at \
+             most three 16384² images' worth)"
+        ),
+        e => format!("(image {source}) cannot be decoded ({e})"),
+    })?;
+    doc.charge(&element, rgba.as_raw().len() as u64)
+        .map_err(|e| e.to_string())?;
+    Ok(rgba)
 }
 
 /// The largest side of a base-colour image the bake decodes: 16384, what GPUs draw.
@@ -1280,11 +1291,18 @@ pub const MAX_IMAGE_SIDE: u32 = 16384;
 /// crate's default limit, 512 MB, refused a 12k texture): the bake's colour sampling and the
 /// viewer read images through it.
 pub fn decode_image(bytes: &[u8]) -> image::ImageResult<image::RgbaImage> {
+    decode_image_within(bytes, super::max_memory())
+}
+
+/// [`decode_image`] allocating at most `budget` bytes (and never more than three 16384² RGBA8
+/// images' worth): a deflate bomb that would decode past either is an error of the image
+/// crate's limits, before the allocation.
+pub fn decode_image_within(bytes: &[u8], budget: u64) -> image::ImageResult<image::RgbaImage> {
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?;
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_IMAGE_SIDE);
     limits.max_image_height = Some(MAX_IMAGE_SIDE);
-    limits.max_alloc = Some(3 * 4 * (MAX_IMAGE_SIDE as u64).pow(2));
+    limits.max_alloc = Some(budget.min(3 * 4 * (MAX_IMAGE_SIDE as u64).pow(2)));
     reader.limits(limits);
     Ok(reader.decode()?.into_rgba8())
 }

@@ -313,6 +313,8 @@ pub struct Document {
     /// The nodes of the default scene (or the first scene); with no scene, every node without a
     /// parent.
     pub roots: Vec<usize>,
+    /// Bytes of decoded data charged so far against [`super::max_memory`] ([`Document::charge`]).
+    spent: std::sync::atomic::AtomicU64,
 }
 
 /// The JSON of a `.gltf` file or a GLB's JSON chunk, a leading UTF-8 byte order mark skipped:
@@ -903,7 +905,36 @@ impl Document {
             meshes,
             nodes,
             roots,
+            spent: Default::default(),
         })
+    }
+
+    /// Charges `bytes` of decoded data for `element` against the file's budget
+    /// ([`super::max_memory`]), before they are allocated; past it, an error naming the file and
+    /// the element and how to raise the budget. What a read is charged for stays charged: a
+    /// read that is repeated counts twice, a bound that errs on the safe side.
+    pub fn charge(&self, element: &dyn Fn() -> String, bytes: u64) -> Result<()> {
+        use std::sync::atomic::Ordering;
+        let limit = super::max_memory();
+        let before = self.spent.fetch_add(bytes, Ordering::Relaxed);
+        let total = before.saturating_add(bytes);
+        if total > limit {
+            return Err(Error::invalid(
+                &self.path,
+                element(),
+                format!(
+                    "decodes to {bytes} bytes, which with the {before} its file's data took \
+                     before is beyond the --max-memory budget of {limit} bytes; raise \
+                     --max-memory to read it"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The budget [`Document::charge`] has left.
+    pub fn budget_left(&self) -> u64 {
+        (super::max_memory()).saturating_sub(self.spent.load(std::sync::atomic::Ordering::Relaxed))
     }
 
     /// The document without access to files: a relative URI is refused (for bytes that did not
@@ -979,6 +1010,7 @@ impl Document {
         for (i, buffer) in self.buffers.iter().enumerate() {
             let element = format!("buffer {i}");
             if buffer.fallback && buffer.uri.is_none() {
+                self.charge(&|| element.clone(), buffer.byte_length as u64)?;
                 decoded = decoded.saturating_add(buffer.byte_length);
                 if decoded > MAX_DECODED_BYTES {
                     return Err(Error::invalid(
@@ -1239,6 +1271,11 @@ impl Document {
     ) -> Result<Vec<f64>> {
         let acc = &self.accessors[a];
         let components = acc.kind.components();
+        let values = (acc.count as u64).saturating_mul(components as u64);
+        self.charge(
+            here,
+            values.saturating_mul(std::mem::size_of::<f64>() as u64),
+        )?;
         let Some(v) = acc.buffer_view else {
             // Zeros, as the spec says; bounded so a one-line accessor cannot ask for terabytes.
             if acc.count > MAX_ZERO_ELEMENTS {

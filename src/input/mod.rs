@@ -53,6 +53,31 @@ pub const MIN_EXTENT: f64 = 1e-7;
 /// Largest input file (and glTF buffer file) read, in bytes.
 pub const MAX_INPUT_BYTES: u64 = 1 << 31;
 
+/// Default of [`max_memory`]: 4 GiB of decoded data per input file. A bake's peak is some
+/// three times the decoded input it keeps (`Mesh`es, welded topology, the packed output), so the
+/// default fits a 2-core 24 GB machine with room for a second bake; 2^27 vertices of position,
+/// normal and UV (a 262 kB meshopt file could declare them) would take 5.4 GB and are refused.
+pub const DEFAULT_MAX_MEMORY: u64 = 4 << 30;
+
+static MAX_MEMORY: std::sync::atomic::AtomicU64 =
+    std::sync::atomic::AtomicU64::new(DEFAULT_MAX_MEMORY);
+
+/// The most bytes one input file's decoded data may take (`--max-memory`): every accessor read
+/// (as the `f64`s it decodes to), every meshopt fallback buffer and every decoded image, charged
+/// against the file's [`document::Document`] before it is allocated, so a count no bytes back
+/// (or bytes that expand, a texture bomb) is refused naming the file and the element instead of
+/// ending the process on a failed allocation. Process-wide: `batch` baking several assets at
+/// once holds up to this much per asset in flight. OBJ files are bounded by their own size
+/// ([`MAX_INPUT_BYTES`]): a line decodes to a few times its bytes at most.
+pub fn max_memory() -> u64 {
+    MAX_MEMORY.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// Sets [`max_memory`] for the process (the CLI's `--max-memory`).
+pub fn set_max_memory(bytes: u64) {
+    MAX_MEMORY.store(bytes, std::sync::atomic::Ordering::Relaxed);
+}
+
 /// Checks world coordinates (before they become `f32` offsets) against [`MAX_COORDINATE`], and
 /// the mesh's extent against [`MIN_EXTENT`].
 pub(crate) fn check_range(path: &Path, element: &str, world: &[glam::DVec3]) -> Result<()> {

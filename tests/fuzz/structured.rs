@@ -2,7 +2,13 @@
 //! accessors, meshes, nodes; each one's fields, from lists that mix legal values with the edge
 //! cases the spec allows or forbids) and turned into a `.gltf` JSON document with a `data:`
 //! buffer. Mutated bytes alone rarely get past the JSON parser; this reaches the accessor
-//! checks, the node-graph checks and the readers with legal-looking files. Shared by
+//! checks, the node-graph checks and the readers with legal-looking files. Structured OBJ
+//! ([`obj`]) does the same for the OBJ reader and its material libraries: vertex, UV and normal
+//! lines with edge-case numbers, faces of 1 to 70 corners with absolute, relative, zero and
+//! out-of-range references, groups, smoothing, line continuations, and `mtllib` lines naming a
+//! generated `.mtl` (colours that are no numbers, options, `map_Kd` naming a generated PNG, a
+//! missing file, `../` or an absolute path), written to a scratch folder and loaded from there,
+//! as `mtllib` reads files beside the OBJ. Shared by
 //! `fuzz_targets/load_bake.rs` and `tests/fuzz_regressions.rs` (through `#[path]`), with
 //! [`load_and_bake`], the one run both make of an input.
 
@@ -21,6 +27,8 @@ pub fn load_and_bake(data: &[u8]) -> Result<usize, String> {
     let (name, body) = if selector & 12 == 12 {
         generated = gltf(body);
         ("fuzz.gltf", &generated[..])
+    } else if selector & 0x1c == 0x18 {
+        return bake(selector, load_obj_folder(body)?);
     } else if selector & 1 == 0 {
         ("fuzz.obj", body)
     } else {
@@ -28,6 +36,11 @@ pub fn load_and_bake(data: &[u8]) -> Result<usize, String> {
     };
     let scene = shellbake::input::load_bytes(std::path::Path::new(name), body)
         .map_err(|e| e.to_string())?;
+    bake(selector, scene)
+}
+
+/// The bake [`load_and_bake`] makes of a loaded `scene`.
+fn bake(selector: u8, scene: shellbake::mesh::Scene) -> Result<usize, String> {
     let mut p = shellbake::params::BakeParams::default();
     p.shells.layers = 4;
     p.strands.mask_size = 16;
@@ -228,3 +241,184 @@ pub fn gltf(data: &[u8]) -> Vec<u8> {
     }
     serde_json::to_vec(&doc).unwrap()
 }
+
+/// Writes [`obj`]'s files for `data` into a scratch folder of this thread's own and loads the
+/// OBJ from there (its `mtllib` lines read the folder).
+fn load_obj_folder(data: &[u8]) -> Result<shellbake::mesh::Scene, String> {
+    thread_local! {
+        static DIR: std::path::PathBuf = {
+            let id = format!("{:?}", std::thread::current().id());
+            let id: String = id.chars().filter(char::is_ascii_digit).collect();
+            let dir = std::env::temp_dir()
+                .join(format!("shellbake-fuzz-{}-{id}", std::process::id()));
+            std::fs::create_dir_all(&dir).unwrap();
+            dir
+        };
+    }
+    DIR.with(|dir| {
+        for entry in std::fs::read_dir(dir).unwrap().flatten() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+        for (name, bytes) in obj(data) {
+            std::fs::write(dir.join(name), bytes).unwrap();
+        }
+        shellbake::input::load(&dir.join("fuzz.obj")).map_err(|e| e.to_string())
+    })
+}
+
+/// A number for an OBJ or MTL line: mostly small, sometimes an edge case the reader must
+/// refuse, clamp or carry (the last entries are not numbers at all).
+fn number(c: &mut Choices) -> String {
+    const EDGES: [&str; 16] = [
+        "0", "1", "-1", "0.5", "1e38", "-3.4e38", "1e-45", "1e100", "nan", "inf", "-inf", "1e15",
+        "2.5e-7", "+7", "1.", "0x10",
+    ];
+    if c.tame || c.below(4) != 0 {
+        format!("{}", (c.byte() as f32 - 128.0) / 32.0)
+    } else {
+        EDGES[c.below(EDGES.len())].to_string()
+    }
+}
+
+/// Structured OBJ and MTL for `data` (see the module doc): the files to write, by name — the
+/// OBJ `fuzz.obj`, a library `m.mtl` and a 2×2 PNG `t.png` beside it.
+pub fn obj(data: &[u8]) -> Vec<(&'static str, Vec<u8>)> {
+    let mut c = Choices { data, tame: false };
+    c.tame = c.flag();
+    let mut mtl = String::new();
+    let materials = ["red", "a b", "", "x\\", "red"];
+    for _ in 0..1 + c.below(3) {
+        let name = c.pick(&materials);
+        mtl += &format!("newmtl {name}\n");
+        for _ in 0..c.below(6) {
+            match c.below(6) {
+                0 | 1 => {
+                    let key = c.pick(&["Kd", "Ka", "Ks", "Ke"]);
+                    let (r, g, b) = (number(&mut c), number(&mut c), number(&mut c));
+                    mtl += &format!("{key} {r} {g} {b}\n");
+                }
+                2 => mtl += &format!("{} {}\n", c.pick(&["d", "Tr", "Ns", "Ni"]), number(&mut c)),
+                3 => {
+                    let option = c.pick(&[
+                        "",
+                        "-s 2 2 1 ",
+                        "-o 0.5 0.5 ",
+                        "-bm 1 ",
+                        "-clamp on ",
+                        "-s ",
+                    ]);
+                    let file = c.pick(&[
+                        "t.png",
+                        "t.png",
+                        "missing.png",
+                        "../t.png",
+                        "/etc/hostname",
+                        "m.mtl",
+                        "",
+                    ]);
+                    mtl += &format!(
+                        "{} {option}{file}\n",
+                        c.pick(&["map_Kd", "map_d", "bump", "map_Ka"])
+                    );
+                }
+                4 => mtl += &format!("illum {}\n", c.below(12)),
+                _ => mtl += "# comment\n",
+            }
+        }
+    }
+    let mut text = String::new();
+    if !c.tame && c.below(8) == 0 {
+        text += "\u{feff}";
+    }
+    let eol = if !c.tame && c.below(8) == 0 {
+        "\r\n"
+    } else {
+        "\n"
+    };
+    for _ in 0..c.below(3) {
+        let lib = c.pick(&[
+            "m.mtl",
+            "m.mtl",
+            "missing.mtl",
+            "../m.mtl",
+            "/etc/hostname",
+            "m.mtl m.mtl",
+            "t.png",
+        ]);
+        text += &format!("mtllib {lib}{eol}");
+    }
+    let nv = 3 + c.below(12);
+    for _ in 0..nv {
+        let (x, y, z) = (number(&mut c), number(&mut c), number(&mut c));
+        match c.below(if c.tame { 1 } else { 12 }) {
+            0..=8 => text += &format!("v {x} {y} {z}{eol}"),
+            9 => text += &format!("v {x} {y}{eol}"),
+            10 => text += &format!("v {x} {y} {z} 0.5 0.5 0.5{eol}"),
+            _ => text += &format!("v {x} \\{eol}{y} {z}{eol}"),
+        }
+    }
+    let nt = c.below(6);
+    for _ in 0..nt {
+        text += &format!("vt {} {}{eol}", number(&mut c), number(&mut c));
+    }
+    let nn = c.below(4);
+    for _ in 0..nn {
+        let (x, y, z) = (number(&mut c), number(&mut c), number(&mut c));
+        text += &format!("vn {x} {y} {z}{eol}");
+    }
+    // a reference to one of `n` elements: 1-based, relative (negative), 0 or past the end
+    let reference = |c: &mut Choices, n: usize| -> String {
+        match c.below(if c.tame { 1 } else { 10 }) {
+            0..=6 => format!("{}", 1 + c.below(n)),
+            7 => format!("-{}", 1 + c.below(n)),
+            8 => "0".into(),
+            _ => format!("{}", n + 1 + c.below(3)),
+        }
+    };
+    for _ in 0..1 + c.below(8) {
+        match c.below(10) {
+            0 => text += &format!("usemtl {}{eol}", c.pick(&materials)),
+            1 => text += &format!("{} part{eol}", c.pick(&["o", "g", "s 1", "s off"])),
+            2 if !c.tame => text += &format!("l 1 2{eol}"),
+            _ => {
+                let corners = c.pick(&[3, 3, 4, 5, 6, 1, 2, 8, 64, 65, 70]);
+                let form = c.below(4);
+                text += "f";
+                for _ in 0..corners {
+                    let v = reference(&mut c, nv);
+                    text += &match form {
+                        1 if nt > 0 => format!(" {v}/{}", reference(&mut c, nt)),
+                        2 if nn > 0 => format!(" {v}//{}", reference(&mut c, nn)),
+                        3 if nt > 0 && nn > 0 => {
+                            format!(" {v}/{}/{}", reference(&mut c, nt), reference(&mut c, nn))
+                        }
+                        _ => format!(" {v}"),
+                    };
+                }
+                text += eol;
+            }
+        }
+    }
+    let mut png = Vec::new();
+    // a valid 2×2 PNG (its bytes fixed), or bytes that are not one
+    png.extend_from_slice(b"\x89PNG\r\n\x1a\n");
+    if c.flag() {
+        png.extend_from_slice(&data[..data.len().min(64)]);
+    } else {
+        png = TINY_PNG.to_vec();
+    }
+    vec![
+        ("fuzz.obj", text.into_bytes()),
+        ("m.mtl", mtl.into_bytes()),
+        ("t.png", png),
+    ]
+}
+
+/// A 2×2 red RGBA PNG.
+const TINY_PNG: &[u8] = &[
+    0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52,
+    0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x08, 0x06, 0x00, 0x00, 0x00, 0x72, 0xb6, 0x0d,
+    0x24, 0x00, 0x00, 0x00, 0x11, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0xf8, 0xcf, 0xc0, 0xf0,
+    0x1f, 0x84, 0x19, 0x60, 0x0c, 0x00, 0x47, 0xca, 0x07, 0xf9, 0x67, 0x59, 0x6e, 0xb7, 0x00, 0x00,
+    0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82,
+];
