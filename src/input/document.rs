@@ -315,6 +315,8 @@ pub struct Document {
     pub roots: Vec<usize>,
     /// Bytes of decoded data charged so far against [`super::max_memory`] ([`Document::charge`]).
     spent: std::sync::atomic::AtomicU64,
+    /// Whether [`Document::charge`] holds reads to the budget ([`Document::without_budget`]).
+    budgeted: bool,
 }
 
 /// The JSON of a `.gltf` file or a GLB's JSON chunk, a leading UTF-8 byte order mark skipped:
@@ -906,6 +908,7 @@ impl Document {
             nodes,
             roots,
             spent: Default::default(),
+            budgeted: true,
         })
     }
 
@@ -918,7 +921,7 @@ impl Document {
         let limit = super::max_memory();
         let before = self.spent.fetch_add(bytes, Ordering::Relaxed);
         let total = before.saturating_add(bytes);
-        if total > limit {
+        if self.budgeted && total > limit {
             return Err(Error::invalid(
                 &self.path,
                 element(),
@@ -934,7 +937,20 @@ impl Document {
 
     /// The budget [`Document::charge`] has left.
     pub fn budget_left(&self) -> u64 {
+        if !self.budgeted {
+            return u64::MAX;
+        }
         (super::max_memory()).saturating_sub(self.spent.load(std::sync::atomic::Ordering::Relaxed))
+    }
+
+    /// The document read without the `--max-memory` budget: for bytes this process baked itself
+    /// (the viewer's `verify`, `study` and `bench` read the bake they just made), whose size the
+    /// bake's own `--max-output` bounded. A decoded layout holds several times its quantized
+    /// bytes (a single-draw bake of the dragon's grass decodes past 1 GiB from a file a tenth
+    /// that size), so charging it would refuse the tool's own output.
+    pub fn without_budget(mut self) -> Document {
+        self.budgeted = false;
+        self
     }
 
     /// The document without access to files: a relative URI is refused (for bytes that did not

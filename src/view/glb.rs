@@ -334,6 +334,17 @@ impl Asset {
         Asset::from_document(Document::parse(Path::new(IN_MEMORY), bytes)?.without_files())
     }
 
+    /// [`Asset::from_glb`] for a GLB this process baked (`verify`, `study`, `bench`): read
+    /// without the `--max-memory` budget ([`Document::without_budget`]), since the bake's
+    /// `--max-output` bounded it already.
+    pub fn from_own_glb(bytes: &[u8]) -> Result<Asset> {
+        Asset::from_document(
+            Document::parse(Path::new(IN_MEMORY), bytes)?
+                .without_files()
+                .without_budget(),
+        )
+    }
+
     /// Parses a glTF document whose GLB binary chunk is `bin`.
     pub fn from_parts(json: Value, bin: Vec<u8>) -> Result<Asset> {
         let doc = Document::from_json(Path::new(IN_MEMORY), json, Some(bin))?;

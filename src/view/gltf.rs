@@ -334,9 +334,10 @@ impl GltfRenderer {
         Ok(r)
     }
 
-    /// Parses and uploads GLB bytes.
+    /// Parses and uploads GLB bytes this process baked ([`Asset::from_own_glb`]: `verify`,
+    /// `study` and `bench` draw the bake they just made).
     pub fn from_glb(gpu: &Gpu, glb: &[u8]) -> Result<GltfRenderer> {
-        GltfRenderer::new(gpu, Asset::from_glb(glb)?)
+        GltfRenderer::new(gpu, Asset::from_own_glb(glb)?)
     }
 
     /// Number of shell layers (or top-level meshes) the layer limit steps through.
