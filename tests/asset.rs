@@ -9,7 +9,7 @@
 //! ΔE76 between the two means at most 12, and the furred chroma `√(a² + b²)` at least 70 % of
 //! the bare one.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -3,7 +3,7 @@
 //! and every layer's vertices dequantize to `base + direction × height × t_j` within one grid
 //! step.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

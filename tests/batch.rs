@@ -4,7 +4,7 @@
 //! everything; a shard killed mid-way finishes the rest when run again, redoing nothing it had
 //! finished and leaving no partial file; an edited input or parameter re-bakes just that asset.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};

@@ -5,7 +5,7 @@
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -4,7 +4,7 @@
 //! box projection, position ids by a parallel sort (four threads or more), the cache order in
 //! pieces and the cluster sizes judged at once.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

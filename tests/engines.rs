@@ -27,7 +27,7 @@
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -5,9 +5,8 @@
 //! [`fuzz_for_a_bounded_time`] runs the structured glTF and OBJ/MTL generators and mutations of
 //! the committed corpus for a fixed time on every test run (CI included).
 
-mod common;
-#[path = "fuzz/structured.rs"]
-mod structured;
+use crate::common;
+use crate::structured;
 
 use structured::load_and_bake as replay;
 

@@ -1,9 +1,9 @@
 //! Byte-for-byte goldens: the SHA-256 of the GLB baked from every fixture with every preset and
 //! both layouts (the one-surface shortcut, default flags otherwise). A change to these bytes must
-//! be intended: regenerate with `SHELLBAKE_UPDATE_GOLDENS=1 cargo test --test goldens` and say
+//! be intended: regenerate with `SHELLBAKE_UPDATE_GOLDENS=1 cargo test --test all goldens::` and say
 //! why in the commit.
 
-mod common;
+use crate::common;
 
 use sha2::{Digest, Sha256};
 use shellbake::params::{BakeParams, Layout, Preset};

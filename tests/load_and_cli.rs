@@ -1,7 +1,7 @@
 //! Loading (OBJ and glTF features) and the command line: errors name the file and the element,
 //! and nothing is written at the output path when a bake fails.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -6,7 +6,7 @@
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use common::{assert_valid, node, scratch, shellbake, Glb};
 use serde_json::{json, Value};

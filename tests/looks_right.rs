@@ -4,7 +4,7 @@
 //! `common`): no layer triangle faces against its base, fur grows on the outside (and on both
 //! sides of the sheet), and the mask tiles a whole number of times across wrapping UVs.
 
-mod common;
+use crate::common;
 
 use common::{inverted_layer_triangles, Glb};
 use shellbake::mesh::{Mesh, Scene};

@@ -3,7 +3,7 @@
 //! planted links, stale leftovers of a killed bake), inputs with nothing to bake, and what reaches
 //! the terminal (each OS error once, control characters escaped).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -2,7 +2,7 @@
 //! positions, extreme scales and offsets — for weld, frames, clamp, strands and pack: no panic,
 //! everything finite, and each stage's invariant holds.
 
-mod common;
+use crate::common;
 
 use common::Glb;
 use glam::{DVec3, Vec3};

@@ -7,7 +7,7 @@
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use common::{assert_valid, fixture, scratch, shellbake, Glb};
 use shellbake::view::{self, compare, NamedView};

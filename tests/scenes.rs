@@ -5,7 +5,7 @@
 //! The BVH counter is process-wide, so only `collision_builds_a_bvh_only_when_asked` in this
 //! file may bake with collision.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

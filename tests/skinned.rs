@@ -7,7 +7,7 @@
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use common::{assert_valid, gpu, node, scratch, three_job, verify_glb, Glb};
 use shellbake::params::{BakeParams, Layout, Preset};

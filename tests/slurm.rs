@@ -4,7 +4,7 @@
 //! (`--array=2`, `--array=1,3`) bakes exactly the shards named and touches no other; an id past
 //! the shard count fails its task with an error saying so.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

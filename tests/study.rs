@@ -6,7 +6,7 @@
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 

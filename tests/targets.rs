@@ -31,7 +31,7 @@
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

@@ -19,7 +19,7 @@
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

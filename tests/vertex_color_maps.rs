@@ -4,7 +4,7 @@
 //! culling drops the shells where the paint is black. A scene naming a channel of a mesh without
 //! colours is refused, naming the mesh, and nothing is written.
 
-mod common;
+use crate::common;
 
 use base64::Engine;
 use common::{scratch, shellbake};

@@ -2,12 +2,12 @@
 //! (it must fail). Runs on whatever adapter wgpu finds; the tolerances were set on llvmpipe.
 //!
 //! On failure the reference, baked (`-actual`) and FLIP (`-difference`) pictures are written to
-//! `out/view-tests/` (git-ignored). `cargo test --test view_verify -- --nocapture` prints the
+//! `out/view-tests/` (git-ignored). `cargo test --test all view_verify:: -- --nocapture` prints the
 //! figures of every view.
 
 #![cfg(feature = "view")]
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 
