@@ -1946,7 +1946,7 @@ fn fill_sizes(
     report.bytes_per_base_vertex = report.total_bytes as f64 / surface.base_vertices.max(1) as f64;
     report.bytes_per_layer = match surface.layout {
         params::Layout::Compact => layer_json,
-        params::Layout::SingleDraw => {
+        params::Layout::SingleDraw | params::Layout::Layers => {
             let vertex_bytes: usize = (streams.iter().map(|&v| &packed.streams[v]))
                 .filter(|v| v.kind == pack::StreamKind::Vertex)
                 .map(|v| v.bytes.len())

@@ -1,4 +1,4 @@
-//! Every fixture × every preset × both layouts: the output passes the Khronos glTF-Validator
+//! Every fixture × every preset × every layout: the output passes the Khronos glTF-Validator
 //! with no errors and no warnings, three.js's GLTFLoader loads the expected layers and cutoffs,
 //! and every layer's vertices dequantize to `base + direction × height × t_j` within one grid
 //! step.
@@ -19,13 +19,10 @@ const FIXTURES: [&str; 6] = [
     "bunny.obj",
     "teapot.obj",
 ];
-const LAYOUTS: [Layout; 2] = [Layout::Compact, Layout::SingleDraw];
+const LAYOUTS: [Layout; 3] = Layout::ALL;
 
 fn layout_name(l: Layout) -> &'static str {
-    match l {
-        Layout::Compact => "compact",
-        Layout::SingleDraw => "single-draw",
-    }
+    l.name()
 }
 
 struct Case {
@@ -84,7 +81,7 @@ fn layer_of(name: &str) -> usize {
     name.rsplit("layer_").next().unwrap().parse().unwrap()
 }
 
-/// Dequantized `T + S·(q + t·d)` (compact) or `T + S·q_j` (single-draw) against the exact
+/// Dequantized `T + S·(q + t·d)` (compact) or `T + S·q_j` (single-draw, layers) against the exact
 /// `origin + base + t·delta`, read back from the GLB bytes.
 fn check_exactness(baked: &shellbake::Baked, what: &str) {
     let glb = Glb::parse(&baked.glb);
@@ -137,6 +134,22 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
                     assert!((w - t as f64).abs() < 1e-6, "{what}: weight {w} vs t {t}");
                 }
                 (&m["primitives"][0], w, 0, nv)
+            }
+            Layout::Layers => {
+                // a mesh per layer, each with its own positions: the first of the fetch order
+                let Some(mi) = lod0
+                    .iter()
+                    .copied()
+                    .find(|&m| layer_of(meshes[m]["name"].as_str().unwrap()) == j)
+                else {
+                    continue;
+                };
+                let prim = &meshes[mi]["primitives"][0];
+                assert!(prim["targets"].is_null(), "{what}: layer {j} has no target");
+                assert!(glb.weight(mi).is_none(), "{what}: layer {j} has no weight");
+                let a = prim["attributes"]["POSITION"].as_u64().unwrap() as usize;
+                let count = glb.json["accessors"][a]["count"].as_u64().unwrap() as usize;
+                (prim, 0.0, 0, count)
             }
             Layout::SingleDraw => {
                 let m = &meshes[lod0[0]];
@@ -217,6 +230,23 @@ fn every_fixture_preset_and_layout_is_valid_loads_in_three_and_is_exact() {
                 // every layer shares one geometry: same vertex count everywhere
                 let v0 = meshes[0]["vertices"].as_u64();
                 assert!(meshes.iter().all(|m| m["vertices"].as_u64() == v0));
+            }
+            Layout::Layers => {
+                assert_eq!(
+                    meshes.len(),
+                    c.layers_drawn,
+                    "{name}: one three.js mesh per layer that keeps a triangle"
+                );
+                for m in meshes {
+                    let j = layer_of(m["name"].as_str().unwrap());
+                    let alpha_test = m["alphaTest"].as_f64().unwrap();
+                    let want = if j == 0 { 0.0 } else { c.cutoffs[j] as f64 };
+                    assert!(
+                        (alpha_test - want).abs() < 1e-6,
+                        "{name} layer {j}: cutoff {alpha_test}"
+                    );
+                    assert_eq!(m["morph"].as_u64(), Some(0), "{name} layer {j}: no target");
+                }
             }
             Layout::SingleDraw => {
                 assert_eq!(meshes.len(), 1, "{name}: one mesh");

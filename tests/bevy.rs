@@ -4,7 +4,7 @@
 //! default scene, the morph weights Bevy gives it and the box of its vertices with those weights
 //! applied (`bevy_pbr`'s morph shader draws exactly `position + Σ weight × displacement`).
 //!
-//! Each file Bevy can read (`--target bevy`, and the float single-draw targets `godot` and
+//! Each file Bevy can read (`--target bevy`, and the float `layers` targets `godot` and
 //! `portable`, which need no extension at all) of the bunny, a grass terrain, the critter asset
 //! and the Stanford dragon is held against three.js loading the same file (`three_load.mjs`):
 //! the same meshes under the same node names (so no coarser level is added: one scene), and per
@@ -195,7 +195,7 @@ fn bevy_draws_every_float_target_with_its_layer_heights_as_three_js_does() {
             vec!["--only", "material=fur_*"],
             &["bevy", "godot", "portable"],
         ),
-        // the single-draw dragon is 40–60 MB at 8 layers: the compact file carries it
+        // the dragon's `layers` files are 10–20 MB at 8 layers: the compact file carries it
         ("dragon", common::dragon(), vec!["--layers", "8"], &["bevy"]),
     ];
     let mut rows = Vec::new();
@@ -224,7 +224,7 @@ fn bevy_draws_every_float_target_with_its_layer_heights_as_three_js_does() {
                  the scene's diagonal"
             );
             // compact files carry the height as weights: the layers must stand off their rest
-            // positions (single-draw files write each layer where it is, weights play no part)
+            // positions (`layers` files write each layer where it is, weights play no part)
             if *target == "bevy" {
                 assert!(
                     stand_off > 0.005,

@@ -42,7 +42,9 @@ fn culling_changes_no_pixel() {
                 );
                 removed += off.report.triangles_drawn - on.report.triangles_drawn;
                 let mips = match layout {
-                    Layout::Compact => [MaskMips::CoveragePreserving, MaskMips::Box],
+                    Layout::Compact | Layout::Layers => {
+                        [MaskMips::CoveragePreserving, MaskMips::Box]
+                    }
                     Layout::SingleDraw => {
                         [MaskMips::CoveragePreserving, MaskMips::CoveragePreserving]
                     }

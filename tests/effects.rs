@@ -111,7 +111,7 @@ fn sheen_is_a_material_extension_stronger_toward_the_tips() {
 #[test]
 fn wind_sways_in_a_looping_animation_that_verify_checks() {
     passes_and_control_fails("bunny", Effect::Wind);
-    for layout in [Layout::Compact, Layout::SingleDraw] {
+    for layout in Layout::ALL {
         let p = params(layout);
         let baked = shellbake::bake_with(&load("bunny"), &p, &[Effect::Wind]);
         let g = Glb::parse(&baked.glb);
@@ -119,7 +119,7 @@ fn wind_sways_in_a_looping_animation_that_verify_checks() {
         assert_eq!(anims[0]["name"], "wind");
         let channels = anims[0]["channels"].as_array().unwrap().len();
         let expected = match layout {
-            Layout::Compact => baked.packed.layer_nodes.len() - 1,
+            Layout::Compact | Layout::Layers => baked.packed.layer_nodes.len() - 1,
             Layout::SingleDraw => 1,
         };
         assert_eq!(

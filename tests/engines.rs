@@ -19,11 +19,11 @@
 //!
 //! The third test draws every target's file (`--target NAME`) of four inputs (the bunny, a grass
 //! terrain, the skinned critter asset, the Stanford dragon) in both engines against a one-shell
-//! control of the same target. The compact targets' files show their fur in PlayCanvas as in
-//! three.js. The single-draw targets' (`godot`, `unreal`, `portable`) do not: their layers are
-//! told apart by `COLOR_0`'s alpha, which stock PlayCanvas leaves out of the alpha test, so it
-//! draws every layer as a solid shell ([`PLAYCANVAS_IGNORES_COLOR_0_ALPHA`], a known failure that
-//! the test asserts as it is).
+//! control of the same target. Every target's file shows its fur in PlayCanvas as in three.js,
+//! those of `godot`, `unreal` and `portable` (the `layers` layout) included. Those were
+//! single-draw files once, whose layers are told apart by `COLOR_0`'s alpha, which stock
+//! PlayCanvas leaves out of the alpha test, so it drew every layer as a solid shell: the first
+//! test keeps a single-draw bake as a control that shows it ([`PLAYCANVAS_IGNORES_COLOR_0_ALPHA`]).
 
 #![cfg(feature = "view")]
 
@@ -34,6 +34,7 @@ use std::time::Instant;
 
 use common::{bake, fixture, node, scratch, three_job};
 use serde_json::Value;
+use shellbake::output::pack::Layout;
 use shellbake::view::{self, NamedView};
 
 const SIZE: (u32, u32) = (384, 384);
@@ -131,6 +132,8 @@ fn playcanvas_draws_the_fur_three_js_draws() {
         &["--layer-weights", "node"],
     );
     let (one_shell, _) = bake(&bunny, &dir, "layers-2.glb", &["--layers", "2"]);
+    let single = PLAYCANVAS_IGNORES_COLOR_0_ALPHA.name();
+    let (single_draw, _) = bake(&bunny, &dir, "single-draw.glb", &["--layout", single]);
     // One camera for every picture: the default bake framed from the front, as three_compare.rs
     // frames it.
     let camera = view::camera_for_glb(
@@ -146,10 +149,24 @@ fn playcanvas_draws_the_fur_three_js_draws() {
             job(&default, &png("playcanvas-default"), &camera),
             job(&control, &png("playcanvas-node-weights"), &camera),
             job(&one_shell, &png("playcanvas-layers-2"), &camera),
+            job(&single_draw, &png("playcanvas-single-draw"), &camera),
+            {
+                let png = png("playcanvas-single-draw-opacity-from-vertex-alpha");
+                let mut j = job(&single_draw, &png, &camera);
+                j["opacity_from_vertex_alpha"] = Value::Bool(true);
+                j
+            },
         ],
         &dir,
     );
-    common::render(&[job(&default, &png("three-default"), &camera)], &dir);
+    common::render(
+        &[
+            job(&default, &png("three-default"), &camera),
+            job(&single_draw, &png("three-single-draw"), &camera),
+        ],
+        &dir,
+    );
+    single_draw_control(&png);
 
     let pc_default = silhouette(&png("playcanvas-default"));
     let pc_control = silhouette(&png("playcanvas-node-weights"));
@@ -229,6 +246,37 @@ fn playcanvas_draws_the_fur_three_js_draws() {
     );
 }
 
+/// The known failure ([`PLAYCANVAS_IGNORES_COLOR_0_ALPHA`]): PlayCanvas draws the single-draw
+/// bunny as solid shells, wider than three.js's fur by [`SOLID_SHELLS_WIDER`], and as three.js
+/// does once `opacityVertexColor` is set.
+fn single_draw_control(png: &dyn Fn(&str) -> PathBuf) {
+    let sil = |name: &str| silhouette(&png(name));
+    let (pc, three) = (sil("playcanvas-single-draw"), sil("three-single-draw"));
+    let fixed = sil("playcanvas-single-draw-opacity-from-vertex-alpha");
+    let xor = |a: &[bool], b: &[bool]| a.iter().zip(b).filter(|(a, b)| a != b).count();
+    let rel = |a: usize, b: usize| a as f64 / b as f64 - 1.0;
+    let [p, t, f] = [&pc, &three, &fixed].map(|m| count(m));
+    eprintln!(
+        "  single-draw control: PlayCanvas {p} ({:+.2} % against three.js's {t}); with \
+         opacityVertexColor {f} ({:+.2} %, xor {})",
+        100.0 * rel(p, t),
+        100.0 * rel(f, t),
+        xor(&fixed, &three)
+    );
+    assert!(
+        rel(p, t) >= SOLID_SHELLS_WIDER,
+        "PlayCanvas's silhouette of the single-draw bunny ({p}) is {:+.2} % from three.js's \
+         ({t}), no longer {:.0} % wider: does PlayCanvas now honour COLOR_0's alpha?",
+        100.0 * rel(p, t),
+        100.0 * SOLID_SHELLS_WIDER
+    );
+    assert!(
+        rel(f, t).abs() <= ENGINES_APART && xor(&fixed, &three) as f64 <= ENGINES_XOR * t as f64,
+        "with opacityVertexColor PlayCanvas's silhouette ({f}) should be three.js's ({t}): the \
+         cause is not (only) COLOR_0's alpha"
+    );
+}
+
 #[test]
 fn the_playcanvas_target_draws_lod_0_once() {
     let dir = scratch("engines_lod");
@@ -296,8 +344,9 @@ fn the_playcanvas_target_draws_lod_0_once() {
     );
 }
 
-/// **Known failure.** The targets whose file stock PlayCanvas draws as solid shells instead of
-/// fur: the single-draw targets, whose layers all lie in one primitive and are told apart by
+/// **Known failure, of a layout no target writes.** Stock PlayCanvas draws a single-draw file
+/// (`--layout single-draw`) as solid shells instead of fur: its layers all lie in one primitive
+/// and are told apart by
 /// their vertices' `COLOR_0` alpha, `single_draw_cutoff / cutoff(k)` for layer `k`, against the
 /// one `alphaCutoff` (15.5/255) of the material, below the least alpha any mask texel holds
 /// (16/255). glTF multiplies the base colour's alpha by `COLOR_0`'s before the alpha test, and
@@ -309,15 +358,15 @@ fn the_playcanvas_target_draws_lod_0_once() {
 /// "a")`), so the opacity chunk (`scene/shader-lib/glsl/chunks/standard/frag/opacity.js`, under
 /// `STD_OPACITY_VERTEX`) never multiplies `vVertexColor.a` in, and every layer is alpha-tested
 /// on the texture's alpha alone, which passes everywhere: each layer is drawn as an opaque copy
-/// of the surface at its height, the outermost hiding the rest. The test asserts that
-/// (PlayCanvas's silhouette at least [`SOLID_SHELLS_WIDER`] over three.js's) and that the cause
-/// is that one flag: with `opacityVertexColor` set on the file's materials (the page's
-/// `opacity_from_vertex_alpha`, what a PlayCanvas user would have to add after loading), PlayCanvas
-/// draws the bunny's, the grass's and the critter's single-draw files as three.js does, to the
-/// pixel. A target leaves this list when PlayCanvas (or the layout) changes and the assertion
-/// fails.
-const PLAYCANVAS_IGNORES_COLOR_0_ALPHA: [&str; 3] = ["godot", "unreal", "portable"];
-/// The least amount by which PlayCanvas's silhouette of a known-failure file exceeds three.js's,
+/// of the surface at its height, the outermost hiding the rest. The first test asserts that of
+/// the bunny's single-draw file (PlayCanvas's silhouette at least [`SOLID_SHELLS_WIDER`] over
+/// three.js's) and that the cause is that one flag: with `opacityVertexColor` set on the file's
+/// materials (the page's `opacity_from_vertex_alpha`, what a PlayCanvas user would have to add
+/// after loading), PlayCanvas draws it as three.js does. This is why the targets of engines that
+/// apply no static weight write the `layers` layout (a material, and so an `alphaCutoff`, per
+/// layer), and no target writes single-draw; the every-target test checks that.
+const PLAYCANVAS_IGNORES_COLOR_0_ALPHA: Layout = Layout::SingleDraw;
+/// The least amount by which PlayCanvas's silhouette of a single-draw file exceeds three.js's,
 /// relative: measured +21.2 % (the bunny) to +48.9 % (the grass), the solid outer shells against
 /// the fur's sparse, tapering strands; the bound is under half of the least and four times
 /// [`ENGINES_APART`].
@@ -341,9 +390,6 @@ struct Input {
     /// The least growth of PlayCanvas's silhouette over the one-shell control's, relative: half
     /// of what is measured (see the test).
     fur_gain: f64,
-    /// Whether its known-failure files are also drawn with `opacity_from_vertex_alpha` (not the
-    /// dragon's: 84–114 MB, 5 s a picture).
-    diagnose: bool,
 }
 
 /// Primitives of the meshes each scene of `glb` reaches (`scenes[i]`'s nodes and their
@@ -390,7 +436,8 @@ fn scenes_primitives(glb: &Path) -> Vec<usize> {
 /// bare mesh's growth over it is at most zero; a file whose layers collapse on the base (as the
 /// node-weights control of the first test) is no wider either. PlayCanvas's and three.js's
 /// silhouettes of each file must then agree within [`ENGINES_APART`] and [`ENGINES_XOR`], which a
-/// widening of some other kind (solid shells: [`PLAYCANVAS_IGNORES_COLOR_0_ALPHA`]) does not.
+/// widening of some other kind (solid shells: [`PLAYCANVAS_IGNORES_COLOR_0_ALPHA`]) does not:
+/// the single-draw files these targets wrote before failed there by 21–49 %.
 ///
 /// Files that are the same to the byte (most targets differ only in what the input does not use:
 /// `unity` and `playcanvas` without sheen, `godot` and `portable`, every compact target of the
@@ -403,7 +450,6 @@ fn scenes_primitives(glb: &Path) -> Vec<usize> {
 /// skinned critter's: its layer nodes are scene roots, one level).
 #[test]
 fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
-    use shellbake::output::pack::Layout;
     use shellbake::output::target::Target;
     use std::collections::HashMap;
     use std::sync::atomic::{AtomicUsize, Ordering};
@@ -417,7 +463,7 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
     // +10.68 %, critter +12.80 %, dragon +15.23 %; each bound is about half of it. PlayCanvas and
     // three.js: at most 0.01 % apart and 4 disagreeing pixels (0.01 %) on any compact file, so
     // the first test's ENGINES_APART and ENGINES_XOR (2 %) hold with the same room, under half of
-    // the least fur gain and a tenth of the least known-failure gap.
+    // the least fur gain and a tenth of the single-draw control's gap.
     let inputs = [
         Input {
             name: "bunny",
@@ -425,7 +471,6 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
             args: vec![],
             orbit: front,
             fur_gain: 0.06,
-            diagnose: true,
         },
         Input {
             name: "grass",
@@ -437,7 +482,6 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
                 ..front
             },
             fur_gain: 0.05,
-            diagnose: true,
         },
         Input {
             name: "critter",
@@ -445,7 +489,6 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
             args: s(&["--only", "material=fur_*"]),
             orbit: front,
             fur_gain: 0.06,
-            diagnose: true,
         },
         Input {
             name: "dragon",
@@ -453,17 +496,16 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
             args: s(&["--layers", DRAGON_LAYERS]),
             orbit: front,
             fur_gain: 0.075,
-            diagnose: false,
         },
     ];
     let single_draw: Vec<&str> = Target::ALL
         .iter()
-        .filter(|t| t.profile().layout == Some(Layout::SingleDraw))
+        .filter(|t| t.profile().layout == Some(PLAYCANVAS_IGNORES_COLOR_0_ALPHA))
         .map(|t| t.name())
         .collect();
-    assert_eq!(
-        single_draw, PLAYCANVAS_IGNORES_COLOR_0_ALPHA,
-        "the known failure is the single-draw layout's"
+    assert!(
+        single_draw.is_empty(),
+        "{single_draw:?} write the single-draw layout, which PlayCanvas draws as solid shells"
     );
 
     // Bakes, two at a time (a bake is mostly one thread): (input, target, control).
@@ -533,9 +575,8 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
             t.name()
         ))
     };
-    // PlayCanvas: every distinct file, then the diagnosis of the known failures; three.js:
-    // every distinct fur file.
-    let mut pc_jobs: Vec<Value> = (0..files.len())
+    // PlayCanvas: every distinct file; three.js: every distinct fur file.
+    let pc_jobs: Vec<Value> = (0..files.len())
         .map(|f| {
             job(
                 &baked[files[f]],
@@ -544,20 +585,6 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
             )
         })
         .collect();
-    let mut diagnosed: HashMap<usize, usize> = HashMap::new(); // file -> PlayCanvas job
-    for f in 0..files.len() {
-        let (i, t, control) = bakes[files[f]];
-        if !control && inputs[i].diagnose && PLAYCANVAS_IGNORES_COLOR_0_ALPHA.contains(&t.name()) {
-            let mut j = job(
-                &baked[files[f]],
-                &png("playcanvas-opacity-from-vertex-alpha", f),
-                &cameras[i],
-            );
-            j["opacity_from_vertex_alpha"] = Value::Bool(true);
-            diagnosed.insert(f, pc_jobs.len());
-            pc_jobs.push(j);
-        }
-    }
     let fur_files: Vec<usize> = (0..files.len()).filter(|&f| !bakes[files[f]].2).collect();
     let three_jobs: Vec<Value> = fur_files
         .iter()
@@ -629,29 +656,8 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
         let x = xor(&pc_sil[f], &three_sil[&f]);
         let mi = pc[f]["meshInstances"].as_u64().unwrap() as usize;
         let scenes = &prims[f];
-        let known = PLAYCANVAS_IGNORES_COLOR_0_ALPHA.contains(&t.name());
         let (gain, apart, share) = (rel(p, p1), rel(p, th), x as f64 / th as f64);
-        let mut verdict = if known {
-            "KNOWN FAILURE: solid shells".to_string()
-        } else {
-            "fur".to_string()
-        };
-        if let Some(&j) = diagnosed.get(&f) {
-            let d = silhouette(Path::new(pc_jobs[j]["png"].as_str().unwrap()));
-            let (dn, dx) = (count(&d), xor(&d, &three_sil[&f]));
-            verdict += &format!(
-                "; opacityVertexColor on: {dn} px, {:+.2} %, xor {dx}",
-                100.0 * rel(dn, th)
-            );
-            fail(
-                rel(dn, th).abs() <= ENGINES_APART && dx as f64 <= ENGINES_XOR * th as f64,
-                format!(
-                    "{what}: with opacityVertexColor PlayCanvas's silhouette ({dn}) should be \
-                     three.js's ({th}), disagreeing on {dx} pixels: the cause is not (only) \
-                     COLOR_0's alpha"
-                ),
-            );
-        }
+        let verdict = "fur";
         eprintln!(
             "  {:<8} {:<10} {:>11} {:<8} {p:>6} {p1:>6} {:>+6.2}% {th:>6} {:>+6.2}% {x:>5} \
              {:>5.2}% {mi:>4} {:>5} {:>6}  {verdict}",
@@ -665,45 +671,32 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
             scenes[0],
             scenes.len(),
         );
-        if known {
-            fail(
-                apart >= SOLID_SHELLS_WIDER,
-                format!(
-                    "{what}: PlayCanvas's silhouette ({p}) is {:+.2} % from three.js's ({th}), \
-                     no longer {:.0} % wider: does PlayCanvas now honour COLOR_0's alpha? Then \
-                     take the target out of PLAYCANVAS_IGNORES_COLOR_0_ALPHA",
-                    100.0 * apart,
-                    100.0 * SOLID_SHELLS_WIDER
-                ),
-            );
-        } else {
-            fail(
-                gain >= input.fur_gain,
-                format!(
-                    "{what}: PlayCanvas's silhouette ({p}) is {:+.2} % over the one-shell \
-                     control's ({p1}), not {:.1} %: the fur is missing",
-                    100.0 * gain,
-                    100.0 * input.fur_gain
-                ),
-            );
-            fail(
-                apart.abs() <= ENGINES_APART,
-                format!(
-                    "{what}: PlayCanvas's silhouette ({p}) is {:+.2} % from three.js's ({th}); \
-                     at most ±{:.0} %",
-                    100.0 * apart,
-                    100.0 * ENGINES_APART
-                ),
-            );
-            fail(
-                x as f64 <= ENGINES_XOR * th as f64,
-                format!(
-                    "{what}: PlayCanvas and three.js disagree on {x} silhouette pixels, over \
-                     {:.0} % of {th}",
-                    100.0 * ENGINES_XOR
-                ),
-            );
-        }
+        fail(
+            gain >= input.fur_gain,
+            format!(
+                "{what}: PlayCanvas's silhouette ({p}) is {:+.2} % over the one-shell \
+                 control's ({p1}), not {:.1} %: the fur is missing",
+                100.0 * gain,
+                100.0 * input.fur_gain
+            ),
+        );
+        fail(
+            apart.abs() <= ENGINES_APART,
+            format!(
+                "{what}: PlayCanvas's silhouette ({p}) is {:+.2} % from three.js's ({th}); \
+                 at most ±{:.0} %",
+                100.0 * apart,
+                100.0 * ENGINES_APART
+            ),
+        );
+        fail(
+            x as f64 <= ENGINES_XOR * th as f64,
+            format!(
+                "{what}: PlayCanvas and three.js disagree on {x} silhouette pixels, over \
+                 {:.0} % of {th}",
+                100.0 * ENGINES_XOR
+            ),
+        );
         let every_scene: usize = scenes.iter().sum();
         fail(
             mi == every_scene,

@@ -65,7 +65,7 @@ fn heights_and_pull(glb: &[u8]) -> (f64, f64) {
 fn bent_layers_stay_outside_and_never_invert() {
     let fixtures = ["sphere", "torus", "bunny", "plane", "cube", "teapot"];
     for fixture in fixtures {
-        for layout in [Layout::Compact, Layout::SingleDraw] {
+        for layout in Layout::ALL {
             let (baked, _) = bake(fixture, layout, true);
             let what = format!("{fixture} {layout:?}");
             let (inverted, checked) = inverted_layer_triangles(&baked.glb);
@@ -99,7 +99,7 @@ fn bent_layers_stay_outside_and_never_invert() {
         ("split cube", cube),
         ("spiky sphere", common::spiky_sphere()),
     ] {
-        for layout in [Layout::Compact, Layout::SingleDraw] {
+        for layout in Layout::ALL {
             let (baked, _) = bake_mesh(&scene, layout, true);
             let (inverted, checked) = inverted_layer_triangles(&baked.glb);
             assert!(checked > 0);

@@ -44,7 +44,7 @@ fn the_fixture_is_what_the_generator_makes() {
 fn layers_share_the_skin_and_the_file_keeps_skeleton_and_animation() {
     let dir = scratch("skinned_file");
     let mut files = Vec::new();
-    for layout in [Layout::Compact, Layout::SingleDraw] {
+    for layout in Layout::ALL {
         let baked = shellbake::bake(&tube(), &params(layout));
         // the report's load line says what the file keeps; the lod stage says why it skipped
         let load = baked.report.stage("load").unwrap();
@@ -116,7 +116,7 @@ fn layers_share_the_skin_and_the_file_keeps_skeleton_and_animation() {
 
 #[test]
 fn verify_matches_the_skinned_reference_and_notices_fur_that_stands_still() {
-    for layout in [Layout::Compact, Layout::SingleDraw] {
+    for layout in Layout::ALL {
         let p = params(layout);
         let with = shellbake::bake(&tube(), &p);
         let v = verify_glb(&with.glb, &with, &p);

@@ -31,10 +31,7 @@ fn bake_file(path: &Path, preset: Preset, layout: Layout) -> (shellbake::Baked, 
 }
 
 fn layout_name(l: Layout) -> &'static str {
-    match l {
-        Layout::Compact => "compact",
-        Layout::SingleDraw => "single-draw",
-    }
+    l.name()
 }
 
 fn lines(v: &Verification) -> Vec<String> {
@@ -83,6 +80,8 @@ fn verify_fixture(fixture: &str) {
     let cases: Vec<(Preset, Layout)> = Preset::ALL
         .iter()
         .flat_map(|&p| [(p, Layout::Compact), (p, Layout::SingleDraw)])
+        // the layers layout is single-draw's vertices under compact's materials: one preset
+        .chain([(Preset::Fur, Layout::Layers)])
         .collect();
     verify_cases(fixture, &path, &cases);
 }
@@ -171,7 +170,7 @@ fn off_by_one_layer(baked: &shellbake::Baked) -> Vec<u8> {
         }
     };
     match baked.packed.layout {
-        Layout::Compact => {
+        Layout::Compact | Layout::Layers => {
             for (j, m) in doc["materials"]
                 .as_array_mut()
                 .unwrap()
@@ -211,7 +210,7 @@ fn verify_fails_when_the_bake_is_off_by_one_layer() {
         ("plane", Preset::Grass),
         ("torus", Preset::Moss),
     ] {
-        for layout in [Layout::Compact, Layout::SingleDraw] {
+        for layout in Layout::ALL {
             let (baked, params) = bake(fixture, preset, layout);
             let wrong = off_by_one_layer(&baked);
             let v = verify_glb(&wrong, &baked, &params);

@@ -306,8 +306,8 @@ impl Placing<'_> {
         let surface = &packed.surfaces[s];
         let Some(at) = surface.shape_keys_at else {
             return vec![format!(
-                "node '{node_name}' has shape keys, which the single-draw layout's fur does not \
-                 follow (the compact layout's does)"
+                "node '{node_name}' has shape keys, which the single-draw and layers layouts' fur \
+                 does not follow (the compact layout's does)"
             )];
         };
         let k = keys.rest.len();

@@ -14,15 +14,19 @@
 //! | `unity` | glTFast | quantized | morph weights | LOD 0 only, one scene | dropped | if asked |
 //! | `playcanvas` | PlayCanvas | quantized | morph weights (it reads the mesh's) | LOD 0 only, one scene | kept | no |
 //! | `bevy` | Bevy (`bevy_gltf`) | floats | morph weights (it reads the mesh's) | LOD 0 only, one scene | dropped | no |
-//! | `godot` | Godot 4 | floats | every layer's own positions (single-draw) | LOD 0 only, one scene | dropped | no |
-//! | `unreal` | glTFRuntime | quantized | every layer's own positions (single-draw) | LOD 0 only, one scene | kept | if asked |
-//! | `portable` | any core glTF 2.0 reader | floats | every layer's own positions (single-draw) | LOD 0 only, one scene | dropped | no |
+//! | `godot` | Godot 4 | floats | every layer's own positions (`layers`) | LOD 0 only, one scene | dropped | no |
+//! | `unreal` | glTFRuntime | quantized | every layer's own positions (`layers`) | LOD 0 only, one scene | kept | if asked |
+//! | `portable` | any core glTF 2.0 reader | floats | every layer's own positions (`layers`) | LOD 0 only, one scene | dropped | no |
 //!
 //! "Floats" is `--quantize none`: float positions, normals and morph deltas, the tiling multiplied
 //! into the texture coordinates, so neither `KHR_mesh_quantization` nor `KHR_texture_transform`
-//! is required. "Every layer's own positions" is the single-draw layout: all layers in one
-//! primitive, each layer's vertices where that layer is, told apart by their `COLOR_0` alpha
-//! against one cutoff, so no static weight is needed. A flag given beside `--target` wins
+//! is required. "Every layer's own positions" is the `layers` layout: a mesh and material per
+//! layer as in the compact layout, each layer's vertices written where that layer is, so no
+//! static weight is needed; the layers share their normals, texture coordinates and index
+//! stream (prefixes of one accessor). Not the single-draw layout, whose one primitive tells
+//! the layers apart by `COLOR_0` alpha against one cutoff: stock PlayCanvas leaves `COLOR_0`
+//! alpha out of its alpha test and drew every layer of such a file as a solid shell
+//! (`tests/engines.rs`), and a per-layer material costs those engines nothing they refuse. A flag given beside `--target` wins
 //! over it (`--target godot --layout compact` is a compact file), except `--compress meshopt`
 //! for a target that cannot read it, which is refused. The summary names the target and the
 //! engines it is for.
@@ -35,9 +39,11 @@
 //! nothing at the rim where it does.
 //!
 //! The default is `web`: it is the smallest file with its levels of detail (the bunny: 218 kB;
-//! `bevy`, floats and LOD 0 only, 211 kB; `playcanvas` 166 kB without the levels; single-draw
-//! 3.3 MB quantized for `unreal`, 4.6 MB in floats for `godot` and `portable`: every layer's
-//! vertices written out is what an engine without static weights costs), draws LOD by distance
+//! `bevy`, floats and LOD 0 only, 211 kB; `playcanvas` 166 kB without the levels; `layers`
+//! 753 kB quantized for `unreal`, 1.09 MB in floats for `godot` and `portable`: every layer's
+//! positions written out is what an engine without static weights costs; single-draw, which
+//! wrote every layer's normals, texture coordinates and colours too, made 3.3 and 4.6 MB),
+//! draws LOD by distance
 //! in Babylon.js (and in three.js with a plugin), and every engine that reads its required
 //! extensions draws its fur, since the weights are on the meshes too. What it costs elsewhere
 //! is the coarser levels drawn over LOD 0 where every scene is loaded (PlayCanvas, glTFRuntime,
@@ -69,7 +75,7 @@ pub enum Target {
 pub struct Profile {
     /// The engines the file is right for, as the summary names them.
     pub engines: &'static str,
-    /// `Some(SingleDraw)` where the engine applies no static morph weight.
+    /// `Some(Layers)` where the engine applies no static morph weight.
     pub layout: Option<Layout>,
     pub quantize: Quantize,
     pub layer_weights: LayerWeights,
@@ -147,17 +153,17 @@ impl Target {
             },
             Target::Godot => Profile {
                 engines: "Godot 4",
-                layout: Some(Layout::SingleDraw),
+                layout: Some(Layout::Layers),
                 ..floats
             },
             Target::Unreal => Profile {
                 engines: "Unreal glTFRuntime",
-                layout: Some(Layout::SingleDraw),
+                layout: Some(Layout::Layers),
                 ..one_scene
             },
             Target::Portable => Profile {
                 engines: "any glTF 2.0 reader: no extension",
-                layout: Some(Layout::SingleDraw),
+                layout: Some(Layout::Layers),
                 ..floats
             },
         }

@@ -395,6 +395,34 @@ pub fn inverted_layer_triangles_with(
             })
         };
         let ranges = &mesh["extras"]["shellbake_layers"];
+        // the layers layout: a layer mesh without targets over its own positions, whose vertex
+        // `i` is vertex `i` of its base layer (`…layer_000`), drawing a prefix of its triangles
+        let name = mesh["name"].as_str().unwrap_or("");
+        let base_of = name
+            .strip_suffix(|c: char| c.is_ascii_digit())
+            .filter(|_| targets.is_empty() && !ranges.is_object() && name.len() > 3)
+            .and_then(|_| {
+                let (stem, j) = name.split_at(name.len() - 3);
+                let j: usize = j.parse().ok()?;
+                let base = format!("{stem}000");
+                (stem.ends_with("layer_") && j > 0).then_some(base)
+            })
+            .and_then(|base| {
+                let meshes = g.json["meshes"].as_array().unwrap();
+                meshes
+                    .iter()
+                    .find(|m| m["name"].as_str() == Some(base.as_str()))
+            });
+        if let Some(base) = base_of {
+            let a = base["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap();
+            let under = g.accessor(a as usize);
+            for t in ix.chunks_exact(3) {
+                let b = [0, 1, 2].map(|k| row(&under[t[k]]));
+                count(b, [0, 1, 2].map(|k| row(&pos[t[k]])));
+            }
+        }
         if !targets.is_empty() && !ranges.is_object() {
             for t in ix.chunks_exact(3) {
                 let base = [0, 1, 2].map(|k| row(&pos[t[k]]));

@@ -85,17 +85,24 @@ pub enum Layout {
     /// All layers in one primitive and one material; per-layer threshold and shade in COLOR_0.
     /// Larger file, one draw call.
     SingleDraw,
+    /// One mesh and material per layer as in the compact layout, but every layer carries its
+    /// own positions (single-draw's, rounded as stored) and no extrusion target, so an engine
+    /// that applies no static morph weight (Godot 4, glTFRuntime) or reads no `COLOR_0` alpha
+    /// in its alpha test (PlayCanvas) draws the fur. Normals, texture coordinates, colours,
+    /// joints and the index stream are written once per level, each layer reading a prefix.
+    Layers,
 }
 
 impl Layout {
     /// Every layout, in the order the CLI lists them.
-    pub const ALL: [Layout; 2] = [Layout::Compact, Layout::SingleDraw];
+    pub const ALL: [Layout; 3] = [Layout::Compact, Layout::SingleDraw, Layout::Layers];
 
     /// The kebab-case name used on the command line, in scene files, reports and `extras`.
     pub fn name(self) -> &'static str {
         match self {
             Layout::Compact => "compact",
             Layout::SingleDraw => "single-draw",
+            Layout::Layers => "layers",
         }
     }
 
@@ -942,7 +949,8 @@ fn guard_stack(input: &PackInput, params: &PackParams, grid: &PositionGrid) -> G
     };
     match params.layout {
         Layout::Compact => guard.compact(params, grid, stored),
-        Layout::SingleDraw => guard.single_draw(params, grid, stored),
+        // the layers layout stores single-draw's vertices, one layer per mesh
+        Layout::SingleDraw | Layout::Layers => guard.single_draw(params, grid, stored),
     }
 }
 
@@ -1058,7 +1066,7 @@ fn wind_targets(
 ) -> [Vec<Vec3>; 2] {
     let to_grid = match params.layout {
         Layout::Compact => unit,
-        Layout::SingleDraw => 1.0,
+        Layout::SingleDraw | Layout::Layers => 1.0,
     };
     let [a, b]: [Vec<Vec3>; 2] = [0, 1].map(|k| {
         (stored.deltas.iter().zip(&wind.phase).zip(&stored.leans))
@@ -1067,7 +1075,7 @@ fn wind_targets(
     });
     match params.layout {
         Layout::Compact => [a, b].map(|v| v.iter().map(|&x| targets(exact).round(x)).collect()),
-        Layout::SingleDraw => [a, b],
+        Layout::SingleDraw | Layout::Layers => [a, b],
     }
 }
 
@@ -1092,7 +1100,7 @@ fn geometry<'a>(
         Layout::Compact => (mesh.morphs.iter())
             .map(|m| shape_key_target(m, &grid, params.quantize))
             .collect(),
-        Layout::SingleDraw => vec![],
+        Layout::SingleDraw | Layout::Layers => vec![],
     };
     Geometry {
         grid,
@@ -1356,7 +1364,15 @@ fn pack_level(
             }
             single_draw(b, ctx, &order, &indices, &ordering.kept)
         }
-        (Layout::SingleDraw, Some(_)) => {
+        (Layout::Layers, None) => {
+            let (order, indices) = fetch_order(&ordering.indices, nv);
+            if k == 0 {
+                chunks.base_vertices += order.len();
+                chunks.vertex_order.extend(order.iter().copied());
+            }
+            layers_layout(b, ctx, &order, &indices, &ordering.kept)
+        }
+        (Layout::SingleDraw | Layout::Layers, Some(_)) => {
             let s = Shared::new(b, ctx.geometry, ordering.first_use(nv), nv, false);
             compact(b, ctx, &s, &ordering, None).0
         }
@@ -2485,22 +2501,7 @@ fn compact_layer(
     let l = ctx.level.layers[j];
     let base = j == 0;
     let name = format!("{}layer_{j:03}", ctx.prefix);
-    let material = b.material(ctx.index, j, || Material {
-        name: format!("{}layer_{j:03}", ctx.material_prefix),
-        base_color: [l.color[0], l.color[1], l.color[2], 1.0],
-        alpha: if base {
-            Alpha::Opaque
-        } else {
-            Alpha::Mask(ctx.mask.cutoff(l.step))
-        },
-        texture: ctx.texture,
-        roughness: ctx.roughness,
-        sheen: ctx
-            .geometry
-            .sheen
-            .and_then(|s| crate::effects::sheen::Sheen::of(s, l.t)),
-        unlit: ctx.geometry.unlit,
-    });
+    let material = layer_material(b, ctx, j);
     let primitive = Primitive {
         attributes: attributes.to_vec(),
         targets: if base {
@@ -2545,6 +2546,28 @@ fn compact_layer(
             target_names: layer_target_names(ctx.geometry, shells, base),
         },
     )
+}
+
+/// Layer `j`'s material in the compact and layers layouts: the layer's colour, opaque at the
+/// base and above it the mask under the layer's own cutoff, and the sheen of its height.
+fn layer_material(b: &mut Builder, ctx: &LevelCtx, j: usize) -> usize {
+    let l = ctx.level.layers[j];
+    b.material(ctx.index, j, || Material {
+        name: format!("{}layer_{j:03}", ctx.material_prefix),
+        base_color: [l.color[0], l.color[1], l.color[2], 1.0],
+        alpha: if j == 0 {
+            Alpha::Opaque
+        } else {
+            Alpha::Mask(ctx.mask.cutoff(l.step))
+        },
+        texture: ctx.texture,
+        roughness: ctx.roughness,
+        sheen: ctx
+            .geometry
+            .sheen
+            .and_then(|s| crate::effects::sheen::Sheen::of(s, l.t)),
+        unlit: ctx.geometry.unlit,
+    })
 }
 
 /// A layer mesh's target names, when it carries an asset part's named shape keys: its own
@@ -2597,6 +2620,14 @@ pub fn estimate_bytes(
             let n = vertices * level_layers;
             let index = if n <= 65535 { 2 } else { 4 };
             n * (8 + 4 + 8 + 8) + triangles * level_layers * 3 * index
+        }
+        Layout::Layers => {
+            // float positions and colours per layer; per level, the streams the layers share
+            // (normals, texture coordinates, joints, the wind's two targets) and the index
+            // stream they read prefixes of
+            let index = if vertices <= 65535 { 2 } else { 4 };
+            let shared = vertices * (12 + 8 + 8 + 24) + triangles * 3 * index;
+            vertices * level_layers * (12 + 8) + (levels + 1) * shared
         }
     };
     28 + body + png + json + padding
@@ -2683,6 +2714,137 @@ fn single_draw(
     single_draw_wind(b, ctx, (order, layer_vertices), mesh);
     b.out.meshes[mesh].layer_ranges = stack.ranges;
     vec![mesh]
+}
+
+/// The layers layout of one level of one chunk: single-draw's vertices ([`SingleDrawStack`]),
+/// one mesh per layer as the compact layout has them (names, materials, tags), each layer's
+/// positions its own. What the layers share is written once over the vertices the widest
+/// layer stores, each layer reading a prefix: the normals, texture coordinates, joints, the
+/// colours where no occlusion shades them by height, the wind's targets (the channel weighs
+/// them by the layer's `t^k`, as in the compact layout) and the index stream (layer `j` draws
+/// the first `kept[j]` triangles of the level's culled order, in single-draw's numbering).
+fn layers_layout(
+    b: &mut Builder,
+    ctx: &LevelCtx,
+    order: &[u32],
+    indices: &[u32],
+    kept: &[usize],
+) -> Vec<usize> {
+    let g = ctx.geometry;
+    let top_level = (!b.float).then_some(g.grid.max_level() as f32);
+    let stack = SingleDrawStack::of(ctx, (order, indices, kept), top_level);
+    let widest = stack.layer_vertices.iter().copied().max().unwrap_or(0);
+    if widest == 0 {
+        return vec![];
+    }
+    let rows = &order[..widest];
+    let most_kept = stack
+        .ranges
+        .iter()
+        .map(|r| r.index_count)
+        .max()
+        .unwrap_or(0);
+    let ix = b.indices("indices", &indices[..most_kept], widest);
+    let normal = b.normals(&gather(rows, g.normals));
+    let texcoord = b.texcoords(&gather(rows, g.uvs), g.uv_grid, g.float_uvs, g.tiles);
+    let skin = g.skin.map(|s| b.skin(s, rows));
+    let coloured = g.albedo.is_some() || g.density.is_some() || g.occlusion.is_some();
+    let colour = |o: u32, t: f32| {
+        let o = o as usize;
+        let shade = (g.occlusion).map_or(1.0, |a| crate::effects::occlusion::shade(a[o], t));
+        let albedo = g.albedo.map_or(Vec3::ONE, |a| a[o].truncate());
+        let density = g.density.map_or(u16::MAX, |d| d[o] as u16 * 257);
+        (albedo * shade, density)
+    };
+    // without occlusion every layer's colours are the roots' (the layer's colour is its
+    // material's, and the base is opaque, so the density alpha only counts above it)
+    let shared_colour = (coloured && g.occlusion.is_none())
+        .then(|| u16_colors(b, "color", rows.iter().map(|&o| colour(o, 0.0)), widest));
+    let winds = (g.wind.and(g.winds.as_ref())).map(|w| {
+        let v = [0, 1].map(|k| gather(rows, &w[k]));
+        let a =
+            [("wind_sin", 0), ("wind_cos", 1)].map(|(n, k)| b.deltas(&v[k], n, k, Targets::Exact));
+        (v, a)
+    });
+    let mut meshes = Vec::new();
+    for (j, range) in stack.ranges.iter().enumerate() {
+        let nv = range.vertex_count;
+        if range.index_count == 0 || (j == 0 && !ctx.base) {
+            continue;
+        }
+        let first = range.first_vertex;
+        let position = b.positions("position", &stack.positions[first..first + nv], &g.grid);
+        let mut attributes = vec![
+            (Semantic::Position, position),
+            (Semantic::Normal, prefix_of(b, normal, nv, None)),
+            (Semantic::TexCoord(0), prefix_of(b, texcoord, nv, None)),
+        ];
+        let t = ctx.level.layers[j].t;
+        let colour = match shared_colour {
+            Some(c) => Some(prefix_of(b, c, nv, None)),
+            None => coloured
+                .then(|| u16_colors(b, "color", rows[..nv].iter().map(|&o| colour(o, t)), nv)),
+        };
+        attributes.extend(colour.map(|c| (Semantic::Color(0), c)));
+        if let Some([jo, we]) = skin {
+            let joints = (Semantic::Joints(0), prefix_of(b, jo, nv, None));
+            attributes.extend([joints, (Semantic::Weights(0), prefix_of(b, we, nv, None))]);
+        }
+        let targets: Vec<Vec<(Semantic, usize)>> = match (&winds, j) {
+            (Some((v, a)), 1..) => (0..2)
+                .map(|k| {
+                    vec![(
+                        Semantic::Position,
+                        prefix_of(b, a[k], nv, Some(&v[k][..nv])),
+                    )]
+                })
+                .collect(),
+            _ => vec![],
+        };
+        let weights = vec![0.0; targets.len()];
+        let primitive = Primitive {
+            attributes,
+            targets,
+            indices: Some(prefix_of(b, ix, range.index_count, None)),
+            material: layer_material(b, ctx, j),
+        };
+        let mesh = PackedMesh {
+            name: format!("{}layer_{j:03}", ctx.prefix),
+            tag: Tag {
+                layer: Some(j),
+                ..b.tag
+            },
+            primitives: vec![primitive],
+            weights,
+            layer_ranges: vec![],
+            target_names: vec![],
+        };
+        meshes.push(Packed::push(&mut b.out.meshes, mesh));
+    }
+    meshes
+}
+
+/// Accessor `a` over its first `n` elements (`a` itself when that is all of it), with the
+/// bounds of `values` (its first `n`) where `a` has bounds.
+fn prefix_of(b: &mut Builder, a: usize, n: usize, values: Option<&[Vec3]>) -> usize {
+    let whole = &b.out.accessors[a];
+    if whole.count == n {
+        return a;
+    }
+    let mut p = whole.clone();
+    p.count = n;
+    if let Some(v) = values {
+        let none = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        let (lo, hi) = v.iter().fold(none, |(lo, hi), &x| (lo.min(x), hi.max(x)));
+        let (lo, hi) = if v.is_empty() {
+            (Vec3::ZERO, Vec3::ZERO)
+        } else {
+            (lo, hi)
+        };
+        let bounds = |v: Vec3| v.to_array().map(|x| x as f64).to_vec();
+        (p.min, p.max) = (Some(bounds(lo)), Some(bounds(hi)));
+    }
+    Packed::push(&mut b.out.accessors, p)
 }
 
 /// The input vertices of a single-draw layer that stores `nv` vertices: the first `nv` of the
