@@ -371,13 +371,12 @@ const PLAYCANVAS_IGNORES_COLOR_0_ALPHA: Layout = Layout::SingleDraw;
 /// the fur's sparse, tapering strands; the bound is under half of the least and four times
 /// [`ENGINES_APART`].
 const SOLID_SHELLS_WIDER: f64 = 0.08;
-/// Layers of every dragon bake, every target alike. The default (32) makes single-draw files of
-/// 165 MB (`unreal`) and 225 MB (`godot`, `portable`); 16 halves them (84 and 114 MB) but the test
-/// still took 97 s on 2 cores: each of the dragon's five distinct fur files is 3.2 M triangles a
-/// frame, and PlayCanvas draws two frames before the read-back, 5–10 s a file on SwiftShader
-/// (three.js 2–3 s). 8 layers (7 shells; single-draw files of 42 and 58 MB) keep it near 60 s,
-/// with the same verdicts as 16: the fur +15.2 % over one shell (+17.7 % at 16), PlayCanvas
-/// within 0.01 % of three.js (0.03 %), the single-draw files +23.2 % (+22.7 %).
+/// Layers of every dragon bake, every target alike. The default (32) makes `layers` files of
+/// 34 MB (`unreal`) and 50 MB (`godot`, `portable`), and at 16 layers the test took 97 s on 2
+/// cores: each of the dragon's five distinct fur files is 3.2 M triangles a frame, and PlayCanvas
+/// draws two frames before the read-back, 5–10 s a file on SwiftShader (three.js 2–3 s). 8 layers
+/// (7 shells; `layers` files of 11 and 16 MB) keep it near 60 s, with the same verdicts as 16:
+/// the fur +15.2 % over one shell (+17.7 % at 16), PlayCanvas within 0.01 % of three.js.
 const DRAGON_LAYERS: &str = "8";
 
 /// An input of the every-target test.
