@@ -192,6 +192,12 @@ pub const PATH_STOPS: usize = 8;
 /// Several renderers drawn into one pass (the reference of a scene: one per surface).
 struct Each<D>(Vec<D>);
 
+impl Each<ReferenceRenderer> {
+    fn draw_calls(&self) -> usize {
+        self.0.iter().map(|r| r.draw_calls()).sum()
+    }
+}
+
 impl<D: super::Draw> super::Draw for Each<D> {
     fn prepare(&mut self, gpu: &Gpu, camera: &Camera, light: &Light, format: wgpu::TextureFormat) {
         for d in &mut self.0 {
@@ -207,8 +213,9 @@ impl<D: super::Draw> super::Draw for Each<D> {
 
 /// Runs `bench`: bakes `scene` (the loaded surfaces, in order) three ways ([`BENCH_VARIANTS`]),
 /// then draws each bake and the runtime reference `args.frames` times per camera and prints
-/// the mean GPU time of a frame (timestamp queries; wall time where the adapter has none) and
-/// the triangles drawn. A mesh is drawn from the front, side, close and far views; a scene file
+/// the mean GPU time of a frame (timestamp queries; wall time where the adapter has none), the
+/// triangles drawn, and on a second line per camera the mean CPU time to record and submit a
+/// frame ([`super::gpu::Timing::cpu_ms`]) with the draw calls it records. A mesh is drawn from the front, side, close and far views; a scene file
 /// along [`camera_path`].
 pub fn bench(
     input: &Path,
@@ -269,7 +276,8 @@ pub fn bench(
         .map(|b| GltfRenderer::from_glb(&gpu, &b.glb))
         .collect::<Result<Vec<_>>>()?;
     println!(
-        "bench {} on {} ({:?}), {}x{}, {} frames; mean GPU ms per frame / triangles drawn{}",
+        "bench {} on {} ({:?}), {}x{}, {} frames; mean GPU ms per frame / triangles drawn{}; \
+         cpu: mean CPU ms to record and submit a frame / draw calls",
         shown(input),
         escape(&info.name),
         info.backend,
@@ -303,11 +311,13 @@ pub fn bench(
         };
         save("reference", &picture)?;
         let mut row = vec![(ms(&t), reference_triangles)];
+        let mut cpu = vec![(t.cpu_ms, reference.draw_calls())];
         for (k, r) in renderers.iter_mut().enumerate() {
             let (picture, t) =
                 super::draw_headless(&gpu, r, camera, &light, args.size, args.frames);
             save(&format!("bake{k}"), &picture)?;
             row.push((ms(&t), r.triangles()));
+            cpu.push((t.cpu_ms, r.draw_calls()));
         }
         print!("  {name:8}");
         for (total, &(ms, tris)) in totals.iter_mut().zip(&row) {
@@ -316,12 +326,22 @@ pub fn bench(
             total.1 += tris;
         }
         println!();
+        print!("  {:8}", "  cpu");
+        for &(ms, draws) in &cpu {
+            print!(" {ms:>9.3} ms {draws:>9}");
+        }
+        println!();
         rows.push(serde_json::json!({
             "camera": name, "eye": camera.eye.to_array(), "target": camera.target.to_array(),
-            "reference": { "ms": row[0].0, "triangles": row[0].1 },
-            "bakes": BENCH_VARIANTS.iter().zip(&row[1..]).map(|((v, ..), (ms, tris))| {
-                serde_json::json!({ "variant": v, "ms": ms, "triangles": tris })
-            }).collect::<Vec<_>>(),
+            "reference": {
+                "ms": row[0].0, "triangles": row[0].1, "cpu_ms": cpu[0].0, "draw_calls": cpu[0].1,
+            },
+            "bakes": BENCH_VARIANTS.iter().zip(row[1..].iter().zip(&cpu[1..])).map(
+                |((v, ..), ((ms, tris), (cpu_ms, draws)))| serde_json::json!({
+                    "variant": v, "ms": ms, "triangles": tris, "cpu_ms": cpu_ms,
+                    "draw_calls": draws,
+                })
+            ).collect::<Vec<_>>(),
         }));
     }
     print!("  {:8}", "total");

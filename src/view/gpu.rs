@@ -168,7 +168,9 @@ impl Gpu {
         });
         self.wait();
         let start = Instant::now();
+        let mut cpu = std::time::Duration::ZERO;
         for f in 0..frames {
+            let recording = Instant::now();
             let mut encoder = self.device.create_command_encoder(&Default::default());
             let ts = queries
                 .as_ref()
@@ -179,6 +181,7 @@ impl Gpu {
                 });
             record(&mut encoder, ts);
             self.queue.submit([encoder.finish()]);
+            cpu += recording.elapsed();
         }
         self.wait();
         let wall_ms = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
@@ -203,6 +206,7 @@ impl Gpu {
             frames,
             gpu_ms,
             wall_ms,
+            cpu_ms: cpu.as_secs_f64() * 1e3 / frames as f64,
         }
     }
 
@@ -274,6 +278,10 @@ pub struct Timing {
     pub gpu_ms: Option<f64>,
     /// Mean wall time per frame, submit to completion.
     pub wall_ms: f64,
+    /// Mean CPU time per frame to record its commands and submit them (encoder, render pass,
+    /// every draw, `finish`, `submit`), the GPU's work not waited for: what draw calls cost the
+    /// application's thread.
+    pub cpu_ms: f64,
 }
 
 /// A headless colour + depth target.

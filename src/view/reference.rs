@@ -563,6 +563,11 @@ impl ReferenceRenderer {
             + self.extras.as_ref().map_or(0, |e| e.triangles())
     }
 
+    /// Draw calls per frame: the instanced stack, and the fins' and outline's.
+    pub fn draw_calls(&self) -> usize {
+        (self.index_count > 0) as usize + self.extras.as_ref().map_or(0, |e| e.draw_calls())
+    }
+
     /// Writes the camera, light and shell uniforms and builds the pipeline for `format`.
     pub fn prepare(
         &mut self,
