@@ -945,8 +945,15 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
         count: 2,
         ground: true,
         camera_and_light: true,
+        ..Critters::default()
     });
     shellbake::output::write::write_atomic(&dir.join("critters.glb"), &scene)?;
+    // a jointed figure: the body and head in 60 primitives over one skin, 63 in all
+    let figure = critter_glb(Critters {
+        pieces: 60,
+        ..Critters::default()
+    });
+    shellbake::output::write::write_atomic(&dir.join("critter_pieces.glb"), &figure)?;
     Ok(())
 }
 

@@ -354,6 +354,7 @@ fn two_skinned_characters_a_camera_a_light_and_an_unfurred_ground() {
         count: 2,
         ground: true,
         camera_and_light: true,
+        ..Critters::default()
     };
     let input = critters(&dir, "critters.glb", what);
     let (glb, report) = bake(
@@ -490,6 +491,7 @@ fn under_chooses_a_character_by_the_node_that_holds_it() {
         count: 2,
         ground: true,
         camera_and_light: false,
+        ..Critters::default()
     }));
     let mut doc = glb.json.clone();
     let named = |doc: &serde_json::Value, name: &str| {
@@ -578,6 +580,7 @@ fn a_scene_whose_surfaces_take_parts_of_one_asset_keeps_the_asset() {
         count: 2,
         ground: true,
         camera_and_light: true,
+        ..Critters::default()
     };
     critters(&dir, "critters.glb", what);
     let scene = |tail: &str| {
@@ -915,6 +918,7 @@ fn verify_checks_each_furred_part_of_the_creature() {
             count: 2,
             ground: true,
             camera_and_light: true,
+            ..Critters::default()
         },
     );
     let (code, stdout, err) = shellbake(&[
@@ -1300,11 +1304,19 @@ fn the_committed_critters_are_what_the_code_generates() {
     for (name, what) in [
         ("critter.glb", Critters::default()),
         (
+            "critter_pieces.glb",
+            Critters {
+                pieces: 60,
+                ..Critters::default()
+            },
+        ),
+        (
             "critters.glb",
             Critters {
                 count: 2,
                 ground: true,
                 camera_and_light: true,
+                ..Critters::default()
             },
         ),
     ] {
@@ -1832,6 +1844,7 @@ fn lod_levels_stay_out_of_the_blender_scene_while_babylon_reads_msft_lod() {
             count: 1,
             ground: true,
             camera_and_light: false,
+            ..Critters::default()
         },
     );
     let asset = bake(
