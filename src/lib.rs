@@ -215,13 +215,17 @@ pub struct PartOf {
     /// fur is grafted: the graft copies the fur to every one, so it takes one level
     /// ([`blocked`]).
     pub instances: usize,
+    /// The asset's parts the surface furs, as one fur ([`fur_groups`]): the first is the one
+    /// it is named and placed by.
+    pub parts: Vec<usize>,
 }
 
 /// The scene that furs the chosen parts of `asset` (from [`input::asset::Asset::select`]): one
-/// surface per part, each with `template`'s surface settings (its preset, parameters, effects
-/// and maps), named after the part's node. `graft`: the surfaces are to be grafted into the
-/// asset ([`PartOf::graft`]); a skinned part then stores float positions (its bind space, so
-/// that clients compute true bounds).
+/// surface per group of parts that is one fur ([`fur_groups`]: one character's parts of one
+/// material; most parts are a group of their own), each with `template`'s surface settings
+/// (its preset, parameters, effects and maps), named after the (first) part's node. `graft`:
+/// the surfaces are to be grafted into the asset ([`PartOf::graft`]); a skinned part then
+/// stores float positions (its bind space, so that clients compute true bounds).
 pub fn asset_scene(
     template: &SceneFile,
     asset: &input::asset::Asset,
@@ -250,7 +254,10 @@ pub fn asset_scene_of(
     let sizes = character_sizes(asset, chosen);
     let bare_parts = bare_parts(asset, chosen);
     let mut taken_names = std::collections::HashSet::new();
-    for (&(i, k), &shared) in chosen.iter().zip(&sizes) {
+    for group in fur_groups(asset, chosen) {
+        let (i, k) = chosen[group[0]];
+        let shared = sizes[group[0]];
+        let members: Vec<usize> = group.iter().map(|&g| chosen[g].0).collect();
         let surface = &template.surfaces[k];
         let start = Instant::now();
         let part = &asset.parts[i];
@@ -271,8 +278,14 @@ pub fn asset_scene_of(
         if part.skin.is_some() && graft {
             s.params.pack.quantize = pack::Quantize::None;
         }
-        // the part's own warnings (its UVs, its texture) with its surface
+        // the part's own warnings (its UVs, its texture) with its surface; the group's other
+        // parts share its frame and material: their meshes join its scene
         let mut geometry = part.scene.clone();
+        for &j in &members[1..] {
+            let other = &asset.parts[j].scene;
+            geometry.meshes.extend(other.meshes.iter().cloned());
+            geometry.warnings.extend(other.warnings.iter().cloned());
+        }
         let (paint, paint_warning) = asset.paint(i);
         geometry.warnings.extend(paint_warning);
         // the size its default height and density come from: its character's, or its own
@@ -330,7 +343,9 @@ pub fn asset_scene_of(
         };
         let slope = s.params.clamp.bare_slope.max(f32::MIN_POSITIVE);
         let reach = s.params.resolved_height(size) as f64 / slope as f64;
-        let bare = bare_near(asset, &bare_parts, i, reach);
+        let bare = (members.iter())
+            .flat_map(|&j| bare_near(asset, &bare_parts, j, reach))
+            .collect();
         let maps = surface_maps(&s, &geometry)?;
         scene.surfaces.push(s);
         loaded.push(Loaded {
@@ -345,10 +360,52 @@ pub fn asset_scene_of(
                 bare,
                 shape_key_clips,
                 instances: if graft { part.instances.len() } else { 0 },
+                parts: members,
             }),
         });
     }
     Ok((scene, loaded))
+}
+
+/// The chosen parts (indices into `chosen`) grouped into one fur each: the parts of one
+/// character — one skin, or one rigid node — chosen by the same surface and drawn with the same
+/// material bake as one surface, so a jointed figure of 60 primitives costs one draw a layer,
+/// not sixty, and its fur runs across the seams between them (welded as one mesh, one tiling)
+/// where part by part each seam showed. A part stays alone where its fur must differ: it has
+/// shape keys (the fur follows its own weights) or is instanced (the graft copies its fur to
+/// each instance). Groups are in the order of their first part; parts in chosen order.
+fn fur_groups(asset: &input::asset::Asset, chosen: &[(usize, usize)]) -> Vec<Vec<usize>> {
+    #[derive(PartialEq, Eq, Hash)]
+    enum Frame {
+        Skin(usize),
+        Node(usize),
+    }
+    let key = |&(i, k): &(usize, usize)| {
+        let p = &asset.parts[i];
+        let alone = p.shape_keys.is_some() || !p.instances.is_empty();
+        let frame = match p.skin {
+            Some(s) => Frame::Skin(s),
+            None => Frame::Node(p.node),
+        };
+        let material =
+            asset.doc.json["meshes"][p.mesh]["primitives"][p.primitive]["material"].as_u64();
+        (!alone).then_some((k, frame, material))
+    };
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut by_key: std::collections::HashMap<_, usize> = std::collections::HashMap::new();
+    for (c, choice) in chosen.iter().enumerate() {
+        match key(choice) {
+            Some(key) => match by_key.entry(key) {
+                std::collections::hash_map::Entry::Occupied(g) => groups[*g.get()].push(c),
+                std::collections::hash_map::Entry::Vacant(v) => {
+                    v.insert(groups.len());
+                    groups.push(vec![c]);
+                }
+            },
+            None => groups.push(vec![c]),
+        }
+    }
+    groups
 }
 
 /// The size each chosen part's default height and density come from (the diagonal of a box),
@@ -465,7 +522,8 @@ impl SurfaceMaps {
 
 /// An asset baked whole: the fur-only bake of its parts, and the asset with the fur grafted on.
 pub struct AssetBake {
-    /// The fur alone (one surface per furred part, no base layers): what `verify` checks.
+    /// The fur alone (one surface per group of furred parts, [`fur_groups`], no base layers):
+    /// what `verify` checks.
     pub fur: BakedScene,
     /// The asset with its fur (see [`graft`]).
     pub glb: Vec<u8>,
@@ -482,8 +540,12 @@ pub fn bake_asset(
     (scene, loaded): (&SceneFile, &[Loaded]),
 ) -> Result<AssetBake> {
     let mut fur = bake_scene(scene, loaded);
+    // the parts each surface furs ([`fur_groups`])
+    let groups: Vec<Vec<usize>> = (loaded.iter())
+        .map(|l| l.part.as_ref().map_or(vec![], |p| p.parts.clone()))
+        .collect();
     let (_, bin) = input::document::split_glb(&fur.glb).expect("our own GLB splits");
-    let grafted = graft::graft(asset, chosen, (&fur.json, bin.unwrap_or(&[])), &fur.packed)?;
+    let grafted = graft::graft(asset, &groups, (&fur.json, bin.unwrap_or(&[])), &fur.packed)?;
     let mut report = report::AssetReport {
         warnings: asset.warnings.clone(),
         ..Default::default()
@@ -525,7 +587,11 @@ pub fn bake_asset(
             input::escape(&p.names.material)
         )
     };
-    for (s, &i) in chosen.iter().enumerate() {
+    for (s, &i) in groups
+        .iter()
+        .enumerate()
+        .flat_map(|(s, g)| g.iter().map(move |i| (s, i)))
+    {
         let mut line = format!("{} as '{}'", describe(i), scene.surfaces[s].name);
         // what the fur follows besides the node: the part's shape keys and the clips on them
         let follows = fur.packed.surfaces[s].shape_keys_at.is_some();

@@ -1425,8 +1425,8 @@ fn nothing_outside_the_asset_s_folder_is_opened() {
 // 13. Cost in proportion to the input (round 3).
 
 /// A glTF of one mesh with `n` primitives, a one-triangle each, side by side, its buffer a file
-/// beside it.
-fn many_primitives(dir: &Path, n: usize) -> std::path::PathBuf {
+/// beside it; `apart`: each primitive with a material of its own (else none has one).
+fn many_primitives(dir: &Path, n: usize, apart: bool) -> std::path::PathBuf {
     let mut bin = Vec::with_capacity(n * 36);
     let (mut views, mut accessors, mut primitives) = (vec![], vec![], vec![]);
     for i in 0..n {
@@ -1435,10 +1435,13 @@ fn many_primitives(dir: &Path, n: usize) -> std::path::PathBuf {
         bin.extend(f32_bytes(&[x, y, 0.0, x + 1.0, y, 0.0, x, y + 1.0, 0.0]));
         accessors.push(json!({"bufferView": i, "componentType": 5126, "count": 3,
             "type": "VEC3", "min": [x, y, 0], "max": [x + 1.0, y + 1.0, 0]}));
-        primitives.push(json!({"attributes": {"POSITION": i}}));
+        primitives.push(match apart {
+            true => json!({"attributes": {"POSITION": i}, "material": i}),
+            false => json!({"attributes": {"POSITION": i}}),
+        });
     }
     std::fs::write(dir.join("b.bin"), &bin).unwrap();
-    let g = json!({
+    let mut g = json!({
         "asset": {"version": "2.0"},
         "buffers": [{"uri": "b.bin", "byteLength": bin.len()}],
         "bufferViews": views,
@@ -1448,15 +1451,20 @@ fn many_primitives(dir: &Path, n: usize) -> std::path::PathBuf {
         "scenes": [{"nodes": [0]}],
         "scene": 0
     });
-    let path = dir.join(format!("p{n}.gltf"));
+    if apart {
+        let materials: Vec<Value> = (0..n).map(|i| json!({"name": format!("m{i}")})).collect();
+        g["materials"] = Value::Array(materials);
+    }
+    let path = dir.join(format!("p{n}{}.gltf", if apart { "_apart" } else { "" }));
     std::fs::write(&path, g.to_string()).unwrap();
     path
 }
 
-/// Each primitive of an asset is furred as its own part, so a mesh of many costs time and
-/// memory in proportion to their number, never more: 100 000 one-triangle primitives are
-/// refused by `--max-output` before baking (7.8 s and 0.9 GB here; 94 s before), and 1 000 bake
-/// (1 000 × 32 layer meshes). The bounds held here — 2 GiB of address space (`prlimit --as`)
+/// The primitives of one node drawn with one material are furred as one (`fur_groups`), and
+/// the rest part by part, so a mesh of many costs time and memory in proportion to their
+/// number, never more: 100 000 one-triangle primitives of one material bake as one fur (4.0 s
+/// and 1.3 GB here); 100 000 of a material each are refused by `--max-output` before baking (7.8 s
+/// and 0.9 GB here; 94 s before), and 1 000 bake (1 000 × 32 layer meshes). The bounds held here — 2 GiB of address space (`prlimit --as`)
 /// and a 60 s watchdog (`timeout`) for either — are far from the figures, so that they catch a
 /// return of the per-part scans (the bare-part search went through every part for every part
 /// and searched the chosen list for each: cubic; each surface's JSON size scanned the whole
@@ -1477,24 +1485,41 @@ fn many_primitives_cost_in_proportion() {
             .output()
             .unwrap()
     };
-    let many = run(&many_primitives(&dir, 100_000), &dir.join("many.glb"));
+    let layer_meshes = |out: &Path| {
+        let json = common::Glb::parse(&std::fs::read(out).unwrap()).json;
+        json["meshes"].as_array().unwrap().len() - 1
+    };
+    let one = dir.join("one.glb");
+    let many = run(&many_primitives(&dir, 100_000, false), &one);
+    let err = String::from_utf8_lossy(&many.stderr);
+    assert!(many.status.success(), "{err}");
+    // one fur: one root marked with the parts it grows on (the first, and 99 999 `also`)
+    let json = common::Glb::parse(&std::fs::read(&one).unwrap()).json;
+    let roots: Vec<&Value> = (json["nodes"].as_array().unwrap().iter())
+        .filter_map(|n| n["extras"].get("shellbake_fur"))
+        .collect();
+    assert_eq!(roots.len(), 1);
+    assert_eq!(roots[0]["also"].as_array().map(Vec::len), Some(99_999));
+    let many = run(&many_primitives(&dir, 100_000, true), &dir.join("many.glb"));
     let err = String::from_utf8_lossy(&many.stderr);
     assert_eq!(many.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("p100000.gltf") && err.contains("--max-output"),
+        err.contains("p100000_apart.gltf") && err.contains("--max-output"),
         "{err}"
     );
     assert!(!dir.join("many.glb").exists());
     let out = dir.join("some.glb");
-    let some = run(&many_primitives(&dir, 1_000), &out);
+    let some = run(&many_primitives(&dir, 1_000, true), &out);
     assert!(
         some.status.success(),
         "{}",
         String::from_utf8_lossy(&some.stderr)
     );
-    let json = common::Glb::parse(&std::fs::read(&out).unwrap()).json;
-    let meshes = json["meshes"].as_array().unwrap().len();
-    assert!(meshes > 32 * 1_000, "{meshes} meshes");
+    assert!(
+        layer_meshes(&out) > 31 * 1_000,
+        "{} meshes",
+        layer_meshes(&out)
+    );
 }
 
 /// One polygon of 10⁶ corners (an `f` line of a million indices, a disc), and a cone whose apex

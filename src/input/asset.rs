@@ -785,15 +785,20 @@ fn fur_subtrees(doc: &Document) -> std::collections::HashSet<usize> {
 }
 
 /// The (node, primitive) pairs that carry shellbake fur: those a fur node's
-/// `extras.shellbake_fur` names.
+/// `extras.shellbake_fur` names (`node` and `primitive`, and each of `also`'s).
 fn furred_parts(doc: &Document) -> std::collections::HashSet<(usize, usize)> {
+    let place = |m: &serde_json::Value| {
+        Some((
+            m["node"].as_u64()? as usize,
+            m["primitive"].as_u64()? as usize,
+        ))
+    };
     (0..doc.nodes.len())
-        .filter_map(|n| {
+        .flat_map(|n| {
             let marker = &doc.json["nodes"][n]["extras"]["shellbake_fur"];
-            Some((
-                marker["node"].as_u64()? as usize,
-                marker["primitive"].as_u64()? as usize,
-            ))
+            // one fur over several parts names the others in `also`
+            let also = marker["also"].as_array().into_iter().flatten();
+            std::iter::once(marker).chain(also).filter_map(place)
         })
         .collect()
 }

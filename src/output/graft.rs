@@ -123,23 +123,34 @@ struct Placing<'a> {
 }
 
 impl Placing<'_> {
-    /// Attaches the fur of surface `s` to part `p` of the asset in `out`, each fur root marked
-    /// with the part; returns the child a rigid part's fur hangs by under the part's node
-    /// ([`Placing::attach_rigid`]; none for a skinned part, whose layer nodes are scene
-    /// roots), or a warning when the fur cannot follow the node.
+    /// Attaches the fur of surface `s` to the parts `group` of the asset in `out` (one skin or
+    /// one node: the first part's), each fur root marked with the parts; returns the child a
+    /// rigid part's fur hangs by under the part's node ([`Placing::attach_rigid`]; none for a
+    /// skinned part, whose layer nodes are scene roots), or a warning when the fur cannot follow
+    /// the node.
     fn attach(
         &self,
         out: &mut Value,
         s: usize,
-        p: usize,
+        group: &[usize],
     ) -> std::result::Result<Option<usize>, String> {
-        let part = &self.asset.parts[p];
+        let (p, part) = (group[0], &self.asset.parts[group[0]]);
         let root = self.base.nodes + self.packed.surfaces[s].root;
-        let marker = json!({
-            "node": part.node,
-            "mesh": part.mesh,
-            "primitive": part.primitive,
-        });
+        let place = |part: &crate::input::asset::Part| {
+            json!({
+                "node": part.node,
+                "mesh": part.mesh,
+                "primitive": part.primitive,
+            })
+        };
+        let mut marker = place(part);
+        if group.len() > 1 {
+            let also: Vec<Value> = group[1..]
+                .iter()
+                .map(|&q| place(&self.asset.parts[q]))
+                .collect();
+            marker["also"] = Value::Array(also);
+        }
         out["nodes"][root]["extras"]["shellbake_fur"] = marker.clone();
         // the part's node keeps its name to itself: engines that bind animation by node path
         // (Unity) or make names unique on import (Godot, Blender) see one node per name
@@ -472,14 +483,14 @@ fn copy_subtree(out: &mut Value, n: usize, copies: &mut Vec<(usize, usize)>) -> 
 /// packing) grafted on: surface `s` of the fur grows on part `parts[s]` of the asset.
 pub fn graft(
     asset: &Asset,
-    parts: &[usize],
+    groups: &[Vec<usize>],
     (fur_json, fur_bin): (&Value, &[u8]),
     packed: &Packed,
 ) -> Result<Grafted> {
     assert_eq!(
-        parts.len(),
+        groups.len(),
         packed.surfaces.len(),
-        "one part per fur surface"
+        "one group of parts per fur surface"
     );
     let mut out = asset.doc.json.clone();
     let mut bin: Vec<u8> = Vec::new();
@@ -502,8 +513,9 @@ pub fn graft(
         scene: out["scene"].as_u64().unwrap_or(0) as usize,
     };
     let mut warnings = Vec::new();
-    for (s, &p) in parts.iter().enumerate() {
-        let attached = placing.attach(&mut out, s, p);
+    for (s, group) in groups.iter().enumerate() {
+        let p = group[0];
+        let attached = placing.attach(&mut out, s, group);
         warnings.extend(attached.as_ref().err().cloned());
         warnings.extend(placing.follow_shape_keys(&mut out, &mut bin, s, p));
         warnings.extend(placing.expand_instances(&mut out, p, attached.ok().flatten()));
