@@ -369,28 +369,14 @@ pub fn asset_scene_of(
 
 /// The chosen parts (indices into `chosen`) grouped into one fur each: the parts of one
 /// character — one skin, or one rigid node — chosen by the same surface and drawn with the same
-/// material bake as one surface, so a jointed figure of 60 primitives costs one draw a layer,
-/// not sixty, and its fur runs across the seams between them (welded as one mesh, one tiling)
-/// where part by part each seam showed. A part stays alone where its fur must differ: it has
-/// shape keys (the fur follows its own weights) or is instanced (the graft copies its fur to
-/// each instance). Groups are in the order of their first part; parts in chosen order.
+/// material (or materials that differ only in their names) bake as one surface, so a jointed
+/// figure of 60 primitives costs one draw a layer, not sixty, and its fur runs across the seams
+/// between them (welded as one mesh, one tiling) where part by part each seam showed. A part
+/// stays alone where its fur must differ: it has shape keys (the fur follows its own weights)
+/// or is instanced (the graft copies its fur to each instance) ([`input::asset::Part::fur_key`]).
+/// Groups are in the order of their first part; parts in chosen order.
 fn fur_groups(asset: &input::asset::Asset, chosen: &[(usize, usize)]) -> Vec<Vec<usize>> {
-    #[derive(PartialEq, Eq, Hash)]
-    enum Frame {
-        Skin(usize),
-        Node(usize),
-    }
-    let key = |&(i, k): &(usize, usize)| {
-        let p = &asset.parts[i];
-        let alone = p.shape_keys.is_some() || !p.instances.is_empty();
-        let frame = match p.skin {
-            Some(s) => Frame::Skin(s),
-            None => Frame::Node(p.node),
-        };
-        let material =
-            asset.doc.json["meshes"][p.mesh]["primitives"][p.primitive]["material"].as_u64();
-        (!alone).then_some((k, frame, material))
-    };
+    let key = |&(i, k): &(usize, usize)| asset.parts[i].fur_key(&asset.doc.json).map(|f| (k, f));
     let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut by_key: std::collections::HashMap<_, usize> = std::collections::HashMap::new();
     for (c, choice) in chosen.iter().enumerate() {

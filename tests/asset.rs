@@ -191,9 +191,16 @@ fn a_textured_skinned_creature_comes_out_whole_with_fur_in_its_own_colours() {
         "{skins:?}"
     );
     assert_eq!(after["skins"].as_array().unwrap().len(), 1);
-    // the strip primitive (the tail) got fur: a surface of its own with triangles
-    let tail = report["surfaces"][1].clone();
-    assert!(tail["base_triangles"].as_u64().unwrap() > 50, "{tail}");
+    // the strip primitive (the tail) got fur: with the body (their materials differ only in
+    // their names), one surface of both parts' triangles
+    let furred = report["asset"]["furred"].to_string();
+    assert!(
+        furred.contains("primitive 1, material 'fur_tail'"),
+        "{furred}"
+    );
+    assert_eq!(report["surfaces"].as_array().unwrap().len(), 1);
+    let fur = report["surfaces"][0].clone();
+    assert!(fur["base_triangles"].as_u64().unwrap() > 250, "{fur}");
 
     // three.js: fur hidden renders the input pixel for pixel; with fur, the asset's colours
     let eye = [1.2, 1.3, 2.4];
@@ -890,6 +897,7 @@ fn a_rigid_part_under_a_rotated_scaled_node_grows_fur_where_it_is() {
 
 #[test]
 fn verify_checks_each_furred_part_of_the_creature() {
+    // the body and the tail are one fur (their materials differ only in their names)
     let dir = scratch("asset-verify");
     let input = critters(&dir, "critter.glb", Critters::default());
     let out = dir.join("verify");
@@ -905,10 +913,7 @@ fn verify_checks_each_furred_part_of_the_creature() {
         &path_str(&glb),
     ]);
     assert_eq!(code, Some(0), "{stdout}\n{err}");
-    assert!(
-        stdout.contains("surface critter_0_0") && stdout.contains("surface critter_0_1"),
-        "{stdout}"
-    );
+    assert!(stdout.contains("of 1 surface(s)"), "{stdout}");
     assert_valid(std::slice::from_ref(&glb));
     // every part of both characters and the ground (rigid, with its LOD chain), the defaults
     let scene = critters(
@@ -3254,18 +3259,14 @@ fn a_default_height_taller_than_the_preset_grows_is_said() {
 
 #[test]
 fn parts_alike_share_their_layer_materials() {
-    // the critter's body and tail take the same preset: their layers' materials are alike
-    // but for their names, and were written twice (200 such parts: 11 809 materials, 68
+    // two critters (two skins: two furs) take the same preset: their layers' materials are
+    // alike but for their names, and were written twice (200 such parts: 11 809 materials, 68
     // distinct, 4.2 MB of JSON)
     let dir = scratch("asset-shared-materials");
-    let (glb, _) = bake(
-        &fixture_critter(),
-        &dir,
-        "critter.glb",
-        &["--only", "material=fur_*"],
-    );
+    let two = common::fixture("critters.glb");
+    let (glb, _) = bake(&two, &dir, "critters.glb", &["--only", "material=fur_*"]);
     let out = Glb::parse(&std::fs::read(&glb).unwrap());
-    let input = json_of(&fixture_critter());
+    let input = json_of(&two);
     let kept = input["materials"].as_array().unwrap().len();
     let materials = out.json["materials"].as_array().unwrap();
     let unnamed = |m: &Value| {
@@ -3281,7 +3282,7 @@ fn parts_alike_share_their_layer_materials() {
             kept + i
         );
     }
-    // every layer of both parts draws with one of them
+    // every layer of both furs draws with one of them
     let layer_materials = |part: &str| -> std::collections::BTreeSet<u64> {
         (out.json["meshes"].as_array().unwrap().iter())
             .filter(|m| m["name"].as_str().unwrap().starts_with(part))
@@ -3290,14 +3291,14 @@ fn parts_alike_share_their_layer_materials() {
             .map(|p| p["material"].as_u64().unwrap())
             .collect()
     };
-    let (body, tail) = (
+    let (first, second) = (
         layer_materials("critter_0_0"),
-        layer_materials("critter_0_1"),
+        layer_materials("critter_1_0"),
     );
-    assert!(!body.is_empty() && !tail.is_empty());
+    assert!(!first.is_empty() && !second.is_empty());
     assert_eq!(
-        body, tail,
-        "the body's and the tail's layers share their materials"
+        first, second,
+        "the two critters' layers share their materials"
     );
 }
 
@@ -3344,8 +3345,9 @@ fn render_draws_a_bake_of_an_asset_with_many_shape_keys() {
 
 /// A jointed figure (`fixtures/critter_pieces.glb`: the critter's body and head cut into 60
 /// primitives of one material over one skin) is furred as one character: the parts of one
-/// skin and one material bake as one surface (`fur_groups`), so the figure draws the critter's
-/// 62 fur layers (body and tail, 31 each; 1 890 part by part, one stack per primitive), and
+/// skin and one material (or materials alike but for their names: the tail's `fur_tail`) bake
+/// as one surface (`fur_groups`), so the figure draws the critter's 31 fur layers (the base is
+/// the asset's own primitives; 1 890 part by part, one stack per primitive), and
 /// draws the critter's picture: the same triangles merged back give the same weld and tiling,
 /// where part by part each cut showed as a seam and each part took its own tiling. Measured
 /// from the front and close views at 256²: no pixel differs by more than 8 levels (part by part,
@@ -3359,7 +3361,7 @@ fn a_jointed_figure_is_furred_as_one_character() {
     let only = ["--only", "material=fur_*"];
     let (one, one_report) = bake(&fixture("critter.glb"), &dir, "one.glb", &only);
     let (pieces, report) = bake(&fixture("critter_pieces.glb"), &dir, "pieces.glb", &only);
-    assert_eq!(one_report["draw_calls"], 62, "{one_report}");
+    assert_eq!(one_report["draw_calls"], 31, "{one_report}");
     assert_eq!(report["draw_calls"], one_report["draw_calls"], "{report}");
     let furred = report["asset"]["furred"].as_array().unwrap();
     assert_eq!(furred.len(), 61, "every chosen part is named as furred");

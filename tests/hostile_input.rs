@@ -1425,7 +1425,8 @@ fn nothing_outside_the_asset_s_folder_is_opened() {
 // 13. Cost in proportion to the input (round 3).
 
 /// A glTF of one mesh with `n` primitives, a one-triangle each, side by side, its buffer a file
-/// beside it; `apart`: each primitive with a material of its own (else none has one).
+/// beside it; `apart`: each primitive with a material of its own, unlike the others (else
+/// none has one).
 fn many_primitives(dir: &Path, n: usize, apart: bool) -> std::path::PathBuf {
     let mut bin = Vec::with_capacity(n * 36);
     let (mut views, mut accessors, mut primitives) = (vec![], vec![], vec![]);
@@ -1452,7 +1453,10 @@ fn many_primitives(dir: &Path, n: usize, apart: bool) -> std::path::PathBuf {
         "scene": 0
     });
     if apart {
-        let materials: Vec<Value> = (0..n).map(|i| json!({"name": format!("m{i}")})).collect();
+        // each unlike the others beyond its name (alike ones are one material to the bake)
+        let materials: Vec<Value> = (0..n)
+            .map(|i| json!({"name": format!("m{i}"), "pbrMetallicRoughness": {"roughnessFactor": i as f64 / n as f64}}))
+            .collect();
         g["materials"] = Value::Array(materials);
     }
     let path = dir.join(format!("p{n}{}.gltf", if apart { "_apart" } else { "" }));

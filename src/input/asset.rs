@@ -248,7 +248,41 @@ pub struct WeightsChannel {
     pub values: Vec<f32>,
 }
 
+/// What makes parts one fur (`fur_groups` in the crate root): their frame, one skin or one
+/// rigid node, and their material less its name.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct FurKey {
+    skin: Option<usize>,
+    /// The node, for a rigid part (a skinned part's node plays no part in where it is drawn).
+    node: Option<usize>,
+    /// The material's JSON without its `name`: materials that differ only in their names are
+    /// one (a `fur_body` and a `fur_tail` of one texture).
+    material: Option<String>,
+}
+
 impl Part {
+    /// The key the parts that bake as one fur share, or `None` for a part that must be a fur of
+    /// its own: it has shape keys (its fur follows its own weights) or instances (the graft
+    /// copies its fur to each).
+    pub fn fur_key(&self, json: &Value) -> Option<FurKey> {
+        if self.shape_keys.is_some() || !self.instances.is_empty() {
+            return None;
+        }
+        let index = &json["meshes"][self.mesh]["primitives"][self.primitive]["material"];
+        let material = index.as_u64().map(|m| {
+            let mut m = json["materials"][m as usize].clone();
+            if let Some(o) = m.as_object_mut() {
+                o.remove("name");
+            }
+            m.to_string()
+        });
+        Some(FurKey {
+            skin: self.skin,
+            node: self.skin.is_none().then_some(self.node),
+            material,
+        })
+    }
+
     /// A name for the part's fur, unique in the asset: the node's name, with the primitive's
     /// index when its mesh has several.
     pub fn label(&self, primitives: usize) -> String {
@@ -566,10 +600,25 @@ impl Asset {
             }
         }
         // a part whose unmarked layers are named after it (`<part>_lod0_layer_001`) is furred
-        let owners: Vec<&str> = unmarked.iter().filter_map(|n| layer_owner(n)).collect();
+        // and so is every part that bakes as one fur with it (`fur_groups`: named after the
+        // first)
+        let mut owners: Vec<&str> = unmarked.iter().filter_map(|n| layer_owner(n)).collect();
+        // a file of one fur names its layers `layer_NNN`, and its root `<part>_fur`
+        if owners.contains(&"") {
+            let roots = (doc.json["nodes"].as_array().into_iter().flatten())
+                .filter_map(|n| n["name"].as_str()?.strip_suffix("_fur"));
+            owners.extend(roots);
+        }
+        let mut one_fur = std::collections::HashSet::new();
         for part in &mut parts {
             let label = part.label(doc.meshes[part.mesh].primitives.len());
             if owners.contains(&label.as_str()) {
+                part.furred = true;
+                one_fur.extend(part.fur_key(&doc.json));
+            }
+        }
+        for part in parts.iter_mut().filter(|_| !one_fur.is_empty()) {
+            if (part.fur_key(&doc.json)).is_some_and(|k| one_fur.contains(&k)) {
                 part.furred = true;
             }
         }

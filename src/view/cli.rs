@@ -516,7 +516,7 @@ pub fn verify(
         if !quiet {
             println!(
                 "verify {} passed: {} view(s) and {} level(s) of {} surface(s) (an asset: one \
-                 per furred part) within their tolerances",
+                 per fur, a character's parts of one material being one) within their tolerances",
                 shown(input),
                 checked.0,
                 checked.1,
