@@ -57,6 +57,31 @@ const ENGINES_APART: f64 = 0.02;
 /// Share of three.js's silhouette over which the two silhouettes may disagree pixel by pixel
 /// (catches a picture shifted, mirrored or upside down that keeps its area): measured 0.01 %.
 const ENGINES_XOR: f64 = 0.02;
+/// How far Filament's silhouette of a target's file may be from three.js's, relative, and the
+/// share of three.js's silhouette over which they may disagree pixel by pixel, in the
+/// every-target test: Filament's alpha test is not glTF's (`tests/filament.rs`: it keeps a
+/// fragment a little past the cutoff), which moves strand edges. Measured (Filament 1.53.4):
+/// the bunny +0.12–0.13 %, 47–48 pixels (0.16 %) for every target; the grass's float files
+/// +0.67 %, 0.67 %; the dragon +0.18–0.21 %, 0.62–0.65 %. 2 % is three times the largest.
+/// Its gain over the one-shell control (the fur drawn) is held to the input's `fur_gain`, as
+/// PlayCanvas's: measured +12.6 % (bunny), +11.4 % (grass floats), +21 % (critter), +15.7 %
+/// (dragon).
+const FILAMENT_APART: f64 = 0.02;
+// Two known failures of stock Filament 1.53.4 (gltfio), asserted as they are so that a change
+// shows:
+// - FILAMENT_BLANKS_THE_FLAT_QUANTIZED_PLANE: the grass plane's quantized files (`web`,
+//   `blender`, `unity`, `playcanvas`, `unreal`: int16 positions under the node's dequantizing
+//   scale) are drawn blank or nearly so: the one-shell control of each compact target and the
+//   whole `unreal` file draw no pixel, the compact fur files −1 % of three.js with 2.3 % of the
+//   pixels apart; the float files of the same plane (`bevy`, `godot`, `portable`) draw as
+//   three.js does. Filament draws the bunny's and the dragon's quantized files right, so it is
+//   the flat plane (a quantization box with no depth) that it loses; not found further here.
+//   Filament users bake a terrain with `--quantize none` (or `--target portable`).
+// - FILAMENT_PLACES_A_SKINNED_ASSET_ELSEWHERE: the skinned critter, bare parts and fur alike,
+//   stands lower and to the left in Filament's picture than in three.js's from the same camera
+//   (the silhouettes overlap in part: −9.9 %, 169 % of three.js's pixels apart): the asset's
+//   placement, not the fur, which Filament draws (+21 % over the one-shell control, both
+//   placed alike). Only the gain is held for it.
 /// How far the collapsed control's silhouette may be from the one-shell bake's, relative:
 /// measured −0.34 % (the one shell's sparse strand tips are all it has over the bare surface).
 const COLLAPSED_APART: f64 = 0.02;
@@ -423,9 +448,10 @@ fn scenes_primitives(glb: &Path) -> Vec<usize> {
 }
 
 /// Every target's file (`--target NAME`) for four inputs — the bunny, a grass terrain, the
-/// skinned critter asset's fur materials, the Stanford dragon — drawn by stock PlayCanvas and by
-/// three.js from one camera per input, against a one-shell control of the same target
-/// (`--layers 2`) drawn by PlayCanvas.
+/// skinned critter asset's fur materials, the Stanford dragon — drawn by stock PlayCanvas, by
+/// stock Filament and by three.js from one camera per input, against a one-shell control of the
+/// same target (`--layers 2`) drawn by each engine (Filament: [`FILAMENT_APART`] and the two
+/// known failures beside it).
 ///
 /// The measure is the silhouette, as in [`playcanvas_draws_the_fur_three_js_draws`]; the terrain
 /// is seen from 10° above its plane, corner on, so that the blades along its two far edges stand
@@ -448,7 +474,7 @@ fn scenes_primitives(glb: &Path) -> Vec<usize> {
 /// instantiates too (more instances than scene 0's), except where the file has no levels (the
 /// skinned critter's: its layer nodes are scene roots, one level).
 #[test]
-fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
+fn every_target_s_file_shows_its_fur_in_playcanvas_filament_and_three_js() {
     use shellbake::output::target::Target;
     use std::collections::HashMap;
     use std::sync::atomic::{AtomicUsize, Ordering};
@@ -595,16 +621,30 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
             )
         })
         .collect();
-    // the two pages at once: each spends part of its time on one core (loading, encoding)
-    let pc = std::thread::scope(|scope| {
+    // Filament: every distinct file, as PlayCanvas
+    let fil_jobs: Vec<Value> = (0..files.len())
+        .map(|f| {
+            job(
+                &baked[files[f]],
+                &png("filament", f),
+                &cameras[bakes[files[f]].0],
+            )
+        })
+        .collect();
+    // the three pages at once: each spends part of its time on one core (loading, encoding)
+    let (pc, fil) = std::thread::scope(|scope| {
         let pc = scope.spawn(|| playcanvas(&pc_jobs, &dir));
+        let fil = scope.spawn(|| crate::filament::filament(&fil_jobs, &dir));
         common::render(&three_jobs, &dir);
-        pc.join().unwrap()
+        (pc.join().unwrap(), fil.join().unwrap())
     });
     let drawn_s = started.elapsed().as_secs_f64() - baked_s;
 
     let pc_sil: Vec<Vec<bool>> = (0..files.len())
         .map(|f| silhouette(&png("playcanvas", f)))
+        .collect();
+    let fil_sil: Vec<Vec<bool>> = (0..files.len())
+        .map(|f| silhouette(&png("filament", f)))
         .collect();
     let three_sil: HashMap<usize, Vec<bool>> = fur_files
         .iter()
@@ -617,7 +657,7 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
         .collect();
 
     eprintln!(
-        "every target's file in PlayCanvas and three.js ({} x {}, silhouettes: pixels off the \
+        "every target's file in PlayCanvas, Filament and three.js ({} x {}, silhouettes: pixels off the \
          clear colour by more than {LEVELS} levels; dragon --layers {DRAGON_LAYERS}):",
         SIZE.0, SIZE.1
     );
@@ -694,6 +734,53 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_and_three_js() {
                 "{what}: PlayCanvas and three.js disagree on {x} silhouette pixels, over \
                  {:.0} % of {th}",
                 100.0 * ENGINES_XOR
+            ),
+        );
+        // Filament, stock: the same measures against the same three.js picture
+        let (fp, fp1) = (count(&fil_sil[f]), count(&fil_sil[c]));
+        let fx = xor(&fil_sil[f], &three_sil[&f]);
+        let (fgain, fapart) = (rel(fp, fp1), rel(fp, th));
+        eprintln!(
+            "  {:<8} {:<10} Filament {fp:>6} {fp1:>6} {:>+6.2}% against three.js {:>+6.2}% xor \
+             {fx:>5} {:>5.2}% ({} renderables)",
+            "",
+            "",
+            100.0 * fgain,
+            100.0 * fapart,
+            100.0 * fx as f64 / th as f64,
+            fil[f]["renderables"]
+        );
+        let quantized = t.profile().quantize != shellbake::output::pack::Quantize::None;
+        if input.name == "grass" && quantized {
+            // known failure: see FILAMENT_BLANKS_THE_FLAT_QUANTIZED_PLANE
+            fail(
+                fp == 0 || fp1 == 0,
+                format!(
+                    "{what}: Filament drew the fur ({fp}) and its one-shell control ({fp1}): \
+                     does it now draw a flat quantized plane? Then leave it out of \
+                     FILAMENT_BLANKS_THE_FLAT_QUANTIZED_PLANE"
+                ),
+            );
+            continue;
+        }
+        fail(
+            fgain >= input.fur_gain,
+            format!(
+                "{what}: Filament's silhouette ({fp}) is {:+.2} % over the one-shell control's \
+                 ({fp1}), not {:.1} %: the fur is missing",
+                100.0 * fgain,
+                100.0 * input.fur_gain
+            ),
+        );
+        // known difference: see FILAMENT_PLACES_A_SKINNED_ASSET_ELSEWHERE
+        let skinned = input.name == "critter";
+        fail(
+            skinned || (fapart.abs() <= FILAMENT_APART && fx as f64 <= FILAMENT_APART * th as f64),
+            format!(
+                "{what}: Filament's silhouette ({fp}) is {:+.2} % from three.js's ({th}), \
+                 disagreeing on {fx} pixels; at most {:.0} % either",
+                100.0 * fapart,
+                100.0 * FILAMENT_APART
             ),
         );
         let every_scene: usize = scenes.iter().sum();

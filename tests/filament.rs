@@ -72,7 +72,7 @@ const ENGINES_APART: f64 = 0.01;
 /// (catches a picture shifted, mirrored or upside down that keeps its area): measured 0.16 %.
 const ENGINES_XOR: f64 = 0.01;
 
-fn filament(jobs: &[Value], dir: &Path) -> Vec<Value> {
+pub fn filament(jobs: &[Value], dir: &Path) -> Vec<Value> {
     assert!(
         common::repo()
             .join("tests/js/node_modules/filament")
