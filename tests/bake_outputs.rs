@@ -117,15 +117,14 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
     // LOD 0's meshes (one per layer in compact, one for all layers in single-draw); culling
     // drops empty layers and, in single-draw, keeps only each layer's vertex prefix
     let lod0 = baked.packed.layer_meshes();
+    // culling drops empty layers: layer j's mesh is found by its name
+    let mesh_of = |j: usize| {
+        (lod0.iter().copied()).find(|&m| layer_of(meshes[m]["name"].as_str().unwrap()) == j)
+    };
     for (j, &t) in baked.shells.t.iter().enumerate() {
         let (prim, weight, offset, count) = match baked.packed.layout {
             Layout::Compact => {
-                // culling drops empty layers: find layer j's mesh by its name
-                let Some(mi) = lod0
-                    .iter()
-                    .copied()
-                    .find(|&m| layer_of(meshes[m]["name"].as_str().unwrap()) == j)
-                else {
+                let Some(mi) = mesh_of(j) else {
                     continue;
                 };
                 let m = &meshes[mi];
@@ -137,11 +136,7 @@ fn check_exactness(baked: &shellbake::Baked, what: &str) {
             }
             Layout::Layers => {
                 // a mesh per layer, each with its own positions: the first of the fetch order
-                let Some(mi) = lod0
-                    .iter()
-                    .copied()
-                    .find(|&m| layer_of(meshes[m]["name"].as_str().unwrap()) == j)
-                else {
+                let Some(mi) = mesh_of(j) else {
                     continue;
                 };
                 let prim = &meshes[mi]["primitives"][0];

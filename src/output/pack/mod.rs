@@ -1356,21 +1356,16 @@ fn pack_level(
             }
             meshes
         }
-        (Layout::SingleDraw, None) => {
+        (layout @ (Layout::SingleDraw | Layout::Layers), None) => {
             let (order, indices) = fetch_order(&ordering.indices, nv);
             if k == 0 {
                 chunks.base_vertices += order.len();
                 chunks.vertex_order.extend(order.iter().copied());
             }
-            single_draw(b, ctx, &order, &indices, &ordering.kept)
-        }
-        (Layout::Layers, None) => {
-            let (order, indices) = fetch_order(&ordering.indices, nv);
-            if k == 0 {
-                chunks.base_vertices += order.len();
-                chunks.vertex_order.extend(order.iter().copied());
+            match layout {
+                Layout::SingleDraw => single_draw(b, ctx, &order, &indices, &ordering.kept),
+                _ => layers_layout(b, ctx, &order, &indices, &ordering.kept),
             }
-            layers_layout(b, ctx, &order, &indices, &ordering.kept)
         }
         (Layout::SingleDraw | Layout::Layers, Some(_)) => {
             let s = Shared::new(b, ctx.geometry, ordering.first_use(nv), nv, false);
