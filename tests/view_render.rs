@@ -609,6 +609,27 @@ fn render_command_writes_a_picture_of_the_asked_size() {
         image::open(&png).unwrap().to_rgba8().dimensions(),
         (200, 100)
     );
+    assert!(out.stdout.is_empty(), "one frame prints nothing");
+    // with --frames it times the file as written, as `bench` times a bake
+    let timed = std::process::Command::new(bin())
+        .args(["render", glb.to_str().unwrap(), "-o", png.to_str().unwrap()])
+        .args(["--size", "64x64", "--frames", "3"])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&timed.stdout);
+    assert!(
+        timed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&timed.stderr)
+    );
+    assert!(
+        said.contains("3 frames:") && said.contains("ms CPU to record and submit it"),
+        "{said}"
+    );
+    let draws: usize = (said.split(" in ").last().and_then(|t| t.split(' ').next()))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no draw calls in {said}"));
+    assert!(draws > 0, "{said}");
     let bad = std::process::Command::new(bin())
         .args(["render", "fixtures/cube.obj", "-o", png.to_str().unwrap()])
         .output()

@@ -59,6 +59,10 @@ pub struct RenderFlags {
     /// The animation clip to play (by name) [default: the file's first].
     #[arg(long)]
     clip: Option<String>,
+    /// Draw the file this many times and print the mean GPU time of a frame, the CPU time to
+    /// record and submit it, the triangles and the draw calls (as `bench` times a bake).
+    #[arg(long, default_value_t = 1)]
+    frames: u32,
 }
 
 impl RenderFlags {
@@ -70,6 +74,7 @@ impl RenderFlags {
             camera: self.camera.into_args(),
             time: self.time,
             clip: self.clip,
+            frames: self.frames,
         }
     }
 }
