@@ -1464,6 +1464,26 @@ fn many_primitives(dir: &Path, n: usize, apart: bool) -> std::path::PathBuf {
     path
 }
 
+/// `shellbake bake INPUT -o OUT -q` under a watchdog of `secs` seconds (`timeout`) and `gib`
+/// GiB of address space (`prlimit --as`).
+#[cfg(target_os = "linux")]
+fn bake_within(input: &Path, out: &Path, (secs, gib): (u32, u64)) -> std::process::Output {
+    std::process::Command::new("timeout")
+        .args([
+            secs.to_string(),
+            "prlimit".into(),
+            format!("--as={}", gib << 30),
+        ])
+        .arg(env!("CARGO_BIN_EXE_shellbake"))
+        .arg("bake")
+        .arg(input)
+        .arg("-o")
+        .arg(out)
+        .arg("-q")
+        .output()
+        .unwrap()
+}
+
 /// The primitives of one node drawn with one material are furred as one (`fur_groups`), and
 /// the rest part by part, so a mesh of many costs time and memory in proportion to their
 /// number, never more: 100 000 one-triangle primitives of one material bake as one fur (4.0 s
@@ -1477,18 +1497,7 @@ fn many_primitives(dir: &Path, n: usize, apart: bool) -> std::path::PathBuf {
 #[test]
 fn many_primitives_cost_in_proportion() {
     let dir = scratch("hostile_many_primitives");
-    let run = |input: &Path, out: &Path| {
-        std::process::Command::new("timeout")
-            .args(["60", "prlimit", &format!("--as={}", 2u64 << 30)])
-            .arg(env!("CARGO_BIN_EXE_shellbake"))
-            .arg("bake")
-            .arg(input)
-            .arg("-o")
-            .arg(out)
-            .arg("-q")
-            .output()
-            .unwrap()
-    };
+    let run = |input: &Path, out: &Path| bake_within(input, out, (60, 2));
     let layer_meshes = |out: &Path| {
         let json = common::Glb::parse(&std::fs::read(out).unwrap()).json;
         json["meshes"].as_array().unwrap().len() - 1
@@ -1538,18 +1547,7 @@ fn many_primitives_cost_in_proportion() {
 fn a_million_corner_polygon_and_a_high_valence_cone_cost_in_proportion() {
     use std::fmt::Write as _;
     let dir = scratch("hostile_high_valence");
-    let run = |input: &Path, out: &Path| {
-        std::process::Command::new("timeout")
-            .args(["90", "prlimit", &format!("--as={}", 4u64 << 30)])
-            .arg(env!("CARGO_BIN_EXE_shellbake"))
-            .arg("bake")
-            .arg(input)
-            .arg("-o")
-            .arg(out)
-            .arg("-q")
-            .output()
-            .unwrap()
-    };
+    let run = |input: &Path, out: &Path| bake_within(input, out, (90, 4));
     let corners = 1_000_000;
     let mut polygon = String::with_capacity(corners * 40);
     for i in 0..corners {
