@@ -2682,14 +2682,14 @@ fn single_draw(
         "color",
         Semantic::Color(0),
         None,
-        stack.colors.0,
+        stack.colors(ctx, order).0,
         Some(8),
         total,
     );
     let color = b
         .out
         .accessor(cv, component::UNSIGNED_SHORT, true, "VEC4", None);
-    let ix = b.indices("indices", &stack.indices, total);
+    let ix = b.indices("indices", &stack.indices(indices), total);
     let name = format!("{}shells", ctx.prefix);
     let material = single_draw_material(b, ctx);
     let mut attributes = vec![
@@ -2903,13 +2903,11 @@ fn single_draw_wind(
 }
 
 /// The single-draw layout's layers, one after another: each layer's vertices (the first its
-/// triangles use, in fetch order) placed at its height and rounded as stored, their colours
-/// (the layer's shade × occlusion × the asset's colour; alpha: the layer's, scaled by density
-/// above the base), the index buffer and each layer's ranges.
+/// triangles use, in fetch order) placed at its height and rounded as stored, and each layer's
+/// ranges. The layers layout writes these positions one layer a mesh; single-draw writes them
+/// all, with [`SingleDrawStack::colors`] and [`SingleDrawStack::indices`].
 struct SingleDrawStack {
     positions: Vec<Vec3>,
-    colors: Bytes,
-    indices: Vec<u32>,
     ranges: Vec<LayerRange>,
     /// Vertices of each layer, and in all.
     layer_vertices: Vec<usize>,
@@ -2936,17 +2934,17 @@ impl SingleDrawStack {
             .collect();
         let total: usize = layer_vertices.iter().sum();
         let mut q = Vec::with_capacity(total);
-        let mut colors = Bytes::default();
-        let mut all_ix: Vec<u32> = Vec::new();
         let mut ranges = Vec::with_capacity(layers.len());
+        let mut first_index = 0;
         for (j, l) in layers.iter().enumerate() {
-            let (nv, first) = (layer_vertices[j], q.len() as u32);
+            let nv = layer_vertices[j];
             ranges.push(LayerRange {
-                first_index: all_ix.len(),
+                first_index,
                 index_count: 3 * kept[j],
-                first_vertex: first as usize,
+                first_vertex: q.len(),
                 vertex_count: nv,
             });
+            first_index += 3 * kept[j];
             q.extend(order[..nv].iter().map(|&o| {
                 let (p, d) = (g.positions[o as usize], g.deltas[o as usize]);
                 guard::layer_point(
@@ -2961,20 +2959,35 @@ impl SingleDrawStack {
                     top_level,
                 )
             }));
-            let alpha = single_draw_alpha(ctx.mask, l.step);
-            for &o in &order[..nv] {
-                colors.u16s(&single_draw_color(g, (j, l), alpha, o as usize), 8);
-            }
-            all_ix.extend(indices[..3 * kept[j]].iter().map(|&i| i + first));
         }
         SingleDrawStack {
             positions: q,
-            colors,
-            indices: all_ix,
             ranges,
             layer_vertices,
             total,
         }
+    }
+
+    /// Every layer's colours, as single-draw stores them: the layer's shade × occlusion × the
+    /// asset's colour; alpha: the layer's, scaled by density above the base.
+    fn colors(&self, ctx: &LevelCtx, order: &[u32]) -> Bytes {
+        let g = ctx.geometry;
+        let mut colors = Bytes::default();
+        for (j, l) in ctx.level.layers.iter().enumerate() {
+            let alpha = single_draw_alpha(ctx.mask, l.step);
+            for &o in &order[..self.layer_vertices[j]] {
+                colors.u16s(&single_draw_color(g, (j, l), alpha, o as usize), 8);
+            }
+        }
+        colors
+    }
+
+    /// The index buffer of every layer, one after another: layer `j`'s kept triangles of the
+    /// level's `indices`, renumbered to its vertices.
+    fn indices(&self, indices: &[u32]) -> Vec<u32> {
+        (self.ranges.iter())
+            .flat_map(|r| (indices[..r.index_count].iter()).map(|&i| i + r.first_vertex as u32))
+            .collect()
     }
 }
 
