@@ -343,8 +343,11 @@ pub fn asset_scene_of(
         };
         let slope = s.params.clamp.bare_slope.max(f32::MIN_POSITIVE);
         let reach = s.params.resolved_height(size) as f64 / slope as f64;
+        // a bare triangle near several of the group's parts is yielded to once
+        let mut seen = std::collections::HashSet::new();
         let bare = (members.iter())
             .flat_map(|&j| bare_near(asset, &bare_parts, j, reach))
+            .filter(|t| seen.insert(t.map(|p| p.to_array().map(f64::to_bits))))
             .collect();
         let maps = surface_maps(&s, &geometry)?;
         scene.surfaces.push(s);
