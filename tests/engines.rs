@@ -600,16 +600,19 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_filament_and_three_js() {
             t.name()
         ))
     };
-    // PlayCanvas: every distinct file; three.js: every distinct fur file.
-    let pc_jobs: Vec<Value> = (0..files.len())
-        .map(|f| {
-            job(
-                &baked[files[f]],
-                &png("playcanvas", f),
-                &cameras[bakes[files[f]].0],
-            )
-        })
-        .collect();
+    // PlayCanvas and Filament: every distinct file; three.js: every distinct fur file.
+    let every_file = |engine: &str| -> Vec<Value> {
+        (0..files.len())
+            .map(|f| {
+                job(
+                    &baked[files[f]],
+                    &png(engine, f),
+                    &cameras[bakes[files[f]].0],
+                )
+            })
+            .collect()
+    };
+    let pc_jobs = every_file("playcanvas");
     let fur_files: Vec<usize> = (0..files.len()).filter(|&f| !bakes[files[f]].2).collect();
     let three_jobs: Vec<Value> = fur_files
         .iter()
@@ -621,16 +624,7 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_filament_and_three_js() {
             )
         })
         .collect();
-    // Filament: every distinct file, as PlayCanvas
-    let fil_jobs: Vec<Value> = (0..files.len())
-        .map(|f| {
-            job(
-                &baked[files[f]],
-                &png("filament", f),
-                &cameras[bakes[files[f]].0],
-            )
-        })
-        .collect();
+    let fil_jobs = every_file("filament");
     // the three pages at once: each spends part of its time on one core (loading, encoding)
     let (pc, fil) = std::thread::scope(|scope| {
         let pc = scope.spawn(|| playcanvas(&pc_jobs, &dir));
