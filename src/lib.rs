@@ -1814,7 +1814,8 @@ fn pack_surface(
         .map(|tris| {
             let (lo, hi) = chunk_bounds(mesh, &look.shells.delta, tris);
             let radius = ((hi - lo).length() / 2.0) as f64;
-            lod::chunk_switch(&chain.levels, radius, &run.params.lod)
+            let centre = mesh.origin + ((lo + hi) / 2.0).as_dvec3();
+            lod::chunk_switch(&chain.levels, (centre, radius), &run.params.lod)
         })
         .collect();
     let pack_levels: Vec<pack::PackLevel> = (chain.levels.iter().zip(&chain.culled))
@@ -1878,16 +1879,14 @@ fn pack_surface(
 }
 
 /// Why `stage`, asked for, cannot run on a surface (`None`: it can): a skinned surface takes no
-/// fins or outline (neither is skinned) and no LOD chain (its layer nodes are scene roots,
-/// which `MSFT_lod` cannot switch). The bake skips the stage with this reason and a warning;
+/// fins or outline (neither is skinned); an instanced part no LOD chain (its fur is copied to
+/// every instance). A skinned surface's chain is carried by its layer nodes themselves
+/// (`pack::skinned_switches`). The bake skips the stage with this reason and a warning;
 /// `shellbake plan` shows the same.
 pub fn blocked(stage: Stage, skinned: bool, instanced: bool) -> Option<&'static str> {
     match stage {
         Stage::Fins | Stage::Outline if skinned => {
             Some("skinned surface: fins and outlines are not skinned")
-        }
-        Stage::Lod if skinned => {
-            Some("skinned surface: its layer nodes are scene roots, so one level and no chunks")
         }
         Stage::Lod if instanced => Some(
             "instanced part (EXT_mesh_gpu_instancing): its fur is copied to every instance, so \

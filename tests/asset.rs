@@ -3395,3 +3395,91 @@ fn a_jointed_figure_is_furred_as_one_character() {
         .count();
     assert_eq!(already, 61, "{again}");
 }
+
+/// The skinned critter's fur has its levels of detail: three.js (the tests' `MSFT_lod` plugin)
+/// draws each coarser level from its switch distance on, fewer triangles at each, and past the
+/// last one the asset's own mesh alone (its bare level), exactly what the file draws with the
+/// fur hidden; without the plugin it draws LOD 0 at every distance. Babylon.js loads every
+/// level and ends on LOD 0's meshes; `verify` passes every level; the file is valid; Blender
+/// shows what it showed before the levels.
+#[test]
+fn a_skinned_character_s_fur_switches_levels_in_three_js_and_babylon_and_verifies() {
+    let dir = scratch("asset-skinned-lod");
+    let input = fixture_critter();
+    let (glb, _) = bake(&input, &dir, "critter.glb", &["--only", "material=fur_*"]);
+    assert_valid(std::slice::from_ref(&glb));
+    let doc = json_of(&glb);
+    let chain = (doc["nodes"].as_array().unwrap().iter())
+        .find_map(|n| n.pointer("/extras/shellbake_lod"))
+        .expect("the fur's layer nodes carry the chain")
+        .clone();
+    let distances: Vec<f64> = (chain["distances"].as_array().unwrap().iter())
+        .map(|d| d.as_f64().unwrap())
+        .collect();
+    assert!(distances.len() >= 4, "{distances:?}");
+    let c: Vec<f32> = (chain["centre"].as_array().unwrap().iter())
+        .map(|v| v.as_f64().unwrap() as f32)
+        .collect();
+    // from the front, a little above, at 1.05 times each switch distance (LOD 0: one unit)
+    let eye = |d: f64| {
+        let d = d as f32;
+        [c[0], c[1] + 0.2 * d, c[2] + d]
+    };
+    let far = |d: f64| d * 3.0 + 10.0;
+    let mut jobs = Vec::new();
+    let at: Vec<f64> = std::iter::once(1.0)
+        .chain(distances[1..].iter().map(|d| d * 1.05))
+        .collect();
+    for (k, &d) in at.iter().enumerate() {
+        for lod in [true, false] {
+            let mut j = job(&glb, &dir.join(format!("lod{k}-{lod}.png")), eye(d), [c[0], c[1], c[2]], false);
+            j["camera"]["far"] = json!(far(d));
+            j["msft_lod"] = json!(lod);
+            jobs.push(j);
+        }
+    }
+    let d = *at.last().unwrap();
+    let mut bare = job(&glb, &dir.join("bare.png"), eye(d), [c[0], c[1], c[2]], true);
+    bare["camera"]["far"] = json!(far(d));
+    jobs.push(bare);
+    let spec = dir.join("jobs.json");
+    std::fs::write(&spec, serde_json::to_vec(&jobs).unwrap()).unwrap();
+    let three = node("three_render.mjs", &[spec]);
+    let tris: Vec<u64> = three.iter().map(|j| j["triangles"].as_u64().unwrap()).collect();
+    println!("three.js triangles (with the plugin, without) per level: {tris:?}");
+    let with: Vec<u64> = tris.iter().step_by(2).take(at.len()).copied().collect();
+    let without: Vec<u64> = tris.iter().skip(1).step_by(2).take(at.len()).copied().collect();
+    assert!(with.windows(2).all(|w| w[1] < w[0]), "{with:?}");
+    assert!(without.iter().all(|&t| t >= with[0]), "{without:?}");
+    assert_eq!(with[0], without[0], "LOD 0 up close");
+    assert_eq!(*with.last().unwrap(), *tris.last().unwrap(), "the bare level is the asset");
+
+    // Babylon.js loads every level, coarsest first, and ends on LOD 0's meshes: those of the
+    // file baked with one level
+    let (one, _) = bake(&input, &dir, "one.glb", &["--only", "material=fur_*", "--no-lod"]);
+    let babylon = node("babylon_bounds.mjs", &[glb.clone(), one]);
+    assert_eq!(babylon[0]["lod"]["enabled"], true, "{}", babylon[0]);
+    assert_eq!(
+        babylon[0]["lod"]["levels"].as_u64().unwrap() as usize,
+        distances.len(),
+        "{}",
+        babylon[0]
+    );
+    assert_eq!(babylon[0]["lod"]["meshes"], babylon[1]["lod"]["meshes"]);
+
+    // Blender shows exactly the default scene: the levels stay out of the view
+    let stdout = blender("blender_import.py", &[glb.to_str().unwrap()]);
+    let levels = scene_node_names(&doc, 1);
+    let shown = scene_node_names(&doc, 0);
+    for import in stdout.lines().filter(|l| l.starts_with('{')) {
+        let import: Value = serde_json::from_str(import).unwrap();
+        let visible: std::collections::BTreeSet<String> = (import["visible"].as_array().unwrap())
+            .iter()
+            .map(|s| s.as_str().unwrap().to_string())
+            .collect();
+        let only_levels: Vec<&String> = levels.difference(&shown).collect();
+        assert!(only_levels.iter().all(|n| !visible.contains(*n)), "{import}");
+        assert_eq!(import["orphan_nodes"], false, "{import}");
+    }
+    verify_passes(&input, &dir, &["--only", "material=fur_*"]);
+}

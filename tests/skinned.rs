@@ -2,7 +2,8 @@
 //! joints and a looping `bend`) keeps its skin. Every layer shares `JOINTS_0`/`WEIGHTS_0`, the
 //! file carries the skeleton, the skin and the animation, the glTF validator finds nothing, the
 //! viewer's frames match the runtime reference skinned the same way at several times (and do not
-//! when the file's fur stands still: the control), and three.js plays the animation with the
+//! when the file's fur stands still: the control; every LOD level too, each layer node carrying
+//! the chain since skinned nodes stay scene roots), and three.js plays the animation with the
 //! fur following the body.
 
 #![cfg(feature = "view")]
@@ -10,6 +11,7 @@
 use crate::common;
 
 use common::{assert_valid, gpu, node, scratch, three_job, verify_glb, Glb};
+use serde_json::Value;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::view::{self, compare, NamedView};
 
@@ -51,17 +53,21 @@ fn layers_share_the_skin_and_the_file_keeps_skeleton_and_animation() {
         assert_eq!(load.counts["skin_joints"], 4.0);
         assert_eq!(load.counts["skin_clips"], 1.0);
         let lod = baked.report.stage("lod").unwrap();
-        assert!(!lod.ran, "a skinned surface bakes one level");
+        assert!(lod.ran, "a skinned surface has its levels");
         let g = Glb::parse(&baked.glb);
         let skins = g.json["skins"].as_array().expect("a skin");
         assert_eq!(skins.len(), 1);
         assert_eq!(skins[0]["joints"].as_array().unwrap().len(), 4);
-        let roots: Vec<u64> = g.json["scenes"][0]["nodes"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|n| n.as_u64().unwrap())
-            .collect();
+        let scene_roots = |s: usize| -> Vec<u64> {
+            let nodes = g.json["scenes"][s]["nodes"].as_array().unwrap();
+            nodes.iter().map(|n| n.as_u64().unwrap()).collect()
+        };
+        // skinned nodes are roots of the scene they are in: LOD 0's of the default one, the
+        // coarser levels' of the levels' scene, which holds the skeleton too (the validator's
+        // NODE_SKIN_NO_SCENE)
+        let (shown, levels) = (scene_roots(0), scene_roots(1));
+        let roots: Vec<u64> = shown.iter().chain(&levels).copied().collect();
+        assert_skinned_levels(&g.json, (&shown, &levels), layout);
         let nodes = g.json["nodes"].as_array().unwrap();
         let skinned: Vec<usize> = (0..nodes.len())
             .filter(|&n| nodes[n]["skin"].as_u64() == Some(0))
@@ -112,6 +118,56 @@ fn layers_share_the_skin_and_the_file_keeps_skeleton_and_animation() {
         files.push(path);
     }
     assert_valid(&files);
+}
+
+/// A skinned surface's LOD chain: every LOD 0 layer node of the default scene carries it
+/// (`MSFT_lod` naming one node per coarser level, all from one stated centre at the same
+/// distances); the nodes it names are roots of the levels' scene only, every one with a mesh
+/// skinned; each level's meshes are named once; and the levels' scene holds the skin's joints.
+fn assert_skinned_levels(json: &Value, (shown, levels): (&[u64], &[u64]), layout: Layout) {
+    let nodes = json["nodes"].as_array().unwrap();
+    let lod0: Vec<&Value> = (shown.iter())
+        .map(|&n| &nodes[n as usize])
+        .filter(|n| n["mesh"].is_u64())
+        .collect();
+    assert!(!lod0.is_empty(), "{layout:?}: LOD 0 layer nodes");
+    let chain = &lod0[0]["extras"]["shellbake_lod"];
+    let count = chain["distances"].as_array().unwrap().len();
+    assert!(count >= 3, "{layout:?}: {count} levels");
+    let mut named = std::collections::BTreeSet::new();
+    for n in &lod0 {
+        assert_eq!(&n["extras"]["shellbake_lod"], chain, "{layout:?}: one chain");
+        let ids = n["extensions"]["MSFT_lod"]["ids"].as_array().unwrap();
+        assert_eq!(ids.len(), count - 1, "{layout:?}");
+        for id in ids {
+            let id = id.as_u64().unwrap();
+            assert!(levels.contains(&id) && !shown.contains(&id), "{layout:?}: node {id}");
+            assert!(named.insert(id), "{layout:?}: node {id} named twice");
+            let level = &nodes[id as usize];
+            if level["mesh"].is_u64() {
+                assert_eq!(level["skin"], 0, "{layout:?}: node {id} is skinned");
+            }
+        }
+    }
+    assert!(chain["centre"].as_array().unwrap().len() == 3);
+    // per coarser level, the meshes drawn: fewer than LOD 0's layers, the last one bare
+    let layers: Vec<u64> = (chain["layers"].as_array().unwrap().iter())
+        .map(|l| l.as_u64().unwrap())
+        .collect();
+    assert!(layers.windows(2).all(|w| w[1] < w[0]), "{layout:?}: {layers:?}");
+    assert_eq!(*layers.last().unwrap(), 0, "{layout:?}: the bare level last");
+    let joints = json["skins"][0]["joints"].as_array().unwrap();
+    let mut reached = std::collections::BTreeSet::new();
+    let mut stack: Vec<u64> = levels.to_vec();
+    while let Some(n) = stack.pop() {
+        reached.insert(n);
+        let children = nodes[n as usize]["children"].as_array().into_iter().flatten();
+        stack.extend(children.map(|c| c.as_u64().unwrap()));
+    }
+    assert!(
+        joints.iter().all(|j| reached.contains(&j.as_u64().unwrap())),
+        "{layout:?}: the levels' scene holds the skeleton"
+    );
 }
 
 #[test]

@@ -271,7 +271,8 @@ impl Placing<'_> {
             .copied()
             .filter(|&n| packed.nodes[n].tag.surface == s && n != surface.root)
             .collect();
-        for &n in &layers {
+        // and the coarser levels' they name in MSFT_lod (roots of the levels' scene)
+        for n in crate::output::pack::skinned_nodes(packed, s, &layers) {
             let node = &mut out["nodes"][base.nodes + n];
             node["skin"] = json!(skin);
             node["extras"]["shellbake_fur"] = marker.clone();
@@ -900,7 +901,31 @@ fn add_lod_scene(out: &mut Value, packed: &Packed, base: Base, shown: usize) {
             scenes.len() - 1
         }
     };
-    add_to_scene(out, at, levels.into_iter().map(|n| base.nodes + n));
+    let levels: Vec<usize> = levels.into_iter().map(|n| base.nodes + n).collect();
+    // a skinned level's joints must be in its scene (the validator's NODE_SKIN_NO_SCENE): the
+    // roots of the shown scene above them join it
+    let joints: Vec<u64> = (levels.iter())
+        .filter_map(|&n| out["nodes"][n]["skin"].as_u64())
+        .flat_map(|s| out["skins"][s as usize]["joints"].as_array().cloned().unwrap_or_default())
+        .filter_map(|j| j.as_u64())
+        .collect();
+    let shown_roots: Vec<usize> = (out["scenes"][shown]["nodes"].as_array().into_iter().flatten())
+        .filter_map(|n| n.as_u64().map(|n| n as usize))
+        .collect();
+    let holders: Vec<usize> = (shown_roots.into_iter())
+        .filter(|&r| {
+            let mut stack = vec![r];
+            while let Some(n) = stack.pop() {
+                if joints.contains(&(n as u64)) {
+                    return true;
+                }
+                let children = out["nodes"][n]["children"].as_array().into_iter().flatten();
+                stack.extend(children.filter_map(|c| c.as_u64().map(|c| c as usize)));
+            }
+            false
+        })
+        .collect();
+    add_to_scene(out, at, levels.into_iter().chain(holders));
 }
 
 /// The scenes of `out` whose node trees hold `node`, in order.

@@ -26,7 +26,9 @@
 //! as Collection" is on, and *drawn* with it off; the nodes of a second scene go to a collection
 //! of that name excluded from the view layer with the option on, and to a Blender scene of their
 //! own with it off. So the levels are never drawn in Blender, and with the option off the user's
-//! scene holds nothing but what the file's default scene draws. The first scene is named
+//! scene holds nothing but what the file's default scene draws. A skinned surface's levels
+//! are skinned too, and a skinned node's scene must hold its joints: the roots above them (the
+//! skeleton) are roots of the second scene as well. The first scene is named
 //! `Scene`, Blender's own name, since with two scenes Blender gives it a collection of its name.
 
 use std::io::Write as _;
@@ -340,9 +342,27 @@ fn scenes_json(packed: &Packed) -> Value {
     if levels.is_empty() {
         return json!([{ "nodes": packed.roots }]);
     }
+    // a skinned level's joints must be in its scene (the validator's NODE_SKIN_NO_SCENE): the
+    // roots above them join it
+    let skins: Vec<usize> = levels.iter().filter_map(|&n| packed.nodes[n].skin).collect();
+    let joints: Vec<usize> = (skins.iter())
+        .flat_map(|&s| packed.skins[s].joints.iter().copied())
+        .collect();
+    let reaches = |root: usize| {
+        let mut stack = vec![root];
+        while let Some(n) = stack.pop() {
+            if joints.contains(&n) {
+                return true;
+            }
+            stack.extend(&packed.nodes[n].children);
+        }
+        false
+    };
+    let holders = packed.roots.iter().copied().filter(|&r| reaches(r));
+    let nodes: Vec<usize> = levels.iter().copied().chain(holders).collect();
     json!([
         { "name": "Scene", "nodes": packed.roots },
-        { "name": LOD_SCENE, "nodes": levels },
+        { "name": LOD_SCENE, "nodes": nodes },
     ])
 }
 
@@ -535,15 +555,19 @@ fn node_json(n: &Node) -> Value {
     }
     if let Some(l) = &n.lod {
         o.insert("extensions".into(), json!({ "MSFT_lod": { "ids": l.ids } }));
+        let mut figures = json!({
+            "distances": l.distances,
+            "layers": l.layers,
+            "errors": l.errors,
+        });
+        if let Some(c) = l.centre {
+            figures["centre"] = json!([c.x, c.y, c.z]);
+        }
         o.insert(
             "extras".into(),
             json!({
                 "MSFT_screencoverage": l.coverage,
-                "shellbake_lod": {
-                    "distances": l.distances,
-                    "layers": l.layers,
-                    "errors": l.errors,
-                },
+                "shellbake_lod": figures,
             }),
         );
     }

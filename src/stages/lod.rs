@@ -6,7 +6,8 @@
 //! shrinks with height, so the lowest layer's coverage is the union): density does not fade. The
 //! last level has no shells: the base mesh, opaque, untextured, in the averaged fur colour (the
 //! colour seen from above: each layer weighted by the fraction of texels it is the topmost
-//! visible layer at, times the mean strand shade).
+//! visible layer at, times the mean strand shade), drawn at the fur's mean column height
+//! ([`column_height`]: extruded that far, so a silhouette keeps the fur's bulk).
 //!
 //! **Switch distances from screen-space error.** A level's geometric error `ε` is what it moves
 //! a visible slice of a strand by: `(m − 1)·Δ·h` for a merged level (`Δ` the layer spacing in
@@ -152,6 +153,9 @@ pub struct Level {
     /// The bare level's colours (no shells, no texture): `[fur, skin]`, the fur colour where
     /// the fur is full and the base layer's where density or length is 0.
     pub bare: Option<[[f32; 3]; 2]>,
+    /// Where the bare level's base is drawn, in `t` (0 for the other levels): the fur's mean
+    /// column height as the level's mip shows it ([`column_height`]).
+    pub lift: f32,
     /// The level's own simplified base (`None`: the render mesh's triangles).
     pub base: Option<SimplifiedBase>,
 }
@@ -297,6 +301,7 @@ pub fn full_level(shells: &ShellStack) -> Level {
         distance: 0.0,
         mask_level: 0,
         bare: None,
+        lift: 0.0,
         base: None,
     }
 }
@@ -368,6 +373,7 @@ pub fn build_lods(
             distance,
             mask_level: mip_at(distance),
             bare: None,
+            lift: 0.0,
             base: simplified(error),
         });
     }
@@ -381,6 +387,7 @@ pub fn build_lods(
             distance,
             mask_level: 0,
             bare: Some([fur_colour(shells, mask, &seen), skin_colour(shells, mask)]),
+            lift: column_height(shells, &seen),
             base: simplified(error),
         });
     }
@@ -463,6 +470,21 @@ fn seen_from_above(cov: &[f64], colors: impl Iterator<Item = [f32; 3]>) -> ([f64
     (c, total)
 }
 
+/// The mean height of the fur's column, in `t`: each layer's coverage `seen` at the mip the
+/// bare level is seen through, times the height it adds (`∫ coverage dt` over the stack). The
+/// bare level's base is drawn there, so the surface it stands for keeps the fur's bulk: drawn
+/// at the skin, a thin limb lost up to the whole shell height of each silhouette edge (a 1 px
+/// budget on an 8 px wide tube is a quarter of its width). Where the mip shows every layer
+/// fully this is the top of the stack; where strands are sparse, lower.
+pub fn column_height(shells: &ShellStack, seen: &dyn Fn(u32) -> f64) -> f32 {
+    let mut height = 0.0;
+    for j in 1..shells.t.len() {
+        let dt = (shells.t[j] - shells.t[j - 1]) as f64;
+        height += dt * seen(shells.steps[j]).clamp(0.0, 1.0);
+    }
+    height as f32
+}
+
 /// The base layer's colour times the mean strand shade: bare skin seen from afar.
 pub fn skin_colour(shells: &ShellStack, mask: &Mask) -> [f32; 3] {
     let shade = mask.mean_shade();
@@ -515,13 +537,19 @@ pub struct ChunkSwitch {
     /// `MSFT_screencoverage`: per level, the fraction of the viewport height the chunk's
     /// bounding sphere covers where the next level takes over; 0 for the last.
     pub coverage: Vec<f64>,
+    /// The chunk's centre, world units: where the distances are measured from.
+    pub centre: glam::DVec3,
 }
 
 /// The switch of a chunk of bounding radius `radius`. A level's distance [`Level::distance`]
 /// holds from the chunk's *nearest* point; clients measure from its centre (`THREE.LOD`, the
 /// viewer, engines reading `extras`), so each is stated `radius` further: no point of the chunk
 /// is nearer than `Level::distance` when the level shows.
-pub fn chunk_switch(levels: &[Level], radius: f64, params: &LodParams) -> ChunkSwitch {
+pub fn chunk_switch(
+    levels: &[Level],
+    (centre, radius): (glam::DVec3, f64),
+    params: &LodParams,
+) -> ChunkSwitch {
     let distances: Vec<f64> = levels
         .iter()
         .enumerate()
@@ -538,6 +566,7 @@ pub fn chunk_switch(levels: &[Level], radius: f64, params: &LodParams) -> ChunkS
     ChunkSwitch {
         distances,
         coverage,
+        centre,
     }
 }
 

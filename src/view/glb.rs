@@ -231,11 +231,13 @@ pub struct Instance {
     pub joints: Option<Vec<DMat4>>,
 }
 
-/// A node whose `MSFT_lod` level is picked by distance.
+/// Nodes whose `MSFT_lod` level is picked by distance, as one: a chunk's node, or a skinned
+/// chunk's layer nodes, which carry one chain each from one stated centre.
 #[derive(Clone, Debug)]
 pub struct LodSwitch {
-    pub node: usize,
-    /// World-space centre of the node's LOD 0 content.
+    pub nodes: Vec<usize>,
+    /// World-space centre of the nodes' LOD 0 content (`extras.shellbake_lod.centre` where the
+    /// file states it).
     pub centre: DVec3,
     /// Distance from which each level is used (LOD 0 first).
     pub distances: Vec<f64>,
@@ -717,6 +719,20 @@ impl Asset {
             if ids.is_empty() || distances.len() != ids.len() + 1 {
                 continue;
             }
+            if let Some(c) = f64s(&figures["centre"]).filter(|c| c.len() == 3) {
+                let centre = DVec3::new(c[0], c[1], c[2]);
+                let same = |s: &LodSwitch| s.centre == centre && s.distances == distances;
+                match out.iter_mut().find(|s| same(s)) {
+                    Some(s) => s.nodes.push(n),
+                    None => out.push(LodSwitch {
+                        nodes: vec![n],
+                        centre,
+                        distances,
+                        layers,
+                    }),
+                }
+                continue;
+            }
             let children: Vec<usize> = self.doc.nodes[n].children.clone();
             let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
             for p in placed
@@ -754,7 +770,7 @@ impl Asset {
             }
             if lo.x <= hi.x {
                 out.push(LodSwitch {
-                    node: n,
+                    nodes: vec![n],
                     centre: (lo + hi) / 2.0,
                     distances,
                     layers,

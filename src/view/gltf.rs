@@ -456,7 +456,7 @@ impl GltfRenderer {
         let instances = match self.lod {
             Some(lod) => self.asset.instances(lod)?,
             None => self.asset.instances_with(|n| {
-                match self.switches.iter().position(|s| s.node == n) {
+                match self.switches.iter().position(|s| s.nodes.contains(&n)) {
                     Some(i) => self
                         .asset
                         .lod_node(n, self.picks.get(i).copied().unwrap_or(0)),

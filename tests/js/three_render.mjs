@@ -34,8 +34,11 @@ import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 // MSFT_lod, written here (three.js's GLTFLoader does not read it): each node with the extension
-// becomes a THREE.LOD placed at the centre of its LOD 0 content, with the coarser levels'
-// nodes as further levels at the switch distances of extras.shellbake_lod (world units).
+// becomes a THREE.LOD placed at the centre of its LOD 0 content (or at extras.shellbake_lod.centre
+// where the file states one: a skinned fur's layer nodes each carry the chain, from one centre,
+// so they switch as one), with the coarser levels' nodes as further levels at the switch
+// distances of extras.shellbake_lod (world units). A skinned mesh ignores its parents'
+// transforms (three.js's attached bind mode), so it can sit under the LOD as it is.
 // Nodes are looked up with parser.getDependency, not parser.associations: GLTFLoader keeps the
 // associations of the last scene it loads only, and the coarser levels are a scene of their own.
 class MsftLod {
@@ -45,12 +48,15 @@ class MsftLod {
     result.scene.updateMatrixWorld(true);
     for (const [i, node] of (parser.json.nodes || []).entries()) {
       const ext = node.extensions && node.extensions.MSFT_lod;
-      const distances = node.extras && node.extras.shellbake_lod && node.extras.shellbake_lod.distances;
+      const figures = node.extras && node.extras.shellbake_lod;
+      const distances = figures && figures.distances;
       if (!ext || !distances) continue;
       const obj = await parser.getDependency('node', i);
       if (!obj.parent) continue;
       const parent = obj.parent;
-      const centre = parent.worldToLocal(new THREE.Box3().setFromObject(obj).getCenter(new THREE.Vector3()));
+      const world = figures.centre ? new THREE.Vector3(...figures.centre)
+        : new THREE.Box3().setFromObject(obj).getCenter(new THREE.Vector3());
+      const centre = parent.worldToLocal(world);
       const lod = new THREE.LOD();
       lod.name = obj.name;
       lod.position.copy(centre);

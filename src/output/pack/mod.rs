@@ -297,6 +297,13 @@ pub struct PackInput<'a> {
     pub unlit: bool,
 }
 
+impl PackInput<'_> {
+    /// Whether the surface's layers are skinned: their nodes are scene roots.
+    fn skinned(&self) -> bool {
+        self.skeleton.is_some() && self.mesh.skin.is_some()
+    }
+}
+
 /// The surface's vertices with their quantization grids, in the input's order.
 struct Geometry<'a> {
     /// The position grid (a plain float file's: step 1 at zero, see [`Geometry::stored`]).
@@ -1312,6 +1319,11 @@ fn pack_chunk(
         level_nodes.push(nodes);
     }
     b.tag = chunk_tag;
+    if input.skinned() {
+        let nodes = skinned_switches(b, input, (c, &chunk_prefix), level_nodes);
+        chunks.nodes.extend(nodes);
+        return;
+    }
     if !several_chunks && !several_levels {
         chunks.nodes.extend(level_nodes.swap_remove(0));
         return;
@@ -1341,7 +1353,7 @@ fn pack_level(
     match (params.layout, pl.level.bare) {
         (Layout::Compact, _) => {
             let shared = state.shared.get_or_insert_with(|| {
-                let s = Shared::new(b, ctx.geometry, ordering.first_use(nv), nv, true);
+                let s = Shared::new(b, ctx.geometry, (ordering.first_use(nv), nv), (true, 0.0));
                 chunks.base_vertices += s.order.len();
                 chunks.vertex_order.extend(s.order.iter().copied());
                 s
@@ -1368,7 +1380,8 @@ fn pack_level(
             }
         }
         (Layout::SingleDraw | Layout::Layers, Some(_)) => {
-            let s = Shared::new(b, ctx.geometry, ordering.first_use(nv), nv, false);
+            let lift = ctx.level.lift;
+            let s = Shared::new(b, ctx.geometry, (ordering.first_use(nv), nv), (false, lift));
             compact(b, ctx, &s, &ordering, None).0
         }
     }
@@ -1433,10 +1446,63 @@ fn chunk_node(
             distances: input.switches[c].distances.clone(),
             layers: levels.iter().map(|l| l.layers.len()).collect(),
             errors: levels.iter().map(|l| l.error).collect(),
+            centre: None,
         }),
         ..Node::default()
     };
     Packed::push(&mut b.out.nodes, node)
+}
+
+/// A skinned chunk's LOD 0 layer nodes, each carrying the chunk's chain itself. A skinned mesh
+/// node stays a scene root (glTF ignores its parents' transforms, and the validator warns of
+/// a skinned node with a parent), so no chunk node can hold the layers for `MSFT_lod` to
+/// switch; instead every LOD 0 layer node names, per coarser level, the node that stands for
+/// it there: that level's node of the same rank (its layers in order), or a node of its own
+/// with nothing in it where the level has fewer (a bare level of an asset's part, whose own
+/// primitive is the bare level, has none). The nodes switch at the same distances from the
+/// same centre (`extras.shellbake_lod.centre`, the chunk's at rest), so the chunk changes
+/// level as one, and a level draws exactly its own layers. Returns LOD 0's nodes.
+fn skinned_switches(
+    b: &mut Builder,
+    input: &PackInput,
+    (c, chunk_prefix): (usize, &str),
+    level_nodes: Vec<Vec<usize>>,
+) -> Vec<usize> {
+    let lod0 = level_nodes[0].clone();
+    if level_nodes.len() < 2 {
+        return lod0;
+    }
+    let levels: Vec<&Level> = input.levels.iter().map(|l| l.level).collect();
+    let switch = &input.switches[c];
+    for (i, &n) in lod0.iter().enumerate() {
+        let ids = (level_nodes.iter().enumerate().skip(1))
+            .map(|(k, nodes)| match nodes.get(i) {
+                Some(&m) => m,
+                None => {
+                    let name = format!("{chunk_prefix}lod{k}_none_{i:03}");
+                    let tag = Tag {
+                        lod: Some(k),
+                        ..b.out.nodes[n].tag
+                    };
+                    let empty = Node {
+                        name,
+                        tag,
+                        ..Node::default()
+                    };
+                    Packed::push(&mut b.out.nodes, empty)
+                }
+            })
+            .collect();
+        b.out.nodes[n].lod = Some(NodeLod {
+            ids,
+            coverage: switch.coverage.clone(),
+            distances: switch.distances.clone(),
+            layers: levels.iter().map(|l| l.layers.len()).collect(),
+            errors: levels.iter().map(|l| l.error).collect(),
+            centre: Some(switch.centre),
+        });
+    }
+    lod0
 }
 
 /// The node transform that dequantizes: stored value → world.
@@ -1482,8 +1548,13 @@ fn place_root(
         skinned.is_none() || input.base || dequantize == glam::DMat4::IDENTITY,
         "an asset's skinned part stores its bind-space positions as they are"
     );
-    let wrapper = (skinned.filter(|_| input.base))
-        .map(|k| skeleton(&mut b, k, dequantize, &chunks.nodes, input.name));
+    // every skinned mesh node: LOD 0's layers and the coarser levels' they name
+    let bound: Vec<usize> = match skinned {
+        Some(_) => skinned_nodes(b.out, input.surface, &chunks.nodes),
+        None => Vec::new(),
+    };
+    let wrapper =
+        (skinned.filter(|_| input.base)).map(|k| skeleton(&mut b, k, dequantize, &bound, input.name));
     let out = b.out;
     let lod0 = input.levels[0].level;
     let (children, placed) = match (skinned, wrapper) {
@@ -1512,6 +1583,16 @@ fn place_root(
     if skinned.is_some() {
         out.roots.extend(&chunks.nodes);
     }
+}
+
+/// Surface `surface`'s skinned mesh nodes: its LOD 0 layer nodes `lod0` and the coarser levels'
+/// nodes with a mesh that they name in `MSFT_lod`.
+pub fn skinned_nodes(out: &Packed, surface: usize, lod0: &[usize]) -> Vec<usize> {
+    let coarser = (lod0.iter())
+        .filter_map(|&n| out.nodes[n].lod.as_ref())
+        .flat_map(|l| l.ids.iter().copied())
+        .filter(|&n| out.nodes[n].mesh.is_some() && out.nodes[n].tag.surface == surface);
+    lod0.iter().copied().chain(coarser).collect()
 }
 
 /// Writes skeleton `k` for the layer nodes `layers`: its nodes (names kept, for retargeting)
@@ -1771,15 +1852,28 @@ struct ShellStreams {
 }
 
 impl Shared {
-    fn new(b: &mut Builder, g: &Geometry, indices: &[u32], nv: usize, shells: bool) -> Shared {
+    /// The streams over the vertices `indices` uses, in first-use order; with `shells`, those
+    /// shell layers read too. A bare level of its own (`shells` off) stores its positions
+    /// extruded by `lift` (in `t`, [`Level::lift`]); the compact layout's reads LOD 0's streams
+    /// and lifts by weight.
+    fn new(
+        b: &mut Builder,
+        g: &Geometry,
+        (indices, nv): (&[u32], usize),
+        (shells, lift): (bool, f32),
+    ) -> Shared {
         let (order, _) = fetch_order(indices, nv);
         let mut fetch = vec![u32::MAX; nv];
         for (new, &old) in order.iter().enumerate() {
             fetch[old as usize] = new as u32;
         }
+        let step = g.grid.step;
         let mut q: Vec<Vec3> = (order.par_iter())
             .with_min_len(PAR_MIN_LEN)
-            .map(|&o| g.stored(g.positions[o as usize]))
+            .map(|&o| match lift > 0.0 {
+                true => g.stored(g.positions[o as usize] + step * lift * g.deltas[o as usize]),
+                false => g.stored(g.positions[o as usize]),
+            })
             .collect();
         // the box's two corners as vertices no triangle uses (see `BOX_VERTICES`), each with
         // the attributes of the first vertex and no morph
@@ -2434,7 +2528,9 @@ fn prefix_accessor(
 }
 
 /// A bare level's mesh: the base, opaque, in the fur's colour (`[fur, skin]`: the fur's and
-/// the skin's, which a density map mixes). With maps, occlusion or the asset's colour, the
+/// the skin's, which a density map mixes), lifted to the fur's mean column height
+/// ([`Level::lift`]: the extrusion target at that weight over LOD 0's streams, or positions
+/// stored there). With maps, occlusion or the asset's colour, the
 /// colour per vertex (`COLOR_0`, linear) and a white material; occlusion darkens by the
 /// layers' mean shade, 1 − a/2.
 fn bare_level(
@@ -2480,7 +2576,14 @@ fn bare_level(
         unlit: ctx.geometry.unlit,
     });
     let name = format!("{}bare", ctx.prefix);
-    b.single_primitive_mesh(name, attributes, ix, material)
+    let mesh = b.single_primitive_mesh(name, attributes, ix, material);
+    // over LOD 0's streams (compact), the lift is the extrusion target at its weight
+    if let Some(shells) = s.shells.as_ref().filter(|_| ctx.level.lift > 0.0) {
+        let mesh = &mut b.out.meshes[mesh];
+        mesh.primitives[0].targets = vec![vec![(Semantic::Position, shells.delta)]];
+        mesh.weights = vec![ctx.level.lift];
+    }
+    mesh
 }
 
 /// Layer `j`'s mesh in the compact layout: the shared streams (`attributes`), its prefix of the

@@ -239,7 +239,8 @@ pub struct Node {
     /// The skin of the node's mesh.
     pub skin: Option<usize>,
     pub extras: Option<ShellExtras>,
-    /// `MSFT_lod` alternatives and the chain's switch figures (a chunk's node).
+    /// `MSFT_lod` alternatives and the chain's switch figures (a chunk's node, or a skinned
+    /// chunk's layer node).
     pub lod: Option<NodeLod>,
 }
 
@@ -256,6 +257,9 @@ pub struct NodeLod {
     pub layers: Vec<usize>,
     /// Geometric error per level, world units.
     pub errors: Vec<f64>,
+    /// Where the distances are measured from, world units, when the node's own content does
+    /// not say: a skinned chunk's layer nodes, which switch as one (`pack::skinned_switches`).
+    pub centre: Option<DVec3>,
 }
 
 /// A glTF animation: each channel sets one node's morph weights (the wind: every target's
