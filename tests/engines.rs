@@ -72,7 +72,9 @@ const FILAMENT_APART: f64 = 0.02;
 // - FILAMENT_BLANKS_THE_FLAT_QUANTIZED_PLANE: the grass plane's quantized files (`web`,
 //   `blender`, `unity`, `playcanvas`, `unreal`: int16 positions under the node's dequantizing
 //   scale) are drawn blank or nearly so: the one-shell control of each compact target and the
-//   whole `unreal` file draw no pixel, the compact fur files −1 % of three.js with 2.3 % of the
+//   whole `unreal` file draw no pixel (but `web`'s, whose levels' scene Filament adds as a tiny
+//   copy at the origin, no dequantization above it: its bare level, drawn lifted by its
+//   extrusion target, covers 960 pixels), the compact fur files −1 % of three.js with 2.3 % of the
 //   pixels apart; the float files of the same plane (`bevy`, `godot`, `portable`) draw as
 //   three.js does. Filament draws the bunny's and the dragon's quantized files right, so it is
 //   the flat plane (a quantization box with no depth) that it loses; not found further here.
@@ -747,8 +749,11 @@ fn every_target_s_file_shows_its_fur_in_playcanvas_filament_and_three_js() {
         let quantized = t.profile().quantize != shellbake::output::pack::Quantize::None;
         if input.name == "grass" && quantized {
             // known failure: see FILAMENT_BLANKS_THE_FLAT_QUANTIZED_PLANE
+            // the web file's levels' scene, which Filament adds under no dequantization (a
+            // tiny copy at the origin), draws its lifted bare level: the control's 960 pixels
+            let copy = t == Target::Web && fp1 * 10 < fp;
             fail(
-                fp == 0 || fp1 == 0,
+                fp == 0 || fp1 == 0 || copy,
                 format!(
                     "{what}: Filament drew the fur ({fp}) and its one-shell control ({fp1}): \
                      does it now draw a flat quantized plane? Then leave it out of \

@@ -741,7 +741,8 @@ pub fn delta_e76(a: Vec3, b: Vec3) -> f64 {
 }
 
 /// The surface a name shellbake gives a layer's node, mesh or material names: `body` of
-/// `body_lod0_layer_001` or `body_layer_001`, `` of `layer_000` (a plain mesh's), with or
+/// `body_lod0_layer_001` or `body_layer_001`, `` of `layer_000` or `lod0_layer_000` (a plain
+/// mesh's, a one-fur file's), with or
 /// without the `.001` an importer appends to a repeated name; `None` for any other name.
 fn layer_owner(name: &str) -> Option<&str> {
     let name = match name.rsplit_once('.') {
@@ -756,6 +757,11 @@ fn layer_owner(name: &str) -> Option<&str> {
         return Some("");
     }
     let before = before.strip_suffix('_')?;
+    // a one-fur file's levels: `lod0_layer_001` (a skinned fur's, whose layer nodes are roots)
+    let level = |k: &str| !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit());
+    if before.strip_prefix("lod").is_some_and(level) {
+        return Some("");
+    }
     Some(match before.rsplit_once("_lod") {
         Some((owner, k)) if !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()) => owner,
         _ => before,
@@ -1556,6 +1562,8 @@ mod tests {
     #[test]
     fn layer_names_name_their_surface() {
         assert_eq!(layer_owner("body_lod0_layer_001"), Some("body"));
+        assert_eq!(layer_owner("lod0_layer_001"), Some(""));
+        assert_eq!(layer_owner("lod12_layer_001.002"), Some(""));
         assert_eq!(layer_owner("critter_0_1_layer_031"), Some("critter_0_1"));
         assert_eq!(layer_owner("my_lodge_layer_002.001"), Some("my_lodge"));
         assert_eq!(layer_owner("layer_000"), Some(""));

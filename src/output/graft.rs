@@ -33,8 +33,9 @@
 //!   own targets (`pack`), and each animation channel on the part's morph weights gets a twin on
 //!   every layer node of the part's fur, keyed at the same times: the node's own weights with
 //!   the keys' replaced by the channel's (`follow_shape_keys`); the fins and the outline, whose
-//!   only targets are the keys, likewise. LOD 0's twins join the channel's animation, the
-//!   coarser levels' an animation `<name>_lod` (as the wind's `wind_lod`). The single-draw
+//!   only targets are the keys, likewise. Every level's twins join the channel's animation, so
+//!   the file has the asset's clips and no more (a client without `MSFT_lod` finds no node for
+//!   the coarser levels' channels and skips them: three.js warns once per channel). The single-draw
 //!   layout's fur does not follow them (a warning says so), and a wind clip
 //!   on the same nodes holds the keys at rest while the asset's clips hold the wind at rest (a
 //!   warning too: one animation at a time sets a node's weights).
@@ -295,11 +296,9 @@ impl Placing<'_> {
     /// the part's morph weights gets a twin for each layer node, keyed at the same times (the
     /// same input accessor), whose values are the node's own weights with the shape keys'
     /// replaced by the channel's (a `CUBICSPLINE` channel's tangents are zero for the node's
-    /// own). LOD 0's twins join the channel's animation; the coarser levels' (`MSFT_lod`
-    /// alternatives, in the second scene) go to an animation of their own, named after it with
-    /// `_lod`, so that a client without `MSFT_lod` finds every node the asset's clip names, as
-    /// the wind's `wind_lod` does. Layers with the same weights share an output, written into
-    /// `bin`. Returns what the fur cannot follow.
+    /// own). Every level's twins (the coarser levels' are `MSFT_lod` alternatives, in the second
+    /// scene) join the channel's animation: the asset's clips stay its clips. Layers with the
+    /// same weights share an output, written into `bin`. Returns what the fur cannot follow.
     ///
     /// [`PackedSurface::shape_keys_at`]: crate::output::pack::PackedSurface::shape_keys_at
     fn follow_shape_keys(
@@ -325,22 +324,18 @@ impl Placing<'_> {
         let k = keys.rest.len();
         // the surface's nodes that carry the keys, with where their targets start and their
         // weights, own and the keys': the layers (every level), the fins and the outline
-        // and whether they are a coarser level's (neither LOD 0's nor an extra)
         let extras = &surface.shape_key_extras;
-        let lod0: std::collections::HashSet<usize> = surface.layer_nodes.iter().copied().collect();
-        let layers: Vec<(usize, usize, &[f32], bool)> = (0..packed.nodes.len())
+        let layers: Vec<(usize, usize, &[f32])> = (0..packed.nodes.len())
             .filter(|i| packed.nodes[*i].tag.surface == s && !extras.contains(i))
-            .map(|i| (i, at, packed.weights_of(i), !lod0.contains(&i)))
-            .filter(|&(_, at, w, _)| w.len() >= at + k)
-            .chain(extras.iter().map(|&i| (i, 0, packed.weights_of(i), false)))
+            .map(|i| (i, at, packed.weights_of(i)))
+            .filter(|&(_, at, w)| w.len() >= at + k)
+            .chain(extras.iter().map(|&i| (i, 0, packed.weights_of(i))))
             .collect();
-        // the coarser levels' animation of each of the asset's, made when first needed
-        let mut lod_animations: Vec<(usize, usize)> = Vec::new();
         for c in &keys.channels {
             let cubic = c.interpolation == crate::stages::skin::Interpolation::CubicSpline;
             let entries = c.values.len() / k.max(1);
             let mut outputs: Vec<(Vec<u32>, usize)> = Vec::new();
-            for &(n, at, rest, coarse) in &layers {
+            for &(n, at, rest) in &layers {
                 let mut values = Vec::with_capacity(entries * rest.len());
                 for e in 0..entries {
                     // a cubic key is in-tangents, values, out-tangents
@@ -360,11 +355,7 @@ impl Placing<'_> {
                         a
                     }
                 };
-                let animation = match coarse {
-                    false => c.animation,
-                    true => lod_animation(out, &mut lod_animations, c.animation),
-                };
-                let animation = &mut out["animations"][animation];
+                let animation = &mut out["animations"][c.animation];
                 let sampler = push_one(
                     animation,
                     "samplers",
@@ -385,7 +376,7 @@ impl Placing<'_> {
             }
         }
         let mut warnings = Vec::new();
-        let windy = layers.iter().any(|&(_, at, rest, _)| rest.len() > at + k);
+        let windy = layers.iter().any(|&(_, at, rest)| rest.len() > at + k);
         if windy && !keys.channels.is_empty() {
             warnings.push(format!(
                 "node '{node_name}': the wind's clip and the asset's clips on its shape keys both \
@@ -553,24 +544,6 @@ fn float_accessor(out: &mut Value, bin: &mut Vec<u8>, values: &[f32]) -> usize {
         "type": "SCALAR",
     });
     push_one(out, "accessors", accessor)
-}
-
-/// The animation the coarser levels' channels of the asset's animation `a` go to (`made`: those
-/// made so far, by `a`): `<its name>_lod`, appended when first asked for.
-fn lod_animation(out: &mut Value, made: &mut Vec<(usize, usize)>, a: usize) -> usize {
-    if let Some(&(_, l)) = made.iter().find(|(of, _)| *of == a) {
-        return l;
-    }
-    let name = out["animations"][a]["name"]
-        .as_str()
-        .map_or_else(|| format!("animation{a}"), str::to_string);
-    let l = push_one(
-        out,
-        "animations",
-        json!({ "name": format!("{name}_lod"), "channels": [], "samplers": [] }),
-    );
-    made.push((a, l));
-    l
 }
 
 /// Appends `item` to the array `kind` of `v` (made when missing); returns its index.
@@ -901,31 +874,7 @@ fn add_lod_scene(out: &mut Value, packed: &Packed, base: Base, shown: usize) {
             scenes.len() - 1
         }
     };
-    let levels: Vec<usize> = levels.into_iter().map(|n| base.nodes + n).collect();
-    // a skinned level's joints must be in its scene (the validator's NODE_SKIN_NO_SCENE): the
-    // roots of the shown scene above them join it
-    let joints: Vec<u64> = (levels.iter())
-        .filter_map(|&n| out["nodes"][n]["skin"].as_u64())
-        .flat_map(|s| out["skins"][s as usize]["joints"].as_array().cloned().unwrap_or_default())
-        .filter_map(|j| j.as_u64())
-        .collect();
-    let shown_roots: Vec<usize> = (out["scenes"][shown]["nodes"].as_array().into_iter().flatten())
-        .filter_map(|n| n.as_u64().map(|n| n as usize))
-        .collect();
-    let holders: Vec<usize> = (shown_roots.into_iter())
-        .filter(|&r| {
-            let mut stack = vec![r];
-            while let Some(n) = stack.pop() {
-                if joints.contains(&(n as u64)) {
-                    return true;
-                }
-                let children = out["nodes"][n]["children"].as_array().into_iter().flatten();
-                stack.extend(children.filter_map(|c| c.as_u64().map(|c| c as usize)));
-            }
-            false
-        })
-        .collect();
-    add_to_scene(out, at, levels.into_iter().chain(holders));
+    add_to_scene(out, at, levels.into_iter().map(|n| base.nodes + n));
 }
 
 /// The scenes of `out` whose node trees hold `node`, in order.

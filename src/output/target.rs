@@ -10,7 +10,7 @@
 //! | target | engines | attributes | layer height | LOD | sheen | meshopt |
 //! |---|---|---|---|---|---|---|
 //! | `web` (default) | three.js, Babylon.js | quantized | morph weights (mesh and node) | `MSFT_lod`, coarser levels in a second scene | kept | if asked |
-//! | `blender` | Blender's importer | quantized | morph weights | second scene (never drawn in Blender) | kept | no |
+//! | `blender` | Blender's importer | quantized | morph weights | LOD 0 only, one scene (Blender switches no level) | kept | no |
 //! | `unity` | glTFast | quantized | morph weights | LOD 0 only, one scene | dropped | if asked |
 //! | `playcanvas` | PlayCanvas | quantized | morph weights (it reads the mesh's) | LOD 0 only, one scene | kept | no |
 //! | `bevy` | Bevy (`bevy_gltf`) | floats | morph weights (it reads the mesh's) | LOD 0 only, one scene | dropped | no |
@@ -135,7 +135,7 @@ impl Target {
             Target::Blender => Profile {
                 engines: "Blender",
                 meshopt: false,
-                ..web
+                ..one_scene
             },
             Target::Unity => Profile {
                 engines: "Unity glTFast",

@@ -27,8 +27,13 @@
 //! of that name excluded from the view layer with the option on, and to a Blender scene of their
 //! own with it off. So the levels are never drawn in Blender, and with the option off the user's
 //! scene holds nothing but what the file's default scene draws. A skinned surface's levels
-//! are skinned too, and a skinned node's scene must hold its joints: the roots above them (the
-//! skeleton) are roots of the second scene as well. The first scene is named
+//! are in no scene: a skinned node's scene must hold its joints (the validator's
+//! NODE_SKIN_NO_SCENE), and a skeleton listed in two scenes is a race in three.js (its loader
+//! clones a node a second scene lists again, and which scene gets the clone depends on which
+//! loads first: the clip then moved the clone's bones, and the fur stood still, at random).
+//! Nodes in no scene are valid glTF, `MSFT_lod` readers find them by index, PlayCanvas and
+//! Filament (which add every scene) do not draw them; Blender puts them in its "Orphan Nodes"
+//! collection, out of view while "Import Scene as Collection" is on (its default). The first scene is named
 //! `Scene`, Blender's own name, since with two scenes Blender gives it a collection of its name.
 
 use std::io::Write as _;
@@ -342,27 +347,9 @@ fn scenes_json(packed: &Packed) -> Value {
     if levels.is_empty() {
         return json!([{ "nodes": packed.roots }]);
     }
-    // a skinned level's joints must be in its scene (the validator's NODE_SKIN_NO_SCENE): the
-    // roots above them join it
-    let skins: Vec<usize> = levels.iter().filter_map(|&n| packed.nodes[n].skin).collect();
-    let joints: Vec<usize> = (skins.iter())
-        .flat_map(|&s| packed.skins[s].joints.iter().copied())
-        .collect();
-    let reaches = |root: usize| {
-        let mut stack = vec![root];
-        while let Some(n) = stack.pop() {
-            if joints.contains(&n) {
-                return true;
-            }
-            stack.extend(&packed.nodes[n].children);
-        }
-        false
-    };
-    let holders = packed.roots.iter().copied().filter(|&r| reaches(r));
-    let nodes: Vec<usize> = levels.iter().copied().chain(holders).collect();
     json!([
         { "name": "Scene", "nodes": packed.roots },
-        { "name": LOD_SCENE, "nodes": nodes },
+        { "name": LOD_SCENE, "nodes": levels },
     ])
 }
 

@@ -61,11 +61,14 @@ fn vs_main(in: VsIn) -> VsOut {
 
 @fragment
 fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
-    // Flat normal from screen derivatives, for primitives without NORMAL (computed before any
-    // non-uniform control flow), oriented towards the eye.
-    var flat_n = cross(dpdx(in.world), dpdy(in.world));
-    if (dot(flat_n, frame.eye.xyz - in.world) < 0.0) {
-        flat_n = -flat_n;
+    // Flat normal from screen derivatives, for primitives without NORMAL only (a uniform branch,
+    // before any discard: derivatives need uniform control flow), oriented towards the eye.
+    var flat_n = vec3<f32>(0.0);
+    if (draw.emissive.w == 1.0) {
+        flat_n = cross(dpdx(in.world), dpdy(in.world));
+        if (dot(flat_n, frame.eye.xyz - in.world) < 0.0) {
+            flat_n = -flat_n;
+        }
     }
     let uv = vec2<f32>(dot(draw.uv_row0.xyz, vec3<f32>(in.uv, 1.0)), dot(draw.uv_row1.xyz, vec3<f32>(in.uv, 1.0)));
     // Implicit derivatives pick the mip level (uniform control flow: before any discard).

@@ -802,14 +802,12 @@ pub fn pack(input: &PackInput, params: &PackParams, out: &mut Packed) -> PackedS
             &mut chunks,
         );
     }
-    let animation = std::mem::take(&mut chunks.animation);
-    for (channels, name) in animation.channels.into_iter().zip(["wind", "wind_lod"]) {
-        if !channels.is_empty() {
-            b.out.animations.push(Animation {
-                name: format!("{}{name}", input.prefix),
-                channels,
-            });
-        }
+    let channels = std::mem::take(&mut chunks.animation.channels);
+    if !channels.is_empty() {
+        b.out.animations.push(Animation {
+            name: format!("{}wind", input.prefix),
+            channels,
+        });
     }
     b.tag = tag;
     let extras = extras::extras(&mut b, &geometry, input);
@@ -1187,30 +1185,47 @@ fn mask_pngs(input: &PackInput) -> Vec<(u32, Vec<u8>)> {
 }
 
 /// One texture per distinct mask ([`mask_pngs`]), by mask level, shared with an earlier surface
-/// of the file that has the same one (an asset's parts, a scene's surfaces of one preset).
+/// of the file that has the same ones, every level alike (an asset's parts, a scene's surfaces
+/// of one preset).
 fn mask_textures(
     b: &mut Builder,
     pngs: Vec<(u32, Vec<u8>)>,
     (offset, scale): (Vec2, Vec2),
 ) -> Vec<(u32, TextureRef)> {
-    let mut textures: Vec<(u32, TextureRef)> = Vec::new();
-    for (mask_level, png) in pngs {
-        let same = (b.out.textures.iter()).position(|t| b.out.streams[t.image].bytes == png);
-        let texture = match same {
-            Some(t) => t,
-            None => {
-                let image = b.stream("mask", Semantic::Image, None, png, None, 0);
-                Packed::push(&mut b.out.textures, Texture { image })
-            }
-        };
-        let texture = TextureRef {
-            texture,
-            offset,
-            scale,
-        };
-        textures.push((mask_level, texture));
-    }
-    textures
+    // An earlier surface's textures are shared only as a whole set, every level's image alike:
+    // Babylon.js's MSFT_lod loader reads every level at once and drops a coarser level when a
+    // finer one is done, so a finer level whose image an earlier surface had already read
+    // finished first, and the coarser one's loader then failed (`setEnabled` of undefined) on
+    // a character with fur of two materials whose masks shared some levels' images.
+    let same_set = (b.out.texture_sets.iter()).find(|set| {
+        set.len() == pngs.len()
+            && (set.iter().zip(&pngs)).all(|(&t, (_, png))| {
+                b.out.streams[b.out.textures[t].image].bytes == *png
+            })
+    });
+    let set: Vec<usize> = match same_set {
+        Some(set) => set.clone(),
+        None => {
+            let set: Vec<usize> = (pngs.iter())
+                .map(|(_, png)| {
+                    let image = b.stream("mask", Semantic::Image, None, png.clone(), None, 0);
+                    Packed::push(&mut b.out.textures, Texture { image })
+                })
+                .collect();
+            b.out.texture_sets.push(set.clone());
+            set
+        }
+    };
+    (pngs.iter().zip(set))
+        .map(|(&(mask_level, _), texture)| {
+            let texture = TextureRef {
+                texture,
+                offset,
+                scale,
+            };
+            (mask_level, texture)
+        })
+        .collect()
 }
 
 /// What the chunks packed so far made: their nodes, each level's meshes and triangles, LOD 0's
@@ -1303,9 +1318,9 @@ fn pack_chunk(
             for (&node, &m) in nodes.iter().zip(&meshes) {
                 let animation = &mut chunks.animation;
                 let channel = wind_channel(b, wind, (node, m), pl.level, animation);
-                // coarser levels (MSFT_lod alternatives, in the second scene) animate apart,
-                // so that a client without MSFT_lod finds every node the clip names
-                animation.channels[(k > 0) as usize].extend(channel);
+                // every level's nodes in one clip: the coarser levels' (MSFT_lod alternatives,
+                // in the second scene) sway with LOD 0's, and the file has the clips it says
+                animation.channels.extend(channel);
             }
         }
         chunks.lod_triangles[k] += meshes
@@ -1740,7 +1755,7 @@ fn clip_channel(b: &mut Builder, c: &crate::stages::skin::Channel, first: usize)
 /// one).
 #[derive(Default)]
 struct WindAnimation {
-    channels: [Vec<Channel>; 2],
+    channels: Vec<Channel>,
     times: Option<usize>,
     outputs: Vec<(Vec<u32>, usize)>,
 }

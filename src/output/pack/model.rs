@@ -364,6 +364,9 @@ pub struct Packed {
     /// Each layer material, nameless ([`Material::key`]), by the first surface that made it and
     /// its index: what a later surface's alike material shares.
     pub material_keys: std::collections::HashMap<String, (usize, usize)>,
+    /// Each surface's mask textures (one per level's mask), as a later surface with the very
+    /// same images shares them (`pack::mask_textures`).
+    pub texture_sets: Vec<Vec<usize>>,
 }
 
 impl Packed {
@@ -444,11 +447,13 @@ impl Packed {
 
     /// The coarser levels' nodes that chunk nodes name in `MSFT_lod`, in node order: the roots of
     /// the file's second scene, the one no client shows by default (`write.rs`, "Where the
-    /// coarser levels live").
+    /// coarser levels live"). A skinned chain's levels (its layer nodes carry it, from a stated
+    /// centre) are in no scene: see there.
     pub fn lod_levels(&self) -> Vec<usize> {
         self.nodes
             .iter()
             .filter_map(|n| n.lod.as_ref())
+            .filter(|l| l.centre.is_none())
             .flat_map(|l| l.ids.iter().copied())
             .collect()
     }
