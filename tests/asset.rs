@@ -1419,7 +1419,10 @@ fn effects_a_skinned_part_cannot_take_are_named_in_warnings_and_in_the_plan() {
         "{stdout}"
     );
     // a skinned surface has its levels of detail
-    assert!(!stdout.contains("lod (on by default) did not run"), "{stdout}");
+    assert!(
+        !stdout.contains("lod (on by default) did not run"),
+        "{stdout}"
+    );
     assert!(stdout.contains("lod: 5 levels"), "{stdout}");
     assert!(
         stdout.contains("fins skipped") && !stdout.contains("fins 0.0 ms"),
@@ -3421,31 +3424,61 @@ fn a_skinned_character_s_fur_switches_levels_in_three_js_and_babylon_and_verifie
         .collect();
     for (k, &d) in at.iter().enumerate() {
         for lod in [true, false] {
-            let mut j = job(&glb, &dir.join(format!("lod{k}-{lod}.png")), eye(d), [c[0], c[1], c[2]], false);
+            let mut j = job(
+                &glb,
+                &dir.join(format!("lod{k}-{lod}.png")),
+                eye(d),
+                [c[0], c[1], c[2]],
+                false,
+            );
             j["camera"]["far"] = json!(far(d));
             j["msft_lod"] = json!(lod);
             jobs.push(j);
         }
     }
     let d = *at.last().unwrap();
-    let mut bare = job(&glb, &dir.join("bare.png"), eye(d), [c[0], c[1], c[2]], true);
+    let mut bare = job(
+        &glb,
+        &dir.join("bare.png"),
+        eye(d),
+        [c[0], c[1], c[2]],
+        true,
+    );
     bare["camera"]["far"] = json!(far(d));
     jobs.push(bare);
     let spec = dir.join("jobs.json");
     std::fs::write(&spec, serde_json::to_vec(&jobs).unwrap()).unwrap();
     let three = node("three_render.mjs", &[spec]);
-    let tris: Vec<u64> = three.iter().map(|j| j["triangles"].as_u64().unwrap()).collect();
+    let tris: Vec<u64> = three
+        .iter()
+        .map(|j| j["triangles"].as_u64().unwrap())
+        .collect();
     println!("three.js triangles (with the plugin, without) per level: {tris:?}");
     let with: Vec<u64> = tris.iter().step_by(2).take(at.len()).copied().collect();
-    let without: Vec<u64> = tris.iter().skip(1).step_by(2).take(at.len()).copied().collect();
+    let without: Vec<u64> = tris
+        .iter()
+        .skip(1)
+        .step_by(2)
+        .take(at.len())
+        .copied()
+        .collect();
     assert!(with.windows(2).all(|w| w[1] < w[0]), "{with:?}");
     assert!(without.iter().all(|&t| t >= with[0]), "{without:?}");
     assert_eq!(with[0], without[0], "LOD 0 up close");
-    assert_eq!(*with.last().unwrap(), *tris.last().unwrap(), "the bare level is the asset");
+    assert_eq!(
+        *with.last().unwrap(),
+        *tris.last().unwrap(),
+        "the bare level is the asset"
+    );
 
     // Babylon.js loads every level, coarsest first, and ends on LOD 0's meshes: those of the
     // file baked with one level
-    let (one, _) = bake(&input, &dir, "one.glb", &["--only", "material=fur_*", "--no-lod"]);
+    let (one, _) = bake(
+        &input,
+        &dir,
+        "one.glb",
+        &["--only", "material=fur_*", "--no-lod"],
+    );
     let babylon = node("babylon_bounds.mjs", &[glb.clone(), one]);
     assert_eq!(babylon[0]["lod"]["enabled"], true, "{}", babylon[0]);
     assert_eq!(
@@ -3463,7 +3496,11 @@ fn a_skinned_character_s_fur_switches_levels_in_three_js_and_babylon_and_verifie
     let levels: std::collections::BTreeSet<String> = (nodes.iter())
         .filter_map(|n| n.pointer("/extensions/MSFT_lod/ids"))
         .flat_map(|ids| ids.as_array().unwrap().clone())
-        .filter_map(|id| nodes[id.as_u64().unwrap() as usize]["name"].as_str().map(String::from))
+        .filter_map(|id| {
+            nodes[id.as_u64().unwrap() as usize]["name"]
+                .as_str()
+                .map(String::from)
+        })
         .filter(|name| name.contains("layer"))
         .collect();
     assert_eq!(doc["scenes"].as_array().unwrap().len(), 1, "one scene");
@@ -3480,12 +3517,20 @@ fn a_skinned_character_s_fur_switches_levels_in_three_js_and_babylon_and_verifie
     assert_eq!(imports[0]["as_collection"], true);
     assert!(visible(&imports[0]).is_disjoint(&levels), "{}", imports[0]);
     assert!(!visible(&imports[1]).is_disjoint(&levels), "{}", imports[1]);
-    let (only_lod0, _) = bake(&input, &dir, "blender.glb", &["--only", "material=fur_*", "--target", "blender"]);
+    let (only_lod0, _) = bake(
+        &input,
+        &dir,
+        "blender.glb",
+        &["--only", "material=fur_*", "--target", "blender"],
+    );
     let stdout = blender("blender_import.py", &[only_lod0.to_str().unwrap()]);
     for import in stdout.lines().filter(|l| l.starts_with('{')) {
         let import: Value = serde_json::from_str(import).unwrap();
         assert_eq!(import["orphan_nodes"], false, "{import}");
-        assert!(!visible(&import).iter().any(|n| n.starts_with("lod1")), "{import}");
+        assert!(
+            !visible(&import).iter().any(|n| n.starts_with("lod1")),
+            "{import}"
+        );
     }
     verify_passes(&input, &dir, &["--only", "material=fur_*"]);
 }

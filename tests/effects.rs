@@ -116,7 +116,11 @@ fn wind_sways_in_a_looping_animation_that_verify_checks() {
         let baked = shellbake::bake_with(&load("bunny"), &p, &[Effect::Wind]);
         let g = Glb::parse(&baked.glb);
         let anims = g.json["animations"].as_array().unwrap();
-        assert_eq!(anims.len(), 1, "{layout:?}: one clip, every level's nodes in it");
+        assert_eq!(
+            anims.len(),
+            1,
+            "{layout:?}: one clip, every level's nodes in it"
+        );
         assert_eq!(anims[0]["name"], "wind");
         let channels = anims[0]["channels"].as_array().unwrap().len();
         // the nodes whose mesh has the wind's two targets, of every level
@@ -131,7 +135,10 @@ fn wind_sways_in_a_looping_animation_that_verify_checks() {
             Layout::Compact | Layout::Layers => baked.packed.layer_nodes.len() - 1,
             Layout::SingleDraw => 1,
         };
-        assert!(swaying >= lod0, "{layout:?}: {swaying} swaying nodes, LOD 0's {lod0}");
+        assert!(
+            swaying >= lod0,
+            "{layout:?}: {swaying} swaying nodes, LOD 0's {lod0}"
+        );
         assert_eq!(
             channels, swaying,
             "{layout:?}: one channel per swaying layer node"

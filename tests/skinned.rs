@@ -138,12 +138,18 @@ fn assert_skinned_levels(json: &Value, shown: &[u64], layout: Layout) -> Vec<u64
         .collect();
     let mut named = Vec::new();
     for n in &lod0 {
-        assert_eq!(&n["extras"]["shellbake_lod"], chain, "{layout:?}: one chain");
+        assert_eq!(
+            &n["extras"]["shellbake_lod"], chain,
+            "{layout:?}: one chain"
+        );
         let ids = n["extensions"]["MSFT_lod"]["ids"].as_array().unwrap();
         assert_eq!(ids.len(), count - 1, "{layout:?}");
         for id in ids {
             let id = id.as_u64().unwrap();
-            assert!(!shown.contains(&id) && !children.contains(&id), "{layout:?}: node {id}");
+            assert!(
+                !shown.contains(&id) && !children.contains(&id),
+                "{layout:?}: node {id}"
+            );
             assert!(!named.contains(&id), "{layout:?}: node {id} named twice");
             named.push(id);
             let level = &nodes[id as usize];
@@ -157,8 +163,15 @@ fn assert_skinned_levels(json: &Value, shown: &[u64], layout: Layout) -> Vec<u64
     let layers: Vec<u64> = (chain["layers"].as_array().unwrap().iter())
         .map(|l| l.as_u64().unwrap())
         .collect();
-    assert!(layers.windows(2).all(|w| w[1] < w[0]), "{layout:?}: {layers:?}");
-    assert_eq!(*layers.last().unwrap(), 0, "{layout:?}: the bare level last");
+    assert!(
+        layers.windows(2).all(|w| w[1] < w[0]),
+        "{layout:?}: {layers:?}"
+    );
+    assert_eq!(
+        *layers.last().unwrap(),
+        0,
+        "{layout:?}: the bare level last"
+    );
     named
 }
 

@@ -224,7 +224,10 @@ fn the_rules_fail_the_files_engines_get_wrong() {
     assert!(fails("unreal", &web), "static weights");
     assert!(fails("web", &node), "weights on the nodes only");
     assert!(!fails("web", &web));
-    assert!(fails("blender", &web), "two scenes: Blender switches no level");
+    assert!(
+        fails("blender", &web),
+        "two scenes: Blender switches no level"
+    );
 }
 
 #[test]

@@ -595,6 +595,25 @@ mod tests {
     }
 
     #[test]
+    fn the_bare_level_stands_at_the_fur_s_column_height() {
+        let (s, mask) = stack(33);
+        let top = *s.t.last().unwrap();
+        // every layer seen fully: the top of the stack; none: the skin; half: half of it
+        assert!((column_height(&s, &|_| 1.0) - top).abs() < 1e-6);
+        assert_eq!(column_height(&s, &|_| 0.0), 0.0);
+        assert!((column_height(&s, &|_| 0.5) - 0.5 * top).abs() < 1e-6);
+        // the chain's bare level: within the stack, above the skin
+        let levels = build_lods(&s, &mask, 0.01, 0.001, &LodParams::default(), None);
+        let bare = levels.last().unwrap();
+        assert!(
+            bare.bare.is_some() && bare.lift > 0.0 && bare.lift <= top,
+            "{}",
+            bare.lift
+        );
+        assert!(levels.iter().rev().skip(1).all(|l| l.lift == 0.0));
+    }
+
+    #[test]
     fn levels_halve_layers_keep_the_union_and_switch_by_error() {
         let (s, mask) = stack(33);
         let params = LodParams::default();

@@ -1199,9 +1199,8 @@ fn mask_textures(
     // a character with fur of two materials whose masks shared some levels' images.
     let same_set = (b.out.texture_sets.iter()).find(|set| {
         set.len() == pngs.len()
-            && (set.iter().zip(&pngs)).all(|(&t, (_, png))| {
-                b.out.streams[b.out.textures[t].image].bytes == *png
-            })
+            && (set.iter().zip(&pngs))
+                .all(|(&t, (_, png))| b.out.streams[b.out.textures[t].image].bytes == *png)
     });
     let set: Vec<usize> = match same_set {
         Some(set) => set.clone(),
@@ -1568,8 +1567,8 @@ fn place_root(
         Some(_) => skinned_nodes(b.out, input.surface, &chunks.nodes),
         None => Vec::new(),
     };
-    let wrapper =
-        (skinned.filter(|_| input.base)).map(|k| skeleton(&mut b, k, dequantize, &bound, input.name));
+    let wrapper = (skinned.filter(|_| input.base))
+        .map(|k| skeleton(&mut b, k, dequantize, &bound, input.name));
     let out = b.out;
     let lod0 = input.levels[0].level;
     let (children, placed) = match (skinned, wrapper) {
