@@ -272,7 +272,7 @@ impl Placing<'_> {
             .copied()
             .filter(|&n| packed.nodes[n].tag.surface == s && n != surface.root)
             .collect();
-        // and the coarser levels' they name in MSFT_lod (roots of the levels' scene)
+        // and the coarser levels' they name in MSFT_lod (in no scene)
         for n in crate::output::pack::skinned_nodes(packed, s, &layers) {
             let node = &mut out["nodes"][base.nodes + n];
             node["skin"] = json!(skin);
@@ -296,8 +296,8 @@ impl Placing<'_> {
     /// the part's morph weights gets a twin for each layer node, keyed at the same times (the
     /// same input accessor), whose values are the node's own weights with the shape keys'
     /// replaced by the channel's (a `CUBICSPLINE` channel's tangents are zero for the node's
-    /// own). Every level's twins (the coarser levels' are `MSFT_lod` alternatives, in the second
-    /// scene) join the channel's animation: the asset's clips stay its clips. Layers with the
+    /// own). Every level's twins (the coarser levels' are `MSFT_lod` alternatives) join the
+    /// channel's animation: the asset's clips stay its clips. Layers with the
     /// same weights share an output, written into `bin`. Returns what the fur cannot follow.
     ///
     /// [`PackedSurface::shape_keys_at`]: crate::output::pack::PackedSurface::shape_keys_at

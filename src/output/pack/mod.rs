@@ -1317,8 +1317,8 @@ fn pack_chunk(
             for (&node, &m) in nodes.iter().zip(&meshes) {
                 let animation = &mut chunks.animation;
                 let channel = wind_channel(b, wind, (node, m), pl.level, animation);
-                // every level's nodes in one clip: the coarser levels' (MSFT_lod alternatives,
-                // in the second scene) sway with LOD 0's, and the file has the clips it says
+                // every level's nodes in one clip: the coarser levels' (MSFT_lod alternatives)
+                // sway with LOD 0's, and the file has no clip twins
                 animation.channels.extend(channel);
             }
         }
@@ -1447,24 +1447,31 @@ fn chunk_node(
         };
         ids.push(Packed::push(&mut b.out.nodes, node));
     }
-    let levels: Vec<&Level> = input.levels.iter().map(|l| l.level).collect();
     let node = Node {
         name: format!("{chunk_prefix}lod0")
             .trim_end_matches('_')
             .to_string(),
         tag: chunk_tag,
         children: level_nodes[0].clone(),
-        lod: several_levels.then(|| NodeLod {
-            ids,
-            coverage: input.switches[c].coverage.clone(),
-            distances: input.switches[c].distances.clone(),
-            layers: levels.iter().map(|l| l.layers.len()).collect(),
-            errors: levels.iter().map(|l| l.error).collect(),
-            centre: None,
-        }),
+        lod: several_levels.then(|| node_lod(input, c, ids, None)),
         ..Node::default()
     };
     Packed::push(&mut b.out.nodes, node)
+}
+
+/// Chunk `c`'s chain as a node carries it: the alternatives `ids`, the chunk's switch, each
+/// level's layers and error, and the centre the distances are stated from where the node's
+/// own content does not give it (a skinned chunk's layer nodes).
+fn node_lod(input: &PackInput, c: usize, ids: Vec<usize>, centre: Option<glam::DVec3>) -> NodeLod {
+    let switch = &input.switches[c];
+    NodeLod {
+        ids,
+        coverage: switch.coverage.clone(),
+        distances: switch.distances.clone(),
+        layers: input.levels.iter().map(|l| l.level.layers.len()).collect(),
+        errors: input.levels.iter().map(|l| l.level.error).collect(),
+        centre,
+    }
 }
 
 /// A skinned chunk's LOD 0 layer nodes, each carrying the chunk's chain itself. A skinned mesh
@@ -1486,8 +1493,7 @@ fn skinned_switches(
     if level_nodes.len() < 2 {
         return lod0;
     }
-    let levels: Vec<&Level> = input.levels.iter().map(|l| l.level).collect();
-    let switch = &input.switches[c];
+    let centre = input.switches[c].centre;
     for (i, &n) in lod0.iter().enumerate() {
         let ids = (level_nodes.iter().enumerate().skip(1))
             .map(|(k, nodes)| match nodes.get(i) {
@@ -1507,14 +1513,7 @@ fn skinned_switches(
                 }
             })
             .collect();
-        b.out.nodes[n].lod = Some(NodeLod {
-            ids,
-            coverage: switch.coverage.clone(),
-            distances: switch.distances.clone(),
-            layers: levels.iter().map(|l| l.layers.len()).collect(),
-            errors: levels.iter().map(|l| l.error).collect(),
-            centre: Some(switch.centre),
-        });
+        b.out.nodes[n].lod = Some(node_lod(input, c, ids, Some(centre)));
     }
     lod0
 }
@@ -1557,7 +1556,7 @@ fn place_root(
     (chunks, extras): (&Chunks, &[usize]),
 ) {
     let dequantize = placement.matrix();
-    let skinned = input.skeleton.filter(|_| input.mesh.skin.is_some());
+    let skinned = input.skeleton.filter(|_| input.skinned());
     assert!(
         skinned.is_none() || input.base || dequantize == glam::DMat4::IDENTITY,
         "an asset's skinned part stores its bind-space positions as they are"
