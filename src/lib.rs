@@ -193,8 +193,9 @@ pub struct Loaded {
 /// (the graft binds it to the asset's skin).
 #[derive(Clone, Debug, Default)]
 pub struct PartOf {
-    /// Where the fur takes its colour (`None`: the preset's colours).
-    pub paint: Option<input::asset::Paint>,
+    /// Where the fur takes its colour, one paint per material of its parts (the scene's meshes'
+    /// `paint_ids` say which where there are several; none: the preset's colours).
+    pub paints: Vec<input::asset::Paint>,
     /// Grafted into the asset ([`bake_asset`]); `false`: baked alone with a base layer in the
     /// fur's colours, as `verify` compares it with the runtime technique.
     pub graft: bool,
@@ -254,7 +255,11 @@ pub fn asset_scene_of(
     let sizes = character_sizes(asset, chosen);
     let bare_parts = bare_parts(asset, chosen);
     let mut taken_names = std::collections::HashSet::new();
-    for group in fur_groups(asset, chosen) {
+    let groups = fur_groups(asset, chosen);
+    let keys: Vec<_> = (groups.iter())
+        .map(|g| asset.parts[chosen[g[0]].0].fur_key())
+        .collect();
+    for (n, group) in groups.into_iter().enumerate() {
         let (i, k) = chosen[group[0]];
         let shared = sizes[group[0]];
         let members: Vec<usize> = group.iter().map(|&g| chosen[g].0).collect();
@@ -281,13 +286,48 @@ pub fn asset_scene_of(
         // the part's own warnings (its UVs, its texture) with its surface; the group's other
         // parts share its frame and material: their meshes join its scene
         let mut geometry = part.scene.clone();
-        for &j in &members[1..] {
-            let other = &asset.parts[j].scene;
-            geometry.meshes.extend(other.meshes.iter().cloned());
-            geometry.warnings.extend(other.warnings.iter().cloned());
+        geometry.meshes.clear();
+        // one paint a material (parts of materials alike but for their names share one), and
+        // each mesh says which when there are several
+        let mut paints: Vec<input::asset::Paint> = Vec::new();
+        let mut painted: std::collections::HashMap<Option<String>, usize> = Default::default();
+        let mut ids = Vec::with_capacity(members.len());
+        for &j in &members {
+            let other = &asset.parts[j];
+            let material = other.material_key(&asset.doc.json);
+            let id = *painted.entry(material).or_insert_with(|| {
+                let (paint, warning) = asset.paint(j);
+                geometry.warnings.extend(warning);
+                paints.extend(paint);
+                paints.len().saturating_sub(1)
+            });
+            if j != i {
+                geometry.warnings.extend(other.scene.warnings.iter().cloned());
+            }
+            for m in &other.scene.meshes {
+                geometry.meshes.push(m.clone());
+                ids.push(id);
+            }
         }
-        let (paint, paint_warning) = asset.paint(i);
-        geometry.warnings.extend(paint_warning);
+        // a part of a character whose fur cannot join the character's says why: it costs a
+        // draw a layer of its own
+        let apart = (keys[..n].iter().zip(&names)).find_map(|(other, name)| {
+            Some((name, other.as_ref()?.apart(keys[n].as_ref()?)?))
+        });
+        if let Some((other, why)) = apart {
+            geometry.warnings.push(format!(
+                "{}: part '{}' (material '{}') is a fur apart from '{}' of the same character:                  {why}; it draws its own layers",
+                asset.doc.path.display(),
+                input::escape(&part.label(asset.primitives(i))),
+                input::escape(&part.names.material),
+                input::escape(other),
+            ));
+        }
+        if paints.len() > 1 {
+            for (m, &id) in geometry.meshes.iter_mut().zip(&ids) {
+                m.paint_ids = Some(vec![id as u32; m.vertex_count()]);
+            }
+        }
         // the size its default height and density come from: its character's, or its own
         let size = shared.unwrap_or_else(|| geometry.diagonal());
         // a skinned part is read in its bind space, whose unit the armature may scale
@@ -316,7 +356,9 @@ pub fn asset_scene_of(
         // its own roughness
         let preset_roughness = BakeParams::preset(surface.preset).shade.roughness;
         let own = s.params.shade.roughness != preset_roughness;
-        if let (false, Some(r)) = (own, paint.as_ref().and_then(|p| p.roughness)) {
+        // (a fur of several parts is as rough as the roughest, [`input::asset::FurKey`])
+        let part_roughness = paints.iter().filter_map(|p| p.roughness).reduce(f32::max);
+        if let (false, Some(r)) = (own, part_roughness) {
             s.params.shade.roughness = s.params.shade.roughness.max(r);
         }
         let required = asset.doc.json["extensionsRequired"].as_array();
@@ -356,7 +398,7 @@ pub fn asset_scene_of(
             maps,
             ms: start.elapsed().as_secs_f64() * 1e3,
             part: Some(PartOf {
-                paint,
+                paints,
                 graft,
                 shape_rest,
                 shape_names,
@@ -379,7 +421,7 @@ pub fn asset_scene_of(
 /// or is instanced (the graft copies its fur to each instance) ([`input::asset::Part::fur_key`]).
 /// Groups are in the order of their first part; parts in chosen order.
 fn fur_groups(asset: &input::asset::Asset, chosen: &[(usize, usize)]) -> Vec<Vec<usize>> {
-    let key = |&(i, k): &(usize, usize)| asset.parts[i].fur_key(&asset.doc.json).map(|f| (k, f));
+    let key = |&(i, k): &(usize, usize)| asset.parts[i].fur_key().map(|f| (k, f));
     let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut by_key: std::collections::HashMap<_, usize> = std::collections::HashMap::new();
     for (c, choice) in chosen.iter().enumerate() {
@@ -1112,7 +1154,7 @@ fn prepare<'a>(job: &Job<'a>, masks: &MaskCache) -> Prepared<'a> {
     }
     let colour = match job.part {
         Some(p) => merge::FurColour::Asset {
-            paint: p.paint.as_ref(),
+            paint: (!p.paints.is_empty()).then(|| input::asset::Palette(&p.paints)),
             color: params.shade.color,
         },
         None => merge::FurColour::Preset,
@@ -1163,7 +1205,7 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
     // grafted fur on an unlit part is unlit; alone, it is compared with the lit technique
     let unlit = job
         .part
-        .is_some_and(|p| p.graft && p.paint.as_ref().is_some_and(|q| q.unlit));
+        .is_some_and(|p| p.graft && p.paints.first().is_some_and(|q| q.unlit));
     let parts = (&shape, &heights, &look, &chain);
     let morphs = job.part.map_or((&[][..], &[][..]), |p| {
         (&p.shape_rest[..], &p.shape_names[..])

@@ -140,6 +140,11 @@ pub struct Mesh {
     /// (DESIGN §10; [`crate::input::asset::Paint::albedo`]): sampled where the asset's own UVs
     /// still hold, then carried through every stage that splits or adds vertices.
     pub albedo: Option<Vec<glam::Vec4>>,
+    /// Which of the fur's paints colours each vertex, when its parts have several (one
+    /// character's parts of unlike materials baked as one fur: an index into the
+    /// [`crate::input::asset::Palette`] the colour stages read; every vertex of a triangle has
+    /// the same). `None`: the first paint, or none. Carried like `albedo`.
+    pub paint_ids: Option<Vec<u32>>,
     /// Triangle list.
     pub indices: Vec<u32>,
     /// Each vertex's joints and weights, when the input is skinned ([`crate::stages::skin`]).
@@ -251,6 +256,7 @@ impl Mesh {
         assert_eq!(self.texture_uvs.is_some(), other.texture_uvs.is_some());
         assert_eq!(self.colors.is_some(), other.colors.is_some());
         assert_eq!(self.albedo.is_some(), other.albedo.is_some());
+        assert_eq!(self.paint_ids.is_some(), other.paint_ids.is_some());
         assert_eq!(self.skin.is_some(), other.skin.is_some());
         assert_eq!(self.morphs.len(), other.morphs.len());
         let base = self.positions.len() as u32;
@@ -274,6 +280,9 @@ impl Mesh {
             a.extend_from_slice(b);
         }
         if let (Some(a), Some(b)) = (&mut self.albedo, &other.albedo) {
+            a.extend_from_slice(b);
+        }
+        if let (Some(a), Some(b)) = (&mut self.paint_ids, &other.paint_ids) {
             a.extend_from_slice(b);
         }
         if let (Some(a), Some(b)) = (&mut self.skin, &other.skin) {
@@ -349,6 +358,7 @@ impl Mesh {
         self.texture_uvs = self.texture_uvs.as_deref().map(|uv| pick(uv, source));
         self.colors = self.colors.as_deref().map(|c| pick(c, source));
         self.albedo = self.albedo.as_deref().map(|c| pick(c, source));
+        self.paint_ids = self.paint_ids.as_deref().map(|c| pick(c, source));
         if let Some(s) = &mut self.skin {
             s.joints = pick(&s.joints, source);
             s.weights = pick(&s.weights, source);
@@ -415,6 +425,9 @@ impl Mesh {
         }
         if let Some(c) = &self.albedo {
             assert_eq!(c.len(), self.positions.len(), "albedo count");
+        }
+        if let Some(c) = &self.paint_ids {
+            assert_eq!(c.len(), self.positions.len(), "paint id count");
         }
         if let Some(s) = &self.skin {
             assert_eq!(s.joints.len(), self.positions.len(), "joint count");
@@ -501,6 +514,8 @@ impl Scene {
         let all_uvs = self.meshes.iter().all(|m| m.uvs.is_some());
         let all_texture_uvs = self.meshes.iter().all(|m| m.texture_uvs.is_some());
         let any_colors = self.meshes.iter().any(|m| m.colors.is_some());
+        // meshes without paint ids take the first paint
+        let any_paint_ids = self.meshes.iter().any(|m| m.paint_ids.is_some());
         // shape keys only when every mesh has as many (an asset's part is one mesh)
         let morphs = self.meshes.first().map_or(0, |m| m.morphs.len());
         let same_morphs = self.meshes.iter().all(|m| m.morphs.len() == morphs);
@@ -518,6 +533,9 @@ impl Scene {
             }
             if any_colors && m.colors.is_none() {
                 m.colors = Some(vec![WHITE16; m.vertex_count()]);
+            }
+            if any_paint_ids && m.paint_ids.is_none() {
+                m.paint_ids = Some(vec![0; m.vertex_count()]);
             }
             if !same_morphs {
                 m.morphs.clear();

@@ -1424,10 +1424,21 @@ fn nothing_outside_the_asset_s_folder_is_opened() {
 
 // 13. Cost in proportion to the input (round 3).
 
-/// A glTF of one mesh with `n` primitives, a one-triangle each, side by side, its buffer a file
-/// beside it; `apart`: each primitive with a material of its own, unlike the others (else
-/// none has one).
-fn many_primitives(dir: &Path, n: usize, apart: bool) -> std::path::PathBuf {
+/// How [`many_primitives`] lays out its primitives.
+#[derive(Clone, Copy, PartialEq)]
+enum Many {
+    /// One mesh under one node, no materials.
+    Alike,
+    /// One mesh under one node, each primitive with a material of its own.
+    Materials,
+    /// Each primitive a mesh and node of its own (rigid parts of their own: a fur each), with
+    /// a material of its own.
+    Nodes,
+}
+
+/// A glTF of `n` one-triangle primitives side by side (see [`Many`]), its buffer a file beside
+/// it.
+fn many_primitives(dir: &Path, n: usize, how: Many) -> std::path::PathBuf {
     let mut bin = Vec::with_capacity(n * 36);
     let (mut views, mut accessors, mut primitives) = (vec![], vec![], vec![]);
     for i in 0..n {
@@ -1436,30 +1447,43 @@ fn many_primitives(dir: &Path, n: usize, apart: bool) -> std::path::PathBuf {
         bin.extend(f32_bytes(&[x, y, 0.0, x + 1.0, y, 0.0, x, y + 1.0, 0.0]));
         accessors.push(json!({"bufferView": i, "componentType": 5126, "count": 3,
             "type": "VEC3", "min": [x, y, 0], "max": [x + 1.0, y + 1.0, 0]}));
-        primitives.push(match apart {
-            true => json!({"attributes": {"POSITION": i}, "material": i}),
-            false => json!({"attributes": {"POSITION": i}}),
+        primitives.push(match how {
+            Many::Alike => json!({"attributes": {"POSITION": i}}),
+            _ => json!({"attributes": {"POSITION": i}, "material": i}),
         });
     }
     std::fs::write(dir.join("b.bin"), &bin).unwrap();
+    let (meshes, nodes): (Vec<Value>, Vec<Value>) = match how {
+        Many::Nodes => (primitives.into_iter())
+            .enumerate()
+            .map(|(i, p)| (json!({"primitives": [p]}), json!({"mesh": i})))
+            .unzip(),
+        _ => (vec![json!({"primitives": primitives})], vec![json!({"mesh": 0})]),
+    };
+    let roots: Vec<usize> = (0..nodes.len()).collect();
     let mut g = json!({
         "asset": {"version": "2.0"},
         "buffers": [{"uri": "b.bin", "byteLength": bin.len()}],
         "bufferViews": views,
         "accessors": accessors,
-        "meshes": [{"primitives": primitives}],
-        "nodes": [{"mesh": 0}],
-        "scenes": [{"nodes": [0]}],
+        "meshes": meshes,
+        "nodes": nodes,
+        "scenes": [{"nodes": roots}],
         "scene": 0
     });
-    if apart {
-        // each unlike the others beyond its name (alike ones are one material to the bake)
+    if how != Many::Alike {
+        // each unlike the others beyond its name (alike ones are one paint to the bake)
         let materials: Vec<Value> = (0..n)
-            .map(|i| json!({"name": format!("m{i}"), "pbrMetallicRoughness": {"roughnessFactor": i as f64 / n as f64}}))
+            .map(|i| json!({"name": format!("m{i}"), "pbrMetallicRoughness": {"baseColorFactor": [i as f64 / n as f64, 0.5, 0.5, 1.0]}}))
             .collect();
         g["materials"] = Value::Array(materials);
     }
-    let path = dir.join(format!("p{n}{}.gltf", if apart { "_apart" } else { "" }));
+    let tail = match how {
+        Many::Alike => "",
+        Many::Materials => "_materials",
+        Many::Nodes => "_nodes",
+    };
+    let path = dir.join(format!("p{n}{tail}.gltf"));
     std::fs::write(&path, g.to_string()).unwrap();
     path
 }
@@ -1484,15 +1508,17 @@ fn bake_within(input: &Path, out: &Path, (secs, gib): (u32, u64)) -> std::proces
         .unwrap()
 }
 
-/// The primitives of one node drawn with one material are furred as one (`fur_groups`), and
+/// The primitives of one node are furred as one (`fur_groups`), whatever their materials, and
 /// the rest part by part, so a mesh of many costs time and memory in proportion to their
-/// number, never more: 100 000 one-triangle primitives of one material bake as one fur (4.0 s
-/// and 1.3 GB here); 100 000 of a material each are refused by `--max-output` before baking (7.8 s
-/// and 0.9 GB here; 94 s before), and 1 000 bake (1 000 × 32 layer meshes). The bounds held here — 2 GiB of address space (`prlimit --as`)
+/// number, never more: 100 000 one-triangle primitives of one node bake as one fur, without
+/// materials (4.0 s and 1.3 GB here) or with a material each (one paint each, `Palette`);
+/// 100 000 nodes of a primitive each are refused by `--max-output` before baking, and 1 000 bake
+/// (1 000 × 32 layer meshes). The bounds held here — 2 GiB of address space (`prlimit --as`)
 /// and a 60 s watchdog (`timeout`) for either — are far from the figures, so that they catch a
 /// return of the per-part scans (the bare-part search went through every part for every part
 /// and searched the chosen list for each: cubic; each surface's JSON size scanned the whole
-/// document: quadratic; 3 000 parts took 37 s, now 8.7 s), not a slow machine.
+/// document: quadratic; 3 000 parts took 37 s, now 8.7 s; a paint a material read over every
+/// vertex once a paint: quadratic), not a slow machine.
 #[cfg(target_os = "linux")]
 #[test]
 fn many_primitives_cost_in_proportion() {
@@ -1502,27 +1528,29 @@ fn many_primitives_cost_in_proportion() {
         let json = common::Glb::parse(&std::fs::read(out).unwrap()).json;
         json["meshes"].as_array().unwrap().len() - 1
     };
-    let one = dir.join("one.glb");
-    let many = run(&many_primitives(&dir, 100_000, false), &one);
-    let err = String::from_utf8_lossy(&many.stderr);
-    assert!(many.status.success(), "{err}");
-    // one fur: one root marked with the parts it grows on (the first, and 99 999 `also`)
-    let json = common::Glb::parse(&std::fs::read(&one).unwrap()).json;
-    let roots: Vec<&Value> = (json["nodes"].as_array().unwrap().iter())
-        .filter_map(|n| n["extras"].get("shellbake_fur"))
-        .collect();
-    assert_eq!(roots.len(), 1);
-    assert_eq!(roots[0]["also"].as_array().map(Vec::len), Some(99_999));
-    let many = run(&many_primitives(&dir, 100_000, true), &dir.join("many.glb"));
+    for how in [Many::Alike, Many::Materials] {
+        let one = dir.join("one.glb");
+        let many = run(&many_primitives(&dir, 100_000, how), &one);
+        let err = String::from_utf8_lossy(&many.stderr);
+        assert!(many.status.success(), "{err}");
+        // one fur: one root marked with the parts it grows on (the first, and 99 999 `also`)
+        let json = common::Glb::parse(&std::fs::read(&one).unwrap()).json;
+        let roots: Vec<&Value> = (json["nodes"].as_array().unwrap().iter())
+            .filter_map(|n| n["extras"].get("shellbake_fur"))
+            .collect();
+        assert_eq!(roots.len(), 1);
+        assert_eq!(roots[0]["also"].as_array().map(Vec::len), Some(99_999));
+    }
+    let many = run(&many_primitives(&dir, 100_000, Many::Nodes), &dir.join("many.glb"));
     let err = String::from_utf8_lossy(&many.stderr);
     assert_eq!(many.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("p100000_apart.gltf") && err.contains("--max-output"),
+        err.contains("p100000_nodes.gltf") && err.contains("--max-output"),
         "{err}"
     );
     assert!(!dir.join("many.glb").exists());
     let out = dir.join("some.glb");
-    let some = run(&many_primitives(&dir, 1_000, true), &out);
+    let some = run(&many_primitives(&dir, 1_000, Many::Nodes), &out);
     assert!(
         some.status.success(),
         "{}",

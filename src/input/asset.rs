@@ -249,37 +249,71 @@ pub struct WeightsChannel {
 }
 
 /// What makes parts one fur (`fur_groups` in the crate root): their frame, one skin or one
-/// rigid node, and their material less its name.
+/// rigid node, and a fur material they can share. The fur's colour is per vertex, each part's
+/// from its own material ([`Palette`]), so parts of unlike colours, textures, alpha modes and
+/// metals are one fur. The fur's material is one: it is drawn as rough as the roughest of its
+/// parts (no shinier than any part it grows from), and lit or unlit as they are, so an unlit
+/// part and a lit one stay apart. Parts that read their texture through a second coordinate
+/// set and parts that do not stay apart too (a merged mesh keeps that set only where every
+/// part has it).
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct FurKey {
     skin: Option<usize>,
     /// The node, for a rigid part (a skinned part's node plays no part in where it is drawn).
     node: Option<usize>,
-    /// The material's JSON without its `name`: materials that differ only in their names are
-    /// one (a `fur_body` and a `fur_tail` of one texture).
-    material: Option<String>,
+    /// The part has a paint (every glTF part has; `None` is a plain input's).
+    painted: bool,
+    /// The material is `KHR_materials_unlit`.
+    unlit: bool,
+    /// The part's texture reads a coordinate set other than `TEXCOORD_0` ([`Mesh::texture_uvs`]).
+    texture_uvs: bool,
+}
+
+impl FurKey {
+    /// Why parts of one character with keys `self` and `other` are two furs, when that is the
+    /// only difference: for the summary.
+    pub fn apart(&self, other: &FurKey) -> Option<&'static str> {
+        if (self.skin, self.node) != (other.skin, other.node) {
+            return None;
+        }
+        if self.unlit != other.unlit {
+            Some("one is unlit (KHR_materials_unlit) and the other lit, and one fur material is either")
+        } else if self.texture_uvs != other.texture_uvs {
+            Some("one reads its texture through a second coordinate set (TEXCOORD_1 or later)")
+        } else {
+            None
+        }
+    }
 }
 
 impl Part {
-    /// The key the parts that bake as one fur share, or `None` for a part that must be a fur of
-    /// its own: it has shape keys (its fur follows its own weights) or instances (the graft
-    /// copies its fur to each).
-    pub fn fur_key(&self, json: &Value) -> Option<FurKey> {
+    /// The key the parts that bake as one fur share ([`FurKey`]), or `None` for a part that
+    /// must be a fur of its own: it has shape keys (its fur follows its own weights) or
+    /// instances (the graft copies its fur to each).
+    pub fn fur_key(&self) -> Option<FurKey> {
         if self.shape_keys.is_some() || !self.instances.is_empty() {
             return None;
         }
+        let paint = self.paint.as_ref();
+        Some(FurKey {
+            skin: self.skin,
+            node: self.skin.is_none().then_some(self.node),
+            painted: paint.is_some(),
+            unlit: paint.is_some_and(|p| p.unlit),
+            texture_uvs: self.scene.meshes.iter().any(|m| m.texture_uvs.is_some()),
+        })
+    }
+
+    /// The part's material without its `name` (JSON; `None` without a material): parts whose
+    /// materials differ only in their names share one paint.
+    pub fn material_key(&self, json: &Value) -> Option<String> {
         let index = &json["meshes"][self.mesh]["primitives"][self.primitive]["material"];
-        let material = index.as_u64().map(|m| {
+        index.as_u64().map(|m| {
             let mut m = json["materials"][m as usize].clone();
             if let Some(o) = m.as_object_mut() {
                 o.remove("name");
             }
             m.to_string()
-        });
-        Some(FurKey {
-            skin: self.skin,
-            node: self.skin.is_none().then_some(self.node),
-            material,
         })
     }
 
@@ -601,7 +635,8 @@ impl Asset {
         }
         // a part whose unmarked layers are named after it (`<part>_lod0_layer_001`) is furred
         // and so is every part that bakes as one fur with it (`fur_groups`: named after the
-        // first)
+        // first) of a material like its own (the names cannot say which other materials the
+        // fur took)
         let mut owners: Vec<&str> = unmarked.iter().filter_map(|n| layer_owner(n)).collect();
         // a file of one fur names its layers `layer_NNN`, and its root `<part>_fur`
         if owners.contains(&"") {
@@ -614,11 +649,13 @@ impl Asset {
             let label = part.label(doc.meshes[part.mesh].primitives.len());
             if owners.contains(&label.as_str()) {
                 part.furred = true;
-                one_fur.extend(part.fur_key(&doc.json));
+                let material = part.material_key(&doc.json);
+                one_fur.extend(part.fur_key().map(|k| (k, material)));
             }
         }
         for part in parts.iter_mut().filter(|_| !one_fur.is_empty()) {
-            if (part.fur_key(&doc.json)).is_some_and(|k| one_fur.contains(&k)) {
+            let material = part.material_key(&doc.json);
+            if (part.fur_key()).is_some_and(|k| one_fur.contains(&(k, material))) {
                 part.furred = true;
             }
         }
@@ -1080,61 +1117,7 @@ impl Paint {
     /// the next island. That colour then spread over every triangle of the vertex, so a blue and
     /// yellow cylinder grew purple fur along its rims.
     pub fn albedo(&self, mesh: &Mesh) -> Vec<Vec4> {
-        let n = mesh.vertex_count();
-        let colors = mesh.colors.as_deref();
-        let (Some(t), Some(uvs)) = (&self.texture, mesh.paint_uvs()) else {
-            return (0..n)
-                .map(|v| self.colour_at(None, colors.map(|k| k[v])))
-                .collect();
-        };
-        // per vertex: colours weighted by coverage, their plain sum, coverage, samples
-        let mut sum = vec![(Vec3::ZERO, Vec3::ZERO, 0.0f32, 0u32); n];
-        for f in mesh.indices.chunks_exact(3) {
-            let centroid = f.iter().map(|&v| uvs[v as usize]).sum::<Vec2>() / 3.0;
-            for &v in f {
-                let v = v as usize;
-                let texel = t.sample_toward(uvs[v], centroid);
-                let c = self.shade(texel, colors.map(|k| k[v]));
-                let s = &mut sum[v];
-                *s = (
-                    s.0 + c.truncate() * c.w,
-                    s.1 + c.truncate(),
-                    s.2 + c.w,
-                    s.3 + 1,
-                );
-            }
-        }
-        let mut albedo: Vec<Vec4> = (sum.iter().enumerate())
-            .map(|(v, &(weighted, plain, coverage, count))| match count {
-                0 => self.colour_at(Some(uvs[v]), colors.map(|k| k[v])),
-                _ if coverage > 0.0 => (weighted / coverage).extend(coverage / count as f32),
-                _ => (plain / count as f32).extend(0.0),
-            })
-            .collect();
-        // a vertex whose surface is cut out everywhere takes the colour of its drawn
-        // neighbours, which the fur thinning out toward it shows
-        let mut near = vec![Vec4::ZERO; n];
-        for f in mesh.indices.chunks_exact(3) {
-            for (a, b) in [
-                (f[0], f[1]),
-                (f[1], f[2]),
-                (f[2], f[0]),
-                (f[1], f[0]),
-                (f[2], f[1]),
-                (f[0], f[2]),
-            ] {
-                let (a, b) = (a as usize, b as usize);
-                if albedo[a].w == 0.0 && albedo[b].w > 0.0 {
-                    near[a] += (albedo[b].truncate() * albedo[b].w).extend(albedo[b].w);
-                }
-            }
-        }
-        for (c, n) in albedo.iter_mut().zip(&near) {
-            if n.w > 0.0 {
-                *c = (n.truncate() / n.w).extend(0.0);
-            }
-        }
-        albedo
+        albedo_by(mesh, |_| self)
     }
 
     /// The share of `mesh`'s area (by four points a triangle) where its per-vertex fur colour
@@ -1145,6 +1128,13 @@ impl Paint {
     /// `coarser_than` count (those the colour stage could have cut further: what it left under
     /// it is the strands' own resolution). `None` without a texture or vertex colours.
     pub fn detail_lost(&self, mesh: &Mesh, coarser_than: f32) -> Option<f64> {
+        let (lost, total) = self.detail_sums(mesh, &mesh.indices, coarser_than)?;
+        (total > 0.0).then(|| lost / total)
+    }
+
+    /// [`Paint::detail_lost`] over the triangles `indices` of `mesh`: the area lost and the
+    /// area drawn (four points a triangle).
+    fn detail_sums(&self, mesh: &Mesh, indices: &[u32], coarser_than: f32) -> Option<(f64, f64)> {
         use rayon::prelude::*;
         let (Some(t), Some(uvs), Some(albedo)) =
             (&self.texture, mesh.paint_uvs(), mesh.albedo.as_deref())
@@ -1159,7 +1149,7 @@ impl Paint {
             ([1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0], 1),
             ([1.0 / 6.0, 1.0 / 6.0, 2.0 / 3.0], 2),
         ];
-        let sums: Vec<(f64, f64)> = (mesh.indices.par_chunks(3 * 4096))
+        let sums: Vec<(f64, f64)> = (indices.par_chunks(3 * 4096))
             .map(|block| {
                 let (mut lost, mut total) = (0.0f64, 0.0f64);
                 for f in block.chunks_exact(3) {
@@ -1187,8 +1177,7 @@ impl Paint {
                 (lost, total)
             })
             .collect();
-        let (lost, total) = (sums.iter()).fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
-        (total > 0.0).then(|| lost / total)
+        Some((sums.iter()).fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1)))
     }
 
     /// The fur's colour at one point, given its `TEXCOORD_0` and `COLOR_0` (see
@@ -1225,6 +1214,122 @@ impl Paint {
         }
         let c = c.clamp(Vec4::ZERO, Vec4::ONE);
         c.truncate().extend(self.alpha.coverage(c.w))
+    }
+}
+
+/// [`Paint::albedo`] with each vertex's colour from its own paint, `paint(v)` (a triangle's
+/// corners have one): one pass, whatever the number of paints.
+fn albedo_by<'p>(mesh: &Mesh, paint: impl Fn(usize) -> &'p Paint) -> Vec<Vec4> {
+    let n = mesh.vertex_count();
+    let colors = mesh.colors.as_deref();
+    let uvs = mesh.paint_uvs();
+    // the vertices whose paint reads a texture (the others take their colour as it is)
+    let textured = |v: usize| uvs.is_some() && paint(v).texture.is_some();
+    // per vertex: colours weighted by coverage, their plain sum, coverage, samples
+    let mut sum = vec![(Vec3::ZERO, Vec3::ZERO, 0.0f32, 0u32); n];
+    for f in mesh.indices.chunks_exact(3) {
+        let p = paint(f[0] as usize);
+        let (Some(t), Some(uvs)) = (&p.texture, uvs) else {
+            continue;
+        };
+        let centroid = f.iter().map(|&v| uvs[v as usize]).sum::<Vec2>() / 3.0;
+        for &v in f {
+            let v = v as usize;
+            let texel = t.sample_toward(uvs[v], centroid);
+            let c = p.shade(texel, colors.map(|k| k[v]));
+            let s = &mut sum[v];
+            *s = (
+                s.0 + c.truncate() * c.w,
+                s.1 + c.truncate(),
+                s.2 + c.w,
+                s.3 + 1,
+            );
+        }
+    }
+    let mut albedo: Vec<Vec4> = (sum.iter().enumerate())
+        .map(|(v, &(weighted, plain, coverage, count))| {
+            let (p, color) = (paint(v), colors.map(|k| k[v]));
+            match (textured(v), count) {
+                (false, _) => p.colour_at(None, color),
+                (true, 0) => p.colour_at(uvs.map(|u| u[v]), color),
+                _ if coverage > 0.0 => (weighted / coverage).extend(coverage / count as f32),
+                _ => (plain / count as f32).extend(0.0),
+            }
+        })
+        .collect();
+    // a vertex whose surface is cut out everywhere takes the colour of its drawn
+    // neighbours, which the fur thinning out toward it shows
+    let mut near = vec![Vec4::ZERO; n];
+    for f in mesh.indices.chunks_exact(3) {
+        if !textured(f[0] as usize) {
+            continue;
+        }
+        for (a, b) in [
+            (f[0], f[1]),
+            (f[1], f[2]),
+            (f[2], f[0]),
+            (f[1], f[0]),
+            (f[2], f[1]),
+            (f[0], f[2]),
+        ] {
+            let (a, b) = (a as usize, b as usize);
+            if albedo[a].w == 0.0 && albedo[b].w > 0.0 {
+                near[a] += (albedo[b].truncate() * albedo[b].w).extend(albedo[b].w);
+            }
+        }
+    }
+    for (c, n) in albedo.iter_mut().zip(&near) {
+        if n.w > 0.0 {
+            *c = (n.truncate() / n.w).extend(0.0);
+        }
+    }
+    albedo
+}
+
+/// The paints of one fur, whose parts may have unlike materials (one character's parts baked
+/// as one fur: `fur_groups` in the crate root): each vertex takes the paint its
+/// [`Mesh::paint_ids`] names, the first where the mesh has none. A triangle's three vertices
+/// have one paint (each triangle comes from one part), so a paint reads its own triangles only.
+#[derive(Clone, Copy, Debug)]
+pub struct Palette<'a>(pub &'a [Paint]);
+
+impl<'a> Palette<'a> {
+    /// The paint of vertex `v` of `mesh`.
+    pub fn at(self, mesh: &Mesh, v: usize) -> &'a Paint {
+        let k = mesh.paint_ids.as_ref().map_or(0, |ids| ids[v] as usize);
+        &self.0[k]
+    }
+
+    /// Whether any paint has detail ([`Paint::has_detail`]).
+    pub fn has_detail(self) -> bool {
+        self.0.iter().any(Paint::has_detail)
+    }
+
+    /// The triangles of `mesh` (its indices) each paint colours, by paint.
+    fn triangles(self, mesh: &Mesh) -> Vec<Vec<u32>> {
+        let mut by_paint = vec![Vec::new(); self.0.len()];
+        for f in mesh.indices.chunks_exact(3) {
+            let k = mesh.paint_ids.as_ref().map_or(0, |ids| ids[f[0] as usize] as usize);
+            by_paint[k].extend_from_slice(f);
+        }
+        by_paint
+    }
+
+    /// [`Paint::albedo`], each vertex from its own paint.
+    pub fn albedo(self, mesh: &Mesh) -> Vec<Vec4> {
+        albedo_by(mesh, |v| self.at(mesh, v))
+    }
+
+    /// [`Paint::detail_lost`] over every paint's triangles: `None` where no paint has a
+    /// texture (or the mesh no colour).
+    pub fn detail_lost(self, mesh: &Mesh, coarser_than: f32) -> Option<f64> {
+        if self.0.len() == 1 || mesh.paint_ids.is_none() {
+            return self.0[0].detail_lost(mesh, coarser_than);
+        }
+        let sums = (self.0.iter().zip(self.triangles(mesh)))
+            .filter_map(|(paint, indices)| paint.detail_sums(mesh, &indices, coarser_than));
+        let (lost, total) = sums.fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        (total > 0.0).then(|| lost / total)
     }
 }
 

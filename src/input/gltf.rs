@@ -421,6 +421,7 @@ pub(super) fn read_primitive(
         texture_uvs: None,
         colors,
         albedo: None,
+        paint_ids: None,
         indices,
         skin,
         morphs: Vec::new(),

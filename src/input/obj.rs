@@ -376,6 +376,7 @@ fn object_mesh(path: &Path, k: usize, object: &Object, textured: bool) -> Result
         colors: object.colors.as_ref().map(|c| colors(c)),
         texture_uvs: None,
         albedo: None,
+        paint_ids: None,
         indices,
         skin: None,
         morphs: Vec::new(),

@@ -55,7 +55,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
-use crate::input::asset::{delta_e76, Paint};
+use crate::input::asset::{delta_e76, Palette};
 use crate::mesh::Mesh;
 use crate::stages::tessellate::{push_blended, Joints};
 
@@ -154,7 +154,8 @@ fn probes(longest: f32, step: f32) -> Vec<[f32; 3]> {
 }
 
 /// Whether triangle `t` of `m` draws a colour its corners do not carry (see the module notes).
-fn asks(m: &Mesh, paint: &Paint, t: [usize; 3], spacing: f32, delta_e: f64) -> bool {
+fn asks(m: &Mesh, paint: Palette, t: [usize; 3], spacing: f32, delta_e: f64) -> bool {
+    let paint = paint.at(m, t[0]);
     let p = t.map(|v| m.positions[v]);
     let longest = (0..3)
         .map(|k| p[k].distance(p[(k + 1) % 3]))
@@ -184,7 +185,7 @@ fn asks(m: &Mesh, paint: &Paint, t: [usize; 3], spacing: f32, delta_e: f64) -> b
 
 /// Refines `mesh` (which carries the colour `paint` was sampled into, `mesh.albedo`) where its
 /// colour has detail, edges down to `params.spacing / density` (see the module notes).
-pub fn refine(mesh: &mut Mesh, paint: &Paint, density: f32, params: &ColourParams) -> Refined {
+pub fn refine(mesh: &mut Mesh, paint: Palette, density: f32, params: &ColourParams) -> Refined {
     let before = mesh.triangle_count();
     let spacing = params.spacing / density.max(f32::MIN_POSITIVE);
     let mut done = Refined {
@@ -252,7 +253,7 @@ fn edge(ids: &[u32], a: u32, b: u32) -> (u32, u32) {
 fn marked_edges(
     m: &Mesh,
     ids: &[u32],
-    paint: &Paint,
+    paint: Palette,
     spacing: f32,
     delta_e: f64,
 ) -> HashSet<(u32, u32)> {
@@ -276,7 +277,7 @@ fn marked_edges(
 }
 
 /// One round: every marked edge cut at its midpoint, each triangle by its template.
-fn split(mesh: &mut Mesh, paint: &Paint, ids: &[u32], marked: &HashSet<(u32, u32)>) {
+fn split(mesh: &mut Mesh, paint: Palette, ids: &[u32], marked: &HashSet<(u32, u32)>) {
     let src = mesh.clone();
     let mut mids: HashMap<(u32, u32), u32> = HashMap::new();
     let mut indices = Vec::with_capacity(src.indices.len() * 2);

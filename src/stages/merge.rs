@@ -12,7 +12,7 @@
 use glam::Vec3;
 
 use crate::facts::{Facts, Reported};
-use crate::input::asset::Paint;
+use crate::input::asset::Palette;
 use crate::input::generate_box_uvs;
 use crate::mesh::{has_uv_area, Mesh, Scene};
 use crate::stages::tiling::{fur_uv_box, FurUv};
@@ -23,9 +23,11 @@ use crate::stages::weld;
 pub enum FurColour<'a> {
     /// The preset's shade (a plain mesh or scene surface).
     Preset,
-    /// The asset's paint (`None`: the asset's part has none), unless `color` overrides it.
+    /// The asset's paints (`None`: the asset's part has none; several: the parts of one fur
+    /// have unlike materials, and each mesh's `paint_ids` say which), unless `color` overrides
+    /// them.
     Asset {
-        paint: Option<&'a Paint>,
+        paint: Option<Palette<'a>>,
         color: Option<[f32; 3]>,
     },
 }
@@ -41,7 +43,7 @@ pub struct Merged<'a> {
     /// The paint the fur's colour was sampled from, while the mesh keeps the `TEXCOORD_0` it
     /// was sampled at (no box projection replaced them, no shade colour overrides it): new
     /// vertices (tessellation) sample it again.
-    pub paint: Option<&'a Paint>,
+    pub paint: Option<Palette<'a>>,
     meshes: usize,
     vertices: usize,
     triangles: usize,

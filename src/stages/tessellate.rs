@@ -50,7 +50,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
-use crate::input::asset::Paint;
+use crate::input::asset::Palette;
 use crate::mesh::Mesh;
 
 /// Largest factor (a triangle becomes at most `MAX_FACTOR²` triangles).
@@ -197,7 +197,7 @@ struct Subdivision<'a> {
     n: u32,
     alpha: f32,
     /// What new vertices sample their `albedo` from, instead of interpolating it.
-    paint: Option<&'a Paint>,
+    paint: Option<Palette<'a>>,
 }
 
 /// A triangle of the mesh before the subdivision: its corners, their positions and their
@@ -215,7 +215,7 @@ fn grid_slot(n: u32, a: u32, b: u32) -> usize {
 
 impl<'a> Subdivision<'a> {
     /// The subdivision of `mesh` by factor `n` with Phong factor `alpha`.
-    fn new(mesh: &Mesh, n: u32, alpha: f32, paint: Option<&'a Paint>) -> Subdivision<'a> {
+    fn new(mesh: &Mesh, n: u32, alpha: f32, paint: Option<Palette<'a>>) -> Subdivision<'a> {
         let (ids, unique) = crate::stages::weld::position_ids(&mesh.positions);
         let normals = position_normals(mesh, &ids, unique.len());
         Subdivision {
@@ -333,11 +333,12 @@ pub(crate) enum Joints {
 
 /// Adds a vertex to `m` at `position`, its attributes from corners `c` of `src` at
 /// barycentrics `w` (the texture coordinates, normals, colours and shape keys blended, the
-/// albedo read again from `paint` where given, inside the corners' triangle); returns its index.
+/// albedo read again from `paint` where given, inside the corners' triangle, from the paint of
+/// the corners' part); returns its index.
 pub(crate) fn push_blended(
     m: &mut Mesh,
     src: &Mesh,
-    paint: Option<&Paint>,
+    paint: Option<Palette>,
     (position, c, w): (Vec3, [u32; 3], [f32; 3]),
     joints: Joints,
 ) -> u32 {
@@ -363,6 +364,11 @@ pub(crate) fn push_blended(
             v.round().clamp(0.0, 65535.0) as u16
         };
         out.push([mix(0), mix(1), mix(2), mix(3)]);
+    }
+    // the corners' part's paint (a triangle's corners have one)
+    let paint = paint.map(|p| p.at(src, at(c[0])));
+    if let (Some(out), Some(inn)) = (m.paint_ids.as_mut(), src.paint_ids.as_ref()) {
+        out.push(inn[at(c[0])]);
     }
     // the new vertex's coordinates the texture reads ([`Paint::albedo`])
     let uv = m.paint_uvs().and_then(|u| u.last().copied());
@@ -443,7 +449,7 @@ fn grid_triangles(n: u32, grid: &[u32], indices: &mut Vec<u32>) {
 pub fn tessellate(
     mesh: &mut Mesh,
     params: &TessellationParams,
-    paint: Option<&Paint>,
+    paint: Option<Palette>,
 ) -> Tessellated {
     let n = params.factor_for(mesh);
     let before = mesh.triangle_count();
