@@ -302,7 +302,9 @@ pub fn asset_scene_of(
                 paints.len().saturating_sub(1)
             });
             if j != i {
-                geometry.warnings.extend(other.scene.warnings.iter().cloned());
+                geometry
+                    .warnings
+                    .extend(other.scene.warnings.iter().cloned());
             }
             for m in &other.scene.meshes {
                 geometry.meshes.push(m.clone());
@@ -311,9 +313,8 @@ pub fn asset_scene_of(
         }
         // a part of a character whose fur cannot join the character's says why: it costs a
         // draw a layer of its own
-        let apart = (keys[..n].iter().zip(&names)).find_map(|(other, name)| {
-            Some((name, other.as_ref()?.apart(keys[n].as_ref()?)?))
-        });
+        let apart = (keys[..n].iter().zip(&names))
+            .find_map(|(other, name)| Some((name, other.as_ref()?.apart(keys[n].as_ref()?)?)));
         if let Some((other, why)) = apart {
             geometry.warnings.push(format!(
                 "{}: part '{}' (material '{}') is a fur apart from '{}' of the same character:                  {why}; it draws its own layers",
@@ -413,12 +414,14 @@ pub fn asset_scene_of(
 }
 
 /// The chosen parts (indices into `chosen`) grouped into one fur each: the parts of one
-/// character — one skin, or one rigid node — chosen by the same surface and drawn with the same
-/// material (or materials that differ only in their names) bake as one surface, so a jointed
-/// figure of 60 primitives costs one draw a layer, not sixty, and its fur runs across the seams
-/// between them (welded as one mesh, one tiling) where part by part each seam showed. A part
-/// stays alone where its fur must differ: it has shape keys (the fur follows its own weights)
-/// or is instanced (the graft copies its fur to each instance) ([`input::asset::Part::fur_key`]).
+/// character — one skin, or one rigid node — chosen by the same surface bake as one surface,
+/// whatever their materials (each part's colour rides per vertex from its own,
+/// [`input::asset::Palette`]), so a jointed figure of 60 primitives costs one draw a layer, not
+/// sixty, and its fur runs across the seams between them (welded as one mesh, one tiling) where
+/// part by part each seam showed. A part stays alone where its fur must differ: it has shape
+/// keys (the fur follows its own weights), is instanced (the graft copies its fur to each
+/// instance), or its fur material cannot be shared (unlit beside lit, a second UV set)
+/// ([`input::asset::FurKey`]).
 /// Groups are in the order of their first part; parts in chosen order.
 fn fur_groups(asset: &input::asset::Asset, chosen: &[(usize, usize)]) -> Vec<Vec<usize>> {
     let key = |&(i, k): &(usize, usize)| asset.parts[i].fur_key().map(|f| (k, f));

@@ -3416,7 +3416,11 @@ fn a_jointed_figure_furred_everywhere_draws_one_fur() {
         )
     };
     let scene = |name: &str, surfaces: &[&str], seed: u32| {
-        let text: Vec<String> = surfaces.iter().enumerate().map(|o| surface(o, seed)).collect();
+        let text: Vec<String> = surfaces
+            .iter()
+            .enumerate()
+            .map(|o| surface(o, seed))
+            .collect();
         let file = dir.join(format!("{name}.toml"));
         std::fs::write(&file, text.join("\n")).unwrap();
         bake(&file, &dir, &format!("{name}.glb"), &[])
@@ -3450,7 +3454,10 @@ fn a_jointed_figure_furred_everywhere_draws_one_fur() {
         for (bx, by) in (0..h / 16).flat_map(|y| (0..w / 16).map(move |x| (x, y))) {
             let mut d = [0.0f64; 3];
             for (x, y) in (0..16).flat_map(|y| (0..16).map(move |x| (x, y))) {
-                let (p, q) = (a.get_pixel(bx * 16 + x, by * 16 + y), b.get_pixel(bx * 16 + x, by * 16 + y));
+                let (p, q) = (
+                    a.get_pixel(bx * 16 + x, by * 16 + y),
+                    b.get_pixel(bx * 16 + x, by * 16 + y),
+                );
                 for c in 0..3 {
                     d[c] += p[c] as f64 - q[c] as f64;
                 }
@@ -3461,11 +3468,19 @@ fn a_jointed_figure_furred_everywhere_draws_one_fur() {
     };
     for v in [NamedView::Front, NamedView::Side, NamedView::Close] {
         let camera = view::camera_for_glb(&one, v.orbit(), (256, 256)).unwrap();
-        let draw = |glb: &[u8]| view::render_baked(&gpu, glb, &camera, (256, 256), 1).unwrap().0;
+        let draw = |glb: &[u8]| {
+            view::render_baked(&gpu, glb, &camera, (256, 256), 1)
+                .unwrap()
+                .0
+        };
         let (x, y, z) = (draw(&one), draw(&apart), draw(&reseeded));
         let (moved, seeded) = (blocks(&x, &y), blocks(&z, &y));
         eprintln!("{}: one fur {moved:.2}, another seed {seeded:.2}", v.name());
-        assert!(moved <= 1.5 * seeded, "{}: {moved:.2} against {seeded:.2}", v.name());
+        assert!(
+            moved <= 1.5 * seeded,
+            "{}: {moved:.2} against {seeded:.2}",
+            v.name()
+        );
     }
 
     // three.js: the fur hidden draws the asset pixel for pixel
@@ -3474,13 +3489,38 @@ fn a_jointed_figure_furred_everywhere_draws_one_fur() {
     let (eye, target) = ([1.2, 1.3, 2.4], [0.0, 0.6, 0.0]);
     render(
         &[
-            job(&dir.join("figure.glb"), &png("bare.png"), eye, target, false),
+            job(
+                &dir.join("figure.glb"),
+                &png("bare.png"),
+                eye,
+                target,
+                false,
+            ),
             job(&one, &png("hidden.png"), eye, target, true),
         ],
         &dir,
     );
     let n = differing_pixels(&rgb(&png("bare.png")), &rgb(&png("hidden.png")));
     assert_eq!(n, 0, "{n} pixels differ from the bare asset");
+
+    // an unlit part cannot share the lit parts' fur material: a fur apart, named with why
+    let g = Glb::parse(&std::fs::read(&input).unwrap());
+    let mut json = g.json.clone();
+    std::fs::write(dir.join("figure.bin"), &g.bin).unwrap();
+    json["buffers"][0]["uri"] = json!("figure.bin");
+    let materials = json["materials"].as_array_mut().unwrap();
+    let eye = (materials.iter_mut()).find(|m| m["name"] == "eye").unwrap();
+    eye["extensions"] = json!({"KHR_materials_unlit": {}});
+    json["extensionsUsed"] = json!(["KHR_materials_unlit"]);
+    let unlit = dir.join("unlit.gltf");
+    std::fs::write(&unlit, json.to_string()).unwrap();
+    let (_, report) = bake(&unlit, &dir, "unlit.glb", &[]);
+    assert_eq!(report["surfaces"].as_array().unwrap().len(), 2, "{report}");
+    let said = report.to_string();
+    assert!(
+        said.contains("material 'eye') is a fur apart from") && said.contains("unlit"),
+        "{said}"
+    );
 }
 
 /// The skinned critter's fur has its levels of detail: three.js (the tests' `MSFT_lod` plugin)

@@ -1458,7 +1458,10 @@ fn many_primitives(dir: &Path, n: usize, how: Many) -> std::path::PathBuf {
             .enumerate()
             .map(|(i, p)| (json!({"primitives": [p]}), json!({"mesh": i})))
             .unzip(),
-        _ => (vec![json!({"primitives": primitives})], vec![json!({"mesh": 0})]),
+        _ => (
+            vec![json!({"primitives": primitives})],
+            vec![json!({"mesh": 0})],
+        ),
     };
     let roots: Vec<usize> = (0..nodes.len()).collect();
     let mut g = json!({
@@ -1541,7 +1544,10 @@ fn many_primitives_cost_in_proportion() {
         assert_eq!(roots.len(), 1);
         assert_eq!(roots[0]["also"].as_array().map(Vec::len), Some(99_999));
     }
-    let many = run(&many_primitives(&dir, 100_000, Many::Nodes), &dir.join("many.glb"));
+    let many = run(
+        &many_primitives(&dir, 100_000, Many::Nodes),
+        &dir.join("many.glb"),
+    );
     let err = String::from_utf8_lossy(&many.stderr);
     assert_eq!(many.status.code(), Some(1), "{err}");
     assert!(

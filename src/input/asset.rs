@@ -1309,7 +1309,10 @@ impl<'a> Palette<'a> {
     fn triangles(self, mesh: &Mesh) -> Vec<Vec<u32>> {
         let mut by_paint = vec![Vec::new(); self.0.len()];
         for f in mesh.indices.chunks_exact(3) {
-            let k = mesh.paint_ids.as_ref().map_or(0, |ids| ids[f[0] as usize] as usize);
+            let k = mesh
+                .paint_ids
+                .as_ref()
+                .map_or(0, |ids| ids[f[0] as usize] as usize);
             by_paint[k].extend_from_slice(f);
         }
         by_paint
