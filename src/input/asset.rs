@@ -1816,6 +1816,44 @@ mod tests {
     }
 
     #[test]
+    fn parts_of_unlike_paints_merged_take_each_its_own_colour() {
+        // a textured, cut-out strip and a plain red one, merged as one fur's mesh: each
+        // vertex's colour is what its own paint gives its own strip alone, and the colour
+        // stage's detail test reads the textured one only
+        let textured = Paint {
+            factor: [1.0; 4],
+            texture: Some(two_tone(true, true)),
+            vertex_colors: false,
+            alpha: AlphaMode::Mask(0.5),
+            unlit: false,
+            roughness: Some(1.0),
+            pending: None,
+        };
+        let red = Paint {
+            factor: [1.0, 0.0, 0.0, 1.0],
+            texture: None,
+            ..textured.clone()
+        };
+        let (a, mut b) = (strip(4), strip(3));
+        b.origin.y = 2.0;
+        let alone = [textured.albedo(&a), red.albedo(&b)].concat();
+        let paints = [textured, red];
+        let mut scene = Scene::default();
+        for (k, mut m) in [a, b].into_iter().enumerate() {
+            m.paint_ids = Some(vec![k as u32; m.vertex_count()]);
+            scene.meshes.push(m);
+        }
+        let merged = scene.merged();
+        let palette = Palette(&paints);
+        assert_eq!(palette.albedo(&merged), alone);
+        assert!(palette.has_detail());
+        assert!(std::ptr::eq(
+            palette.at(&merged, merged.vertex_count() - 1),
+            &paints[1]
+        ));
+    }
+
+    #[test]
     fn a_specular_glossiness_material_has_its_colour_as_diffuse() {
         use serde_json::json;
         let sg = json!({ "KHR_materials_pbrSpecularGlossiness": {
