@@ -213,7 +213,7 @@ pub struct PartOf {
     /// ([`params::BakeParams::estimate_animation_bytes`]).
     pub shape_key_clips: (u64, u64),
     /// How many instances the part's node draws (`EXT_mesh_gpu_instancing`; 0: none) when the
-    /// fur is grafted: the graft copies the fur to every one, so it takes one level
+    /// fur is grafted: the graft draws the fur at every one, so it takes one level
     /// ([`blocked`]).
     pub instances: usize,
     /// The asset's parts the surface furs, as one fur ([`fur_groups`]): the first is the one
@@ -282,6 +282,17 @@ pub fn asset_scene_of(
         s.name = name;
         if part.skin.is_some() && graft {
             s.params.pack.quantize = pack::Quantize::None;
+        }
+        // an instanced part's fur is drawn instanced too (its layer nodes carry the node's
+        // instances, `graft`), which three.js cannot do for a mesh with morph targets: the
+        // layers store their own positions, unless the wind sways them (its fur is copied to
+        // each instance then)
+        let instanced = graft && !part.instances.is_empty() && part.skin.is_none();
+        if instanced
+            && s.params.pack.layout == pack::Layout::Compact
+            && !s.asks(scene::Effect::Wind)
+        {
+            s.params.pack.layout = pack::Layout::Layers;
         }
         // the part's own warnings (its UVs, its texture) with its surface; the group's other
         // parts share its frame and material: their meshes join its scene
@@ -419,7 +430,7 @@ pub fn asset_scene_of(
 /// [`input::asset::Palette`]), so a jointed figure of 60 primitives costs one draw a layer, not
 /// sixty, and its fur runs across the seams between them (welded as one mesh, one tiling) where
 /// part by part each seam showed. A part stays alone where its fur must differ: it has shape
-/// keys (the fur follows its own weights), is instanced (the graft copies its fur to each
+/// keys (the fur follows its own weights), is instanced (the graft draws its fur at each
 /// instance), or its fur material cannot be shared (unlit beside lit, a second UV set)
 /// ([`input::asset::FurKey`]).
 /// Groups are in the order of their first part; parts in chosen order.
@@ -1924,8 +1935,8 @@ fn pack_surface(
 }
 
 /// Why `stage`, asked for, cannot run on a surface (`None`: it can): a skinned surface takes no
-/// fins or outline (neither is skinned); an instanced part no LOD chain (its fur is copied to
-/// every instance). A skinned surface's chain is carried by its layer nodes themselves
+/// fins or outline (neither is skinned); an instanced part no LOD chain (its fur is drawn at
+/// every instance: instanced, or copied, `output/graft.rs`). A skinned surface's chain is carried by its layer nodes themselves
 /// (`pack::skinned_switches`). The bake skips the stage with this reason and a warning;
 /// `shellbake plan` shows the same.
 pub fn blocked(stage: Stage, skinned: bool, instanced: bool) -> Option<&'static str> {
@@ -1934,7 +1945,7 @@ pub fn blocked(stage: Stage, skinned: bool, instanced: bool) -> Option<&'static 
             Some("skinned surface: fins and outlines are not skinned")
         }
         Stage::Lod if instanced => Some(
-            "instanced part (EXT_mesh_gpu_instancing): its fur is copied to every instance, so \
+            "instanced part (EXT_mesh_gpu_instancing): its fur is drawn at every instance, so \
              one level and no chunks",
         ),
         _ => None,

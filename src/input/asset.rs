@@ -289,7 +289,7 @@ impl FurKey {
 impl Part {
     /// The key the parts that bake as one fur share ([`FurKey`]), or `None` for a part that
     /// must be a fur of its own: it has shape keys (its fur follows its own weights) or
-    /// instances (the graft copies its fur to each).
+    /// instances (the graft draws its fur at each).
     pub fn fur_key(&self) -> Option<FurKey> {
         if self.shape_keys.is_some() || !self.instances.is_empty() {
             return None;

@@ -169,11 +169,15 @@ impl Placing<'_> {
         }
     }
 
-    /// Copies the fur of part `p` to every instance of its node, when it is instanced
+    /// Draws the fur of part `p` at every instance of its node, when it is instanced
     /// (`EXT_mesh_gpu_instancing`; `p` rigid, its fur root under the node). The extension draws
-    /// the node's mesh once per instance and none of its children, and three.js draws no
-    /// instanced mesh with morph targets at all (its loader's `InstancedMesh` carries no morph
-    /// influences: it throws), and every layer is one; so the instances become nodes: per
+    /// the node's mesh once per instance and none of its children. Where the fur's layers have
+    /// no morph targets (the bake writes an instanced part's fur in the `layers` layout) and
+    /// each instance seen from a layer's node is a TRS, each layer node carries the instances
+    /// itself ([`Placing::instance_in_place`]): one draw a layer for every instance. Otherwise
+    /// — three.js draws no instanced mesh with morph targets at all (its loader's
+    /// `InstancedMesh` carries no morph influences: it throws), and the wind's sway is one — the
+    /// instances become nodes: per
     /// instance a node under the part's node with the instance's transform, holding the fur
     /// root (the first) or a copy of it and the nodes below (the meshes shared). Every
     /// animation channel on the fur's nodes (wind, shape keys) gets a twin on each copy.
@@ -182,6 +186,7 @@ impl Placing<'_> {
     fn expand_instances(
         &self,
         out: &mut Value,
+        bin: &mut Vec<u8>,
         p: usize,
         attached: Option<usize>,
     ) -> Option<String> {
@@ -203,6 +208,9 @@ impl Placing<'_> {
                  root (see above): it is drawn once, where the node's own transform puts it"
             ));
         };
+        if self.instance_in_place(out, bin, root, &part.instances) {
+            return None;
+        }
         let children = out["nodes"][part.node]["children"].as_array_mut();
         let children = children.expect("the fur attached under the node");
         let at = (children.iter())
@@ -350,7 +358,7 @@ impl Placing<'_> {
                 let output = match outputs.iter().find(|(b, _)| *b == bits) {
                     Some(&(_, a)) => a,
                     None => {
-                        let a = float_accessor(out, bin, &values);
+                        let a = float_accessor(out, bin, &values, ("SCALAR", "shape_key_weights"));
                         outputs.push((bits, a));
                         a
                     }
@@ -384,6 +392,80 @@ impl Placing<'_> {
             ));
         }
         warnings
+    }
+
+    /// Makes each layer node under `root` (the fur hung under an instanced part's node) carry
+    /// the node's instances (`EXT_mesh_gpu_instancing`), seen from the layer: the layer draws
+    /// at `W · J_i` where the part draws at `N · T_i` (`N` the node's world, `T_i` the
+    /// instance), and the layer's world is `N · P` (`P` the transforms from the node down to
+    /// it), so `J_i = P⁻¹ · T_i · P`. Returns false, changing nothing, where a layer has morph
+    /// targets (three.js throws on them instanced) or some `J_i` is no TRS (a stretched node
+    /// turned under its instances): the caller copies the fur instead.
+    fn instance_in_place(
+        &self,
+        out: &mut Value,
+        bin: &mut Vec<u8>,
+        root: usize,
+        instances: &[DMat4],
+    ) -> bool {
+        // every node drawing a mesh under `root`, with its `P`
+        let mut layers: Vec<(usize, DMat4)> = Vec::new();
+        let mut stack = vec![(root, local_of(&out["nodes"][root]))];
+        while let Some((n, p)) = stack.pop() {
+            let node = &out["nodes"][n];
+            if let Some(m) = node["mesh"].as_u64() {
+                let prims = out["meshes"][m as usize]["primitives"].as_array();
+                if prims
+                    .into_iter()
+                    .flatten()
+                    .any(|q| q.get("targets").is_some())
+                {
+                    return false;
+                }
+                layers.push((n, p));
+            }
+            for c in node["children"].as_array().into_iter().flatten() {
+                let c = c.as_u64().expect("a node index") as usize;
+                stack.push((c, p * local_of(&out["nodes"][c])));
+            }
+        }
+        // one set of accessors a distinct `P` (the layers of one fur share one)
+        let mut seen: Vec<(DMat4, Vec<Trs>)> = Vec::new();
+        for &(_, p) in &layers {
+            if seen.iter().any(|(q, _)| *q == p) {
+                continue;
+            }
+            let inverse = p.inverse();
+            let placed: Option<Vec<_>> = (instances.iter())
+                .map(|&t| trs_of(inverse * t * p))
+                .collect();
+            match placed {
+                Some(placed) => seen.push((p, placed)),
+                None => return false,
+            }
+        }
+        let mut written: Vec<(DMat4, Value)> = Vec::new();
+        for (p, placed) in seen {
+            let column = |f: &dyn Fn(&Trs) -> Vec<f64>| -> Vec<f32> {
+                placed.iter().flat_map(f).map(|v| v as f32).collect()
+            };
+            let t = column(&|(t, _, _)| t.to_array().to_vec());
+            let r = column(&|(_, r, _)| r.normalize().to_array().to_vec());
+            let sc = column(&|(_, _, s)| s.to_array().to_vec());
+            let attributes = json!({
+                "TRANSLATION": float_accessor(out, bin, &t, ("VEC3", "fur_instances")),
+                "ROTATION": float_accessor(out, bin, &r, ("VEC4", "fur_instances")),
+                "SCALE": float_accessor(out, bin, &sc, ("VEC3", "fur_instances")),
+            });
+            written.push((p, attributes));
+        }
+        for (n, p) in layers {
+            let attributes = &written.iter().find(|(q, _)| *q == p).expect("written").1;
+            let node = out["nodes"][n].as_object_mut().expect("a node");
+            let extensions = node.entry("extensions").or_insert_with(|| json!({}));
+            extensions["EXT_mesh_gpu_instancing"] = json!({ "attributes": attributes });
+        }
+        true
     }
 
     /// Makes the root of surface `s` a child of part `p`'s node, its transform the
@@ -510,7 +592,7 @@ pub fn graft(
         let attached = placing.attach(&mut out, s, group);
         warnings.extend(attached.as_ref().err().cloned());
         warnings.extend(placing.follow_shape_keys(&mut out, &mut bin, s, p));
-        warnings.extend(placing.expand_instances(&mut out, p, attached.ok().flatten()));
+        warnings.extend(placing.expand_instances(&mut out, &mut bin, p, attached.ok().flatten()));
     }
     add_lod_scene(&mut out, packed, base, placing.scene);
     merge_extensions(&mut out, fur_json);
@@ -525,8 +607,19 @@ pub fn graft(
     })
 }
 
-/// A `SCALAR` float accessor over `values`, written into `bin` (buffer 0).
-fn float_accessor(out: &mut Value, bin: &mut Vec<u8>, values: &[f32]) -> usize {
+/// A float accessor of `kind` (`SCALAR`, `VEC3`, `VEC4`) over `values`, written into `bin`
+/// (buffer 0) in a view named `name`.
+fn float_accessor(
+    out: &mut Value,
+    bin: &mut Vec<u8>,
+    values: &[f32],
+    (kind, name): (&str, &str),
+) -> usize {
+    let width = match kind {
+        "VEC3" => 3,
+        "VEC4" => 4,
+        _ => 1,
+    };
     align(bin);
     let offset = bin.len();
     bin.extend(values.iter().flat_map(|v| v.to_le_bytes()));
@@ -534,14 +627,14 @@ fn float_accessor(out: &mut Value, bin: &mut Vec<u8>, values: &[f32]) -> usize {
         "buffer": 0,
         "byteOffset": offset,
         "byteLength": 4 * values.len(),
-        "name": "shape_key_weights",
+        "name": name,
     });
     let view = push_one(out, "bufferViews", view);
     let accessor = json!({
         "bufferView": view,
         "componentType": 5126,
-        "count": values.len(),
-        "type": "SCALAR",
+        "count": values.len() / width,
+        "type": kind,
     });
     push_one(out, "accessors", accessor)
 }
@@ -1043,6 +1136,32 @@ fn merge_extensions(out: &mut Value, fur: &Value) {
             out[list] = Value::Array(names);
         }
     }
+}
+
+/// A translation, rotation and scale.
+type Trs = (DVec3, DQuat, DVec3);
+
+/// A node's local matrix as written: `matrix`, else translation · rotation · scale.
+fn local_of(node: &Value) -> DMat4 {
+    let numbers = |key: &str| -> Option<Vec<f64>> {
+        node[key].as_array()?.iter().map(Value::as_f64).collect()
+    };
+    if let Some(m) = numbers("matrix").filter(|m| m.len() == 16) {
+        return DMat4::from_cols_slice(&m);
+    }
+    let vec3 = |key: &str, or: DVec3| {
+        numbers(key)
+            .filter(|v| v.len() == 3)
+            .map_or(or, |v| DVec3::from_slice(&v))
+    };
+    let rotation = numbers("rotation")
+        .filter(|r| r.len() == 4)
+        .map_or(DQuat::IDENTITY, |r| DQuat::from_slice(&r));
+    DMat4::from_scale_rotation_translation(
+        vec3("scale", DVec3::ONE),
+        rotation,
+        vec3("translation", DVec3::ZERO),
+    )
 }
 
 #[cfg(test)]
