@@ -11,7 +11,7 @@
 //                       three.js's AnimationMixer, looping),
 //               "hide_fur": true (optional: hide the nodes shellbake added to an asset, those
 //                       whose extras carry `shellbake` or `shellbake_fur`) }, ...]
-// Prints one JSON line per job: { png, ok, triangles (drawn in the frame), bounds }. `bounds`:
+// Prints one JSON line per job: { png, ok, triangles and calls (drawn in the frame), bounds }. `bounds`:
 // the world boxes three.js computes ({min, max} or null) of the fur shellbake added to an asset
 // (`fur`, the meshes under a node whose extras carry `shellbake` or `shellbake_fur`) and of the
 // rest (`bare`); a skinned mesh's box is its skinned vertices' (SkinnedMesh.computeBoundingBox).
@@ -114,6 +114,7 @@ window.renderJob = async (job, url) => {
   renderer.render(scene, camera);
   const data = canvas.toDataURL('image/png');
   const triangles = renderer.info.render.triangles;
+  const calls = renderer.info.render.calls;
   renderer.dispose();
   const isFur = (o) => {
     for (let n = o; n; n = n.parent) {
@@ -131,7 +132,7 @@ window.renderJob = async (job, url) => {
     boxes[isFur(o) ? 'fur' : 'bare'].union(box);
   });
   const json = (b) => (b.isEmpty() ? null : { min: b.min.toArray(), max: b.max.toArray() });
-  return { data, triangles, bounds: { fur: json(boxes.fur), bare: json(boxes.bare) } };
+  return { data, triangles, calls, bounds: { fur: json(boxes.fur), bare: json(boxes.bare) } };
 };
 window.ready = true;
 </script></body></html>`;
@@ -175,9 +176,9 @@ try {
   await page.goto(`http://127.0.0.1:${port}/`);
   await page.waitForFunction(() => window.ready === true, null, { timeout: 30000 });
   for (const [i, job] of jobs.entries()) {
-    const { data, triangles, bounds } = await page.evaluate(([j, u]) => window.renderJob(j, u), [job, `/asset/${i}.glb`]);
+    const { data, triangles, calls, bounds } = await page.evaluate(([j, u]) => window.renderJob(j, u), [job, `/asset/${i}.glb`]);
     await writeFile(job.png, Buffer.from(data.split(',')[1], 'base64'));
-    console.log(JSON.stringify({ png: job.png, ok: true, triangles, bounds }));
+    console.log(JSON.stringify({ png: job.png, ok: true, triangles, calls, bounds }));
   }
   if (logs.length) console.error(logs.join('\n'));
 } finally {
