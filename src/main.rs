@@ -937,6 +937,9 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
     // a sphere with a shape key and two clips on it: fur that follows shape keys
     let blob = shellbake::fixtures::procedural::shape_key_blob();
     shellbake::output::write::write_atomic(&dir.join("shape_keys.glb"), &blob)?;
+    // 125 cubes drawn by one node through EXT_mesh_gpu_instancing: instanced fur
+    let cubes = shellbake::fixtures::procedural::instanced_cubes();
+    shellbake::output::write::write_atomic(&dir.join("cubes_instanced.glb"), &cubes)?;
     // the creature assets (DESIGN §10): one critter; two on a ground with a camera and a light
     use shellbake::fixtures::critter::{critter_glb, Critters};
     let one = critter_glb(Critters::default());

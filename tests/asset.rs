@@ -2640,6 +2640,23 @@ fn an_instanced_part_s_fur_is_instanced_too() {
         let apart = fur.iter().zip(&bare).map(|(a, b)| (a - b).abs());
         assert!(apart.fold(0.0, f64::max) < 0.2, "{babylon}");
     }
+
+    // the README's instanced asset (`fixtures/cubes_instanced.glb`, 125 cubes): its fur is 31
+    // instanced layer nodes, where copies made 3 875
+    let cubes = fixture("cubes_instanced.glb");
+    let committed = std::fs::read(&cubes).unwrap();
+    assert!(
+        committed == shellbake::fixtures::procedural::instanced_cubes(),
+        "fixtures/cubes_instanced.glb is stale: run `shellbake fixtures fixtures`"
+    );
+    let (baked, _) = bake(&cubes, &dir, "cubes.glb", &[]);
+    let doc = json_of(&baked);
+    let instanced = (doc["nodes"].as_array().unwrap().iter().skip(1))
+        .filter(|n| n["mesh"].is_u64())
+        .map(|n| &n["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["TRANSLATION"])
+        .map(|t| doc["accessors"][t.as_u64().unwrap() as usize]["count"].as_u64())
+        .collect::<Vec<_>>();
+    assert_eq!(instanced, vec![Some(125); 31]);
 }
 
 #[test]
