@@ -297,7 +297,6 @@ pub fn asset_scene_of(
         // the part's own warnings (its UVs, its texture) with its surface; the group's other
         // parts share its frame and material: their meshes join its scene
         let mut geometry = part.scene.clone();
-        geometry.meshes.clear();
         // one paint a material (parts of materials alike but for their names share one), and
         // each mesh says which when there are several
         let mut paints: Vec<input::asset::Paint> = Vec::new();
@@ -312,15 +311,15 @@ pub fn asset_scene_of(
                 paints.extend(paint);
                 paints.len().saturating_sub(1)
             });
+            // the first part's meshes and warnings are the scene's already (`members[0]` is
+            // `i`)
             if j != i {
                 geometry
                     .warnings
                     .extend(other.scene.warnings.iter().cloned());
+                geometry.meshes.extend(other.scene.meshes.iter().cloned());
             }
-            for m in &other.scene.meshes {
-                geometry.meshes.push(m.clone());
-                ids.push(id);
-            }
+            ids.extend(std::iter::repeat_n(id, other.scene.meshes.len()));
         }
         // a part of a character whose fur cannot join the character's says why: it costs a
         // draw a layer of its own
@@ -328,7 +327,8 @@ pub fn asset_scene_of(
             .find_map(|(other, name)| Some((name, other.as_ref()?.apart(keys[n].as_ref()?)?)));
         if let Some((other, why)) = apart {
             geometry.warnings.push(format!(
-                "{}: part '{}' (material '{}') is a fur apart from '{}' of the same character:                  {why}; it draws its own layers",
+                "{}: part '{}' (material '{}') is a fur apart from '{}' of the same character: \
+                 {why}; it draws its own layers",
                 asset.doc.path.display(),
                 input::escape(&part.label(asset.primitives(i))),
                 input::escape(&part.names.material),
@@ -746,7 +746,7 @@ fn more_influences(asset: &input::asset::Asset, i: usize, what: String) -> Optio
 }
 
 /// Share of a textured surface whose per-vertex fur colour misses its texture
-/// ([`input::asset::Paint::detail_lost`]) past which the bake warns.
+/// ([`input::asset::Palette::detail_lost`]) past which the bake warns.
 const DETAIL_WARNING: f64 = 0.1;
 
 /// The asset a scene file furs whole, when every surface takes its parts (`only`) from that one

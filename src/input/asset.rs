@@ -767,7 +767,7 @@ pub fn is_fur_node(json: &Value, n: usize) -> bool {
         || json["nodes"][n]["extras"].get("shellbake_fur").is_some()
 }
 
-/// Colour difference (CIE76) past which [`Paint::detail_lost`] counts a point as lost: about
+/// Colour difference (CIE76) past which [`Palette::detail_lost`] counts a point as lost: about
 /// twice what an eye tells apart side by side, so texture noise and filtering do not count.
 pub const DETAIL_DELTA_E: f64 = 10.0;
 
@@ -1120,20 +1120,9 @@ impl Paint {
         albedo_by(mesh, |_| self)
     }
 
-    /// The share of `mesh`'s area (by four points a triangle) where its per-vertex fur colour
-    /// (`mesh.albedo`, interpolated as a client draws it) differs from the texture by more than
-    /// [`DETAIL_DELTA_E`] (CIE76): the detail finer than the triangles that the fur cannot show
-    /// (a striped rug of two triangles grew a plain yellow carpet, a path painted across a
-    /// ground grew a zig-zag of its triangles). Only triangles whose longest edge is over
-    /// `coarser_than` count (those the colour stage could have cut further: what it left under
-    /// it is the strands' own resolution). `None` without a texture or vertex colours.
-    pub fn detail_lost(&self, mesh: &Mesh, coarser_than: f32) -> Option<f64> {
-        let (lost, total) = self.detail_sums(mesh, &mesh.indices, coarser_than)?;
-        (total > 0.0).then(|| lost / total)
-    }
-
-    /// [`Paint::detail_lost`] over the triangles `indices` of `mesh`: the area lost and the
-    /// area drawn (four points a triangle).
+    /// Over the triangles `indices` of `mesh`, the area where the fur's colour misses this
+    /// paint's texture and the area drawn, by four points a triangle ([`Palette::detail_lost`]);
+    /// `None` without a texture or colours.
     fn detail_sums(&self, mesh: &Mesh, indices: &[u32], coarser_than: f32) -> Option<(f64, f64)> {
         use rayon::prelude::*;
         let (Some(t), Some(uvs), Some(albedo)) =
@@ -1296,8 +1285,12 @@ pub struct Palette<'a>(pub &'a [Paint]);
 impl<'a> Palette<'a> {
     /// The paint of vertex `v` of `mesh`.
     pub fn at(self, mesh: &Mesh, v: usize) -> &'a Paint {
-        let k = mesh.paint_ids.as_ref().map_or(0, |ids| ids[v] as usize);
-        &self.0[k]
+        &self.0[Self::id(mesh, v)]
+    }
+
+    /// The index of vertex `v`'s paint ([`Mesh::paint_ids`], 0 without them).
+    fn id(mesh: &Mesh, v: usize) -> usize {
+        mesh.paint_ids.as_ref().map_or(0, |ids| ids[v] as usize)
     }
 
     /// Whether any paint has detail ([`Paint::has_detail`]).
@@ -1309,11 +1302,7 @@ impl<'a> Palette<'a> {
     fn triangles(self, mesh: &Mesh) -> Vec<Vec<u32>> {
         let mut by_paint = vec![Vec::new(); self.0.len()];
         for f in mesh.indices.chunks_exact(3) {
-            let k = mesh
-                .paint_ids
-                .as_ref()
-                .map_or(0, |ids| ids[f[0] as usize] as usize);
-            by_paint[k].extend_from_slice(f);
+            by_paint[Self::id(mesh, f[0] as usize)].extend_from_slice(f);
         }
         by_paint
     }
@@ -1323,12 +1312,15 @@ impl<'a> Palette<'a> {
         albedo_by(mesh, |v| self.at(mesh, v))
     }
 
-    /// [`Paint::detail_lost`] over every paint's triangles: `None` where no paint has a
-    /// texture (or the mesh no colour).
+    /// The share of `mesh`'s area (by four points a triangle) where its per-vertex fur colour
+    /// (`mesh.albedo`, interpolated as a client draws it) differs from the texture by more than
+    /// [`DETAIL_DELTA_E`] (CIE76): the detail finer than the triangles that the fur cannot show
+    /// (a striped rug of two triangles grew a plain yellow carpet, a path painted across a
+    /// ground grew a zig-zag of its triangles). Only triangles whose longest edge is over
+    /// `coarser_than` count (those the colour stage could have cut further: what it left under
+    /// it is the strands' own resolution). `None` without a texture or vertex colours; each
+    /// paint reads its own triangles.
     pub fn detail_lost(self, mesh: &Mesh, coarser_than: f32) -> Option<f64> {
-        if self.0.len() == 1 || mesh.paint_ids.is_none() {
-            return self.0[0].detail_lost(mesh, coarser_than);
-        }
         let sums = (self.0.iter().zip(self.triangles(mesh)))
             .filter_map(|(paint, indices)| paint.detail_sums(mesh, &indices, coarser_than));
         let (lost, total) = sums.fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));

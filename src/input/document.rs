@@ -570,6 +570,13 @@ fn check_index(path: &Path, element: &str, what: &str, i: usize, len: usize) -> 
     }
 }
 
+/// The local matrix of node JSON `node`, composed as [`node_matrix`] composes a read node's: for
+/// nodes written after reading (the graft's fur nodes); `None` where it is malformed.
+pub(crate) fn local_matrix(node: &Value) -> Option<DMat4> {
+    let f = Fields::of(Path::new(""), String::new(), node).ok()?;
+    node_matrix(&f).ok().map(|(m, _)| m)
+}
+
 /// The local matrix of a node: `matrix` if given, else translation · rotation · scale, in `f64`.
 fn node_matrix(f: &Fields) -> Result<(DMat4, Trs)> {
     if let Some(m) = f.numbers("matrix", 16)? {

@@ -49,6 +49,7 @@ use serde_json::{json, Map, Value};
 
 use crate::error::{Error, Result};
 use crate::input::asset::Asset;
+use crate::input::document::local_matrix;
 use crate::output::pack::Packed;
 
 /// The asset with its fur: the GLB, its JSON, and what the graft had to warn about.
@@ -410,6 +411,8 @@ impl Placing<'_> {
     ) -> bool {
         // every node drawing a mesh under `root`, with its `P`
         let mut layers: Vec<(usize, DMat4)> = Vec::new();
+        // (nodes of the fur's own making: well formed)
+        let local_of = |n: &Value| local_matrix(n).expect("a fur node's transform");
         let mut stack = vec![(root, local_of(&out["nodes"][root]))];
         while let Some((n, p)) = stack.pop() {
             let node = &out["nodes"][n];
@@ -1140,29 +1143,6 @@ fn merge_extensions(out: &mut Value, fur: &Value) {
 
 /// A translation, rotation and scale.
 type Trs = (DVec3, DQuat, DVec3);
-
-/// A node's local matrix as written: `matrix`, else translation · rotation · scale.
-fn local_of(node: &Value) -> DMat4 {
-    let numbers = |key: &str| -> Option<Vec<f64>> {
-        node[key].as_array()?.iter().map(Value::as_f64).collect()
-    };
-    if let Some(m) = numbers("matrix").filter(|m| m.len() == 16) {
-        return DMat4::from_cols_slice(&m);
-    }
-    let vec3 = |key: &str, or: DVec3| {
-        numbers(key)
-            .filter(|v| v.len() == 3)
-            .map_or(or, |v| DVec3::from_slice(&v))
-    };
-    let rotation = numbers("rotation")
-        .filter(|r| r.len() == 4)
-        .map_or(DQuat::IDENTITY, |r| DQuat::from_slice(&r));
-    DMat4::from_scale_rotation_translation(
-        vec3("scale", DVec3::ONE),
-        rotation,
-        vec3("translation", DVec3::ZERO),
-    )
-}
 
 #[cfg(test)]
 mod tests {
