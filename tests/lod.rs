@@ -187,6 +187,18 @@ fn terrain_levels_verify_and_the_camera_path_draws_fewer_triangles() {
     let doc: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let cameras = doc["cameras"].as_array().unwrap();
     assert_eq!(cameras.len(), shellbake::view::cli::PATH_STOPS);
+    // the empty frame, timed beside the views, and each view's own cost less it
+    let empty = doc["empty_frame_ms"].as_f64().unwrap();
+    assert!(empty > 0.0, "{doc}");
+    assert!(
+        out.contains("empty frame (clear and store, no draw)"),
+        "{out}"
+    );
+    let nets = out
+        .lines()
+        .filter(|l| l.trim_start().starts_with("net "))
+        .count();
+    assert_eq!(nets, shellbake::view::cli::PATH_STOPS, "{out}");
     for c in cameras {
         let reference = c["reference"]["triangles"].as_u64().unwrap();
         let t: Vec<u64> = c["bakes"]

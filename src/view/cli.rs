@@ -217,8 +217,11 @@ impl<D: super::Draw> super::Draw for Each<D> {
 /// then draws each bake and the runtime reference `args.frames` times per camera and prints
 /// the mean GPU time of a frame (timestamp queries; wall time where the adapter has none), the
 /// triangles drawn, and on a second line per camera the mean CPU time to record and submit a
-/// frame ([`super::gpu::Timing::cpu_ms`]) with the draw calls it records. A mesh is drawn from the front, side, close and far views; a scene file
-/// along [`camera_path`].
+/// frame ([`super::gpu::Timing::cpu_ms`]) with the draw calls it records, and on a third the
+/// GPU time less that of an empty frame (the clear and store of the targets, timed once the
+/// same way), with the reference's over it: what a view's own drawing costs, where a small
+/// far-away figure is otherwise mostly the fixed frame. A mesh is drawn from the front, side,
+/// close and far views; a scene file along [`camera_path`].
 pub fn bench(
     input: &Path,
     scene: &SceneFile,
@@ -292,13 +295,25 @@ pub fn bench(
             " (wall time: no timestamp queries)"
         }
     );
+    let ms = |t: &super::gpu::Timing| t.gpu_ms.unwrap_or(t.wall_ms);
+    let light = Light::default();
+    // the frame with nothing in it (the clear and the store of the targets), timed the same
+    // way: what every view pays whatever it draws, shown so that a view's own cost reads apart
+    let (_, nothing) = super::draw_headless(
+        &gpu,
+        &mut Each::<GltfRenderer>(Vec::new()),
+        &cameras[0].1,
+        &light,
+        args.size,
+        args.frames,
+    );
+    let empty_ms = ms(&nothing);
+    println!("  empty frame (clear and store, no draw): {empty_ms:.3} ms");
     print!("  {:8} {:>22}", "camera", "reference");
     for (name, ..) in BENCH_VARIANTS {
         print!(" {name:>22}");
     }
     println!();
-    let ms = |t: &super::gpu::Timing| t.gpu_ms.unwrap_or(t.wall_ms);
-    let light = Light::default();
     let mut rows = Vec::new();
     let mut totals = vec![(0.0f64, 0usize); 1 + bakes.len()];
     for (name, camera) in &cameras {
@@ -333,6 +348,17 @@ pub fn bench(
             print!(" {ms:>9.3} ms {draws:>9}");
         }
         println!();
+        // the view's own cost, less the empty frame, and the reference's over each bake's
+        let net = |ms: f64| (ms - empty_ms).max(0.0);
+        print!("  {:8}", "  net");
+        for &(ms, _) in &row {
+            print!(
+                " {:>9.3} ms {:>8.2}×",
+                net(ms),
+                net(row[0].0) / net(ms).max(1e-9)
+            );
+        }
+        println!();
         rows.push(serde_json::json!({
             "camera": name, "eye": camera.eye.to_array(), "target": camera.target.to_array(),
             "reference": {
@@ -364,7 +390,7 @@ pub fn bench(
         let doc = serde_json::json!({
             "input": input.display().to_string(), "adapter": info.name,
             "gpu_timestamps": gpu.timestamps, "size": [args.size.0, args.size.1],
-            "frames": args.frames, "cameras": rows,
+            "frames": args.frames, "empty_frame_ms": empty_ms, "cameras": rows,
         });
         crate::output::write::write_atomic(
             path,
