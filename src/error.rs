@@ -1,5 +1,6 @@
 //! Library errors. Only I/O and user input fail; every error names the file and, where there is
-//! one, the element (DESIGN §1). The binary maps these to messages and exit codes.
+//! one, the element (docs/how-it-works.md#errors-at-the-boundary). The binary maps these to
+//! messages and exit codes.
 
 use std::path::{Path, PathBuf};
 

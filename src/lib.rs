@@ -2,17 +2,19 @@
 //!
 //! ## The map
 //!
-//! The folders follow the pipeline:
+//! The folders follow the pipeline, on top of a ground floor of shared nouns:
 //!
 //! | folder | what it holds |
 //! |---|---|
+//! | [`model`] | the ground floor: the mesh ([`model::mesh`]), the skeleton and its clips ([`model::skeleton`]), exact-position topology ([`model::topology`]), the meshopt views a compressed file is read through ([`model::meshopt`]) |
 //! | [`input`] | reading meshes and assets: OBJ, glTF/GLB ([`input::document`], one reader for the loader and the viewer), the asset kept whole ([`input::asset`]: parts, `--only`, paint), skins, density/length/comb maps ([`input::maps`]) |
 //! | [`stages`] | the core stages every surface runs, in plan order |
 //! | [`effects`] | the stages a surface asks for: occlusion, gravity (comb), wind, sheen, fins, outline |
 //! | [`output`] | [`output::pack`] (glTF streams, nodes, materials), [`output::write`] (JSON, GLB), [`output::compress`] (meshopt), [`output::graft`] (the fur put back into the asset), [`output::target`] (what each engine reads: `--target`) |
 //! | [`fixtures`] | procedural inputs for examples and tests (the critter, the skinned tube) |
 //! | [`view`] | the wgpu viewer, the runtime reference, `verify`, `bench`, `study` |
-//! | the ground floor | [`error`], [`facts`] (what a stage reports), [`grid`], [`mesh`], [`srgb`]; then [`params`] (every stage's parameters, presets as data), [`scene`] (scene files, the plan), [`report`], [`batch`] |
+//! | beside the ground floor | [`error`], [`facts`] (what a stage reports), [`grid`], [`srgb`] |
+//! | beside the bake (this file) | [`params`] (every stage's parameters, presets as data), [`scene`] (scene files, the plan), [`report`], [`batch`] |
 //!
 //! ## The bake
 //!
@@ -56,17 +58,18 @@
 //! need.
 //!
 //! Skinned fur has no stage of its own: the load stage's facts say what the file keeps
-//! ([`skin`]); [`blocked`] names the stages a skinned surface cannot take.
+//! ([`model::skeleton`]); [`blocked`] names the stages a skinned surface cannot take.
 //!
 //! **Adding an effect** touches its file in [`effects`] (its parameters, its work, its
 //! [`facts::Reported`]), the plan table ([`scene::Effect`], [`scene::Stage`]) with its line in
 //! the look phase here, and the writer's stream model ([`output::pack`]).
 //!
-//! Modules form a tree of imports (`tests/architecture.rs` checks it; each module of a folder
-//! is its own node), ground floor first: `error`, `facts`, `grid`, `mesh`, `srgb`,
-//! `output::compress` (the meshopt codecs, read by `input` and written by `write`) → the stages
-//! and effects (each owning its parameters) → `params` → `scene` → `report` → this file. After
-//! the pipeline, [`view`] draws what was baked, draws the runtime shell technique from the same
+//! Modules import only from their own floor or below, and no module reaches itself through its
+//! imports (`tests/architecture.rs` checks both, each file its own module, and lists by name
+//! what does not hold yet): the ground floor ([`model`], `error`, `facts`, `grid`, `srgb`) →
+//! [`input`] → [`stages`] → [`effects`] → [`output`] → the bake (this file, `params`, `scene`,
+//! `report`, `batch`, `fixtures`) → [`view`]; the binary's `cli` on top. After the pipeline,
+//! [`view`] draws what was baked, draws the runtime shell technique from the same
 //! input as a reference, and compares the two (`shellbake verify`).
 
 pub mod batch;
@@ -76,7 +79,7 @@ pub mod facts;
 pub mod fixtures;
 pub mod grid;
 pub mod input;
-pub mod mesh;
+pub mod model;
 pub mod output;
 pub mod params;
 pub mod report;
@@ -89,8 +92,7 @@ pub mod view;
 use effects::{fins, gravity, occlusion, outline, wind};
 use output::{compress, graft, pack, write};
 use stages::{
-    clamp, colour, cull, frames, lod, merge, orient, shells, skin, strands, tessellate, tiling,
-    weld,
+    clamp, colour, cull, frames, lod, merge, orient, shells, strands, tessellate, tiling, weld,
 };
 
 use std::path::Path;
@@ -102,7 +104,7 @@ use rayon::prelude::*;
 use facts::Reported;
 
 pub use error::{Error, Result};
-use mesh::{Mesh, Scene};
+use model::mesh::{self, Mesh, Scene};
 use pack::{Packed, PackedSurface};
 use params::{BakeParams, Preset};
 use report::{Report, SceneReport};
@@ -133,7 +135,7 @@ pub struct BakedSurface {
     /// The LOD chain (LOD 0 alone without the effect `lod`).
     pub levels: Vec<lod::Level>,
     /// The skin `mesh.skin` indexes, placed, when the input is skinned.
-    pub skeleton: Option<skin::Skeleton>,
+    pub skeleton: Option<model::skeleton::Skeleton>,
     /// The `fins` effect's edges and strip.
     pub fins: Option<fins::Fins>,
     /// The `outline` effect's hull.
@@ -187,7 +189,8 @@ pub struct Loaded {
     pub part: Option<PartOf>,
 }
 
-/// What a surface that is one part of an asset (DESIGN §10) does differently: its fur takes the
+/// What a surface that is one part of an asset (docs/how-it-works.md#asset-in-asset-out) does
+/// differently: its fur takes the
 /// asset's colours, and when it is grafted into the asset it draws no base layer (the asset's
 /// primitive is the base) and a skinned one stores its positions in the asset's bind space
 /// (the graft binds it to the asset's skin).
@@ -200,7 +203,7 @@ pub struct PartOf {
     /// fur's colours, as `verify` compares it with the runtime technique.
     pub graft: bool,
     /// The rest weights of the part's shape keys when grafted (the mesh then carries their
-    /// deltas, [`crate::mesh::Mesh::morphs`]); empty otherwise.
+    /// deltas, [`crate::model::mesh::Mesh::morphs`]); empty otherwise.
     pub shape_rest: Vec<f32>,
     /// Their names, when the asset names them (`extras.targetNames`).
     pub shape_names: Vec<String>,
@@ -1400,7 +1403,7 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
     }
     let topology = if retopologise {
         // the new vertices and triangles need their own topology
-        weld::Topology::new(&mesh.positions, &mesh.indices)
+        model::topology::Topology::new(&mesh.positions, &mesh.indices)
     } else {
         oriented.topology
     };

@@ -327,7 +327,8 @@ impl BakeArgs {
         }
     }
 
-    /// The input as an asset kept whole with fur added (DESIGN §10): a glTF file, or an OBJ
+    /// The input as an asset kept whole with fur added (docs/how-it-works.md#asset-in-asset-out): a
+    /// glTF file, or an OBJ
     /// that names a readable `.mtl`; `None` for a plain mesh or a scene file.
     fn asset(&self) -> anyhow::Result<Option<shellbake::input::asset::Asset>> {
         if self.is_scene() {
@@ -940,7 +941,8 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
     // 125 cubes drawn by one node through EXT_mesh_gpu_instancing: instanced fur
     let cubes = shellbake::fixtures::procedural::instanced_cubes();
     shellbake::output::write::write_atomic(&dir.join("cubes_instanced.glb"), &cubes)?;
-    // the creature assets (DESIGN §10): one critter; two on a ground with a camera and a light
+    // the creature assets (docs/how-it-works.md#asset-in-asset-out): one critter; two on a ground
+    // with a camera and a light
     use shellbake::fixtures::critter::{critter_glb, Critters};
     let one = critter_glb(Critters::default());
     shellbake::output::write::write_atomic(&dir.join("critter.glb"), &one)?;

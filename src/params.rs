@@ -178,7 +178,7 @@ impl BakeParams {
     /// three 32-bit indices per triangle).
     pub fn estimate_extra_bytes(
         &self,
-        scene: &crate::mesh::Scene,
+        scene: &crate::model::mesh::Scene,
         fins: bool,
         outline: bool,
     ) -> u64 {
@@ -209,7 +209,7 @@ impl BakeParams {
     /// sheets) once per side — but it packs only vertices some triangle uses. Counting the loaded
     /// vertices undercounts exactly those inputs; on a closed, UV-mapped mesh (about one vertex per
     /// two triangles) the bound is 3–5× the file.
-    pub fn estimate_bytes(&self, scene: &crate::mesh::Scene) -> u64 {
+    pub fn estimate_bytes(&self, scene: &crate::model::mesh::Scene) -> u64 {
         let triangles = scene
             .meshes
             .iter()
@@ -239,7 +239,7 @@ impl BakeParams {
     /// channel and a sampler in the JSON.
     pub fn estimate_animation_bytes(
         &self,
-        scene: &crate::mesh::Scene,
+        scene: &crate::model::mesh::Scene,
         wind: bool,
         (channels, keys): (u64, u64),
     ) -> u64 {
@@ -267,7 +267,7 @@ impl BakeParams {
     /// The JSON a copy of the surface's fur nodes adds (an instanced part's fur is copied to
     /// every instance, `output/graft.rs`): a node per layer mesh, the fins and the outline, and
     /// a channel per node for each of `channels` animation channels on them.
-    pub fn estimate_copy_bytes(&self, scene: &crate::mesh::Scene, channels: u64) -> u64 {
+    pub fn estimate_copy_bytes(&self, scene: &crate::model::mesh::Scene, channels: u64) -> u64 {
         // an instanced part takes one level in one piece (`blocked`); a node names its mesh,
         // its weights (a float per target) and its marker
         let meshes = crate::output::pack::level_layers(self.shells.layers as u64, 1) + 2;
@@ -277,7 +277,7 @@ impl BakeParams {
     /// At most how many chunks the LOD stage cuts the scene into: cells of the chunk size over
     /// its bounding box (at most one per triangle); the stage may not run, but the bound holds
     /// either way.
-    fn chunk_bound(&self, scene: &crate::mesh::Scene) -> u64 {
+    fn chunk_bound(&self, scene: &crate::model::mesh::Scene) -> u64 {
         let triangles = scene
             .meshes
             .iter()
@@ -318,7 +318,7 @@ impl BakeParams {
 
 /// At most how many morph targets a layer mesh of `scene` carries: the extrusion, the bend,
 /// the occlusion's shade, the wind's two, and the shape keys of its mesh with the most.
-fn targets_bound(scene: &crate::mesh::Scene) -> u64 {
+fn targets_bound(scene: &crate::model::mesh::Scene) -> u64 {
     let morphs = scene.meshes.iter().map(|m| m.morphs.len()).max();
     5 + morphs.unwrap_or(0) as u64
 }

@@ -12,7 +12,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 use crate::output::pack::PackedSurface;
 use crate::params::BakeParams;
 use crate::scene::{Plan, Stage as PlanStage};
@@ -411,7 +411,7 @@ pub struct SceneReport {
     pub target: String,
 }
 
-/// What a bake of an asset kept whole did with the asset (DESIGN §10).
+/// What a bake of an asset kept whole did with the asset (docs/how-it-works.md#asset-in-asset-out).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct AssetReport {
     /// Objects of the input written back, by kind (`nodes`, `meshes`, `materials`, …).

@@ -1,4 +1,5 @@
-//! Scene files and the plan (DESIGN §6): simulate only the effects a scene calls for.
+//! Scene files and the plan (docs/how-it-works.md#the-plan): simulate only the effects a scene
+//! calls for.
 //!
 //! A scene file (TOML) lists surfaces; each names a mesh (relative to the scene file's folder;
 //! absolute paths, `..` and symlinks that lead out of the folder are refused, as glTF URIs are),
@@ -111,7 +112,7 @@ impl Effect {
     /// The effects every surface has unless its effect list says `no-<name>` (`--no-cull`,
     /// `--no-lod`).
     pub const DEFAULT: [Effect; 2] = [Effect::Cull, Effect::Lod];
-    /// Other names of effects: `comb` is the `gravity` effect (DESIGN §6, "gravity / comb").
+    /// Other names of effects: `comb` is the `gravity` effect (docs/how-it-works.md#the-plan).
     pub const ALIASES: [(&'static str, Effect); 2] = [
         ("comb", Effect::Gravity),
         ("tessellate", Effect::Tessellation),
@@ -350,7 +351,7 @@ pub struct SceneFile {
 }
 
 /// Accuracy by intent (`--quality`): three points of `shellbake study`'s Pareto front, applied
-/// on top of a preset. The README's study section gives each one's error, bytes and times.
+/// on top of a preset. docs/measurements.md's study section gives each one's error, bytes and times.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Quality {

@@ -12,7 +12,7 @@ fn decode(v: u8) -> f64 {
     unit(v as f64 / 255.0)
 }
 
-/// A 16-bit level of an sRGB-encoded value ([`crate::mesh::Rgba16`]) as linear light in [0, 1].
+/// A 16-bit level of an sRGB-encoded value ([`crate::model::mesh::Rgba16`]) as linear light in [0, 1].
 pub fn decode_unit(v: u16) -> f64 {
     unit(v as f64 / 65535.0)
 }

@@ -1,23 +1,63 @@
-//! The skeleton's rules, checked on the source: modules import in one direction only (no module
-//! reaches, directly or through others, a module that reaches it back), and the library has no
-//! CLI types (only the binary's files use clap).
+//! The house's rules, checked on the source: every file of the library is a module of its own
+//! (`src/output/pack/guard.rs` is `output::pack::guard`, a folder's `mod.rs` the folder), and
 //!
-//! A module is a file or folder under `src/`, except that the pipeline's folders `stages`,
-//! `effects`, `output` and `fixtures` only group modules: each module in them (`stages::weld`,
-//! `output::pack`) is a node of the tree on its own, and so is each file of `view`.
+//! - **floors**: modules import only from their own floor or the floors below it — the ground
+//!   floor of shared nouns (`model`, and the root's `error`, `facts`, `grid`, `srgb`), then
+//!   `input`, `stages`, `effects`, `output`, the bake (`lib.rs`, `params`, `scene`, `report`,
+//!   `batch`, `fixtures`) and the viewer (`view`) on top; the binary's files (`main.rs`, `cli/`)
+//!   are not part of the library;
+//! - **no circles**: no module reaches, directly or through others, a module that reaches it back;
+//! - **no CLI types** in the library (only the binary's files use clap).
+//!
+//! What the rules do not hold yet is listed, each import by name, in [`NOT_YET`]: the test fails
+//! on any import against the rules that is not listed there, and on a listed one that is gone
+//! (so the list only shrinks).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-/// Folders that group modules rather than being one.
-const GROUPS: [&str; 5] = ["stages", "effects", "output", "fixtures", "view"];
+/// The floors, bottom first: a module's floor is that of its first path segment.
+const FLOORS: [&[&str]; 7] = [
+    &["model", "error", "facts", "grid", "srgb"],
+    &["input"],
+    &["stages"],
+    &["effects"],
+    &["output"],
+    &["lib", "params", "scene", "report", "batch", "fixtures"],
+    &["view"],
+];
 
-/// The module of each library file (`src/output/pack/guard.rs` → `output::pack`,
-/// `src/input/obj.rs` → `input`); the binary's files (`main.rs`, `cli/`) are not part of the
-/// library.
+/// Imports against the rules that the house has not taken out yet: `(from, to)` modules.
+const NOT_YET: &[(&str, &str)] = &[
+    // the effects' laws ride on the layer stack (`ShellStack::{bend, wind, sheen}`)
+    ("stages::shells", "effects::gravity"),
+    ("stages::shells", "effects::sheen"),
+    ("stages::shells", "effects::wind"),
+    // a folder's `mod.rs` holds items its own files use, and names those files
+    ("input", "input::gltf"),
+    ("input", "input::obj"),
+    ("input::asset", "input::gltf"),
+    ("output::pack", "output::pack::extras"),
+    ("output::pack", "output::pack::guard"),
+    ("output::pack", "output::pack::model"),
+    ("output::pack", "output::pack::quantize"),
+    ("view", "view::gltf"),
+    ("view", "view::reference"),
+];
+
+fn floor(module: &str) -> usize {
+    let first = module.split("::").next().unwrap();
+    FLOORS
+        .iter()
+        .position(|f| f.contains(&first))
+        .unwrap_or_else(|| panic!("module `{module}` is on no floor: add it to FLOORS"))
+}
+
+/// The module of each library file and its text; the binary's files are left out.
 fn library_files() -> Vec<(String, String)> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut out = Vec::new();
-    let mut stack = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("src")];
+    let mut stack = vec![src.clone()];
     while let Some(dir) = stack.pop() {
         for e in std::fs::read_dir(&dir).unwrap() {
             let path = e.unwrap().path();
@@ -28,24 +68,20 @@ fn library_files() -> Vec<(String, String)> {
             if path.extension().is_none_or(|x| x != "rs") {
                 continue;
             }
-            let rel = path
-                .strip_prefix(Path::new(env!("CARGO_MANIFEST_DIR")).join("src"))
-                .unwrap();
-            let parts: Vec<String> = rel
-                .iter()
+            let parts: Vec<String> = (path.strip_prefix(&src).unwrap().iter())
                 .map(|p| p.to_string_lossy().trim_end_matches(".rs").to_string())
                 .collect();
-            if ["main", "cli", "lib"].contains(&parts[0].as_str()) {
+            if ["main", "cli"].contains(&parts[0].as_str()) {
                 continue;
             }
-            let top = match GROUPS.contains(&parts[0].as_str()) && parts.len() > 1 {
-                true if parts[1] == "mod" => parts[0].clone(),
-                true => format!("{}::{}", parts[0], parts[1]),
-                false => parts[0].clone(),
-            };
-            out.push((top, std::fs::read_to_string(&path).unwrap()));
+            let mut parts = parts;
+            if parts.len() > 1 && parts.last().unwrap() == "mod" {
+                parts.pop();
+            }
+            out.push((parts.join("::"), std::fs::read_to_string(&path).unwrap()));
         }
     }
+    out.sort();
     out
 }
 
@@ -54,107 +90,250 @@ fn code(text: &str) -> String {
     let text = text.split("#[cfg(test)]\nmod tests").next().unwrap();
     text.lines()
         .filter(|l| !l.trim_start().starts_with("//"))
+        .map(|l| l.split(" // ").next().unwrap())
         .collect::<Vec<_>>()
         .join("\n")
 }
 
-/// The modules `code` names through `crate::` paths: `crate::mesh::Mesh` → `mesh`,
-/// `crate::stages::{weld, clamp::MeshBvh}` → `stages::weld`, `stages::clamp`; inside `view`,
-/// `super::camera::` → `view::camera`.
-fn imported_modules(code: &str, top: &str, modules: &BTreeSet<String>) -> Vec<String> {
-    let ident = |s: &str| -> String {
-        s.chars()
-            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-            .collect()
+fn ident(s: &str) -> &str {
+    let n = s
+        .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .unwrap_or(s.len());
+    &s[..n]
+}
+
+/// The paths a `use` tree or a path names from `rest` on (after its first `::`), each as its
+/// segments: `a::{b, c::{d, e}}` gives `a::b`, `a::c::d`, `a::c::e`.
+fn paths(rest: &str, prefix: &[String], out: &mut Vec<Vec<String>>) {
+    let rest = rest.trim_start();
+    if let Some(group) = rest.strip_prefix('{') {
+        // split the group at its top-level commas
+        let (mut depth, mut start) = (0, 0);
+        for (i, c) in group.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' if depth == 0 => {
+                    paths(&group[start..i], prefix, out);
+                    return;
+                }
+                '}' => depth -= 1,
+                ',' if depth == 0 => {
+                    paths(&group[start..i], prefix, out);
+                    start = i + 1;
+                }
+                _ => {}
+            }
+        }
+        return;
+    }
+    let name = ident(rest);
+    if name.is_empty() {
+        out.push(prefix.to_vec());
+        return;
+    }
+    let mut p = prefix.to_vec();
+    if name != "self" {
+        p.push(name.to_string());
+    }
+    match rest[name.len()..].strip_prefix("::") {
+        Some(after) => paths(after, &p, out),
+        None => out.push(p),
+    }
+}
+
+/// The longest prefix of `path` that is a module.
+fn resolve(path: &[String], modules: &BTreeSet<String>) -> Option<String> {
+    (1..=path.len())
+        .rev()
+        .map(|k| path[..k].join("::"))
+        .find(|m| modules.contains(m))
+}
+
+fn parent(module: &str) -> Vec<String> {
+    if module == "lib" {
+        return Vec::new();
+    }
+    let mut p: Vec<String> = module.split("::").map(String::from).collect();
+    p.pop();
+    p
+}
+
+/// The modules `module`'s code names: `crate::` paths, `super::` and `self::` paths, and its
+/// own child modules by name (`gpu::Gpu` in `view/mod.rs`).
+fn imports(module: &str, code: &str, modules: &BTreeSet<String>) -> BTreeSet<String> {
+    let mut found = Vec::new();
+    let own: Vec<String> = match module {
+        "lib" => Vec::new(),
+        m => m.split("::").map(String::from).collect(),
     };
-    let mut out = Vec::new();
-    // inside `view`, `super::` is the viewer's own folder
-    let parent = top.starts_with("view::").then_some("view");
-    for (prefix, group) in [("crate::", None), ("super::", parent)] {
-        if prefix == "super::" && group.is_none() {
+    let boundary = |i: usize| {
+        let before = code[..i].chars().next_back().unwrap_or(' ');
+        !(before.is_ascii_alphanumeric() || before == '_' || before == ':')
+    };
+    for (i, _) in code.match_indices("crate::") {
+        if boundary(i) {
+            paths(&code[i + 7..], &[], &mut found);
+        }
+    }
+    for (i, _) in code.match_indices("super::") {
+        if !boundary(i) {
             continue;
         }
-        for (i, _) in code.match_indices(prefix) {
-            let rest = &code[i + prefix.len()..];
-            let name = ident(rest);
-            let after = &rest[name.len()..];
-            if let Some(g) = group {
-                let m = format!("{g}::{name}");
-                out.push(if modules.contains(&m) {
-                    m
-                } else {
-                    g.to_string()
-                });
-                continue;
-            }
-            // `crate::Error`: an item of the root, not a module
-            if !after.starts_with("::") || name.starts_with(|c: char| c.is_ascii_uppercase()) {
-                continue;
-            }
-            if !GROUPS.contains(&name.as_str()) {
-                out.push(name);
-                continue;
-            }
-            let inner = &after[2..];
-            if let Some(list) = inner.strip_prefix('{') {
-                let list = &list[..list.find('}').unwrap_or(list.len())];
-                for item in list.split(',') {
-                    let m = ident(item.trim());
-                    if !m.is_empty() {
-                        out.push(format!("{name}::{m}"));
-                    }
-                }
-            } else {
-                out.push(format!("{name}::{}", ident(inner)));
-            }
+        let mut base = parent(module);
+        let mut rest = &code[i + 7..];
+        while let Some(r) = rest.strip_prefix("super::") {
+            base.pop();
+            rest = r;
+        }
+        paths(rest, &base, &mut found);
+    }
+    for (i, _) in code.match_indices("self::") {
+        if boundary(i) {
+            paths(&code[i + 6..], &own, &mut found);
         }
     }
-    // a group's `mod.rs` names its own modules without a prefix (`gpu::Gpu`)
-    if GROUPS.contains(&top) {
-        for m in modules
-            .iter()
-            .filter_map(|m| m.strip_prefix(&format!("{top}::")))
-        {
-            let pattern = format!("{m}::");
-            let hits = code.match_indices(&pattern).filter(|(i, _)| {
-                let before = code[..*i].chars().next_back().unwrap_or(' ');
-                !(before.is_ascii_alphanumeric() || before == '_' || before == ':')
-            });
-            if hits.count() > 0 {
-                out.push(format!("{top}::{m}"));
-            }
+    // child modules named bare (in `use` and paths alike)
+    let children = modules.iter().filter(|m| {
+        let p = parent(m);
+        *m != "lib" && p == own
+    });
+    for child in children {
+        let name = child.rsplit("::").next().unwrap();
+        let pattern = format!("{name}::");
+        if code.match_indices(&pattern).any(|(i, _)| boundary(i)) {
+            found.push(child.split("::").map(String::from).collect());
         }
     }
-    out
+    found
+        .iter()
+        .filter_map(|p| resolve(p, modules))
+        .filter(|m| m != module)
+        .collect()
+}
+
+fn graph() -> BTreeMap<String, BTreeSet<String>> {
+    let files = library_files();
+    let modules: BTreeSet<String> = files.iter().map(|(m, _)| m.clone()).collect();
+    files
+        .iter()
+        .map(|(m, text)| (m.clone(), imports(m, &code(text), &modules)))
+        .collect()
 }
 
 #[test]
-fn modules_form_a_tree_of_imports() {
-    let mut uses: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
-    let files = library_files();
-    let modules: BTreeSet<String> = files.iter().map(|(top, _)| top.clone()).collect();
-    for (top, text) in &files {
-        let code = code(text);
-        let entry = uses.entry(top.clone()).or_default();
-        for name in imported_modules(&code, top, &modules) {
-            if name != *top {
-                entry.insert(name);
+fn every_module_imports_from_its_floor_or_below_and_nothing_reaches_itself() {
+    let uses = graph();
+    let allowed: BTreeSet<(String, String)> = NOT_YET
+        .iter()
+        .map(|(a, b)| (a.to_string(), b.to_string()))
+        .collect();
+    let mut against = Vec::new();
+    let mut used_exceptions = BTreeSet::new();
+    for (from, tos) in &uses {
+        if from == "lib" {
+            continue; // the crate root declares every module
+        }
+        for to in tos {
+            let key = (from.clone(), to.clone());
+            if floor(to) > floor(from) {
+                if allowed.contains(&key) {
+                    used_exceptions.insert(key);
+                } else {
+                    against.push(format!(
+                        "`{from}` (floor {}) imports `{to}` (floor {})",
+                        floor(from),
+                        floor(to)
+                    ));
+                }
             }
         }
     }
-    for start in uses.keys() {
+    // circles, the listed exceptions taken out of the graph
+    let mut cut: BTreeMap<&String, Vec<&String>> = BTreeMap::new();
+    for (from, tos) in &uses {
+        if from == "lib" {
+            continue;
+        }
+        for to in tos {
+            let key = (from.clone(), to.clone());
+            if allowed.contains(&key) {
+                used_exceptions.insert(key);
+                continue;
+            }
+            cut.entry(from).or_default().push(to);
+        }
+    }
+    for start in cut.keys() {
         let mut seen = BTreeSet::new();
-        let mut stack: Vec<&String> = uses[start].iter().collect();
-        while let Some(m) = stack.pop() {
-            assert!(
-                m != start,
-                "module `{start}` reaches itself through its imports: {uses:#?}"
-            );
-            if seen.insert(m.clone()) {
-                stack.extend(uses.get(m).into_iter().flatten());
+        let mut stack: Vec<(&String, Vec<&String>)> =
+            cut[start].iter().map(|m| (*m, vec![*start, *m])).collect();
+        while let Some((m, path)) = stack.pop() {
+            if m == *start {
+                against.push(format!(
+                    "a circle: {}",
+                    path.iter()
+                        .map(|s| format!("`{s}`"))
+                        .collect::<Vec<_>>()
+                        .join(" → ")
+                ));
+                break;
+            }
+            if seen.insert(m) {
+                for next in cut.get(m).into_iter().flatten() {
+                    let mut p = path.clone();
+                    p.push(next);
+                    stack.push((next, p));
+                }
             }
         }
     }
+    let stale: Vec<_> = allowed.difference(&used_exceptions).collect();
+    assert!(
+        against.is_empty() && stale.is_empty(),
+        "imports against the house's rules:\n  {}\nlisted in NOT_YET but gone (take them out):\n  {stale:?}",
+        against.join("\n  ")
+    );
+}
+
+/// The checker itself: `use` trees, `super::` and bare child names resolve to the modules they
+/// name.
+#[test]
+fn the_checker_reads_use_trees() {
+    let modules: BTreeSet<String> = [
+        "lib",
+        "model",
+        "model::mesh",
+        "stages",
+        "stages::weld",
+        "stages::clamp",
+        "view",
+        "view::gpu",
+        "view::camera",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let got = imports(
+        "view::camera",
+        "use crate::{model::mesh::{Mesh, Scene}, stages::{weld::{self, Topology}, clamp}};\n\
+         fn f() { super::gpu::Gpu::new(); }",
+        &modules,
+    );
+    let want: BTreeSet<String> = ["model::mesh", "stages::weld", "stages::clamp", "view::gpu"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    assert_eq!(got, want);
+    let got = imports(
+        "view",
+        "let g = gpu::Gpu::new(); let s = crate::stages::weld::weld(x);",
+        &modules,
+    );
+    let want: BTreeSet<String> = ["view::gpu", "stages::weld"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    assert_eq!(got, want);
 }
 
 #[test]

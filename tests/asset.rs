@@ -1,4 +1,5 @@
-//! Asset in, asset out (DESIGN §10): an asset as artists bring it — textured, flat-shaded,
+//! Asset in, asset out (docs/how-it-works.md#asset-in-asset-out): an asset as artists bring it —
+//! textured, flat-shaded,
 //! skinned, animated, several materials, two characters, a camera, a light and a ground, a
 //! triangle strip (`shellbake::fixtures::critter`) — comes out whole with fur added where `--only` asks,
 //! in the asset's own colours; validator-clean, rendered by three.js, bounded right in
@@ -1237,7 +1238,7 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     let albedo = paint.albedo(mesh);
     let sampled = start.elapsed();
     // mean and worst ΔE76 over `roots` x `roots` strand roots per triangle of `mesh`
-    let error = |mesh: &shellbake::mesh::Mesh, albedo: &[glam::Vec4], roots: usize| {
+    let error = |mesh: &shellbake::model::mesh::Mesh, albedo: &[glam::Vec4], roots: usize| {
         let uvs = mesh.uvs.as_ref().unwrap();
         let (mut sum, mut worst, mut n) = (0.0f64, 0.0f64, 0usize);
         for t in mesh.indices.chunks_exact(3) {
@@ -2552,7 +2553,7 @@ fn an_instanced_part_s_fur_is_instanced_too() {
     let sized = ["--height", "0.05", "--density", "40"];
     let (glb, report) = bake(&input, &dir, "instanced.glb", &sized);
     // the same layout, so that only the instancing differs
-    // (one level: Babylon.js is not asked to load these; the README on its MSFT_lod loader)
+    // (one level: Babylon.js is not asked to load these; docs/engines.md on its MSFT_lod loader)
     let layers = [&sized[..], &["--layout", "layers", "--no-lod"]].concat();
     let (apart, apart_report) = bake(&nodes, &dir, "apart.glb", &layers);
     assert_valid(&[glb.clone(), apart.clone()]);
@@ -2641,8 +2642,8 @@ fn an_instanced_part_s_fur_is_instanced_too() {
         assert!(apart.fold(0.0, f64::max) < 0.2, "{babylon}");
     }
 
-    // the README's instanced asset (`fixtures/cubes_instanced.glb`, 125 cubes): its fur is 31
-    // instanced layer nodes, where copies made 3 875
+    // the instanced asset of docs/measurements.md (`fixtures/cubes_instanced.glb`, 125 cubes):
+    // its fur is 31 instanced layer nodes, where copies made 3 875
     let cubes = fixture("cubes_instanced.glb");
     let committed = std::fs::read(&cubes).unwrap();
     assert!(
@@ -3801,7 +3802,7 @@ fn a_skinned_character_s_fur_switches_levels_in_three_js_and_babylon_and_verifie
     assert_eq!(babylon[0]["lod"]["meshes"], babylon[1]["lod"]["meshes"]);
 
     // the coarser levels are in no scene; Blender puts them in "Orphan Nodes", out of view with
-    // "Import Scene as Collection" on (its default) and drawn with it off (said in the README;
+    // "Import Scene as Collection" on (its default) and drawn with it off (said in docs/engines.md;
     // `--target blender` writes LOD 0 alone)
     let nodes = doc["nodes"].as_array().unwrap();
     let levels: std::collections::BTreeSet<String> = (nodes.iter())

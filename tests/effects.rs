@@ -14,7 +14,7 @@ use common::{inverted_layer_triangles_at, verify_glb, Glb};
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 
-fn load(fixture: &str) -> shellbake::mesh::Scene {
+fn load(fixture: &str) -> shellbake::model::mesh::Scene {
     shellbake::input::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap()
 }
 
@@ -166,7 +166,7 @@ fn wind_sways_in_a_looping_animation_that_verify_checks() {
 
 #[test]
 fn swaying_layers_never_invert_on_the_hard_cases() {
-    let mut shapes: Vec<(String, shellbake::mesh::Scene)> =
+    let mut shapes: Vec<(String, shellbake::model::mesh::Scene)> =
         ["sphere", "torus", "cube", "plane", "teapot", "bunny"]
             .iter()
             .map(|f| (f.to_string(), load(f)))
@@ -174,7 +174,7 @@ fn swaying_layers_never_invert_on_the_hard_cases() {
     shapes.push(("spiky sphere".into(), common::spiky_sphere()));
     shapes.push((
         "split cube".into(),
-        shellbake::mesh::Scene {
+        shellbake::model::mesh::Scene {
             meshes: vec![shellbake::fixtures::procedural::split_cube(1.0)],
             ..Default::default()
         },

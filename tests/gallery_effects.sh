@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates the effect pictures the README shows (out/gallery/effect-*.png), rendered by stock
+# Regenerates the effect pictures docs/guide.md shows (out/gallery/effect-*.png), rendered by stock
 # three.js (GLTFLoader, AnimationMixer for the wind) in headless Chromium: each effect beside the
 # same bake without it, the every-effect scene (fixtures/effects.toml) at two times, and the
 # silhouettes scene (fixtures/silhouettes.toml: fins, outline, tessellation).

@@ -14,7 +14,7 @@ use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 
 fn bake_mesh(
-    scene: &shellbake::mesh::Scene,
+    scene: &shellbake::model::mesh::Scene,
     layout: Layout,
     gravity: bool,
 ) -> (shellbake::Baked, BakeParams) {
@@ -91,7 +91,7 @@ fn bent_layers_stay_outside_and_never_invert() {
         }
     }
     // procedural hard cases: the split cube's inside corners, and spikes
-    let cube = shellbake::mesh::Scene {
+    let cube = shellbake::model::mesh::Scene {
         meshes: vec![shellbake::fixtures::procedural::split_cube(1.0)],
         ..Default::default()
     };

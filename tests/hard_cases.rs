@@ -1,4 +1,5 @@
-//! DESIGN §9: one test per hard case, each named after it, generated in code. A case either bakes
+//! docs/how-it-works.md#robustness: one test per hard case, each named after it, generated in code.
+//! A case either bakes
 //! (with the clamp on, every preset, both layouts, and once more tessellated) to output that is finite everywhere, whose layer triangles never face
 //! against their base triangles, whose layers never cross the mesh, and that the glTF-Validator
 //! passes with no errors and no warnings — or it is refused with an error naming the file and
@@ -12,7 +13,7 @@ use std::process::Command;
 use common::{assert_valid, scratch, Glb};
 use glam::{DVec3, Vec2, Vec3};
 use shellbake::fixtures::procedural;
-use shellbake::mesh::Mesh;
+use shellbake::model::mesh::Mesh;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 

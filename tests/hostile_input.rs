@@ -42,11 +42,11 @@ fn triangle_gltf(nodes: Value, scenes: Value) -> Value {
     })
 }
 
-fn load_json(name: &str, v: &Value) -> Result<shellbake::mesh::Scene, String> {
+fn load_json(name: &str, v: &Value) -> Result<shellbake::model::mesh::Scene, String> {
     load_bytes(Path::new(name), v.to_string().as_bytes()).map_err(|e| e.to_string())
 }
 
-fn assert_refused(r: Result<shellbake::mesh::Scene, String>, words: &[&str]) {
+fn assert_refused(r: Result<shellbake::model::mesh::Scene, String>, words: &[&str]) {
     let e = r.expect_err("should be refused");
     for w in words {
         assert!(e.contains(w), "'{w}' missing from: {e}");
@@ -626,7 +626,7 @@ fn a_baked_file_far_from_the_origin_reads_back_where_it_was() {
     p.strands.mask_size = 32;
     let baked = shellbake::bake(&scene, &p);
     let back = load_bytes(Path::new("far.glb"), &baked.glb).unwrap();
-    let bounds = |m: &shellbake::mesh::Mesh| {
+    let bounds = |m: &shellbake::model::mesh::Mesh| {
         let w = m.positions.iter().map(|p| p.as_dvec3() + m.origin);
         let lo = w.clone().fold(DVec3::INFINITY, DVec3::min);
         let hi = w.fold(DVec3::NEG_INFINITY, DVec3::max);
@@ -1109,7 +1109,7 @@ fn a_temporary_of_another_pid_namespace_is_left_alone() {
 
 /// A `.gltf` output is two files, renamed into place one after the other, the binary first: a
 /// bake killed between the two renames leaves the new `.bin` beside the old `.gltf`, the one
-/// window the README's "Writing outputs" names. The kill is injected by `strace` at the second
+/// window `docs/guide.md` names (Baking, `-o`). The kill is injected by `strace` at the second
 /// `rename` of the bake; a `.glb` output (one rename) has no such window, and the next bake
 /// mends the pair.
 #[cfg(target_os = "linux")]

@@ -255,7 +255,7 @@ fn gltf_node_transforms_meshes_and_primitives() {
         3,
         "two primitives of mesh 0 and one of mesh 1"
     );
-    let world = |m: &shellbake::mesh::Mesh| -> Vec<glam::DVec3> {
+    let world = |m: &shellbake::model::mesh::Mesh| -> Vec<glam::DVec3> {
         m.positions
             .iter()
             .map(|p| m.origin + p.as_dvec3())
@@ -282,7 +282,7 @@ fn gltf_node_transforms_meshes_and_primitives() {
     // mirrored winding flipped, so its face normal still points +z
     let m1 = scene.meshes.iter().find(|m| m.origin.y > 4.0).unwrap();
     let i = &m1.indices;
-    let (n, _) = shellbake::mesh::face_normal(
+    let (n, _) = shellbake::model::mesh::face_normal(
         m1.positions[i[0] as usize],
         m1.positions[i[1] as usize],
         m1.positions[i[2] as usize],

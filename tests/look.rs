@@ -1,4 +1,6 @@
-//! The fur looks like the asset (DESIGN §10, §11): assets made in Blender (`tests/look_assets.py`:
+//! The fur looks like the asset (docs/how-it-works.md#asset-in-asset-out,
+//! docs/how-it-works.md#the-file-is-for-the-users-engine): assets made in Blender
+//! (`tests/look_assets.py`:
 //! a striped cat with separate eye meshes on a ground, a crate with a logo, a vertex-coloured
 //! checker, a ball with a few near-degenerate UV triangles, a robot of parts of very different
 //! sizes, a torus without a material) baked with the defaults and drawn by three.js beside the
@@ -119,7 +121,7 @@ fn pattern(a: &Asset, glb: &Path, report: &Value, dir: &Path, tag: &str) -> [f64
 }
 
 /// The correlations of each named case, per vertex and at strand detail (the defaults), far
-/// and close: what the README's colour table shows.
+/// and close: what the colour table of docs/measurements.md shows.
 /// `file` made plain: its materials' base colour textures and its vertex colours dropped, the
 /// colour a mid orange: fur over one colour, on the same shape from the same cameras, keeps
 /// only the shading — the floor a pattern is held to.
@@ -147,8 +149,8 @@ fn solid(file: &Path, dir: &Path) -> PathBuf {
 }
 
 /// The correlations of each patterned asset at strand detail (the default) against per vertex
-/// and against the same shape in one colour, far and close: what the README's colour table
-/// shows.
+/// and against the same shape in one colour, far and close: what the colour table of
+/// docs/measurements.md shows.
 #[test]
 fn patterns_survive_under_the_fur() {
     let dir = scratch("look-patterns");

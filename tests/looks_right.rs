@@ -7,7 +7,7 @@
 use crate::common;
 
 use common::{inverted_layer_triangles, Glb};
-use shellbake::mesh::{Mesh, Scene};
+use shellbake::model::mesh::{Mesh, Scene};
 use shellbake::params::{BakeParams, Layout, Preset};
 
 fn reversed(m: &Mesh) -> Mesh {

@@ -7,7 +7,7 @@ use crate::common;
 use common::Glb;
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
-use shellbake::mesh::{Mesh, Scene};
+use shellbake::model::mesh::{Mesh, Scene};
 use shellbake::params::{BakeParams, Layout, StrandModel, StrandParams};
 use shellbake::scene::Effect;
 

@@ -3,7 +3,7 @@
 #  - Debian packages: lavapipe (headless Vulkan for the wgpu viewer), Chromium (three.js,
 #    PlayCanvas and Filament in a real browser), Xvfb (the window smoke test), strace and
 #    util-linux's unshare (the hostile-input tests inject a kill at a syscall and bake in a PID
-#    namespace of its own), slurm-wlm (tests/slurm.rs runs the README's recipe on a
+#    namespace of its own), slurm-wlm (tests/slurm.rs runs docs/guide.md's Slurm recipe on a
 #    single-node cluster, tests/slurm/cluster.sh), Node.js if missing.
 #  - npm packages in tests/js: the Khronos glTF-Validator, three.js, PlayCanvas, Filament (its
 #    WebAssembly build with gltfio), playwright-core,

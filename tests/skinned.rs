@@ -15,7 +15,7 @@ use serde_json::Value;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::view::{self, compare, NamedView};
 
-fn tube() -> shellbake::mesh::Scene {
+fn tube() -> shellbake::model::mesh::Scene {
     shellbake::input::load(&common::fixture("tube_skinned.glb")).unwrap()
 }
 

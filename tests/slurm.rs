@@ -1,4 +1,4 @@
-//! The README's Slurm recipe, run as written on a real single-node cluster (Debian's
+//! The Slurm recipe of `docs/guide.md`, run as written on a real single-node cluster (Debian's
 //! `slurm-wlm`, started by `tests/slurm/cluster.sh`; `tests/setup.sh` installs it): a whole
 //! array bakes the library with the same bytes as one process; resubmitting part of the array
 //! (`--array=2`, `--array=1,3`) bakes exactly the shards named and touches no other; an id past
@@ -12,14 +12,15 @@ use std::process::Command;
 use common::{repo, scratch};
 use serde_json::Value;
 
-/// The README's `sbatch` script (the bash block holding `#SBATCH`), for a library at `dir`
-/// with `shards` shards: the folder, the shard count and the array are the only changes.
+/// The `sbatch` script of the guide's Slurm recipe (the bash block holding `#SBATCH` in
+/// `docs/guide.md`), for a library at `dir` with `shards` shards: the folder, the shard count
+/// and the array are the only changes.
 fn recipe(dir: &Path, shards: usize) -> String {
-    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
-    let block = (readme.split("```bash\n").skip(1))
+    let guide = std::fs::read_to_string(repo().join("docs/guide.md")).unwrap();
+    let block = (guide.split("```bash\n").skip(1))
         .map(|b| b.split("```").next().unwrap())
         .find(|b| b.contains("#SBATCH"))
-        .expect("the README has a Slurm recipe");
+        .expect("docs/guide.md has a Slurm recipe (a bash block holding #SBATCH)");
     assert!(
         block.contains("--shards 16") && block.contains("--array=0-15"),
         "{block}"
@@ -66,7 +67,7 @@ fn modified(p: &Path) -> std::time::SystemTime {
 
 #[cfg(target_os = "linux")]
 #[test]
-fn the_readme_s_slurm_recipe_resubmits_exactly_the_shards_named() {
+fn the_guide_s_slurm_recipe_resubmits_exactly_the_shards_named() {
     let dir = scratch("slurm");
     let cluster = Command::new("bash")
         .arg(repo().join("tests/slurm/cluster.sh"))
@@ -170,7 +171,7 @@ fn the_readme_s_slurm_recipe_resubmits_exactly_the_shards_named() {
     assert!(log.contains('5') && log.contains("shard"), "{log}");
     assert!(!out.join("shard-5-of-4.json").exists());
 
-    // and the merge the README runs after the array
+    // and the merge the guide runs after the array
     let merged = Command::new(env!("CARGO_BIN_EXE_shellbake"))
         .args([
             "batch",

@@ -1,9 +1,8 @@
 //! Engine targets (`--target`, `shellbake::output::target`): each target's file for the bunny,
 //! the critter asset and the meadow (a grass terrain and a furred bunny, one scene file) is
 //! validator-clean and uses nothing its engine's importer refuses or ignores. The rules are
-//! written from the importers' published sources (`../shared/research/engines.md` has the
-//! reading), cited below by file and line; engines that run here (three.js, Babylon.js,
-//! PlayCanvas, Blender) also draw the files in their own tests.
+//! written from the importers' published sources, cited below by file and line; engines that
+//! run here (three.js, Babylon.js, PlayCanvas, Blender) also draw the files in their own tests.
 //!
 //! What each rule checks on the file, and why:
 //! - **required extensions** ⊆ what the importer supports, since each of them refuses a file

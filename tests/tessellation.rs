@@ -11,9 +11,9 @@ use crate::common;
 use shellbake::params::{BakeParams, Layout, Preset};
 use shellbake::scene::Effect;
 
-fn coarse_sphere() -> shellbake::mesh::Scene {
+fn coarse_sphere() -> shellbake::model::mesh::Scene {
     let mesh = shellbake::fixtures::procedural::sphere(1.0, 6, 10);
-    shellbake::mesh::Scene {
+    shellbake::model::mesh::Scene {
         meshes: vec![mesh],
         ..Default::default()
     }

@@ -48,7 +48,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
 use crate::grid::HEIGHT_STEPS;
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 use crate::stages::shells::ShadeParams;
 use crate::stages::strands::{mix32, Mask};
 
@@ -167,7 +167,7 @@ pub fn select_edges(
     let cos = (params.angle.to_radians()).cos();
     for tri in mesh.indices.chunks_exact(3) {
         let [p, q, r] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize]);
-        let (n, _) = crate::mesh::face_normal(p, q, r);
+        let (n, _) = crate::model::mesh::face_normal(p, q, r);
         for k in 0..3 {
             let (a, b) = (tri[k], tri[(k + 1) % 3]);
             let (pa, pb) = (position_ids[a as usize], position_ids[b as usize]);
@@ -268,7 +268,7 @@ pub fn fins(
     params: &FinParams,
     seed: u32,
 ) -> Fins {
-    let (ids, _) = crate::stages::weld::position_ids(&mesh.positions);
+    let (ids, _) = crate::model::topology::position_ids(&mesh.positions);
     let (edges, candidates) = select_edges(mesh, &ids, params, seed);
     Fins {
         edges,
@@ -377,7 +377,7 @@ mod tests {
         };
         for (fold, angle, expect) in [(10.0, 0.0, 5), (10.0, 30.0, 4), (40.0, 30.0, 5)] {
             let m = hinge(fold);
-            let (ids, _) = crate::stages::weld::position_ids(&m.positions);
+            let (ids, _) = crate::model::topology::position_ids(&m.positions);
             let (edges, candidates) = select_edges(&m, &ids, &p(angle), 1);
             assert_eq!(
                 (edges.len(), candidates),
@@ -390,7 +390,7 @@ mod tests {
     #[test]
     fn density_keeps_a_stable_fraction() {
         let m = crate::fixtures::procedural::sphere(1.0, 24, 48);
-        let (ids, _) = crate::stages::weld::position_ids(&m.positions);
+        let (ids, _) = crate::model::topology::position_ids(&m.positions);
         let all = FinParams {
             density: 1.0,
             ..FinParams::default()
@@ -464,7 +464,7 @@ mod tests {
     #[test]
     fn fin_quads_stand_on_their_edges() {
         let m = hinge(0.0);
-        let (ids, _) = crate::stages::weld::position_ids(&m.positions);
+        let (ids, _) = crate::model::topology::position_ids(&m.positions);
         let all = FinParams {
             density: 1.0,
             ..FinParams::default()

@@ -18,7 +18,7 @@
 //! - the world direction `[surface.gravity] direction` (normalised; default down), the same for
 //!   every vertex;
 //! - a constant comb, `[surface.gravity] comb = [u, v]`: the direction `u·T + v·B` in each
-//!   vertex's texture frame (`T = ∂P/∂u`, `B = ∂P/∂v`, [`crate::mesh::uv_tangents`]),
+//!   vertex's texture frame (`T = ∂P/∂u`, `B = ∂P/∂v`, [`crate::model::mesh::uv_tangents`]),
 //!   normalised: fur combed along the UV layout, whatever way the surface faces;
 //! - a flow map, the surface key `comb_map` (the mesh's `COLOR_0`, or an RGB PNG over the UV
 //!   square; decoded in [`crate::input::maps`]): red and green hold the tangent-space vector, `128`
@@ -57,7 +57,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 use crate::stages::weld::Welded;
 
 /// `[surface.gravity]` parameters.
@@ -238,7 +238,7 @@ pub fn bend(delta: &[Vec3], axes: &[Vec3], b: &Bend) -> Vec<Vec3> {
 
 /// The pull of every render vertex of `mesh` under a comb field: the tangent-space vectors
 /// `flow` (per render vertex, length at most 1) turned into world vectors in each vertex's
-/// texture frame ([`crate::mesh::uv_tangents`]) with the flow's length, averaged over the render
+/// texture frame ([`crate::model::mesh::uv_tangents`]) with the flow's length, averaged over the render
 /// vertices of each welded vertex (so a seam bends alike on both sides) and given back to each.
 /// `unit`: the mean is normalised (a constant comb paints no amount).
 pub fn comb_pulls(mesh: &Mesh, welded: &Welded, flow: &[Vec2], unit: bool) -> Vec<Vec3> {
@@ -252,7 +252,7 @@ pub fn comb_pulls(mesh: &Mesh, welded: &Welded, flow: &[Vec2], unit: bool) -> Ve
         mesh.vertex_count(),
         "welded from this mesh"
     );
-    let frames = crate::mesh::uv_tangents(mesh);
+    let frames = crate::model::mesh::uv_tangents(mesh);
     let mut sums = vec![Vec3::ZERO; welded.positions.len()];
     for ((&w, &[t, b]), &f) in welded.remap.iter().zip(&frames).zip(flow) {
         let amount = f.length().min(1.0);
@@ -303,7 +303,7 @@ pub fn lean_axes(welded: &Welded, welded_dirs: &[Vec3], delta: &[Vec3], height: 
     } else {
         0
     };
-    let around = crate::mesh::Adjacency::build(n, pairs.into_iter());
+    let around = crate::model::mesh::Adjacency::build(n, pairs.into_iter());
     // strand length per welded vertex: the longest of its render vertices'
     let mut lengths = vec![0.0f32; n];
     for (&w, d) in welded.remap.iter().zip(delta) {
@@ -500,7 +500,7 @@ mod tests {
         let flow: Vec<Vec2> = (0..8)
             .map(|v| if v < 4 { Vec2::X } else { Vec2::Y })
             .collect();
-        let frames = crate::mesh::uv_tangents(&m);
+        let frames = crate::model::mesh::uv_tangents(&m);
         assert!(
             frames[1][0].dot(frames[4][0]) < -0.99,
             "the seam's frames differ"

@@ -1,4 +1,5 @@
-//! An asset as the artist made it (DESIGN §10): the glTF document kept whole, and its furrable
+//! An asset as the artist made it (docs/how-it-works.md#the-document-kept-whole): the glTF document
+//! kept whole, and its furrable
 //! parts — one per triangle primitive of every node instance of the default scene — each with
 //! the names a selection matches, the colour its fur takes, and its geometry as a [`Scene`] of
 //! one mesh for the stages.
@@ -42,8 +43,8 @@ use serde_json::Value;
 use super::document::{Document, Kind, Primitive};
 use super::gltf::{is_triangles, morph_deltas, read_primitive, read_uv_set};
 use crate::error::{Error, Result};
-use crate::mesh::{Mesh, Scene};
-use crate::stages::skin::Interpolation;
+use crate::model::mesh::{Mesh, Scene};
+use crate::model::skeleton::Interpolation;
 
 /// The kinds of name a selector matches.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -569,7 +570,7 @@ impl Asset {
                 };
                 let has_area = mesh.indices.chunks_exact(3).any(|t| {
                     let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
-                    crate::mesh::face_normal(a, b, c).1.is_normal()
+                    crate::model::mesh::face_normal(a, b, c).1.is_normal()
                 });
                 if !has_area {
                     // kept as it is: nothing to grow fur on
@@ -1171,7 +1172,7 @@ impl Paint {
 
     /// The fur's colour at one point, given its `TEXCOORD_0` and `COLOR_0` (see
     /// [`Paint::albedo`]).
-    pub fn colour_at(&self, uv: Option<Vec2>, color: Option<crate::mesh::Rgba16>) -> Vec4 {
+    pub fn colour_at(&self, uv: Option<Vec2>, color: Option<crate::model::mesh::Rgba16>) -> Vec4 {
         let texel = match (&self.texture, uv) {
             (Some(t), Some(uv)) => t.sample(uv),
             _ => Vec4::ONE,
@@ -1186,7 +1187,7 @@ impl Paint {
         &self,
         uv: Vec2,
         inside: Vec2,
-        color: Option<crate::mesh::Rgba16>,
+        color: Option<crate::model::mesh::Rgba16>,
     ) -> Vec4 {
         let texel = match &self.texture {
             Some(t) => t.sample_toward(uv, inside),
@@ -1196,10 +1197,10 @@ impl Paint {
     }
 
     /// Factor × texel × vertex colour, the alpha turned into coverage.
-    fn shade(&self, texel: Vec4, color: Option<crate::mesh::Rgba16>) -> Vec4 {
+    fn shade(&self, texel: Vec4, color: Option<crate::model::mesh::Rgba16>) -> Vec4 {
         let mut c = Vec4::from(self.factor) * texel;
         if let (true, Some(k)) = (self.vertex_colors, color) {
-            c *= Vec4::from(k.map(crate::mesh::level_unit));
+            c *= Vec4::from(k.map(crate::model::mesh::level_unit));
         }
         let c = c.clamp(Vec4::ZERO, Vec4::ONE);
         c.truncate().extend(self.alpha.coverage(c.w))

@@ -1,4 +1,4 @@
-//! The glTF 2.0 reader: one for the loader (`gltf.rs`, which builds [`Mesh`](crate::mesh::Mesh)es
+//! The glTF 2.0 reader: one for the loader (`gltf.rs`, which builds [`Mesh`](crate::model::mesh::Mesh)es
 //! from it) and the viewer (`view/glb.rs`, which draws it), so both accept the same files and
 //! refuse the rest with the same errors, naming the file and the element.
 //!
@@ -12,7 +12,7 @@
 //!   compressed geometry (`KHR_draco_mesh_compression`) would otherwise be read as garbage, and
 //!   its message says how to get a readable file. Views compressed
 //!   with `EXT_`/`KHR_meshopt_compression` are decoded into their fallback buffer when the buffers
-//!   are loaded ([`crate::output::compress::decode_view`]), each with its counts and ranges checked.
+//!   are loaded ([`crate::model::meshopt::decode_view`]), each with its counts and ranges checked.
 //! - **Every index between objects** the core spec defines is in range: scene → nodes; node →
 //!   mesh, children, camera, skin; primitive → accessors (attributes, indices, morph targets),
 //!   material; accessor → buffer view (and its sparse views); buffer view → buffer; image →
@@ -61,7 +61,7 @@ use serde_json::{Map, Value};
 
 use super::{accessor, escape, MAX_INPUT_BYTES};
 use crate::error::{Error, Result};
-use crate::stages::skin::Trs;
+use crate::model::skeleton::Trs;
 
 /// Extensions a file may list in `extensionsRequired`: quantized attributes (decoded by
 /// `accessor.rs`), texture transforms (drawn by the viewer; UVs are read untransformed by the
@@ -200,7 +200,7 @@ pub struct BufferView {
     pub byte_length: usize,
     pub byte_stride: Option<usize>,
     /// Where the view's bytes are compressed (`EXT_`/`KHR_meshopt_compression`).
-    pub meshopt: Option<crate::output::compress::MeshoptView>,
+    pub meshopt: Option<crate::model::meshopt::MeshoptView>,
 }
 
 #[derive(Clone, Debug)]
@@ -719,16 +719,16 @@ fn read_views(root: &Fields, n: &Counts) -> Result<Vec<BufferView>> {
 }
 
 /// A buffer view's meshopt extension object `e`, read into the decoder's description.
-fn meshopt_view(e: &Fields, n: &Counts) -> Result<crate::output::compress::MeshoptView> {
+fn meshopt_view(e: &Fields, n: &Counts) -> Result<crate::model::meshopt::MeshoptView> {
     let mode = e.string("mode")?.ok_or_else(|| e.err("mode is missing"))?;
-    let mode = crate::output::compress::Mode::from_name(mode)
+    let mode = crate::model::meshopt::Mode::from_name(mode)
         .ok_or_else(|| e.err(format!("unknown mode '{}'", escape(mode))))?;
     let filter = match e.string("filter")? {
-        None => crate::output::compress::Filter::None,
-        Some(s) => crate::output::compress::Filter::from_name(s)
+        None => crate::model::meshopt::Filter::None,
+        Some(s) => crate::model::meshopt::Filter::from_name(s)
             .ok_or_else(|| e.err(format!("unknown filter '{}'", escape(s))))?,
     };
-    Ok(crate::output::compress::MeshoptView {
+    Ok(crate::model::meshopt::MeshoptView {
         buffer: e
             .index("buffer", "buffer", n.buffers)?
             .ok_or_else(|| e.err("buffer is missing"))?,
@@ -1143,7 +1143,7 @@ impl Document {
                         n, view.byte_length, view.byte_offset, view.buffer
                     ))
                 })?;
-            crate::output::compress::decode_view(m, src, dst).map_err(bad)?;
+            crate::model::meshopt::decode_view(m, src, dst).map_err(bad)?;
             buffers[view.buffer] = target;
         }
         Ok(())

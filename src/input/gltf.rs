@@ -46,7 +46,7 @@ use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 
 use super::document::{component_name, mode_name, Document, Kind, Primitive};
 use crate::error::{Error, Result};
-use crate::mesh::{Mesh, Scene};
+use crate::model::mesh::{Mesh, Scene};
 
 /// Largest number of vertices plus indices the instanced node tree may hold (every primitive
 /// read, counted once per instance). 2^27 is 134 million, some 3 GB of `Mesh` — far past any base
@@ -307,10 +307,10 @@ impl PrimitiveData<'_> {
         Ok(uvs)
     }
 
-    /// The vertex colours `COLOR_0` as 16-bit levels ([`crate::mesh::Rgba16`]): VEC3 or VEC4
+    /// The vertex colours `COLOR_0` as 16-bit levels ([`crate::model::mesh::Rgba16`]): VEC3 or VEC4
     /// (float, or normalized unsigned byte/short), linear values in [0, 1] (none when missing
     /// or not one per each of `nv` vertices).
-    fn colors(&self, nv: usize) -> Result<Option<Vec<crate::mesh::Rgba16>>> {
+    fn colors(&self, nv: usize) -> Result<Option<Vec<crate::model::mesh::Rgba16>>> {
         let Some(a) = self.prim.attribute("COLOR_0") else {
             return Ok(None);
         };
@@ -327,10 +327,13 @@ impl PrimitiveData<'_> {
             self.buffers,
             ("COLOR_0", kind, &[5126, 5121, 5123], Zeros::Refused),
         )?;
-        let colors: Vec<crate::mesh::Rgba16> = values
+        let colors: Vec<crate::model::mesh::Rgba16> = values
             .chunks_exact(n)
             .map(|c| {
-                let at = |k: usize| c.get(k).map_or(u16::MAX, |&v| crate::mesh::color_level(v));
+                let at = |k: usize| {
+                    c.get(k)
+                        .map_or(u16::MAX, |&v| crate::model::mesh::color_level(v))
+                };
                 [at(0), at(1), at(2), at(3)]
             })
             .collect();
@@ -339,7 +342,7 @@ impl PrimitiveData<'_> {
 
     /// `JOINTS_0` / `WEIGHTS_0` of a skinned primitive over `nv` vertices, for a skin of
     /// `joints` joints (`0`: not skinned, none), each vertex's influences normalized.
-    fn skin(&self, nv: usize, joints: usize) -> Result<Option<crate::mesh::VertexSkin>> {
+    fn skin(&self, nv: usize, joints: usize) -> Result<Option<crate::model::mesh::VertexSkin>> {
         if joints == 0 {
             return Ok(None);
         }
@@ -355,7 +358,7 @@ impl PrimitiveData<'_> {
         if j.len() != 4 * nv || w.len() != 4 * nv {
             return Err(self.err("JOINTS_0 / WEIGHTS_0 count differs from POSITION's"));
         }
-        let mut skin = crate::mesh::VertexSkin::default();
+        let mut skin = crate::model::mesh::VertexSkin::default();
         for (v, (j, w)) in j.chunks_exact(4).zip(w.chunks_exact(4)).enumerate() {
             if let Some(&bad) = j
                 .iter()
@@ -367,7 +370,7 @@ impl PrimitiveData<'_> {
                     "vertex {v} names joint {bad}; the skin has {joints}"
                 )));
             }
-            let (j, w) = crate::stages::skin::normalize_influences(
+            let (j, w) = crate::model::skeleton::normalize_influences(
                 [0, 1, 2, 3].map(|k| {
                     if (j[k] as usize) < joints {
                         j[k] as u16

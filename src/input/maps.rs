@@ -32,7 +32,7 @@
 //! byte step of zero are zero, so a mid-grey PNG written as 127 combs nothing either). The source
 //! is the mesh's `COLOR_0` (`comb_map = "COLOR_0"`, bytes as stored) or an RGB PNG, sampled
 //! bilinearly per vertex in byte units before decoding, like a grey map. In a file whose meshes
-//! only partly carry colours the others read as white (see [`crate::mesh::Scene::merged`]), which
+//! only partly carry colours the others read as white (see [`crate::model::mesh::Scene::merged`]), which
 //! for a flow map is a full comb along the diagonal of `+u` and `+v`: paint them mid grey.
 
 use std::path::Path;
@@ -55,12 +55,12 @@ pub enum Map {
 impl Map {
     /// The map at each vertex of `mesh` as a byte. A vertex-colour map of a mesh without
     /// colours reads as full (loading refuses that pairing, see [`crate::load_surfaces`]).
-    pub fn per_vertex(&self, mesh: &crate::mesh::Mesh) -> Vec<u8> {
+    pub fn per_vertex(&self, mesh: &crate::model::mesh::Mesh) -> Vec<u8> {
         match self {
             Map::Image(m) => m.per_vertex(mesh.uvs.as_deref().unwrap_or(&[])),
             Map::VertexColor(c) => match &mesh.colors {
                 Some(colors) => (colors.iter())
-                    .map(|rgba| crate::mesh::level_byte(rgba[*c]))
+                    .map(|rgba| crate::model::mesh::level_byte(rgba[*c]))
                     .collect(),
                 None => vec![255; mesh.vertex_count()],
             },
@@ -149,7 +149,7 @@ pub enum Flow {
 impl Flow {
     /// The decoded direction at each vertex of `mesh` ([`decode_flow`]). A vertex-colour flow of
     /// a mesh without colours reads as none (loading refuses that pairing).
-    pub fn per_vertex(&self, mesh: &crate::mesh::Mesh) -> Vec<Vec2> {
+    pub fn per_vertex(&self, mesh: &crate::model::mesh::Mesh) -> Vec<Vec2> {
         match self {
             Flow::Image(m) => m.per_vertex(mesh.uvs.as_deref().unwrap_or(&[])),
             Flow::VertexColors => match &mesh.colors {
@@ -249,7 +249,7 @@ mod tests {
         assert!((decode_flow(128.0 + 63.5, 128.0).length() - 0.5).abs() < 1e-6);
         assert!((decode_flow(255.0, 255.0).length() - 1.0).abs() < 1e-6);
         // vertex colours: red and green, as stored
-        let mesh = crate::mesh::Mesh {
+        let mesh = crate::model::mesh::Mesh {
             positions: vec![glam::Vec3::ZERO; 2],
             colors: Some(
                 [[255, 128, 128, 255], [128, 128, 0, 0u16]]

@@ -1,6 +1,7 @@
-//! Input: OBJ (tobj) and glTF/GLB (our own reader, `document.rs`) into [`Scene`]. No tobj type
-//! leaves this module; the glTF [`document`] is public because the viewer reads files through it
-//! too, so that loader and viewer accept and refuse the same files.
+//! Input: OBJ (our own parallel reader, `obj.rs`; tobj reads its `.mtl` files) and glTF/GLB
+//! (our own reader, `document.rs`) into [`Scene`]. No tobj type leaves this module; the glTF
+//! [`document`] is public because the viewer reads files through it too, so that loader and
+//! viewer accept and refuse the same files.
 //!
 //! Everything is checked here, at the boundary, so the stages can assert instead of fail: a
 //! non-finite coordinate, an index past the vertex count, an unreadable or empty file is an
@@ -39,7 +40,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::mesh::{face_normal, first_occurrences, Mesh, Scene, PAR_MIN_LEN};
+use crate::model::mesh::{face_normal, first_occurrences, Mesh, Scene, PAR_MIN_LEN};
 
 /// Largest accepted world coordinate. Beyond it, squared extents overflow `f32` and no shell
 /// height means anything; 1e15 is far past any real asset (a planet in millimetres is 1.3e10).
@@ -348,7 +349,7 @@ fn box_axes(mesh: &Mesh) -> Vec<u8> {
 /// For each triangle, the triangles across its three edges (by exact position, so split normals
 /// or UVs do not cut them apart), where exactly one other triangle shares the edge.
 fn edge_neighbours(mesh: &Mesh) -> Vec<[Option<u32>; 3]> {
-    let topology = crate::stages::weld::Topology::new(&mesh.positions, &mesh.indices);
+    let topology = crate::model::topology::Topology::new(&mesh.positions, &mesh.indices);
     let sides = topology.sides(&topology.tris(&mesh.indices));
     let triangles = mesh.indices.len() / 3;
     topology.neighbours(&sides, triangles, |_| true, |l| l.map(|(n, _)| n))

@@ -87,7 +87,7 @@ use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use crate::error::{Error, Result};
-use crate::mesh::{first_occurrences, Mesh, Scene, PAR_MIN_LEN};
+use crate::model::mesh::{first_occurrences, Mesh, Scene, PAR_MIN_LEN};
 
 /// Largest polygon triangulated by ear clipping (its cost grows with the cube of the corner
 /// count on adversarial shapes); larger ones are fanned with a warning.
@@ -439,8 +439,8 @@ fn uvs(t: &[Option<[f64; 2]>]) -> Vec<Vec2> {
 }
 
 /// Vertex colours (`v x y z r g b`: colours in [0, 1]) as 16-bit levels.
-fn colors(c: &[[f64; 3]]) -> Vec<crate::mesh::Rgba16> {
-    let b = |v: f64| crate::mesh::color_level(v);
+fn colors(c: &[[f64; 3]]) -> Vec<crate::model::mesh::Rgba16> {
+    let b = |v: f64| crate::model::mesh::color_level(v);
     c.iter()
         .map(|c| [b(c[0]), b(c[1]), b(c[2]), u16::MAX])
         .collect()
@@ -1503,7 +1503,8 @@ fn map_uri(path: &Path, file: &str) -> Option<String> {
         .find(|uri| super::document::confined_file(path, uri).is_some())
 }
 
-/// An OBJ with materials as a glTF asset (DESIGN §10): one node and mesh per OBJ object (its
+/// An OBJ with materials as a glTF asset (docs/how-it-works.md#the-document-kept-whole): one node
+/// and mesh per OBJ object (its
 /// name kept; positions relative to the object's origin, which the node's translation holds in
 /// `f64`), one primitive per material the object's faces use (tobj splits an object at each
 /// `usemtl`; the pieces of one object are its mesh's primitives, as a glTF exporter writes

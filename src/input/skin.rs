@@ -1,6 +1,6 @@
 //! Skins and node animations of a glTF document, for the loader (a skinned input's
 //! [`Skeleton`]) and the viewer (a baked file's joints and clips). What they mean is in
-//! [`crate::stages::skin`]; here they are read and checked: a skin's inverse bind matrices are `MAT4`
+//! [`crate::model::skeleton`]; here they are read and checked: a skin's inverse bind matrices are `MAT4`
 //! floats, one per joint (absent: identities); a channel's keys are `SCALAR` floats, increasing,
 //! its values `VEC3`/`VEC4` floats (rotations also as normalized integers), as many as the keys
 //! ask. Channels on `weights` are not node transforms and are left to the caller.
@@ -13,7 +13,7 @@ use serde_json::Value;
 use super::document::{Document, Kind};
 use crate::error::{Error, Result};
 use crate::facts::{Facts, Reported};
-use crate::stages::skin::{Channel, Clip, Interpolation, Path, SkelNode, Skeleton};
+use crate::model::skeleton::{Channel, Clip, Interpolation, Path, SkelNode, Skeleton};
 
 /// Skin `s`: its joints (node indices) and inverse bind matrices.
 pub fn read_skin(

@@ -1,4 +1,5 @@
-//! Asset in, asset out (DESIGN §10): the input document written back whole, with the fur of its
+//! Asset in, asset out (docs/how-it-works.md#the-document-kept-whole): the input document written
+//! back whole, with the fur of its
 //! furred parts added.
 //!
 //! [`graft`] takes the asset as read ([`Asset`]: its JSON and its buffers) and the fur-only file
@@ -341,7 +342,7 @@ impl Placing<'_> {
             .chain(extras.iter().map(|&i| (i, 0, packed.weights_of(i))))
             .collect();
         for c in &keys.channels {
-            let cubic = c.interpolation == crate::stages::skin::Interpolation::CubicSpline;
+            let cubic = c.interpolation == crate::model::skeleton::Interpolation::CubicSpline;
             let entries = c.values.len() / k.max(1);
             let mut outputs: Vec<(Vec<u32>, usize)> = Vec::new();
             for &(n, at, rest) in &layers {

@@ -1,4 +1,5 @@
-//! glTF JSON and GLB container (DESIGN §4). The only place that writes glTF JSON.
+//! glTF JSON and GLB container (docs/how-it-works.md#layouts-and-streams). The only place that
+//! writes glTF JSON.
 //!
 //! JSON carries no default-valued noise (no `byteOffset: 0`, no `normalized: false`, no
 //! `alphaCutoff: 0.5`); floats that came from `f32` are written with their shortest decimal form
@@ -42,7 +43,8 @@ use std::path::Path;
 use serde_json::{json, Map, Value};
 
 use crate::error::{Error, Result};
-use crate::output::compress::{self, Filter, MeshoptExtension, Mode};
+use crate::model::meshopt::{Filter, MeshoptView, Mode};
+use crate::output::compress::{self, MeshoptExtension};
 use crate::output::pack::{
     Accessor, Alpha, Material, Node, Packed, PackedMesh, PackedSurface, Semantic, Stream,
     StreamKind,
@@ -101,7 +103,7 @@ pub fn compress_streams(packed: &mut Packed, ext: MeshoptExtension) -> Vec<Optio
                 let (bytes, mode) = compress::encode_indices(&s.bytes[..n], size);
                 // the codec may rotate a triangle's corners (same triangle, same winding): the
                 // file declares what it decodes to
-                let view = compress::MeshoptView {
+                let view = MeshoptView {
                     buffer: 0,
                     byte_offset: 0,
                     byte_length: bytes.len(),
@@ -110,7 +112,7 @@ pub fn compress_streams(packed: &mut Packed, ext: MeshoptExtension) -> Vec<Optio
                     mode,
                     filter: Filter::None,
                 };
-                compress::decode_view(&view, &bytes, &mut s.bytes[..n])
+                crate::model::meshopt::decode_view(&view, &bytes, &mut s.bytes[..n])
                     .expect("own stream decodes");
                 Some(Encoded {
                     bytes,

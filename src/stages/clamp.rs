@@ -1,4 +1,5 @@
-//! The clamp stage (DESIGN §2): directions that agree with their neighbours, and a per-vertex
+//! The clamp stage (docs/how-it-works.md#extrusion): directions that agree with their neighbours,
+//! and a per-vertex
 //! maximum safe height, so that no layer inverts in a concave region and — when the scene asks
 //! for the `collision` effect (`--clamp`) — no layer passes through another part of the mesh.
 //! Smoothing and the inversion bound always run (no default bake may invert a layer triangle);
@@ -58,7 +59,7 @@
 //! cautious on detailed meshes: a corner raised alone tilts a small triangle over long before the
 //! layers, which raise all three together, would invert it. Clamping
 //! without smoothing first: on the 100 k-vertex Stanford dragon it limits far more vertices (see
-//! the README's figures), leaving bald patches along every scan-noise crease.
+//! docs/measurements.md#bake-time-and-size), leaving bald patches along every scan-noise crease.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
@@ -73,7 +74,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
-use crate::mesh::{Adjacency, PAR_MIN_LEN};
+use crate::model::mesh::{Adjacency, PAR_MIN_LEN};
 use crate::stages::frames::Frames;
 use crate::stages::weld::Welded;
 
@@ -348,7 +349,7 @@ fn smooth_directions(
         .with_min_len(PAR_MIN_LEN)
         .map(|t| {
             let [a, b, c] = t.map(|v| welded.positions[v as usize]);
-            crate::mesh::face_normal(a, b, c).0
+            crate::model::mesh::face_normal(a, b, c).0
         })
         .collect();
     let inverts = |d: &[Vec3], t: usize| {
@@ -910,7 +911,12 @@ mod tests {
 
     /// A unit sphere whose radius grows by up to `amplitude` in `levels` steps, chosen by a hash
     /// of the position so that seam and pole copies stay coincident.
-    fn bumpy_sphere(stacks: u32, slices: u32, amplitude: f32, levels: u32) -> crate::mesh::Mesh {
+    fn bumpy_sphere(
+        stacks: u32,
+        slices: u32,
+        amplitude: f32,
+        levels: u32,
+    ) -> crate::model::mesh::Mesh {
         let mut m = crate::fixtures::procedural::sphere(1.0, stacks, slices);
         for p in m.positions.iter_mut() {
             let h = crate::stages::strands::mix32(
@@ -1061,7 +1067,7 @@ mod tests {
         // every smoothed direction is on the outer side of each face around it
         for tri in w.indices.chunks_exact(3) {
             let p = [0, 1, 2].map(|k| w.positions[tri[k] as usize]);
-            let (n, _) = crate::mesh::face_normal(p[0], p[1], p[2]);
+            let (n, _) = crate::model::mesh::face_normal(p[0], p[1], p[2]);
             for &v in tri {
                 if b.welded_direction[v as usize] != f.welded[v as usize] {
                     assert!(b.welded_direction[v as usize].dot(n) > 0.0);

@@ -1,4 +1,5 @@
-//! The colour stage (DESIGN §10): the asset's colour at strand resolution, not per vertex.
+//! The colour stage (docs/how-it-works.md#colour-at-strand-detail): the asset's colour at strand
+//! resolution, not per vertex.
 //!
 //! The fur's colour is a vertex colour (`COLOR_0` of the shell geometry, `mesh.albedo`): glTF's
 //! base colour is texture × factor × vertex colour, and the texture's alpha is the strand mask,
@@ -10,7 +11,7 @@
 //! kept at the detail the strands can show, in any engine, with no texture of its own.
 //!
 //! **Chosen by measurement** over two alternatives the glTF material model leaves
-//! (`shellbake study --colour`, the README's table): a colour texture at one texel per strand
+//! (`shellbake study --colour`, docs/measurements.md#colour-at-strand-detail): a colour texture at one texel per strand
 //! cell cannot share the mask's tiling (the mask repeats; the asset's colour does not), so it
 //! would be the mask untiled — the mask's 256² times the tile count (a 20 × 20 tiling is 5 120²);
 //! a mask re-baked in the asset's own UV layout inherits its islands' seams and texel density
@@ -56,7 +57,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
 use crate::input::asset::{delta_e76, Palette};
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 use crate::stages::tessellate::{push_blended, Joints};
 
 /// How finely the fur's colour follows the asset.
@@ -204,7 +205,7 @@ pub fn refine(mesh: &mut Mesh, paint: Palette, density: f32, params: &ColourPara
     let budget = ((before as f64 * params.max_growth as f64) as usize).max(before + GROWTH_FLOOR);
     let delta_e = params.delta_e as f64;
     for _ in 0..MAX_ROUNDS {
-        let (ids, _) = crate::stages::weld::position_ids(&mesh.positions);
+        let (ids, _) = crate::model::topology::position_ids(&mesh.positions);
         let marked = marked_edges(mesh, &ids, paint, spacing, delta_e);
         if marked.is_empty() {
             break;

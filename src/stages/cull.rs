@@ -1,4 +1,5 @@
-//! Density culling (DESIGN §5): per layer, drop every triangle on which no strand can survive.
+//! Density culling (docs/how-it-works.md#culling-and-lod): per layer, drop every triangle on which
+//! no strand can survive.
 //!
 //! A layer triangle draws a fragment only where the sampled mask alpha `α(uv)`, times the
 //! interpolated density `d` (the density map's `COLOR_0` alpha; 1 without a map), reaches the
@@ -45,7 +46,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::PAR_MIN_LEN;
+use crate::model::mesh::PAR_MIN_LEN;
 use crate::stages::strands::{self, Mask};
 
 /// Widening of every footprint, in level-0 texels, for UV quantization.

@@ -1,4 +1,5 @@
-//! Extrusion directions (DESIGN §2): the direction each vertex moves as the shells rise.
+//! Extrusion directions (docs/how-it-works.md#extrusion): the direction each vertex moves as the
+//! shells rise.
 //!
 //! The direction is **not** the shading normal: it is computed on the position-welded topology
 //! so every render vertex at one position moves the same way (no cracks at hard edges or UV
@@ -26,7 +27,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::{face_normal, Adjacency, PAR_MIN_LEN};
+use crate::model::mesh::{face_normal, Adjacency, PAR_MIN_LEN};
 use crate::stages::weld::Welded;
 
 /// Which rule produced a welded vertex's direction; the report counts each.

@@ -1,4 +1,5 @@
-//! Distance LOD and chunking (DESIGN §5): fewer shells where nobody can tell.
+//! Distance LOD and chunking (docs/how-it-works.md#culling-and-lod): fewer shells where nobody can
+//! tell.
 //!
 //! **Levels.** LOD 0 is the full stack. LOD `k` merges runs of `m = 2^k` consecutive layers above
 //! the base into one: the merged layer sits at the run's mean height with its mean colour and
@@ -55,7 +56,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::Facts;
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 use crate::stages::shells::ShellStack;
 use crate::stages::strands::{self, Mask};
 
@@ -208,7 +209,10 @@ impl<'a> Simplifier<'a> {
         let mesh = base.mesh;
         let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
         // world units per UV unit: √(world area / UV area) over the mesh
-        let (world, uv) = (crate::mesh::world_area(mesh), crate::mesh::uv_area(mesh));
+        let (world, uv) = (
+            crate::model::mesh::world_area(mesh),
+            crate::model::mesh::uv_area(mesh),
+        );
         let uv_scale = if uv > 0.0 && world > 0.0 {
             (world / uv).sqrt() as f32
         } else {

@@ -1,9 +1,10 @@
 //! The merge stage: a surface's meshes become one render mesh — less the triangles of no area
 //! and the vertices no triangle uses (a stray point or a vertex buffer shared with other
 //! primitives would otherwise size the fur: `Mesh::drop_unused`) — whose positions within a
-//! millionth of the diagonal of another are first snapped onto it (`weld::snap_near_twins`: a
+//! millionth of the diagonal of another are first snapped onto it (`crate::model::topology::snap_near_twins`: a
 //! seam computed twice must not extrude apart), which takes the asset's colour at each strand
-//! root (DESIGN §10: sampled here, before any stage splits vertices, so the colour rides with
+//! root (docs/how-it-works.md#colour-from-the-asset: sampled here, before any stage splits
+//! vertices, so the colour rides with
 //! them; tessellation alone samples its new vertices again, from the paint merge hands on while
 //! the mesh keeps the UVs it was sampled at) and the UVs its strands follow: the mesh's own, or
 //! a per-face box projection when it has none with area or `--fur-uv` says they cannot carry
@@ -14,9 +15,8 @@ use glam::Vec3;
 use crate::facts::{Facts, Reported};
 use crate::input::asset::Palette;
 use crate::input::generate_box_uvs;
-use crate::mesh::{has_uv_area, Mesh, Scene};
+use crate::model::mesh::{has_uv_area, Mesh, Scene};
 use crate::stages::tiling::{fur_uv_box, FurUv};
-use crate::stages::weld;
 
 /// Where a surface's fur takes its colour.
 #[derive(Clone, Copy, Debug)]
@@ -50,7 +50,7 @@ pub struct Merged<'a> {
     /// Vertices no triangle uses, and triangles of no area, left out ([`Mesh::drop_unused`]).
     unused: usize,
     empty: usize,
-    /// Vertices moved onto a near twin (`weld::snap_near_twins`).
+    /// Vertices moved onto a near twin (`crate::model::topology::snap_near_twins`).
     snapped: usize,
     warnings: Vec<String>,
 }
@@ -64,7 +64,7 @@ pub fn merge<'a>(scene: &Scene, colour: FurColour<'a>, fur_uv: FurUv) -> Merged<
         mesh.recentre();
     }
     let diagonal = mesh.diagonal();
-    let snapped = weld::snap_near_twins(&mut mesh.positions, diagonal);
+    let snapped = crate::model::topology::snap_near_twins(&mut mesh.positions, diagonal);
     if let FurColour::Asset { paint, color } = colour {
         let albedo = paint.map(|paint| paint.albedo(&mesh));
         mesh.albedo = match (color, albedo) {

@@ -1,4 +1,5 @@
-//! Orientation (DESIGN §2): faces that agree across shared edges, closed parts facing outward.
+//! Orientation (docs/how-it-works.md#extrusion): faces that agree across shared edges, closed parts
+//! facing outward.
 //!
 //! Shells grow along the extrusion directions, which follow the winding of the faces. A closed
 //! mesh wound clockwise (many exporters write one) would grow its fur inward, and a part whose
@@ -41,8 +42,9 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::facts::{Facts, Reported};
-use crate::mesh::{face_normal, Classes, Mesh, PAR_MIN_LEN};
-use crate::stages::weld::{folded, EdgeSide, Topology};
+use crate::model::mesh::{face_normal, Classes, Mesh, PAR_MIN_LEN};
+use crate::model::topology::{EdgeSide, Topology};
+use crate::stages::weld::folded;
 use rayon::prelude::*;
 
 /// What the orient stage does.

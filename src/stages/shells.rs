@@ -1,4 +1,5 @@
-//! Shell layers (DESIGN §3–4): layer heights, per-layer shade, and the extrusion delta.
+//! Shell layers (docs/how-it-works.md#the-strand-mask, #layouts-and-streams): layer heights,
+//! per-layer shade, and the extrusion delta.
 //!
 //! Layer `j` of `N` (base included, `j = 0` is the base) sits at normalised height
 //! `t_j = k_j / HEIGHT_STEPS` with `k_j = round(j · HEIGHT_STEPS / N)`: evenly spaced to within
@@ -34,7 +35,7 @@ pub struct ShellParams {
     pub height_fraction: f32,
 }
 
-/// Shading parameters (per-layer colours, DESIGN §3).
+/// Shading parameters (per-layer colours, docs/how-it-works.md#the-strand-mask).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ShadeParams {
@@ -169,7 +170,8 @@ pub struct ShellStack {
 /// through the fur.
 pub const ASSET_ROOT_SHADE_MIN: f32 = 0.8;
 
-/// The shade of fur that takes its asset's colour (DESIGN §10): a grey ramp from the preset's
+/// The shade of fur that takes its asset's colour (docs/how-it-works.md#colour-from-the-asset): a
+/// grey ramp from the preset's
 /// root-to-tip luminance ratio (at least [`ASSET_ROOT_SHADE_MIN`]) at the root to 1 at the tip,
 /// with a quarter of the preset's occlusion and its roughness; the colour itself comes per vertex. The
 /// presets' gradients darken roots to a tenth of the tips, which on an asset's own colours

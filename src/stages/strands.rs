@@ -1,4 +1,5 @@
-//! The strand model (DESIGN §3): one mask, one cutoff per layer, sampled with linear filtering.
+//! The strand model (docs/how-it-works.md#the-strand-mask): one mask, one cutoff per layer, sampled
+//! with linear filtering.
 //!
 //! Every shell method reduces to a per-texel quantity that a layer compares against its own
 //! cutoff: layer `j` at normalised height `t_j` shows a point iff `alpha(uv) >= cutoff_j`. The
@@ -107,7 +108,7 @@ pub const SKIN_SHADE: u8 = (255 - SHADE_SPAN / 3) as u8;
 /// Grey of every noise-law texel (no per-strand shade).
 pub const NO_SHADE: u8 = 255;
 
-/// How the survival height `s(uv)` of a texel is computed (DESIGN §3).
+/// How the survival height `s(uv)` of a texel is computed (docs/how-it-works.md#the-strand-mask).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase")]
 pub enum StrandModel {

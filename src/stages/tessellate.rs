@@ -51,7 +51,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
 use crate::input::asset::Palette;
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 
 /// Largest factor (a triangle becomes at most `MAX_FACTOR²` triangles).
 pub const MAX_FACTOR: u32 = 16;
@@ -216,7 +216,7 @@ fn grid_slot(n: u32, a: u32, b: u32) -> usize {
 impl<'a> Subdivision<'a> {
     /// The subdivision of `mesh` by factor `n` with Phong factor `alpha`.
     fn new(mesh: &Mesh, n: u32, alpha: f32, paint: Option<Palette<'a>>) -> Subdivision<'a> {
-        let (ids, unique) = crate::stages::weld::position_ids(&mesh.positions);
+        let (ids, unique) = crate::model::topology::position_ids(&mesh.positions);
         let normals = position_normals(mesh, &ids, unique.len());
         Subdivision {
             src: mesh.clone(),

@@ -1,4 +1,5 @@
-//! Mask tiling (DESIGN §3): how many times the strand mask repeats along each UV axis.
+//! Mask tiling (docs/how-it-works.md#the-strand-mask): how many times the strand mask repeats along
+//! each UV axis.
 //!
 //! Three rules, each from a defect users saw:
 //!
@@ -25,7 +26,7 @@
 use glam::{DVec2, DVec3, Vec2};
 
 use crate::facts::Facts;
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 
 /// Mask texels across a UV range above which 32-bit texture coordinates (24 significant bits,
 /// as GPUs interpolate and scale them) no longer place a sample within an eighth of a texel:
@@ -326,7 +327,7 @@ pub fn mask_tiling(
     let (lo, hi) = mesh
         .uvs
         .as_deref()
-        .map_or((Vec2::ZERO, Vec2::ZERO), crate::mesh::uv_bounds);
+        .map_or((Vec2::ZERO, Vec2::ZERO), crate::model::mesh::uv_bounds);
     let extent = (hi - lo).as_dvec2();
     let mut across = [0u32; 2];
     let mut snapped = requested;

@@ -447,13 +447,13 @@ pub fn render(args: &RenderArgs) -> Result<()> {
 }
 
 /// Keeps the clip `name` (or the first) of `clips`, read from `path` (see
-/// [`crate::stages::skin::choose_clip`]); the error names the file.
+/// [`crate::model::skeleton::choose_clip`]); the error names the file.
 pub fn choose_clip(
     path: &Path,
-    clips: &mut Vec<crate::stages::skin::Clip>,
+    clips: &mut Vec<crate::model::skeleton::Clip>,
     name: Option<&str>,
 ) -> Result<()> {
-    crate::stages::skin::choose_clip(clips, name)
+    crate::model::skeleton::choose_clip(clips, name)
         .map_err(|why| crate::Error::invalid(path, "--clip", crate::input::escape(&why)).into())
 }
 

@@ -32,7 +32,7 @@
 //!   15 shape keys), and one
 //!   `COLOR_0` delta (shellbake's occlusion puts one in the extrusion target).
 //! - **Animations** of morph `weights` (`STEP`, `LINEAR` or `CUBICSPLINE`, evaluated as node
-//!   channels are, `stages::skin::sample`; other paths are ignored here): with a
+//!   channels are, `model::skeleton::sample`; other paths are ignored here): with a
 //!   time set ([`Asset::time`]) each node's weights are its channel's value then, every
 //!   animation looping over its own length, as a player that plays them all would show.
 //! - **`KHR_materials_sheen`** factors (colour, roughness).
@@ -51,7 +51,7 @@ use glam::{DMat4, DVec3};
 use serde_json::Value;
 
 use crate::input::document::{self, Document, Kind};
-use crate::stages::skin::Interpolation;
+use crate::model::skeleton::Interpolation;
 
 /// Morph targets per primitive the vertex shader supports.
 pub const MAX_MORPH_TARGETS: usize = 8;
@@ -279,7 +279,7 @@ pub struct Asset {
     /// Morph weight tracks of each animation.
     pub animations: Vec<Vec<WeightTrack>>,
     /// Node transform channels of every animation.
-    pub clips: Vec<crate::stages::skin::Clip>,
+    pub clips: Vec<crate::model::skeleton::Clip>,
     /// Each skin's joints (nodes) and inverse bind matrices.
     pub skins: Vec<(Vec<usize>, Vec<DMat4>)>,
     /// The time the weights are taken at (`None`: the file's static weights).
@@ -302,7 +302,7 @@ impl WeightTrack {
     pub fn at(&self, time: f32) -> Vec<f32> {
         let n = self.values.len() / (self.times.len().max(1) * self.interpolation.per_key());
         let keys = (&self.times[..], &self.values[..]);
-        crate::stages::skin::sample(self.interpolation, keys, n, time, false)
+        crate::model::skeleton::sample(self.interpolation, keys, n, time, false)
     }
 }
 
@@ -789,10 +789,10 @@ impl Asset {
     pub fn instances_with(&self, pick: impl Fn(usize) -> usize) -> Result<Vec<Instance>> {
         let animated = self.time.map(|t| self.weights_at(t)).unwrap_or_default();
         // node transforms at the time (every clip looping over its own length)
-        let mut locals: Vec<crate::stages::skin::Trs> =
+        let mut locals: Vec<crate::model::skeleton::Trs> =
             self.doc.nodes.iter().map(|n| n.trs).collect();
         if let Some(t) = self.time {
-            crate::stages::skin::pose(&mut locals, &self.clips, t);
+            crate::model::skeleton::pose(&mut locals, &self.clips, t);
         }
         let posed = self.time.is_some() && !self.clips.is_empty();
         let placed = self.doc.walk_with(pick, |n| match posed {

@@ -1,4 +1,5 @@
-//! The viewer (DESIGN §7): a wgpu renderer for the glTF subset shellbake writes, the runtime
+//! The viewer (docs/how-it-works.md#verification): a wgpu renderer for the glTF subset shellbake
+//! writes, the runtime
 //! reference renderer, image comparison, `verify`, and the window.
 //!
 //! | file | owns |

@@ -46,7 +46,7 @@ use wgpu::util::DeviceExt as _;
 
 use super::camera::{Camera, Sphere};
 use super::gpu::{self, Frame, Gpu, Light};
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 use crate::params::{StrandModel, StrandParams};
 use crate::stages::shells::ShellStack;
 use crate::stages::strands;
@@ -76,7 +76,7 @@ pub struct ReferenceInput<'a> {
     pub mean_sheen: bool,
     /// The skin `mesh.skin` indexes (placed), when the input is skinned: the layers are skinned
     /// after the extrusion, bend and sway, as the technique would on a skinned character.
-    pub skeleton: Option<&'a crate::stages::skin::Skeleton>,
+    pub skeleton: Option<&'a crate::model::skeleton::Skeleton>,
     /// The `fins` and `outline` effects' decisions (see `reference_extras.rs`).
     pub fins: Option<&'a crate::effects::fins::Fins>,
     pub outline: Option<&'a crate::effects::outline::Outline>,
@@ -254,7 +254,7 @@ pub struct ReferenceRenderer {
     group: wgpu::BindGroup,
     vertices: [wgpu::Buffer; 8],
     /// The skin and its joint matrices at the current time (relative to `origin`).
-    skeleton: Option<crate::stages::skin::Skeleton>,
+    skeleton: Option<crate::model::skeleton::Skeleton>,
     joints: wgpu::Buffer,
     /// The `wind` effect's period (seconds), when the stack sways.
     wind_period: Option<f32>,

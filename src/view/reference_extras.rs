@@ -19,7 +19,7 @@ use super::glb::Asset;
 use crate::effects::fins::{Fins, Strip};
 use crate::effects::outline::Outline;
 use crate::grid::{BASE_CODE, HEIGHT_STEPS};
-use crate::mesh::Mesh;
+use crate::model::mesh::Mesh;
 use crate::params::{StrandModel, StrandParams};
 use crate::stages::shells::ShadeParams;
 

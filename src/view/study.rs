@@ -1,4 +1,4 @@
-//! `shellbake study`: what accuracy costs (DESIGN §8).
+//! `shellbake study`: what accuracy costs (docs/how-it-works.md#accuracy-and-its-cost).
 //!
 //! The binary sweeps one knob at a time around a base setting and bakes each point; this module
 //! measures the points and writes the results. Per point:

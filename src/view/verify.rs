@@ -1,5 +1,5 @@
 //! `verify`: render the baked file and the runtime reference from the same cameras and compare
-//! (DESIGN §7).
+//! (docs/how-it-works.md#verification).
 //!
 //! The camera is framed once, from the baked file's bounds, and used for both pictures. Views:
 //! `front` (the whole asset), `side` (the silhouette, where shells are seen edge-on and every

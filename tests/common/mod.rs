@@ -469,7 +469,7 @@ pub fn inverted_layer_triangles_with(
 /// A hard case for bent and swaying shells: a sphere with spikes — about one vertex in six,
 /// chosen by a hash of its position (so copies at one position move together), pushed out to
 /// 1.8 × the radius — and no normals (the frames come from the spiky geometry).
-pub fn spiky_sphere() -> shellbake::mesh::Scene {
+pub fn spiky_sphere() -> shellbake::model::mesh::Scene {
     use shellbake::stages::strands::mix32;
     let mut m = shellbake::fixtures::procedural::sphere(1.0, 16, 32);
     for p in &mut m.positions {
@@ -479,7 +479,7 @@ pub fn spiky_sphere() -> shellbake::mesh::Scene {
         }
     }
     m.normals = None;
-    shellbake::mesh::Scene {
+    shellbake::model::mesh::Scene {
         meshes: vec![m],
         ..Default::default()
     }

@@ -40,7 +40,7 @@ pub fn load_and_bake(data: &[u8]) -> Result<usize, String> {
 }
 
 /// The bake [`load_and_bake`] makes of a loaded `scene`.
-fn bake(selector: u8, scene: shellbake::mesh::Scene) -> Result<usize, String> {
+fn bake(selector: u8, scene: shellbake::model::mesh::Scene) -> Result<usize, String> {
     let mut p = shellbake::params::BakeParams::default();
     p.shells.layers = 4;
     p.strands.mask_size = 16;
@@ -244,7 +244,7 @@ pub fn gltf(data: &[u8]) -> Vec<u8> {
 
 /// Writes [`obj`]'s files for `data` into a scratch folder of this thread's own and loads the
 /// OBJ from there (its `mtllib` lines read the folder).
-fn load_obj_folder(data: &[u8]) -> Result<shellbake::mesh::Scene, String> {
+fn load_obj_folder(data: &[u8]) -> Result<shellbake::model::mesh::Scene, String> {
     thread_local! {
         static DIR: std::path::PathBuf = {
             let id = format!("{:?}", std::thread::current().id());

@@ -19,7 +19,7 @@ use glam::{DVec3, Vec3};
 use crate::effects::gravity::Bend;
 
 use super::Targets;
-use crate::mesh::Adjacency;
+use crate::model::mesh::Adjacency;
 use rayon::prelude::*;
 
 /// Rounds of proportional shortening before offenders are flattened.

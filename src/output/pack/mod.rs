@@ -1,4 +1,5 @@
-//! Pack: quantization, vertex ordering and the byte streams of the two layouts (DESIGN §4).
+//! Pack: quantization, vertex ordering and the byte streams of the layouts
+//! (docs/how-it-works.md#layouts-and-streams).
 //!
 //! `pack` turns the editable mesh and the shell stack into [`Packed`]: byte streams, accessors
 //! over them, primitives and materials — a neutral description that `write.rs` turns into glTF
@@ -68,14 +69,14 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
-use crate::mesh::{color_byte, Mesh, PAR_MIN_LEN};
+use crate::model::mesh::{color_byte, Mesh, PAR_MIN_LEN};
 use crate::stages::lod::{Level, LevelLayer};
 use crate::stages::strands::{Mask, BASE_CODE};
 use guard::Vary;
 use image::ImageEncoder;
 use quantize::Bytes;
 
-/// Which glTF layout `pack` writes (DESIGN §4).
+/// Which glTF layout `pack` writes (docs/how-it-works.md#layouts-and-streams).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Layout {
@@ -274,21 +275,23 @@ pub struct PackInput<'a> {
     pub occlusion: Option<&'a [f32]>,
     /// The `sheen` effect's parameters.
     pub sheen: Option<&'a crate::effects::sheen::SheenParams>,
-    /// The skin `mesh.skin` indexes (placed), when the input is skinned ([`crate::stages::skin`]).
-    pub skeleton: Option<&'a crate::stages::skin::Skeleton>,
+    /// The skin `mesh.skin` indexes (placed), when the input is skinned ([`crate::model::skeleton`]).
+    pub skeleton: Option<&'a crate::model::skeleton::Skeleton>,
     /// The `fins` effect's fins (a mesh under the root; see `extras.rs`).
     pub fins: Option<&'a crate::effects::fins::Fins>,
     /// The `outline` effect's hull (a mesh under the root).
     pub outline: Option<&'a crate::effects::outline::Outline>,
     /// The rest weights of `mesh.morphs` (an asset part's shape keys; empty without): the
     /// compact layout's layers carry the shape keys as targets after the extrusion and bend,
-    /// at these weights (DESIGN §10: the fur follows them; the graft animates them).
+    /// at these weights (docs/how-it-works.md#the-document-kept-whole: the fur follows them; the
+    /// graft animates them).
     pub morph_rest: &'a [f32],
     /// The shape keys' names (the asset mesh's `extras.targetNames`; empty when it has none):
     /// the meshes that carry the keys name every target, the keys by these.
     pub morph_names: &'a [String],
     /// Whether the surface draws its own base layer. `false` for a part of an asset kept whole
-    /// (DESIGN §10): the asset's primitive is the base, so no base layer and no bare level are
+    /// (docs/how-it-works.md#the-document-kept-whole): the asset's primitive is the base, so no
+    /// base layer and no bare level are
     /// written, and a skinned surface writes no skeleton of its own (its layer nodes share the
     /// asset's skin, bound when the fur is grafted into the asset).
     pub base: bool,
@@ -336,7 +339,7 @@ struct Geometry<'a> {
     /// (`COLOR_0`), whose materials then carry the shade only.
     albedo: Option<&'a [glam::Vec4]>,
     /// Joints and weights per vertex, and the skin's joint count.
-    skin: Option<(&'a crate::mesh::VertexSkin, usize)>,
+    skin: Option<(&'a crate::model::mesh::VertexSkin, usize)>,
     /// The compact layout's shape-key targets in the stored unit, each with how it is stored:
     /// whole steps like the extrusion, or floats where a delta leaves the `i16` range.
     morphs: Vec<(Vec<Vec3>, Targets)>,
@@ -1546,7 +1549,7 @@ impl Placement {
 /// Fills the surface's root node (`root`, pushed first): the chunks' nodes and the extras'
 /// (fins, outline) under the dequantization. A skinned surface: the skeleton under the root,
 /// the dequantization in the inverse bind matrices, the layer nodes roots of their own (see
-/// `crate::stages::skin`); part of an asset, no skeleton of its own (the graft binds the layer
+/// `crate::model::skeleton`); part of an asset, no skeleton of its own (the graft binds the layer
 /// nodes to the asset's skin, which needs positions in its bind space: no dequantization).
 fn place_root(
     mut b: Builder,
@@ -1613,7 +1616,7 @@ pub fn skinned_nodes(out: &Packed, surface: usize, lod0: &[usize]) -> Vec<usize>
 /// = `dequantize`), each layer node bound to it, and the clips retargeted. Returns the wrapper.
 fn skeleton(
     b: &mut Builder,
-    k: &crate::stages::skin::Skeleton,
+    k: &crate::model::skeleton::Skeleton,
     dequantize: glam::DMat4,
     layers: &[usize],
     name: &str,
@@ -1641,7 +1644,7 @@ fn skeleton(
 /// that carries the placement. Returns the first joint node and the wrapper.
 fn skeleton_nodes(
     b: &mut Builder,
-    k: &crate::stages::skin::Skeleton,
+    k: &crate::model::skeleton::Skeleton,
     name: &str,
 ) -> (usize, usize) {
     let first = b.out.nodes.len();
@@ -1677,7 +1680,7 @@ fn skeleton_nodes(
 /// (`IBM · P⁻¹ · R`, with `R` = `dequantize`). Returns the skin.
 fn skeleton_skin(
     b: &mut Builder,
-    k: &crate::stages::skin::Skeleton,
+    k: &crate::model::skeleton::Skeleton,
     (first, dequantize): (usize, glam::DMat4),
     name: &str,
 ) -> usize {
@@ -1705,7 +1708,7 @@ fn skeleton_skin(
 
 /// One channel of a skeleton clip, retargeted to the joint nodes from `first` on: its keyframe
 /// times (with their range) and values.
-fn clip_channel(b: &mut Builder, c: &crate::stages::skin::Channel, first: usize) -> Channel {
+fn clip_channel(b: &mut Builder, c: &crate::model::skeleton::Channel, first: usize) -> Channel {
     let mut times = Bytes::default();
     times.f32s(&c.times);
     let t = b.stream(
@@ -1809,7 +1812,7 @@ fn wind_channel(
         input,
         output,
         path: None,
-        interpolation: crate::stages::skin::Interpolation::Linear,
+        interpolation: crate::model::skeleton::Interpolation::Linear,
     })
 }
 
@@ -2220,14 +2223,14 @@ impl Builder<'_> {
     /// summing to 255) of the vertices `order` lists.
     fn skin(
         &mut self,
-        (skin, joints): (&crate::mesh::VertexSkin, usize),
+        (skin, joints): (&crate::model::mesh::VertexSkin, usize),
         order: &[u32],
     ) -> [usize; 2] {
         let wide = joints > 256;
         let mut j = Bytes::default();
         let mut w = Bytes::default();
         for &o in order {
-            let (js, ws) = crate::stages::skin::influence_bytes(
+            let (js, ws) = crate::model::skeleton::influence_bytes(
                 skin.joints[o as usize],
                 skin.weights[o as usize],
             );

@@ -278,8 +278,8 @@ pub struct Channel {
     pub input: usize,
     pub output: usize,
     /// `None`: the node's morph weights.
-    pub path: Option<crate::stages::skin::Path>,
-    pub interpolation: crate::stages::skin::Interpolation,
+    pub path: Option<crate::model::skeleton::Path>,
+    pub interpolation: crate::model::skeleton::Interpolation,
 }
 
 /// A skin: its joints (nodes) and inverse bind matrices (an accessor).

@@ -154,7 +154,7 @@ pub struct UvGrid {
 impl UvGrid {
     pub fn fit(uvs: &[Vec2], bits: u32) -> UvGrid {
         assert!((2..=16).contains(&bits));
-        let (lo, hi) = crate::mesh::uv_bounds(uvs);
+        let (lo, hi) = crate::model::mesh::uv_bounds(uvs);
         let extent = (hi - lo).max(Vec2::splat(f32::MIN_POSITIVE));
         let extent = Vec2::new(
             if hi.x > lo.x { extent.x } else { 1.0 },

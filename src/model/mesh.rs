@@ -2,7 +2,8 @@
 //!
 //! Positions are stored as `f32` offsets from `origin` (an `f64` point, normally the
 //! bounding-box centre) so that a model placed 1e6 units from the world origin keeps the same
-//! relative precision as one at the origin (DESIGN §2). Loaders fill `origin`; every stage works
+//! relative precision as one at the origin (docs/how-it-works.md#extrusion). Loaders fill `origin`;
+//! every stage works
 //! in the relative frame; only `write` adds `origin` back (as the node translation, in `f64`).
 //!
 //! `Mesh` is the editable type. The GPU-ready, quantized form lives in `pack/` and is never
@@ -137,7 +138,8 @@ pub struct Mesh {
     pub colors: Option<Vec<Rgba16>>,
     /// The asset's base colour at each vertex (linear RGB; `w`: how much of the surface around
     /// the vertex its material draws, which scales the fur's density), when the fur takes it
-    /// (DESIGN §10; [`crate::input::asset::Paint::albedo`]): sampled where the asset's own UVs
+    /// (docs/how-it-works.md#colour-from-the-asset; [`crate::input::asset::Paint::albedo`]):
+    /// sampled where the asset's own UVs
     /// still hold, then carried through every stage that splits or adds vertices.
     pub albedo: Option<Vec<glam::Vec4>>,
     /// Which of the fur's paints colours each vertex, when its parts have several (one
@@ -147,7 +149,7 @@ pub struct Mesh {
     pub paint_ids: Option<Vec<u32>>,
     /// Triangle list.
     pub indices: Vec<u32>,
-    /// Each vertex's joints and weights, when the input is skinned ([`crate::stages::skin`]).
+    /// Each vertex's joints and weights, when the input is skinned ([`crate::model::skeleton`]).
     pub skin: Option<VertexSkin>,
     /// The `POSITION` deltas of an asset primitive's morph targets (its shape keys), one list
     /// per target with one delta per vertex, in the frame of `positions` (world units, or the
@@ -476,7 +478,7 @@ pub struct Scene {
     pub meshes: Vec<Mesh>,
     /// The skin every mesh is bound to, when the input is skinned (every mesh then has
     /// [`Mesh::skin`]).
-    pub skeleton: Option<crate::stages::skin::Skeleton>,
+    pub skeleton: Option<crate::model::skeleton::Skeleton>,
     /// Things the loader fixed up and the user should know (missing UVs, …).
     pub warnings: Vec<String>,
 }

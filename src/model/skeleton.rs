@@ -2,7 +2,7 @@
 //!
 //! A glTF input whose meshes carry `JOINTS_0`/`WEIGHTS_0` and whose nodes name a skin is read in
 //! its **bind pose** (the mesh node's transform is ignored, as glTF 2.0 §3.7.3.3 says), with each
-//! vertex's four joints and weights ([`crate::mesh::VertexSkin`]) and the [`Skeleton`]: the skin's
+//! vertex's four joints and weights ([`crate::model::mesh::VertexSkin`]) and the [`Skeleton`]: the skin's
 //! joints and every ancestor of them (the nodes their world matrices depend on), the inverse bind
 //! matrices, and every animation channel that moves those nodes (translation, rotation, scale;
 //! `LINEAR`, `STEP` or `CUBICSPLINE`). The fur is grown on the bind pose like any mesh; the output
@@ -331,7 +331,7 @@ pub struct Skeleton {
 }
 
 impl Skeleton {
-    /// Scales by `scale` about the world origin, then translates (as [`crate::mesh::Mesh::place`]).
+    /// Scales by `scale` about the world origin, then translates (as [`crate::model::mesh::Mesh::place`]).
     pub fn place(&mut self, translation: DVec3, scale: f64) {
         self.placement = DMat4::from_translation(translation)
             * DMat4::from_scale(DVec3::splat(scale))
