@@ -118,6 +118,8 @@ pub struct BakedSurface {
     /// The render mesh that was packed (welded-degenerate triangles removed, normals filled).
     pub mesh: Mesh,
     pub shells: ShellStack,
+    /// What the effects left on the layers (bend, lean, wind, occlusion, sheen).
+    pub laws: effects::laws::Laws,
     pub mask: Mask,
     pub packed: PackedSurface,
     /// Mask tiles per UV unit.
@@ -1264,6 +1266,7 @@ fn finish(job: &Job, prepared: Prepared, packed: &mut Packed) -> BakedSurface {
         report,
         mesh: shape.mesh,
         shells: look.shells,
+        laws: look.laws,
         mask: look.mask,
         packed: surface_packed,
         tiles_per_uv: look.tiling.tiles_per_uv,
@@ -1608,6 +1611,7 @@ struct Look {
     mask: Mask,
     tiling: tiling::Tiling,
     shells: ShellStack,
+    laws: effects::laws::Laws,
     fins: Option<fins::Fins>,
     outline: Option<outline::Outline>,
 }
@@ -1629,7 +1633,7 @@ fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, (mask, ms): (Mask, 
     });
     run.report
         .file(Stage::Tiling, tiling.facts(&shape.fur_uv, mask.size));
-    let mut shells = run.report.run_stage(Stage::Shells, || {
+    let shells = run.report.run_stage(Stage::Shells, || {
         shells::build_shells(
             &shape.frames.direction,
             Some(heights.clamp.scale.as_slice()),
@@ -1658,9 +1662,13 @@ fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, (mask, ms): (Mask, 
         let seed = params.strands.seed;
         wind::Wind::new(&params.wind, &mesh.positions, heights.diagonal, seed)
     });
-    (shells.bend, shells.wind, shells.lean) = (bend, wind, lean);
-    shells.sheen = run.gate(Stage::Sheen, || params.sheen.clone());
-    shells.occlusion = heights.occlusion.take();
+    let laws = effects::laws::Laws {
+        bend,
+        lean,
+        wind,
+        occlusion: heights.occlusion.take(),
+        sheen: run.gate(Stage::Sheen, || params.sheen.clone()),
+    };
     let fins = run.gate(Stage::Fins, || {
         let top = shells.t.last().copied().unwrap_or(0.0);
         // the asset's neutral ramp where the part has its colours (the fin vertices carry them)
@@ -1686,6 +1694,7 @@ fn look(run: &mut Run, shape: &Shape, heights: &mut Heights, (mask, ms): (Mask, 
         mask,
         tiling,
         shells,
+        laws,
         fins,
         outline,
     }
@@ -1910,11 +1919,11 @@ fn pack_surface(
         prefix: &prefix,
         density: heights.density_map.as_deref(),
         fur_weight: fur_weight.as_deref(),
-        bend: shells.bend.as_ref(),
-        lean: shells.lean.as_deref(),
-        wind: shells.wind.as_ref(),
-        occlusion: shells.occlusion.as_deref(),
-        sheen: shells.sheen.as_ref(),
+        bend: look.laws.bend.as_ref(),
+        lean: look.laws.lean.as_deref(),
+        wind: look.laws.wind.as_ref(),
+        occlusion: look.laws.occlusion.as_deref(),
+        sheen: look.laws.sheen.as_ref(),
         skeleton: scene.skeleton.as_ref(),
         fins: look.fins.as_ref(),
         outline: look.outline.as_ref(),

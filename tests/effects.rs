@@ -242,7 +242,7 @@ fn a_bake_asking_for_no_effect_runs_none_and_builds_no_bvh() {
         !name.starts_with("fin") && !name.starts_with("outline")
     }));
     assert!(baked.fins.is_none() && baked.outline.is_none());
-    assert!(baked.shells.wind.is_none() && baked.shells.occlusion.is_none());
+    assert!(baked.laws.wind.is_none() && baked.laws.occlusion.is_none());
 
     // occlusion and collision share one BVH
     let baked = shellbake::bake_with(&scene, &p, &[Effect::Collision, Effect::Occlusion]);

@@ -147,7 +147,7 @@ fn a_bake_that_does_not_ask_runs_no_gravity_stage() {
                 .is_none_or(|t| t.len() <= 1)),
         "a second morph target without gravity"
     );
-    assert!(baked.shells.bend.is_none());
+    assert!(baked.laws.bend.is_none());
 
     let (baked, _) = bake("sphere", Layout::Compact, true);
     assert!(baked.report.stage("gravity").unwrap().ran);

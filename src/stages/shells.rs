@@ -137,7 +137,8 @@ impl ShadeParams {
     }
 }
 
-/// The layers of a bake and the per-vertex extrusion.
+/// The layers of a bake and the per-vertex extrusion (what the effects add rides beside it:
+/// [`crate::effects::laws::Laws`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ShellStack {
     /// World-unit height at t = 1.
@@ -150,19 +151,6 @@ pub struct ShellStack {
     pub color: Vec<[f32; 3]>,
     /// Extrusion delta at t = 1, per render vertex.
     pub delta: Vec<Vec3>,
-    /// The `gravity` effect's law: layer `j` of render vertex `v` adds
-    /// `bend.at(v, delta, lean) · t_j^k` (see [`crate::effects::gravity::Bend::at`]).
-    pub bend: Option<crate::effects::gravity::Bend>,
-    /// Lean axis per render vertex, what the `gravity` and `wind` effects bend across
-    /// ([`crate::effects::gravity::lean_axes`]; `None` when neither runs).
-    pub lean: Option<Vec<Vec3>>,
-    /// The `wind` effect's sway law and per-vertex phases (see [`crate::effects::wind`]).
-    pub wind: Option<crate::effects::wind::Wind>,
-    /// The `occlusion` effect's darkening `a` per render vertex: layer `t` is shaded by
-    /// `lerp(1 − a, 1, t)` on top of [`ShellStack::color`] (see [`crate::effects::occlusion`]).
-    pub occlusion: Option<Vec<f32>>,
-    /// The `sheen` effect's parameters (layer `t` carries `KHR_materials_sheen`).
-    pub sheen: Option<crate::effects::sheen::SheenParams>,
 }
 
 /// The root brightness, relative to the tip, of fur coloured by its asset: the preset's
@@ -234,11 +222,6 @@ pub fn build_shells(
         steps,
         t,
         delta,
-        bend: None,
-        lean: None,
-        wind: None,
-        occlusion: None,
-        sheen: None,
     }
 }
 

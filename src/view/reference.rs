@@ -62,6 +62,8 @@ pub struct ReferenceInput<'a> {
     pub mesh: &'a Mesh,
     /// Layer heights, shades and the per-vertex extrusion at t = 1.
     pub shells: &'a ShellStack,
+    /// What the effects left on the layers (bend, lean, wind, occlusion, sheen).
+    pub laws: &'a crate::effects::laws::Laws,
     /// The strand law.
     pub strands: &'a StrandParams,
     /// Mask tiles per UV unit.
@@ -99,6 +101,7 @@ impl<'a> ReferenceInput<'a> {
         ReferenceInput {
             mesh: &baked.mesh,
             shells: &baked.shells,
+            laws: &baked.laws,
             strands: &params.strands,
             tiles_per_uv: baked.tiles_per_uv,
             roughness: params.shade.roughness,
@@ -274,7 +277,7 @@ pub struct ReferenceRenderer {
 impl ReferenceRenderer {
     pub fn new(gpu: &Gpu, input: ReferenceInput) -> ReferenceRenderer {
         let mesh = input.mesh;
-        let shells = input.shells;
+        let (shells, laws) = (input.shells, input.laws);
         assert!(shells.t.len() <= MAX_LAYERS && shells.t.len() == shells.color.len());
         assert_eq!(shells.delta.len(), mesh.vertex_count());
         let normals = mesh
@@ -298,17 +301,16 @@ impl ReferenceRenderer {
         };
         let flat3 = |v: &[Vec3]| v.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>();
         let lean = || {
-            shells
-                .lean
+            laws.lean
                 .as_deref()
                 .expect("gravity and wind make lean axes")
         };
         // the `gravity` effect's bend at the tip per vertex (zero: straight strands)
-        let bends = match &shells.bend {
+        let bends = match &laws.bend {
             Some(b) => crate::effects::gravity::bend(&shells.delta, lean(), b),
             None => vec![Vec3::ZERO; mesh.vertex_count()],
         };
-        let sways = match &shells.wind {
+        let sways = match &laws.wind {
             Some(w) => crate::effects::gravity::bend(&shells.delta, lean(), &w.law),
             None => vec![Vec3::ZERO; mesh.vertex_count()],
         };
@@ -324,8 +326,8 @@ impl ReferenceRenderer {
                     .flat_map(|v| {
                         [
                             input.density.map_or(1.0, |d| d[v] as f32 / 255.0),
-                            shells.occlusion.as_ref().map_or(0.0, |a| a[v]),
-                            shells.wind.as_ref().map_or(0.0, |w| w.phase[v]),
+                            laws.occlusion.as_ref().map_or(0.0, |a| a[v]),
+                            laws.wind.as_ref().map_or(0.0, |w| w.phase[v]),
                         ]
                     })
                     .collect(),
@@ -405,18 +407,18 @@ impl ReferenceRenderer {
         // z: 1 when the layers are skinned
         data.ints = [seed, shells.t.len() as u32, skeleton.is_some() as u32, 0];
         // z: the bend's exponent k (layer weight t^k)
-        let k = shells.bend.as_ref().map_or(1.0, |b| b.k);
+        let k = laws.bend.as_ref().map_or(1.0, |b| b.k);
         data.material = [0.0, input.roughness, k, 0.0];
         for (j, (c, &t)) in shells.color.iter().zip(&shells.t).enumerate() {
             data.layers[j] = [c[0], c[1], c[2], t];
             data.cutoffs[j / 4][j % 4] = strands::step_cutoff(shells.steps[j]);
-            if let Some(s) = &shells.sheen {
+            if let Some(s) = &laws.sheen {
                 let mean = shells.t.iter().sum::<f32>() / shells.t.len().max(1) as f32;
                 let c = s.layer_color(if input.mean_sheen { mean } else { t });
                 data.sheen[j] = [c[0], c[1], c[2], s.roughness];
             }
         }
-        data.wind = [0.0, shells.wind.as_ref().map_or(1.0, |w| w.law.k), 0.0, 0.0];
+        data.wind = [0.0, laws.wind.as_ref().map_or(1.0, |w| w.law.k), 0.0, 0.0];
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shell"),
             size: std::mem::size_of::<ShellData>() as u64,
@@ -525,7 +527,7 @@ impl ReferenceRenderer {
             index_count: mesh.indices.len() as u32,
             layers: shells.t.len() as u32,
             layer_limit: None,
-            wind_period: shells.wind.as_ref().map(|w| w.period),
+            wind_period: laws.wind.as_ref().map(|w| w.period),
             origin: mesh.origin,
             time: None,
             bounds,

@@ -304,7 +304,7 @@ pub fn verify(
     if times.is_empty() {
         // a quarter and three quarters of the wind's period and of the skin's longest clip
         let periods = [
-            input.shells.wind.as_ref().map(|w| w.period),
+            input.laws.wind.as_ref().map(|w| w.period),
             input.skeleton.map(|k| k.duration()).filter(|&d| d > 0.0),
         ];
         for p in periods.into_iter().flatten() {
