@@ -42,7 +42,7 @@ fn arb_mesh() -> impl Strategy<Value = Mesh> {
 
 fn scene_of(m: &Mesh) -> Scene {
     let mut m = m.clone();
-    shellbake::input::generate_box_uvs(&mut m);
+    shellbake::model::box_uvs::generate_box_uvs(&mut m);
     Scene {
         meshes: vec![m],
         warnings: vec![],

@@ -417,7 +417,7 @@ pub struct Asset {
 impl Asset {
     /// Reads a `.gltf` or `.glb` file and finds its parts. Fails like [`super::load`].
     pub fn read(path: &Path) -> Result<Asset> {
-        let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES)
+        let bytes = super::boundary::read_regular_file(path, super::boundary::MAX_INPUT_BYTES)
             .map_err(|e| Error::io(path, e))?;
         Asset::from_bytes(path, &bytes)
     }
@@ -439,7 +439,7 @@ impl Asset {
     /// no readable `.mtl` (a plain mesh, baked as such).
     pub fn read_obj(path: &Path) -> Result<Option<Asset>> {
         // read once: `asset_document` looks for a material library before parsing anything
-        let bytes = super::read_regular_file(path, super::MAX_INPUT_BYTES)
+        let bytes = super::boundary::read_regular_file(path, super::boundary::MAX_INPUT_BYTES)
             .map_err(|e| Error::io(path, e))?;
         let Some(obj) = super::obj::asset_document(path, &bytes)? else {
             return Ok(None);
@@ -455,7 +455,8 @@ impl Asset {
     /// or `.glb`'s image files, an OBJ's `.mtl` files and their `map_Kd` images. For a content
     /// key (`batch`): it may list a file that is not read, never miss one that is.
     pub fn side_files(path: &Path) -> Vec<std::path::PathBuf> {
-        let Ok(bytes) = super::read_regular_file(path, super::MAX_INPUT_BYTES) else {
+        let Ok(bytes) = super::boundary::read_regular_file(path, super::boundary::MAX_INPUT_BYTES)
+        else {
             return Vec::new();
         };
         let ext = path.extension().map(|e| e.to_ascii_lowercase());
@@ -518,13 +519,13 @@ impl Asset {
             if fur.contains(&placed.node) {
                 continue;
             }
-            let node_instances = instances(&doc, &buffers, placed.node)?;
+            let node_instances = super::document::instances(&doc, &buffers, placed.node)?;
             for (k, prim) in doc.meshes[m].primitives.iter().enumerate() {
                 let element = match &doc.nodes[placed.node].name {
                     Some(name) => format!(
                         "node {} '{}' mesh {m} primitive {k}",
                         placed.node,
-                        super::escape(name)
+                        super::boundary::escape(name)
                     ),
                     None => format!("node {} mesh {m} primitive {k}", placed.node),
                 };
@@ -608,7 +609,7 @@ impl Asset {
                     }
                 }
                 if mesh.uvs.is_none() {
-                    super::generate_box_uvs(&mut mesh);
+                    crate::model::box_uvs::generate_box_uvs(&mut mesh);
                     notes.push(format!(
                         "{}: {element} has no UVs; generated a per-face box projection",
                         path.display()
@@ -684,8 +685,8 @@ impl Asset {
                  takes {:.0}% of its base colour, about as light as the metal shows \
                  (--set 'shade.color=[r,g,b]' gives another)",
                 self.doc.path.display(),
-                super::escape(&part.names.node),
-                super::escape(&part.names.material),
+                super::boundary::escape(&part.names.node),
+                super::boundary::escape(&part.names.material),
                 100.0 * (1.0 - (1.0 - METAL_DIFFUSE) * m)
             ))
         });
@@ -695,8 +696,8 @@ impl Asset {
                     "{}: node '{}' (mesh '{}' primitive {}) has no material: its fur takes glTF's \
                      default, white (--set 'shade.color=[r,g,b]' gives another)",
                     self.doc.path.display(),
-                    super::escape(&part.names.node),
-                    super::escape(&part.names.mesh),
+                    super::boundary::escape(&part.names.node),
+                    super::boundary::escape(&part.names.mesh),
                     part.primitive
                 )
             });
@@ -725,7 +726,7 @@ impl Asset {
                 if let Some((_, why)) = self.bare.iter().find(|(n, _)| n.chosen_by(s)) {
                     return Err(Error::invalid(
                         &self.doc.path,
-                        format!("--only {}", super::escape(&s.to_string())),
+                        format!("--only {}", super::boundary::escape(&s.to_string())),
                         format!("matches only parts with nothing to grow fur on: {why}"),
                     ));
                 }
@@ -733,10 +734,10 @@ impl Asset {
                     self.parts.iter().flat_map(|p| p.names.of(s.kind)).collect();
                 names.sort_unstable();
                 names.dedup();
-                let shown: Vec<String> = names.iter().map(|n| super::escape(n)).collect();
+                let shown: Vec<String> = names.iter().map(|n| super::boundary::escape(n)).collect();
                 return Err(Error::invalid(
                     &self.doc.path,
-                    format!("--only {}", super::escape(&s.to_string())),
+                    format!("--only {}", super::boundary::escape(&s.to_string())),
                     format!(
                         "matches no {} a triangle primitive; the file has: {}",
                         match s.kind {
@@ -843,7 +844,7 @@ fn named_like_fur(
          dropped), '{}' first: taken as fur, and their parts as furred",
         doc.path.display(),
         found.len(),
-        super::escape(name("nodes", first))
+        super::boundary::escape(name("nodes", first))
     );
     (
         found
@@ -1452,7 +1453,7 @@ pub const MAX_IMAGE_SIDE: u32 = 16384;
 /// crate's default limit, 512 MB, refused a 12k texture): the bake's colour sampling and the
 /// viewer read images through it.
 pub fn decode_image(bytes: &[u8]) -> image::ImageResult<image::RgbaImage> {
-    decode_image_within(bytes, super::max_memory())
+    decode_image_within(bytes, super::boundary::max_memory())
 }
 
 /// [`decode_image`] allocating at most `budget` bytes (and never more than three 16384² RGBA8
@@ -1524,7 +1525,7 @@ fn outside_the_scene(
     let outside: Vec<String> = (0..doc.nodes.len())
         .filter(|&n| !reached[n] && doc.nodes[n].mesh.is_some() && !fur.contains(&n))
         .map(|n| match doc.json["nodes"][n]["name"].as_str() {
-            Some(name) => format!("'{}'", crate::input::escape(name)),
+            Some(name) => format!("'{}'", crate::input::boundary::escape(name)),
             None => format!("node {n}"),
         })
         .collect();
@@ -1538,79 +1539,6 @@ fn outside_the_scene(
         doc.path.display(),
         if outside.len() == 1 { "is" } else { "are" },
     ))
-}
-
-/// The `EXT_mesh_gpu_instancing` transforms of `node` (empty without the extension): its
-/// `TRANSLATION`, `ROTATION` and `SCALE` accessors, each optional, read per instance.
-pub(crate) fn instances(doc: &Document, buffers: &[Vec<u8>], node: usize) -> Result<Vec<DMat4>> {
-    let attributes =
-        &doc.json["nodes"][node]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
-    let Some(attributes) = attributes.as_object() else {
-        return Ok(vec![]);
-    };
-    let element = format!("node {node}: EXT_mesh_gpu_instancing");
-    let read = |name: &str, components: usize| -> Result<Option<Vec<f64>>> {
-        let Some(a) = attributes.get(name) else {
-            return Ok(None);
-        };
-        let a = (a.as_u64().map(|a| a as usize))
-            .filter(|&a| a < doc.accessors.len())
-            .ok_or_else(|| {
-                Error::invalid(&doc.path, &element, format!("{name} names no accessor"))
-            })?;
-        let kind = if components == 4 {
-            Kind::Vec4
-        } else {
-            Kind::Vec3
-        };
-        if doc.accessors[a].kind != kind {
-            let why = format!("{name} is not a VEC{components}");
-            return Err(Error::invalid(&doc.path, &element, why));
-        }
-        let values = doc.read_accessor(buffers, a, &element)?;
-        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
-            let why = format!("{name} of instance {} is not finite", k / components);
-            return Err(Error::invalid(&doc.path, &element, why));
-        }
-        Ok(Some(values))
-    };
-    let (t, r, s) = (
-        read("TRANSLATION", 3)?,
-        read("ROTATION", 4)?,
-        read("SCALE", 3)?,
-    );
-    let counts = [
-        t.as_ref().map(|v| v.len() / 3),
-        r.as_ref().map(|v| v.len() / 4),
-        s.as_ref().map(|v| v.len() / 3),
-    ];
-    let count = counts.iter().flatten().copied().max().unwrap_or(0);
-    if counts.iter().flatten().any(|&c| c != count) {
-        return Err(Error::invalid(
-            &doc.path,
-            &element,
-            "its attributes' counts differ",
-        ));
-    }
-    fn at(v: &Option<Vec<f64>>, i: usize, n: usize) -> Option<&[f64]> {
-        v.as_ref().map(|v| &v[n * i..n * i + n])
-    }
-    let zero =
-        |i: &usize| at(&r, *i, 4).is_some_and(|q| glam::DQuat::from_slice(q).length() < 1e-6);
-    if let Some(i) = (0..count).find(zero) {
-        let why = format!("ROTATION of instance {i} is a zero quaternion");
-        return Err(Error::invalid(&doc.path, &element, why));
-    }
-    Ok((0..count)
-        .map(|i| {
-            let t = at(&t, i, 3).map_or(glam::DVec3::ZERO, glam::DVec3::from_slice);
-            let r = at(&r, i, 4).map_or(glam::DQuat::IDENTITY, |q| {
-                glam::DQuat::from_slice(q).normalize()
-            });
-            let s = at(&s, i, 3).map_or(glam::DVec3::ONE, glam::DVec3::from_slice);
-            DMat4::from_scale_rotation_translation(s, r, t)
-        })
-        .collect())
 }
 
 /// A `KHR_texture_transform` object as the matrix it stands for (translation · rotation ·

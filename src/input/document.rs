@@ -59,7 +59,8 @@ use base64::Engine as _;
 use glam::{DMat4, DQuat, DVec3};
 use serde_json::{Map, Value};
 
-use super::{accessor, escape, MAX_INPUT_BYTES};
+use super::accessor;
+use super::boundary::{escape, MAX_INPUT_BYTES};
 use crate::error::{Error, Result};
 use crate::model::skeleton::Trs;
 
@@ -313,7 +314,7 @@ pub struct Document {
     /// The nodes of the default scene (or the first scene); with no scene, every node without a
     /// parent.
     pub roots: Vec<usize>,
-    /// Bytes of decoded data charged so far against [`super::max_memory`] ([`Document::charge`]).
+    /// Bytes of decoded data charged so far against [`super::boundary::max_memory`] ([`Document::charge`]).
     spent: std::sync::atomic::AtomicU64,
     /// Whether [`Document::charge`] holds reads to the budget ([`Document::without_budget`]).
     budgeted: bool,
@@ -920,12 +921,12 @@ impl Document {
     }
 
     /// Charges `bytes` of decoded data for `element` against the file's budget
-    /// ([`super::max_memory`]), before they are allocated; past it, an error naming the file and
+    /// ([`super::boundary::max_memory`]), before they are allocated; past it, an error naming the file and
     /// the element and how to raise the budget. What a read is charged for stays charged: a
     /// read that is repeated counts twice, a bound that errs on the safe side.
     pub fn charge(&self, element: &dyn Fn() -> String, bytes: u64) -> Result<()> {
         use std::sync::atomic::Ordering;
-        let limit = super::max_memory();
+        let limit = super::boundary::max_memory();
         let before = self.spent.fetch_add(bytes, Ordering::Relaxed);
         let total = before.saturating_add(bytes);
         if self.budgeted && total > limit {
@@ -947,7 +948,8 @@ impl Document {
         if !self.budgeted {
             return u64::MAX;
         }
-        (super::max_memory()).saturating_sub(self.spent.load(std::sync::atomic::Ordering::Relaxed))
+        (super::boundary::max_memory())
+            .saturating_sub(self.spent.load(std::sync::atomic::Ordering::Relaxed))
     }
 
     /// The document read without the `--max-memory` budget: for bytes this process baked itself
@@ -1186,7 +1188,7 @@ impl Document {
         let real = real_inside(path, &target)
             .map_err(unreadable)?
             .ok_or_else(leaves)?;
-        super::read_regular_file(&real, MAX_INPUT_BYTES).map_err(unreadable)
+        super::boundary::read_regular_file(&real, MAX_INPUT_BYTES).map_err(unreadable)
     }
 
     /// The bytes of buffer view `v` in `buffers` (from [`Document::load_buffers`]); the error
@@ -1503,6 +1505,79 @@ fn percent_decode(s: &str) -> Option<String> {
         }
     }
     String::from_utf8(out).ok()
+}
+
+/// The `EXT_mesh_gpu_instancing` transforms of `node` (empty without the extension): its
+/// `TRANSLATION`, `ROTATION` and `SCALE` accessors, each optional, read per instance.
+pub(crate) fn instances(doc: &Document, buffers: &[Vec<u8>], node: usize) -> Result<Vec<DMat4>> {
+    let attributes =
+        &doc.json["nodes"][node]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
+    let Some(attributes) = attributes.as_object() else {
+        return Ok(vec![]);
+    };
+    let element = format!("node {node}: EXT_mesh_gpu_instancing");
+    let read = |name: &str, components: usize| -> Result<Option<Vec<f64>>> {
+        let Some(a) = attributes.get(name) else {
+            return Ok(None);
+        };
+        let a = (a.as_u64().map(|a| a as usize))
+            .filter(|&a| a < doc.accessors.len())
+            .ok_or_else(|| {
+                Error::invalid(&doc.path, &element, format!("{name} names no accessor"))
+            })?;
+        let kind = if components == 4 {
+            Kind::Vec4
+        } else {
+            Kind::Vec3
+        };
+        if doc.accessors[a].kind != kind {
+            let why = format!("{name} is not a VEC{components}");
+            return Err(Error::invalid(&doc.path, &element, why));
+        }
+        let values = doc.read_accessor(buffers, a, &element)?;
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            let why = format!("{name} of instance {} is not finite", k / components);
+            return Err(Error::invalid(&doc.path, &element, why));
+        }
+        Ok(Some(values))
+    };
+    let (t, r, s) = (
+        read("TRANSLATION", 3)?,
+        read("ROTATION", 4)?,
+        read("SCALE", 3)?,
+    );
+    let counts = [
+        t.as_ref().map(|v| v.len() / 3),
+        r.as_ref().map(|v| v.len() / 4),
+        s.as_ref().map(|v| v.len() / 3),
+    ];
+    let count = counts.iter().flatten().copied().max().unwrap_or(0);
+    if counts.iter().flatten().any(|&c| c != count) {
+        return Err(Error::invalid(
+            &doc.path,
+            &element,
+            "its attributes' counts differ",
+        ));
+    }
+    fn at(v: &Option<Vec<f64>>, i: usize, n: usize) -> Option<&[f64]> {
+        v.as_ref().map(|v| &v[n * i..n * i + n])
+    }
+    let zero =
+        |i: &usize| at(&r, *i, 4).is_some_and(|q| glam::DQuat::from_slice(q).length() < 1e-6);
+    if let Some(i) = (0..count).find(zero) {
+        let why = format!("ROTATION of instance {i} is a zero quaternion");
+        return Err(Error::invalid(&doc.path, &element, why));
+    }
+    Ok((0..count)
+        .map(|i| {
+            let t = at(&t, i, 3).map_or(glam::DVec3::ZERO, glam::DVec3::from_slice);
+            let r = at(&r, i, 4).map_or(glam::DQuat::IDENTITY, |q| {
+                glam::DQuat::from_slice(q).normalize()
+            });
+            let s = at(&s, i, 3).map_or(glam::DVec3::ONE, glam::DVec3::from_slice);
+            DMat4::from_scale_rotation_translation(s, r, t)
+        })
+        .collect())
 }
 
 #[cfg(test)]

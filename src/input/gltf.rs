@@ -80,7 +80,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             continue;
         };
         // a node's `EXT_mesh_gpu_instancing` instances each place its mesh
-        let instances = super::asset::instances(&doc, &buffers, placed.node)?;
+        let instances = super::document::instances(&doc, &buffers, placed.node)?;
         let places: Vec<DMat4> = match instances.is_empty() {
             true => vec![placed.world],
             false => instances.iter().map(|&t| placed.world * t).collect(),
@@ -246,7 +246,7 @@ impl PrimitiveData<'_> {
             }
             world_pos.push(world.transform_point3(DVec3::new(p[0], p[1], p[2])));
         }
-        super::check_range(&self.doc.path, self.element, &world_pos)?;
+        super::boundary::check_range(&self.doc.path, self.element, &world_pos)?;
         Ok(world_pos)
     }
 

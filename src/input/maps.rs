@@ -115,7 +115,8 @@ fn finite(uv: Vec2) -> Vec2 {
 
 /// Reads a PNG map; errors name the file.
 fn read_png(path: &Path) -> Result<image::DynamicImage> {
-    let bytes = crate::input::read_regular_file(path, MAX_BYTES).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::boundary::read_regular_file(path, MAX_BYTES)
+        .map_err(|e| Error::io(path, e))?;
     let image = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
         .map_err(|e| Error::invalid(path, "image", format!("not a readable PNG: {e}")))?;
     if image.width() == 0 || image.height() == 0 {

@@ -250,7 +250,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
              outside its folder, or no materials in it): baked as a plain mesh, without its \
              materials and textures",
             path.display(),
-            super::escape(&names)
+            super::boundary::escape(&names)
         ));
     }
     Ok(scene)
@@ -300,7 +300,7 @@ fn meshes(
             warnings.push(format!(
                 "{}: object '{}': of its {faces} face(s), {}",
                 path.display(),
-                super::escape(name),
+                super::boundary::escape(name),
                 what.join(" and ")
             ));
         }
@@ -333,7 +333,7 @@ struct Filled {
 fn object_mesh(path: &Path, k: usize, object: &Object, textured: bool) -> Result<(Mesh, Filled)> {
     let world = &object.world;
     let nv = world.len();
-    let element = || format!("object {k} ('{}')", super::escape(&object.name));
+    let element = || format!("object {k} ('{}')", super::boundary::escape(&object.name));
     if let Some(&i) = object.corners.iter().find(|&&i| i as usize >= nv) {
         return Err(Error::invalid(
             path,
@@ -341,7 +341,7 @@ fn object_mesh(path: &Path, k: usize, object: &Object, textured: bool) -> Result
             format!("index {i} out of range ({nv} vertices)"),
         ));
     }
-    super::check_range(path, &element(), world)?;
+    super::boundary::check_range(path, &element(), world)?;
     let origin = world.first().copied().unwrap_or_default();
     let positions = world.iter().map(|p| (*p - origin).as_vec3()).collect();
     let mut filled = Filled {
@@ -1166,7 +1166,7 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
                         Error::invalid(
                             path,
                             format!("line {line_no}"),
-                            format!("'{}' is not a number", super::escape(w)),
+                            format!("'{}' is not a number", super::boundary::escape(w)),
                         )
                     })?;
                     if !value.is_finite() {
@@ -1195,7 +1195,7 @@ fn prescan(path: &Path, bytes: &[u8]) -> Result<usize> {
                             Error::invalid(
                                 path,
                                 format!("line {line_no}"),
-                                format!("bad face index '{}'", super::escape(part)),
+                                format!("bad face index '{}'", super::boundary::escape(part)),
                             )
                         })?;
                         let resolved = if i < 0 { limit + i + 1 } else { i };
@@ -1233,7 +1233,7 @@ fn names_mtl(bytes: &[u8]) -> bool {
 /// The materials of the `.mtl` files the OBJ names, as tobj reads them for the OBJ (`None`:
 /// none could be read), each `.mtl` read only when its real path (links resolved) is a regular
 /// file inside the OBJ's folder ([`super::document::confined_file`], as buffers and images are),
-/// at most [`super::MAX_INPUT_BYTES`], and once however often it is named (a library named again
+/// at most [`super::boundary::MAX_INPUT_BYTES`], and once however often it is named (a library named again
 /// adds nothing: 1 000 `mtllib` lines of one file read it once) ([`mtl_for_tobj`]).
 fn materials(path: &Path, bytes: &[u8]) -> Option<Vec<tobj::Material>> {
     // tobj reads the libraries of an OBJ of its `mtllib` statements alone
@@ -1248,7 +1248,7 @@ fn materials(path: &Path, bytes: &[u8]) -> Option<Vec<tobj::Material>> {
         if read.borrow().contains(&target) {
             return tobj::load_mtl_buf(&mut &b""[..]);
         }
-        let text = super::read_regular_file(&target, super::MAX_INPUT_BYTES)
+        let text = super::boundary::read_regular_file(&target, super::boundary::MAX_INPUT_BYTES)
             .map_err(|_| tobj::LoadError::OpenFileFailed)?;
         read.borrow_mut().push(target);
         tobj::load_mtl_buf(&mut mtl_for_tobj(&text).as_slice())
@@ -1392,7 +1392,7 @@ fn material(
             "{}: material '{}': Kd {} {} {} and d {} are not all numbers in 0–1; the base colour \
              is taken as {} {} {} {} (a number clamped into 0–1, one that is not a number as 1)",
             path.display(),
-            super::escape(&m.name),
+            super::boundary::escape(&m.name),
             kd[0],
             kd[1],
             kd[2],
@@ -1423,8 +1423,8 @@ fn material(
                 "{}: material '{}': map_Kd '{}' is not a file in the OBJ's folder (nor is \
                  its file name); the material keeps its Kd colour",
                 path.display(),
-                super::escape(&m.name),
-                super::escape(&map_file(map).replace('\\', "/"))
+                super::boundary::escape(&m.name),
+                super::boundary::escape(&map_file(map).replace('\\', "/"))
             )),
         }
     }
@@ -1598,7 +1598,7 @@ pub(super) fn asset_document(path: &Path, bytes: &[u8]) -> Result<Option<ObjAsse
         format!(
             "{}: usemtl '{}' names no material of its .mtl; its faces draw with none",
             path.display(),
-            super::escape(name)
+            super::boundary::escape(name)
         )
     }));
     let materials: Vec<Value> = (materials.iter().zip(&used))
@@ -1646,7 +1646,8 @@ pub(super) fn side_files(path: &Path, bytes: &[u8]) -> Vec<std::path::PathBuf> {
             if files.contains(&mtl) {
                 continue;
             }
-            let text = super::read_regular_file(&mtl, super::MAX_INPUT_BYTES).unwrap_or_default();
+            let text = super::boundary::read_regular_file(&mtl, super::boundary::MAX_INPUT_BYTES)
+                .unwrap_or_default();
             let text = mtl_for_tobj(&text);
             files.push(mtl);
             let maps = statements(&text, "map_Kd").into_iter();
@@ -1718,11 +1719,17 @@ mod tests {
             text.push_str("v 0 0 0\n");
             std::fs::write(&path, &text).unwrap();
             // as `Asset::read_obj` reads it: the whole file, in parallel past 4 MiB
-            let read = super::super::read_regular_file(&path, super::super::MAX_INPUT_BYTES);
+            let read = crate::input::boundary::read_regular_file(
+                &path,
+                crate::input::boundary::MAX_INPUT_BYTES,
+            );
             assert_eq!(names_mtl(&read.unwrap()), named, "{tail}");
             assert_eq!(names_mtl(text.as_bytes()), named);
         }
-        let folder = super::super::read_regular_file(&dir, super::super::MAX_INPUT_BYTES);
+        let folder = crate::input::boundary::read_regular_file(
+            &dir,
+            crate::input::boundary::MAX_INPUT_BYTES,
+        );
         assert!(folder.is_err(), "a folder is not read");
         std::fs::remove_dir_all(&dir).unwrap();
     }

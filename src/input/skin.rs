@@ -157,7 +157,10 @@ pub(super) fn channel_keys(
         Error::invalid(
             &doc.path,
             element,
-            format!("interpolation '{}' is not glTF's", super::escape(name)),
+            format!(
+                "interpolation '{}' is not glTF's",
+                super::boundary::escape(name)
+            ),
         )
     })?;
     let (Some(input), Some(output)) = (
@@ -272,7 +275,11 @@ pub fn read_skeleton(doc: &Document, buffers: &[Vec<u8>], s: usize) -> Result<Sk
 /// The load stage's facts about a skinned input: what the file keeps.
 impl Reported for Skeleton {
     fn facts(&self) -> Facts {
-        let clips: Vec<String> = self.clips.iter().map(|c| super::escape(&c.name)).collect();
+        let clips: Vec<String> = self
+            .clips
+            .iter()
+            .map(|c| super::boundary::escape(&c.name))
+            .collect();
         let clips = if clips.is_empty() {
             "none".into()
         } else {

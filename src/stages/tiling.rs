@@ -60,7 +60,7 @@ pub enum FurUv {
     Auto,
     /// The mesh's own, whatever their layout.
     Mesh,
-    /// A per-face box projection (`load::generate_box_uvs`), whatever the mesh has.
+    /// A per-face box projection (`model::box_uvs::generate_box_uvs`), whatever the mesh has.
     Box,
 }
 

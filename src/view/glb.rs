@@ -443,7 +443,7 @@ impl Asset {
         }
         let gpu_instances = (0..doc.nodes.len())
             .map(|n| match (doc.nodes[n].mesh, doc.nodes[n].skin) {
-                (Some(_), None) => crate::input::asset::instances(&doc, &buffers, n),
+                (Some(_), None) => crate::input::document::instances(&doc, &buffers, n),
                 _ => Ok(Vec::new()),
             })
             .collect::<crate::Result<_>>()?;
