@@ -18,7 +18,7 @@ use glam::{DVec3, Vec3};
 
 use crate::effects::gravity::Bend;
 
-use super::Targets;
+use super::quantize::Targets;
 use crate::model::mesh::Adjacency;
 use rayon::prelude::*;
 

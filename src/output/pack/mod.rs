@@ -62,6 +62,7 @@ pub use model::{
     Texture, TextureRef,
 };
 
+pub use model::Layout;
 pub use quantize::{dequantize_normal, quantize_normal, PositionGrid, Targets, UvGrid, SNORM16};
 
 use glam::{Vec2, Vec3};
@@ -75,43 +76,6 @@ use crate::stages::strands::{Mask, BASE_CODE};
 use guard::Vary;
 use image::ImageEncoder;
 use quantize::Bytes;
-
-/// Which glTF layout `pack` writes (docs/how-it-works.md#layouts-and-streams).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Layout {
-    /// One quantized geometry shared by every layer; extrusion as a morph target; one small mesh
-    /// and material per layer. Smallest file, one draw call per layer.
-    Compact,
-    /// All layers in one primitive and one material; per-layer threshold and shade in COLOR_0.
-    /// Larger file, one draw call.
-    SingleDraw,
-    /// One mesh and material per layer as in the compact layout, but every layer carries its
-    /// own positions (single-draw's, rounded as stored) and no extrusion target, so an engine
-    /// that applies no static morph weight (Godot 4, glTFRuntime) or reads no `COLOR_0` alpha
-    /// in its alpha test (PlayCanvas) draws the fur. Normals, texture coordinates, colours,
-    /// joints and the index stream are written once per level, each layer reading a prefix.
-    Layers,
-}
-
-impl Layout {
-    /// Every layout, in the order the CLI lists them.
-    pub const ALL: [Layout; 3] = [Layout::Compact, Layout::SingleDraw, Layout::Layers];
-
-    /// The kebab-case name used on the command line, in scene files, reports and `extras`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Layout::Compact => "compact",
-            Layout::SingleDraw => "single-draw",
-            Layout::Layers => "layers",
-        }
-    }
-
-    /// The layout called `name`.
-    pub fn from_name(name: &str) -> Option<Layout> {
-        Layout::ALL.into_iter().find(|l| l.name() == name)
-    }
-}
 
 /// How vertex attributes are stored.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
