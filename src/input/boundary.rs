@@ -34,7 +34,7 @@ static MAX_MEMORY: std::sync::atomic::AtomicU64 =
 
 /// The most bytes one input file's decoded data may take (`--max-memory`): every accessor read
 /// (as the `f64`s it decodes to), every meshopt fallback buffer and every decoded image, charged
-/// against the file's [`document::Document`] before it is allocated, so a count no bytes back
+/// against the file's [`super::document::Document`] before it is allocated, so a count no bytes back
 /// (or bytes that expand, a texture bomb) is refused naming the file and the element instead of
 /// ending the process on a failed allocation. Process-wide: `batch` baking several assets at
 /// once holds up to this much per asset in flight. OBJ files are bounded by their own size

@@ -24,7 +24,7 @@
 //!
 //! **Layout in the file.** Buffer 0 (the GLB binary chunk) holds the compressed streams and the
 //! images; buffer 1 has no data (`"fallback": true`) and gives the views their uncompressed
-//! place, so the extension is required. Reading ([`decode_view`]) is the reverse: each
+//! place, so the extension is required. Reading ([`crate::model::meshopt::decode_view`]) is the reverse: each
 //! compressed view is decoded into its place in the fallback buffer, with its counts checked
 //! against the bytes first (the reader's side is [`crate::model::meshopt`]).
 //!
