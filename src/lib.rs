@@ -48,7 +48,7 @@
 //! | levels | lod (`lod`, on by default) | [`stages::lod::build_lods`], [`stages::lod::chunks`] |
 //! | | cull (`cull`, on by default) | [`stages::cull::layer_tops`] |
 //! | pack | pack | [`output::pack::pack`] |
-//! | (after) | write | [`output::write::compress_streams`], [`output::write::gltf_json_with`], [`output::write::glb_of_packed_with`]; an asset: [`bake_asset`] then [`output::graft::graft`] |
+//! | (after) | write | [`output::write::compress_streams`], [`output::write::gltf_json_with`], [`output::write::glb_of_packed_with`]; an asset: [`bake_asset`] then [`output::graft::graft`], which merges the fur's document (JSON, and its binary by [`output::write::append_binary`]) into the asset's |
 //!
 //! **Cores.** The stages are parallel inside (rayon), and a scene's surfaces (an asset's parts)
 //! run the first four phases side by side, each distinct mask baked once before them; then they

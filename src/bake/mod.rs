@@ -67,6 +67,9 @@ pub struct BakedScene {
     pub plan: Plan,
     pub report: SceneReport,
     pub packed: Packed,
+    /// The streams meshopt compressed (`--compress meshopt`; empty otherwise): with `packed` and
+    /// `json`, the document the GLB is written from ([`write::append_binary`]).
+    pub compressed: Vec<Option<write::Encoded>>,
     pub surfaces: Vec<BakedSurface>,
 }
 
@@ -512,8 +515,9 @@ pub fn bake_asset(
     let groups: Vec<Vec<usize>> = (loaded.iter())
         .map(|l| l.part.as_ref().map_or(vec![], |p| p.parts.clone()))
         .collect();
-    let (_, bin) = crate::input::document::split_glb(&fur.glb).expect("our own GLB splits");
-    let grafted = graft::graft(asset, &groups, (&fur.json, bin.unwrap_or(&[])), &fur.packed)?;
+    // the fur as a document (its JSON, and its binary appended straight from the streams)
+    let fur_bin = |out: &mut Vec<u8>| write::append_binary(out, &fur.packed, &fur.compressed);
+    let grafted = graft::graft(asset, &groups, (&fur.json, fur_bin), &fur.packed)?;
     let mut report = crate::report::AssetReport {
         warnings: asset.warnings.clone(),
         ..Default::default()
@@ -1007,6 +1011,7 @@ fn run_plan(
         plan,
         report,
         packed,
+        compressed,
         surfaces,
     }
 }

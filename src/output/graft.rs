@@ -557,12 +557,14 @@ fn copy_subtree(out: &mut Value, n: usize, copies: &mut Vec<(usize, usize)>) -> 
     copy
 }
 
-/// Writes `asset` with the fur of `fur` (the fur-only file's JSON and binary chunk, and its
-/// packing) grafted on: surface `s` of the fur grows on part `parts[s]` of the asset.
+/// Writes `asset` with the fur grafted on: the fur's document (its JSON, and what appends its
+/// binary, [`crate::output::write::append_binary`]) merged into the asset's, every index of the
+/// fur shifted past the asset's, and its packing; surface `s` of the fur grows on part
+/// `parts[s]` of the asset.
 pub fn graft(
     asset: &Asset,
     groups: &[Vec<usize>],
-    (fur_json, fur_bin): (&Value, &[u8]),
+    (fur_json, fur_bin): (&Value, impl FnOnce(&mut Vec<u8>)),
     packed: &Packed,
 ) -> Result<Grafted> {
     assert_eq!(
@@ -578,7 +580,7 @@ pub fn graft(
     // the fur's binary chunk, after the input's
     align(&mut bin);
     let fur_offset = bin.len();
-    bin.extend_from_slice(fur_bin);
+    fur_bin(&mut bin);
     // the fur's fallback buffers (compressed views decode into them) follow the input's
     let (mut buffers, fur_buffers) = fur_buffers(fur_json);
     append_fur(&mut out, fur_json, base, (fur_offset, &fur_buffers));

@@ -588,15 +588,23 @@ pub fn glb_of_packed_with(
     packed: &Packed,
     compressed: &[Option<Encoded>],
 ) -> Vec<u8> {
-    glb_with(doc, bin_len, |out| {
-        for (i, v) in packed.streams.iter().enumerate() {
-            out.resize(out.len().next_multiple_of(4), 0);
-            match compressed.get(i).and_then(|c| c.as_ref()) {
-                Some(c) => out.extend_from_slice(&c.bytes),
-                None => out.extend_from_slice(&v.bytes),
-            }
+    glb_with(doc, bin_len, |out| append_binary(out, packed, compressed))
+}
+
+/// Appends the binary of a document from [`gltf_json_with`] with the same `compressed` to `out`
+/// (whose length is a multiple of 4): every stream, or its compressed bytes, at a 4-byte
+/// boundary, as the document's views place them. The GLB's binary chunk is this; an asset's
+/// graft appends the fur's binary to the asset's the same way, straight from the streams, so the
+/// fur is never a GLB read back.
+pub fn append_binary(out: &mut Vec<u8>, packed: &Packed, compressed: &[Option<Encoded>]) {
+    debug_assert!(out.len().is_multiple_of(4));
+    for (i, v) in packed.streams.iter().enumerate() {
+        out.resize(out.len().next_multiple_of(4), 0);
+        match compressed.get(i).and_then(|c| c.as_ref()) {
+            Some(c) => out.extend_from_slice(&c.bytes),
+            None => out.extend_from_slice(&v.bytes),
         }
-    })
+    }
 }
 
 /// JSON bytes the document spends on each of the `layers` layers of `surface` at LOD 0: its

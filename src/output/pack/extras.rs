@@ -12,9 +12,11 @@
 
 use glam::{Vec2, Vec3};
 
+use super::builder::{u16_colors, Builder};
+use super::input::{Geometry, PackInput};
 use super::model::{Alpha, Material, Node, Packed, Semantic, Texture, TextureRef};
+use super::params::component;
 use super::quantize::Bytes;
-use super::{component, Builder, Geometry, PackInput};
 
 /// What the extras added: their nodes, and the bytes each wrote.
 pub(super) struct Extras {
@@ -126,7 +128,7 @@ fn fins(b: &mut Builder, g: &Geometry, input: &PackInput, f: &crate::effects::fi
         let colours = source
             .iter()
             .map(|&o| (albedo[o as usize].truncate(), u16::MAX));
-        let color = super::u16_colors(b, "fin_color", colours, source.len());
+        let color = u16_colors(b, "fin_color", colours, source.len());
         attributes.push((Semantic::Color(0), color));
     }
     let name = format!("{}fins", input.prefix);
