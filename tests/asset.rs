@@ -1279,7 +1279,7 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
     );
 
     let paints = std::slice::from_ref(paint);
-    let tessellated = |paint: Option<shellbake::input::asset::Palette>| {
+    let tessellated = |paint: Option<shellbake::model::paint::Palette>| {
         let mut m = mesh.clone();
         m.albedo = Some(albedo.clone());
         let params = shellbake::stages::tessellate::TessellationParams {
@@ -1291,7 +1291,7 @@ fn per_vertex_colour_against_the_texture_at_every_strand_root() {
         let (mean, worst, n) = error(&m, &a, 4);
         (mean, worst, n, m.vertex_count())
     };
-    let palette = shellbake::input::asset::Palette(paints);
+    let palette = shellbake::model::paint::Palette(paints);
     let (t_mean, t_worst, t_n, t_vertices) = tessellated(Some(palette));
     let (c_mean, _, _, _) = tessellated(None);
     println!(

@@ -117,7 +117,7 @@ pub struct Loaded {
 pub struct PartOf {
     /// Where the fur takes its colour, one paint per material of its parts (the scene's meshes'
     /// `paint_ids` say which where there are several; none: the preset's colours).
-    pub paints: Vec<crate::input::asset::Paint>,
+    pub paints: Vec<crate::model::paint::Paint>,
     /// Grafted into the asset ([`bake_asset`]); `false`: baked alone with a base layer in the
     /// fur's colours, as `verify` compares it with the runtime technique.
     pub graft: bool,
@@ -221,7 +221,7 @@ pub fn asset_scene_of(
         let mut geometry = part.scene.clone();
         // one paint a material (parts of materials alike but for their names share one), and
         // each mesh says which when there are several
-        let mut paints: Vec<crate::input::asset::Paint> = Vec::new();
+        let mut paints: Vec<crate::model::paint::Paint> = Vec::new();
         let mut painted: std::collections::HashMap<Option<String>, usize> = Default::default();
         let mut ids = Vec::with_capacity(members.len());
         for &j in &members {
@@ -349,7 +349,7 @@ pub fn asset_scene_of(
 /// The chosen parts (indices into `chosen`) grouped into one fur each: the parts of one
 /// character — one skin, or one rigid node — chosen by the same surface bake as one surface,
 /// whatever their materials (each part's colour rides per vertex from its own,
-/// [`input::asset::Palette`]), so a jointed figure of 60 primitives costs one draw a layer, not
+/// [`crate::model::paint::Palette`]), so a jointed figure of 60 primitives costs one draw a layer, not
 /// sixty, and its fur runs across the seams between them (welded as one mesh, one tiling) where
 /// part by part each seam showed. A part stays alone where its fur must differ: it has shape
 /// keys (the fur follows its own weights), is instanced (the graft draws its fur at each
@@ -673,7 +673,7 @@ fn more_influences(asset: &crate::input::asset::Asset, i: usize, what: String) -
 }
 
 /// Share of a textured surface whose per-vertex fur colour misses its texture
-/// ([`input::asset::Palette::detail_lost`]) past which the bake warns.
+/// ([`crate::model::paint::Palette::detail_lost`]) past which the bake warns.
 const DETAIL_WARNING: f64 = 0.1;
 
 /// The asset a scene file furs whole, when every surface takes its parts (`only`) from that one
@@ -1100,7 +1100,7 @@ fn prepare<'a>(job: &Job<'a>, masks: &MaskCache) -> Prepared<'a> {
     }
     let colour = match job.part {
         Some(p) => merge::FurColour::Asset {
-            paint: (!p.paints.is_empty()).then(|| crate::input::asset::Palette(&p.paints)),
+            paint: (!p.paints.is_empty()).then(|| crate::model::paint::Palette(&p.paints)),
             color: params.shade.color,
         },
         None => merge::FurColour::Preset,
@@ -1322,7 +1322,7 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
             run.report.warnings.push(format!(
                 "the fur's colour differs from the texture (ΔE76 over {}) on {:.0}% of this \
                  surface; {how}",
-                crate::input::asset::DETAIL_DELTA_E,
+                crate::model::paint::DETAIL_DELTA_E,
                 100.0 * lost,
             ));
         }

@@ -131,20 +131,20 @@ pub struct Mesh {
     pub uvs: Option<Vec<Vec2>>,
     /// The texture coordinates the asset's base-colour texture reads, when they are not `uvs`:
     /// a material whose `textureInfo` (or its `KHR_texture_transform`) names `TEXCOORD_1` or
-    /// later ([`crate::input::asset::Paint::albedo`]). Carried like `uvs`.
+    /// later ([`crate::model::paint::Paint::albedo`]). Carried like `uvs`.
     pub texture_uvs: Option<Vec<Vec2>>,
     /// Vertex colours (glTF `COLOR_0`, or an OBJ `v x y z r g b`) as [`Rgba16`] levels, RGBA
     /// (alpha 1 where the input has three channels); they can drive the density and length maps.
     pub colors: Option<Vec<Rgba16>>,
     /// The asset's base colour at each vertex (linear RGB; `w`: how much of the surface around
     /// the vertex its material draws, which scales the fur's density), when the fur takes it
-    /// (docs/how-it-works.md#colour-from-the-asset; [`crate::input::asset::Paint::albedo`]):
+    /// (docs/how-it-works.md#colour-from-the-asset; [`crate::model::paint::Paint::albedo`]):
     /// sampled where the asset's own UVs
     /// still hold, then carried through every stage that splits or adds vertices.
     pub albedo: Option<Vec<glam::Vec4>>,
     /// Which of the fur's paints colours each vertex, when its parts have several (one
     /// character's parts of unlike materials baked as one fur: an index into the
-    /// [`crate::input::asset::Palette`] the colour stages read; every vertex of a triangle has
+    /// [`crate::model::paint::Palette`] the colour stages read; every vertex of a triangle has
     /// the same). `None`: the first paint, or none. Carried like `albedo`.
     pub paint_ids: Option<Vec<u32>>,
     /// Triangle list.

@@ -43,7 +43,7 @@
 //! **Attributes.** Texture coordinates, normals, vertex colours and shape-key deltas are
 //! blended from the edge's ends; bone influences are summed and the four largest kept
 //! ([`Joints::Blended`]: a midpoint moves with the skinned edge under it). Once cut, every
-//! vertex's colour is read again from the asset ([`crate::input::asset::Paint::albedo`] on the refined mesh), so a
+//! vertex's colour is read again from the asset ([`crate::model::paint::Paint::albedo`] on the refined mesh), so a
 //! corner on a stripe's edge is no longer the average of its large triangles.
 //!
 //! `detail = "vertex"` keeps the per-vertex colour (the bake before this stage).
@@ -56,8 +56,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
-use crate::input::asset::{delta_e76, Palette};
 use crate::model::mesh::Mesh;
+use crate::model::paint::{delta_e76, Palette};
 use crate::stages::tessellate::{push_blended, Joints};
 
 /// How finely the fur's colour follows the asset.

@@ -13,9 +13,9 @@
 use glam::Vec3;
 
 use crate::facts::{Facts, Reported};
-use crate::input::asset::Palette;
 use crate::model::box_uvs::generate_box_uvs;
 use crate::model::mesh::{has_uv_area, Mesh, Scene};
+use crate::model::paint::Palette;
 use crate::stages::tiling::{fur_uv_box, FurUv};
 
 /// Where a surface's fur takes its colour.

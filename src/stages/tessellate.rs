@@ -35,7 +35,7 @@
 //! **Attributes.** Texture coordinates, normals (renormalised), colours and shape-key deltas
 //! (`morphs`) are interpolated barycentrically from the triangle's own corners; a skinned vertex takes the influences of
 //! its nearest corner (joint sets do not interpolate). The fur colour of an asset's part
-//! (`albedo`) is sampled again from the part's [`crate::input::asset::Paint`] at each new vertex's texture
+//! (`albedo`) is sampled again from the part's [`crate::model::paint::Paint`] at each new vertex's texture
 //! coordinates and colour, when the caller passes it (the fur follows the asset's own UVs):
 //! interpolating the corners' samples would smear every texture detail finer than a coarse
 //! triangle, which is what tessellating such a part is for (the critter's striped body: mean
@@ -50,8 +50,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::ParamError;
 use crate::facts::{Facts, Reported};
-use crate::input::asset::Palette;
 use crate::model::mesh::Mesh;
+use crate::model::paint::Palette;
 
 /// Largest factor (a triangle becomes at most `MAX_FACTOR²` triangles).
 pub const MAX_FACTOR: u32 = 16;

@@ -150,7 +150,7 @@ pub struct Texture {
     pub sampler: SamplerDesc,
 }
 
-pub use crate::input::asset::AlphaMode;
+pub use crate::model::paint::AlphaMode;
 
 /// A metallic-roughness material.
 #[derive(Clone, Debug, PartialEq)]
@@ -365,7 +365,7 @@ impl Asset {
         for (m, mesh) in doc.meshes.iter().enumerate() {
             let texture_set = |material: Option<usize>| {
                 let material = material.map_or(&Value::Null, |m| &doc.json["materials"][m]);
-                crate::input::asset::texture_set(crate::input::asset::base_colour(material).1)
+                crate::model::paint::texture_set(crate::model::paint::base_colour(material).1)
             };
             let mut primitives = Vec::new();
             for (p, prim) in mesh.primitives.iter().enumerate() {
@@ -950,12 +950,12 @@ pub fn skin_matrix(mats: &[DMat4], joints: &Floats, weights: &Floats, i: usize) 
 fn parse_material(m: &Value) -> Material {
     let d = Material::default();
     let pbr = &m["pbrMetallicRoughness"];
-    let (factor, tex) = crate::input::asset::base_colour(m);
+    let (factor, tex) = crate::model::paint::base_colour(m);
     let base_color = f32s(factor)
         .filter(|v| v.len() == 4)
         .map(|v| [v[0], v[1], v[2], v[3]])
         .unwrap_or(d.base_color);
-    let xf = crate::input::asset::texture_transform(&tex["extensions"]["KHR_texture_transform"]);
+    let xf = crate::model::paint::texture_transform(&tex["extensions"]["KHR_texture_transform"]);
     let (m2, t) = (xf.matrix2, xf.translation);
     let uv_transform = [
         [m2.x_axis.x, m2.y_axis.x, t.x],

@@ -20,7 +20,7 @@ pub struct PackLevel<'a> {
     pub indices: &'a [u32],
     /// Triangles of `indices` in each chunk (chunk for chunk as [`PackInput::chunks`]).
     pub chunks: &'a [Vec<u32>],
-    /// Each chunk's triangles in meshopt's cache order, from [`cache_orders`]; empty for a level
+    /// Each chunk's triangles in meshopt's cache order, from [`crate::output::pack::cache_orders`]; empty for a level
     /// that draws LOD 0's order.
     pub cache: &'a [Vec<u32>],
 }
@@ -83,7 +83,7 @@ pub struct PackInput<'a> {
     /// asset's skin, bound when the fur is grafted into the asset).
     pub base: bool,
     /// Every material the surface writes is `KHR_materials_unlit`: the fur of an asset part
-    /// drawn unlit ([`crate::input::asset::Paint::unlit`]).
+    /// drawn unlit ([`crate::model::paint::Paint::unlit`]).
     pub unlit: bool,
 }
 

@@ -77,7 +77,7 @@ pub struct PackParams {
     pub position_bits: u32,
     /// Attribute storage: quantized (`KHR_mesh_quantization`) or floats.
     pub quantize: Quantize,
-    /// Texture coordinate bits, 8–16 (see [`UvGrid`]; quantized files only).
+    /// Texture coordinate bits, 8–16 (see [`crate::output::pack::UvGrid`]; quantized files only).
     pub texcoord_bits: u32,
     /// Where layer weights are written.
     pub layer_weights: LayerWeights,
