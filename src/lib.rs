@@ -63,9 +63,12 @@
 //! Skinned fur has no stage of its own: the load stage's facts say what the file keeps
 //! ([`model::skeleton`]); [`blocked`] names the stages a skinned surface cannot take.
 //!
-//! **Adding an effect** touches its file in [`effects`] (its parameters, its work, its
-//! [`facts::Reported`]), the plan table ([`scene::Effect`], [`scene::Stage`]) with its line in
-//! the look phase here, and the writer's stream model ([`output::pack`]).
+//! **Adding an effect** touches, today: its file in [`effects`] (its parameters, its work, its
+//! [`facts::Reported`]) and, where it leaves something on the layers, a field of
+//! [`effects::laws::Laws`]; the plan table ([`scene::Effect`], [`scene::Stage`]); its gated
+//! line in the look phase ([`bake`](mod@bake)); its parameters in [`params::BakeParams`] and
+//! its flag in the binary; the writer's stream model ([`output::pack`]); and the runtime
+//! reference that `verify` holds it against ([`view::reference`]).
 //!
 //! Modules import only from their own floor or below, and no module reaches itself through its
 //! imports (`tests/architecture.rs` checks both, each file its own module, and lists by name
