@@ -14,7 +14,9 @@ use crate::common;
 
 use std::path::{Path, PathBuf};
 
-use common::{assert_valid, bake, fixture, node, path_str, render, scratch, shellbake, Glb};
+use common::{
+    assert_valid, bake, blender, fixture, node, path_str, render, scratch, shellbake, Glb,
+};
 use serde_json::{json, Value};
 use shellbake::fixtures::critter::{critter_glb, Critters};
 
@@ -1824,22 +1826,6 @@ fn a_rigid_part_s_fur_read_again_is_no_part() {
         .find(|p| p.names.node == "ground")
         .unwrap();
     assert!(ground.furred);
-}
-
-/// Runs `tests/<script>` with `args` in Python with Blender's module; returns its standard output.
-fn blender(script: &str, args: &[&str]) -> String {
-    let out = std::process::Command::new("python3")
-        .arg(common::repo().join("tests").join(script))
-        .args(args)
-        .output()
-        .expect("python3 runs (tests/setup.sh installs bpy)");
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(
-        out.status.success(),
-        "Blender failed: {stdout}\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    stdout
 }
 
 /// Names of the nodes reachable from scene `s` of `doc`.

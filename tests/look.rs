@@ -34,17 +34,8 @@ fn asset(name: &str) -> Asset {
     static MADE: OnceLock<Vec<(String, Asset)>> = OnceLock::new();
     let made = MADE.get_or_init(|| {
         let dir = scratch("look-assets");
-        let out = std::process::Command::new("python3")
-            .arg(common::repo().join("tests/look_assets.py"))
-            .arg(&dir)
-            .output()
-            .expect("python3 runs (tests/setup.sh installs bpy)");
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let list: Vec<Value> = serde_json::from_slice(&out.stdout).unwrap();
+        let out = common::blender("look_assets.py", &[dir.to_str().unwrap()]);
+        let list: Vec<Value> = serde_json::from_str(&out).unwrap();
         let v3 = |v: &Value| -> [f32; 3] {
             let a = v.as_array().unwrap();
             [0, 1, 2].map(|k| a[k].as_f64().unwrap() as f32)

@@ -277,29 +277,47 @@ def crate_texture(size, front_box):
 # Assets
 
 
-def striped_cat(path):
-    fresh()
-    coat = material("fur_coat", roughness=0.7, texture=image("cat_stripes", stripes_texture()))
-    eye_mat = material("eye", color=(0.01, 0.01, 0.01), roughness=0.08)
-    ground_mat = material("ground", color=(0.33, 0.40, 0.32), roughness=0.9, double_sided=True)
+# The striped cat's body half-axes (x along the body) and how far it floats above the ground, its
+# head (centre, radius) and its tail (where it leaves the body, its length, its lean back from
+# the vertical), in Blender coordinates.
+CAT_BODY = (0.32, 0.15, 0.16)
+CAT_LIFT = 0.004
+CAT_HEAD = ((0.36, 0.0, 0.40), 0.17)
+CAT_TAIL = ((-0.27, 0.0, 0.22), 0.44, math.radians(40))
 
+
+def cat_tail_ends():
+    """Where the cat's tail starts and ends (Blender coordinates), and its rotation."""
+    base, length, tilt = CAT_TAIL
+    rot = mathutils.Matrix.Rotation(-tilt, 4, "Y")
+    base = mathutils.Vector(base)
+    return base, base + rot @ mathutils.Vector((0.0, 0.0, length)), rot
+
+
+def cat_parts(coat, eye_mat, body_segments=(32, 16), lift=CAT_LIFT, open_tail=False):
+    """The striped cat's body, head and tail (in `coat`) and its two eyes (in `eye_mat`).
+
+    `open_tail`: a tail with an open end, subdivided once, for a character whose parts are
+    joined into one mesh (`skinned_cat.py`); else a capped tail, sharp where its faces meet at
+    over 40 degrees."""
     # Body: a sphere with its poles along X (so the stripes across v ring the body), stretched.
-    a, b, c = 0.32, 0.15, 0.16
-    lift = 0.004
+    a, b, c = CAT_BODY
     body_matrix = mathutils.Matrix.Diagonal((a, b, c, 1.0)) @ mathutils.Matrix.Rotation(math.pi / 2, 4, "Y")
-    body = uv_sphere("body", 32, 16, 1.0, location=(0.0, 0.0, c + lift), matrix=body_matrix)
-    head_r = 0.17
-    head_c = mathutils.Vector((0.36, 0.0, 0.40))
+    body = uv_sphere("body", *body_segments, 1.0, location=(0.0, 0.0, c + lift), matrix=body_matrix)
+    head_c, head_r = mathutils.Vector(CAT_HEAD[0]), CAT_HEAD[1]
     head = uv_sphere("head", 32, 16, head_r, location=head_c)
     # Tail: a tapered tube from the body's rear, up and back.
-    tail_len = 0.44
-    tilt = math.radians(40)  # from vertical, leaning back
-    tail_rot = mathutils.Matrix.Rotation(-tilt, 4, "Y")
-    tail_base = mathutils.Vector((-0.27, 0.0, 0.22))
-    tail_centre = tail_base + tail_rot @ mathutils.Vector((0.0, 0.0, tail_len / 2))
-    tail = mesh_object("tail", bpy.ops.mesh.primitive_cone_add, location=tail_centre, matrix=tail_rot,
-                       sharp_angle=math.radians(40), vertices=16, radius1=0.045, radius2=0.022,
-                       depth=tail_len)
+    tail_base, tail_tip, tail_rot = cat_tail_ends()
+    tail_centre = (tail_base + tail_tip) / 2
+    cone = dict(vertices=16, radius1=0.045, radius2=0.022, depth=CAT_TAIL[1])
+    if open_tail:
+        tail = mesh_object("tail", bpy.ops.mesh.primitive_cone_add, location=tail_centre, matrix=tail_rot,
+                           end_fill_type="NOTHING", **cone)
+        bpy.ops.object.mode_set(mode="OBJECT")
+        tail.modifiers.new("cuts", "SUBSURF").levels = 1
+    else:
+        tail = mesh_object("tail", bpy.ops.mesh.primitive_cone_add, location=tail_centre, matrix=tail_rot,
+                           sharp_angle=math.radians(40), **cone)
     for obj in (body, head, tail):
         assign(obj, coat)
 
@@ -310,14 +328,24 @@ def striped_cat(path):
         eye = uv_sphere(name, 16, 8, 0.04, location=head_c + d * head_r)
         assign(eye, eye_mat)
         eyes.append(eye)
+    return [body, head, tail], eyes
+
+
+def striped_cat(path):
+    fresh()
+    coat = material("fur_coat", roughness=0.7, texture=image("cat_stripes", stripes_texture()))
+    eye_mat = material("eye", color=(0.01, 0.01, 0.01), roughness=0.08)
+    ground_mat = material("ground", color=(0.33, 0.40, 0.32), roughness=0.9, double_sided=True)
+    parts, eyes = cat_parts(coat, eye_mat)
 
     ground = mesh_object("ground", bpy.ops.mesh.primitive_plane_add, smooth=False, size=2.0)
     assign(ground, ground_mat)
 
     export(path)
     # Close view: the stripes on the body's right flank (Blender -Y is glTF +Z).
-    flank = gltf((0.0, -b, c + lift))
-    return cameras([body, head, tail] + eyes, (1.2, 0.8, 2.2), flank, (0.3, 0.45, 1.0))
+    _, b, c = CAT_BODY
+    flank = gltf((0.0, -b, c + CAT_LIFT))
+    return cameras(parts + eyes, (1.2, 0.8, 2.2), flank, (0.3, 0.45, 1.0))
 
 
 def logo_crate(path):

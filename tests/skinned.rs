@@ -284,16 +284,7 @@ fn three_js_plays_the_animation_and_the_fur_follows() {
 fn a_character_made_in_blender_is_one_skinned_fur_with_levels() {
     let dir = scratch("skinned_blender_cat");
     let cat = dir.join("cat.glb");
-    let made = std::process::Command::new("python3")
-        .arg(common::repo().join("tests/skinned_cat.py"))
-        .arg(&cat)
-        .output()
-        .expect("python3 runs (tests/setup.sh installs bpy)");
-    assert!(
-        made.status.success(),
-        "{}",
-        String::from_utf8_lossy(&made.stderr)
-    );
+    common::blender("skinned_cat.py", &[cat.to_str().unwrap()]);
     let (out, report) = common::bake(&cat, &dir, "cat-fur.glb", &["--only", "material=fur_*"]);
     let surfaces = report["surfaces"].as_array().unwrap();
     assert_eq!(surfaces.len(), 1, "{report}");

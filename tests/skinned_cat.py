@@ -8,7 +8,6 @@ Usage: python3 tests/skinned_cat.py OUT.glb
 Needs Blender as a Python module (`import bpy`, Blender 5.0) and numpy, as look_assets.py does.
 """
 import contextlib
-import math
 import os
 import sys
 
@@ -23,28 +22,12 @@ def build():
     la.fresh()
     coat = la.material("fur_coat", roughness=0.7, texture=la.image("cat_stripes", la.stripes_texture()))
     eye_mat = la.material("eye", color=(0.01, 0.01, 0.01), roughness=0.08)
-    a, b, c = 0.32, 0.15, 0.16
-    body_matrix = mathutils.Matrix.Diagonal((a, b, c, 1.0)) @ mathutils.Matrix.Rotation(math.pi / 2, 4, "Y")
-    body = la.uv_sphere("body", 48, 24, 1.0, location=(0.0, 0.0, c), matrix=body_matrix)
-    head_r = 0.17
-    head_c = mathutils.Vector((0.36, 0.0, 0.40))
-    head = la.uv_sphere("head", 32, 16, head_r, location=head_c)
-    tail_len = 0.44
-    tail_rot = mathutils.Matrix.Rotation(-math.radians(40), 4, "Y")
-    tail_base = mathutils.Vector((-0.27, 0.0, 0.22))
-    tail_centre = tail_base + tail_rot @ mathutils.Vector((0.0, 0.0, tail_len / 2))
-    tail = la.mesh_object("tail", bpy.ops.mesh.primitive_cone_add, location=tail_centre, matrix=tail_rot,
-                          vertices=16, radius1=0.045, radius2=0.022, depth=tail_len, end_fill_type="NOTHING")
-    bpy.ops.object.mode_set(mode="OBJECT")
-    tail.modifiers.new("cuts", "SUBSURF").levels = 1
-    for obj in (body, head, tail):
-        la.assign(obj, coat)
-    parts = [body, head, tail]
-    for name, side in (("eye_l", 1.0), ("eye_r", -1.0)):
-        d = mathutils.Vector((0.80, 0.42 * side, 0.30)).normalized()
-        eye = la.uv_sphere(name, 16, 8, 0.04, location=head_c + d * head_r)
-        la.assign(eye, eye_mat)
-        parts.append(eye)
+    body_parts, eyes = la.cat_parts(coat, eye_mat, body_segments=(48, 24), lift=0.0, open_tail=True)
+    parts = body_parts + eyes
+    body = body_parts[0]
+    _, _, c = la.CAT_BODY
+    head_c = mathutils.Vector(la.CAT_HEAD[0])
+    tail_base, tip, _ = la.cat_tail_ends()
 
     # One mesh object (a character's parts as one skinned mesh of two materials).
     for obj in parts:
@@ -61,7 +44,6 @@ def build():
     bpy.context.scene.collection.objects.link(rig)
     bpy.context.view_layer.objects.active = rig
     bpy.ops.object.mode_set(mode="EDIT")
-    tip = tail_base + tail_rot @ mathutils.Vector((0.0, 0.0, tail_len))
     chain = [
         ("hips", (-0.05, 0.0, c), (-0.25, 0.0, 0.2), None),
         ("chest", (-0.05, 0.0, c), (0.25, 0.0, c + 0.05), None),

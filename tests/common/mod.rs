@@ -250,6 +250,22 @@ pub fn bake(input: &Path, dir: &Path, out: &str, args: &[&str]) -> (PathBuf, Val
     (glb, r)
 }
 
+/// Runs `tests/<script>` with `args` in Python with Blender's module; returns its standard output.
+pub fn blender(script: &str, args: &[&str]) -> String {
+    let out = std::process::Command::new("python3")
+        .arg(repo().join("tests").join(script))
+        .args(args)
+        .output()
+        .expect("python3 runs (tests/setup.sh installs bpy)");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "Blender failed: {stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
 /// Draws `three_render.mjs` jobs (written to `dir/jobs.json`), checking every one drew.
 pub fn render(jobs: &[Value], dir: &Path) {
     let spec = dir.join("jobs.json");
