@@ -293,7 +293,9 @@ pub struct Placed {
     pub node: usize,
     /// The product of the local matrices from the root down.
     pub world: DMat4,
-    /// Position among the children of its parent (or among the scene's roots).
+    /// Rank by node index among the children of its parent (or among the scene's roots): a
+    /// shellbake file lists a level's layer nodes in draw order but numbers them inner to
+    /// outer, so this is the layer's index there.
     pub sibling: usize,
 }
 
@@ -986,12 +988,10 @@ impl Document {
     ) -> Result<Vec<Placed>> {
         let limit = self.nodes.len() + EXTRA_VISITS;
         let mut out = Vec::new();
-        let mut stack: Vec<(usize, DMat4, usize, usize)> = self
-            .roots
-            .iter()
-            .enumerate()
+        let mut stack: Vec<(usize, DMat4, usize, usize)> = (self.roots.iter())
+            .zip(index_ranks(&self.roots))
             .rev()
-            .map(|(i, &r)| (r, DMat4::IDENTITY, i, 0))
+            .map(|(&r, i)| (r, DMat4::IDENTITY, i, 0))
             .collect();
         while let Some((n, parent, sibling, depth)) = stack.pop() {
             let n = pick(n);
@@ -1020,7 +1020,7 @@ impl Document {
                 world,
                 sibling,
             });
-            for (i, &c) in node.children.iter().enumerate().rev() {
+            for (&c, i) in node.children.iter().zip(index_ranks(&node.children)).rev() {
                 stack.push((c, world, i, depth + 1));
             }
         }
@@ -1580,6 +1580,16 @@ pub(crate) fn instances(doc: &Document, buffers: &[Vec<u8>], node: usize) -> Res
         .collect())
 }
 
+/// Each of `nodes`' rank by index among them (its position were they sorted).
+fn index_ranks(nodes: &[usize]) -> Vec<usize> {
+    let mut sorted = nodes.to_vec();
+    sorted.sort_unstable();
+    nodes
+        .iter()
+        .map(|&n| sorted.partition_point(|&m| m < n))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1835,18 +1845,19 @@ mod tests {
                 {"matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 3, 0, 1]},
                 {}
             ],
-            "scenes": [{"nodes": [0, 3]}]
+            "scenes": [{"nodes": [3, 0]}]
         }))
         .unwrap();
         let w = d.walk(|n| n).unwrap();
+        // document order; the sibling rank is by index (a shellbake file's layer numbering)
         assert_eq!(
             w.iter().map(|p| (p.node, p.sibling)).collect::<Vec<_>>(),
-            [(0, 0), (1, 0), (2, 1), (3, 1)]
+            [(3, 1), (0, 0), (1, 0), (2, 1)]
         );
-        let p = w[1].world.transform_point3(DVec3::new(1000.0, 0.0, 0.0));
+        let p = w[2].world.transform_point3(DVec3::new(1000.0, 0.0, 0.0));
         assert_eq!(p.x, 1000000.125 + 0.0001 + 1.0);
         assert_eq!(
-            w[2].world.w_axis.truncate(),
+            w[3].world.w_axis.truncate(),
             DVec3::new(1000000.125, 3.0, 0.0)
         );
     }

@@ -224,7 +224,8 @@ pub struct Instance {
     pub mesh: usize,
     pub world: DMat4,
     pub weights: Vec<f32>,
-    /// Position among the children of its parent (the layer index in shellbake files).
+    /// Rank by node index among its siblings ([`crate::input::document::Placed::sibling`]: the
+    /// layer index in shellbake files).
     pub sibling: usize,
     /// A skinned instance's joint matrices (joint world · inverse bind); its `world` is then
     /// the identity, as glTF ignores a skinned mesh node's transform.

@@ -1046,7 +1046,7 @@ fn pack_chunk(
         return;
     }
     if !several_chunks && !several_levels {
-        chunks.nodes.extend(level_nodes.swap_remove(0));
+        chunks.nodes.extend(draw_order(b, &level_nodes[0]));
         return;
     }
     let node = chunk_node(b, input, (c, &chunk_prefix), level_nodes);
@@ -1149,7 +1149,7 @@ fn chunk_node(
                 lod: Some(k),
                 ..chunk_tag
             },
-            children: nodes.clone(),
+            children: draw_order(b, nodes),
             ..Node::default()
         };
         ids.push(Packed::push(&mut b.out.nodes, node));
@@ -1159,7 +1159,7 @@ fn chunk_node(
             .trim_end_matches('_')
             .to_string(),
         tag: chunk_tag,
-        children: level_nodes[0].clone(),
+        children: draw_order(b, &level_nodes[0]),
         lod: several_levels.then(|| node_lod(input, c, ids, None)),
         ..Node::default()
     };
@@ -1198,7 +1198,7 @@ fn skinned_switches(
 ) -> Vec<usize> {
     let lod0 = level_nodes[0].clone();
     if level_nodes.len() < 2 {
-        return lod0;
+        return draw_order(b, &lod0);
     }
     let centre = input.switches[c].centre;
     for (i, &n) in lod0.iter().enumerate() {
@@ -1222,7 +1222,27 @@ fn skinned_switches(
             .collect();
         b.out.nodes[n].lod = Some(node_lod(input, c, ids, Some(centre)));
     }
-    lod0
+    draw_order(b, &lod0)
+}
+
+/// The order a level's layer nodes `nodes` (inner to outer, as their node indices run) are
+/// listed in, which is the order three.js, Babylon.js and the viewer draw them in: the opaque
+/// layers first, then the masked ones from the outermost in. A masked layer's texels pass the
+/// depth test only where nothing nearer was drawn, and seen from outside the outer layers are
+/// the nearer, so drawn first they hide the inner layers' texels before those are shaded: on
+/// an NVIDIA H100, the close view of a furred cat drew 28 % faster than inner to outer (see
+/// docs/measurements.md). The picture is the same under a `<` depth test, as the viewer's; under
+/// `<=` (three.js), where two masked layers lie at exactly the same depth the inner one now
+/// shows instead of the outer. The node indices keep the layers' order, so a reader numbers a
+/// layer by its index among its siblings.
+fn draw_order(b: &Builder, nodes: &[usize]) -> Vec<usize> {
+    let masked = |n: usize| {
+        let mesh = b.out.nodes[n].mesh.map(|m| &b.out.meshes[m]);
+        (mesh.into_iter().flat_map(|m| &m.primitives))
+            .any(|p| matches!(b.out.materials[p.material].alpha, Alpha::Mask(_)))
+    };
+    let (masked, opaque): (Vec<usize>, Vec<usize>) = nodes.iter().partition(|&&n| masked(n));
+    opaque.into_iter().chain(masked.into_iter().rev()).collect()
 }
 
 /// The node transform that dequantizes: stored value → world.
