@@ -319,3 +319,61 @@ fn a_character_made_in_blender_is_one_skinned_fur_with_levels() {
     assert_eq!(checked[1]["errors"], 0, "{}", checked[1]);
     assert_eq!(warnings(&checked[1]), warnings(&checked[0]), "{checked:?}");
 }
+
+/// A level's layer nodes are listed in the order clients draw them: the opaque layer, then the
+/// masked ones from the outermost in, so that the outer layers' texels hide the inner ones'
+/// before those are shaded; a skinned surface's chains put the innermost masked layer first
+/// (Babylon.js's import of `MSFT_lod` fails otherwise). Node indices keep the inner-to-outer
+/// order, which is how the viewer numbers layers.
+#[test]
+fn layers_are_listed_opaque_first_then_outermost_first() {
+    let layer = |json: &Value, n: &Value| -> (u64, bool) {
+        let node = &json["nodes"][n.as_u64().unwrap() as usize];
+        let name = node["name"].as_str().unwrap();
+        let k = name.rsplit('_').next().unwrap().parse().unwrap();
+        let mesh = &json["meshes"][node["mesh"].as_u64().unwrap() as usize];
+        let material =
+            &json["materials"][mesh["primitives"][0]["material"].as_u64().unwrap() as usize];
+        (k, material["alphaMode"] == "MASK")
+    };
+    let bunny = shellbake::input::load(&common::fixture("bunny.obj")).unwrap();
+    let baked = shellbake::bake(&bunny, &BakeParams::preset(Preset::Fur));
+    let json = Glb::parse(&baked.glb).json;
+    let lod0 = (json["nodes"].as_array().unwrap().iter())
+        .find(|n| n["name"] == "lod0")
+        .expect("the chunk's LOD 0 node");
+    let children = lod0["children"].as_array().unwrap();
+    let order: Vec<(u64, bool)> = children.iter().map(|n| layer(&json, n)).collect();
+    assert_eq!(order[0], (0, false), "{order:?}");
+    let masked: Vec<u64> = order[1..]
+        .iter()
+        .map(|&(k, m)| {
+            assert!(m, "{order:?}");
+            k
+        })
+        .collect();
+    assert!(masked.windows(2).all(|w| w[0] > w[1]), "{order:?}");
+    assert_eq!(masked.len(), 31);
+    // the node indices run inner to outer
+    let mut indices: Vec<u64> = children.iter().map(|n| n.as_u64().unwrap()).collect();
+    indices.sort();
+    let by_index: Vec<u64> = indices
+        .iter()
+        .map(|&n| layer(&json, &Value::from(n)).0)
+        .collect();
+    assert_eq!(by_index, (0..32).collect::<Vec<_>>());
+
+    let baked = shellbake::bake(&tube(), &params(Layout::Compact));
+    let json = Glb::parse(&baked.glb).json;
+    let roots: Vec<(u64, bool)> = (json["scenes"][0]["nodes"].as_array().unwrap().iter())
+        .filter(|n| json["nodes"][n.as_u64().unwrap() as usize]["mesh"].is_u64())
+        .map(|n| layer(&json, n))
+        .collect();
+    assert_eq!(roots[..2], [(0, false), (1, true)], "{roots:?}");
+    assert!(roots[2..].iter().all(|&(_, m)| m), "{roots:?}");
+    assert!(
+        roots[1..].windows(2).skip(1).all(|w| w[0].0 > w[1].0),
+        "{roots:?}"
+    );
+    assert_eq!(roots[2].0, 15, "{roots:?}");
+}

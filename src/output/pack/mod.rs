@@ -1222,7 +1222,7 @@ fn skinned_switches(
             .collect();
         b.out.nodes[n].lod = Some(node_lod(input, c, ids, Some(centre)));
     }
-    draw_order(b, &lod0)
+    chained_draw_order(b, &lod0)
 }
 
 /// The order a level's layer nodes `nodes` (inner to outer, as their node indices run) are
@@ -1236,13 +1236,40 @@ fn skinned_switches(
 /// shows instead of the outer. The node indices keep the layers' order, so a reader numbers a
 /// layer by its index among its siblings.
 fn draw_order(b: &Builder, nodes: &[usize]) -> Vec<usize> {
-    let masked = |n: usize| {
-        let mesh = b.out.nodes[n].mesh.map(|m| &b.out.meshes[m]);
-        (mesh.into_iter().flat_map(|m| &m.primitives))
-            .any(|p| matches!(b.out.materials[p.material].alpha, Alpha::Mask(_)))
-    };
-    let (masked, opaque): (Vec<usize>, Vec<usize>) = nodes.iter().partition(|&&n| masked(n));
+    let (masked, opaque): (Vec<usize>, Vec<usize>) = nodes.iter().partition(|&&n| masked(b, n));
     opaque.into_iter().chain(masked.into_iter().rev()).collect()
+}
+
+/// [`draw_order`] for a skinned chunk's LOD 0 layer nodes, which carry `MSFT_lod` chains of
+/// their own: the innermost masked layer comes right after the opaque ones. Babylon.js loads
+/// each chain coarsest level first, and defers a level's buffers until the level before it has
+/// loaded on every node; a shared stream first asked for by a chain's finer level is cached
+/// deferred, and a later chain's coarser level that asks for it too then resolves after the
+/// finer one, whose loader reads a node already disposed (`reading 'setEnabled'`, the import
+/// fails). The innermost masked layer has a mesh at every level that has fur, so listed first
+/// its chain asks for the shared streams at the coarsest level. That one layer is drawn before
+/// the outer ones.
+fn chained_draw_order(b: &Builder, lod0: &[usize]) -> Vec<usize> {
+    let mut order = draw_order(b, lod0);
+    if let Some(&inner) = lod0.iter().find(|&&n| masked(b, n)) {
+        let at = order
+            .iter()
+            .position(|&n| n == inner)
+            .expect("a layer node");
+        let first = order
+            .iter()
+            .position(|&n| masked(b, n))
+            .expect("a masked layer");
+        order[first..=at].rotate_right(1);
+    }
+    order
+}
+
+/// Whether node `n` draws a masked material.
+fn masked(b: &Builder, n: usize) -> bool {
+    let mesh = b.out.nodes[n].mesh.map(|m| &b.out.meshes[m]);
+    (mesh.into_iter().flat_map(|m| &m.primitives))
+        .any(|p| matches!(b.out.materials[p.material].alpha, Alpha::Mask(_)))
 }
 
 /// The node transform that dequantizes: stored value → world.
