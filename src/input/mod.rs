@@ -1,4 +1,4 @@
-//! Input: OBJ (our own parallel reader, `obj.rs`; tobj reads its `.mtl` files) and glTF/GLB
+//! Input: OBJ (our own parallel reader, `obj/`; tobj reads its `.mtl` files) and glTF/GLB
 //! (our own reader, `document.rs`) into [`Scene`]. No tobj type leaves this module; the glTF
 //! [`document`] is public because the viewer reads files through it too, so that loader and
 //! viewer accept and refuse the same files.
@@ -6,7 +6,7 @@
 //! Everything is checked here, at the boundary, so the stages can assert instead of fail: a
 //! non-finite coordinate, an index past the vertex count, an unreadable or empty file is an
 //! [`Error`] naming the file and the element. OBJ polygons are triangulated (ear clipping where
-//! concave, `obj.rs`), points and lines are ignored, node transforms are applied (glTF) in `f64`.
+//! concave, `obj/`), points and lines are ignored, node transforms are applied (glTF) in `f64`.
 //! Files are read only if they are regular files under [`MAX_INPUT_BYTES`] (never a FIFO or a
 //! device; see `read_regular_file` for how a file swapped between check and open is caught),
 //! meshes must span at least [`MIN_EXTENT`], and text from a file is escaped
