@@ -962,6 +962,48 @@ fn fixtures(dir: &Path, dense: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `verify`: an asset's fur, each part baked alone with a base layer, or the scene's bake,
+/// against the technique; `-o` writes the bake (an asset with its fur) first.
+#[cfg(feature = "view")]
+fn run_verify(bake: &BakeArgs, verify: &cli::view::VerifyFlags) -> anyhow::Result<()> {
+    bake.scene().and_then(|scene| {
+        let out = bake.output.as_deref();
+        if let Some(out) = out {
+            check_outputs_of(bake, &scene, (out, None))?;
+        }
+        if let Some(input) = asset_of(bake, &scene)? {
+            // the fur of each part, baked alone with a base layer, against the technique;
+            // `-o` writes the asset with its fur
+            let (asset, chosen) = (&input.asset, &input.chosen);
+            let (grafted, loaded, _) = load_parts_of(bake, &scene, asset, chosen)?;
+            if let Some(out) = out {
+                let baked = shellbake::bake_asset(asset, &input.parts(), (&grafted, &loaded))?;
+                shellbake::output::write::write_glb(out, &baked.glb)?;
+            }
+            let (parts, mut loaded) = shellbake::asset_scene_of(&scene, asset, chosen, false)?;
+            choose_clips(bake, &mut loaded, verify.clip())?;
+            return Ok(shellbake::view::cli::verify(
+                &bake.input,
+                &parts,
+                &loaded,
+                &verify.clone().into_args(),
+                None,
+                bake.quiet,
+            )?);
+        }
+        let (mut loaded, _) = load_checked(bake, &scene)?;
+        choose_clips(bake, &mut loaded, verify.clip())?;
+        Ok(shellbake::view::cli::verify(
+            &bake.input,
+            &scene,
+            &loaded,
+            &verify.clone().into_args(),
+            out,
+            bake.quiet,
+        )?)
+    })
+}
+
 fn main() -> ExitCode {
     // output piped into a reader that stops early (`shellbake batch --merge … | head -1`) ends
     // the process quietly, as a Unix tool does, where a write to the closed pipe panicked
@@ -1021,42 +1063,7 @@ fn main() -> ExitCode {
             shellbake::view::cli::view(&args.clone().into_args()).map_err(Into::into)
         }
         #[cfg(feature = "view")]
-        Command::Verify { bake, verify } => bake.scene().and_then(|scene| {
-            let out = bake.output.as_deref();
-            if let Some(out) = out {
-                check_outputs_of(bake, &scene, (out, None))?;
-            }
-            if let Some(input) = asset_of(bake, &scene)? {
-                // the fur of each part, baked alone with a base layer, against the technique;
-                // `-o` writes the asset with its fur
-                let (asset, chosen) = (&input.asset, &input.chosen);
-                let (grafted, loaded, _) = load_parts_of(bake, &scene, asset, chosen)?;
-                if let Some(out) = out {
-                    let baked = shellbake::bake_asset(asset, &input.parts(), (&grafted, &loaded))?;
-                    shellbake::output::write::write_glb(out, &baked.glb)?;
-                }
-                let (parts, mut loaded) = shellbake::asset_scene_of(&scene, asset, chosen, false)?;
-                choose_clips(bake, &mut loaded, verify.clip())?;
-                return Ok(shellbake::view::cli::verify(
-                    &bake.input,
-                    &parts,
-                    &loaded,
-                    &verify.clone().into_args(),
-                    None,
-                    bake.quiet,
-                )?);
-            }
-            let (mut loaded, _) = load_checked(bake, &scene)?;
-            choose_clips(bake, &mut loaded, verify.clip())?;
-            Ok(shellbake::view::cli::verify(
-                &bake.input,
-                &scene,
-                &loaded,
-                &verify.clone().into_args(),
-                out,
-                bake.quiet,
-            )?)
-        }),
+        Command::Verify { bake, verify } => run_verify(bake, verify),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -188,75 +188,18 @@ pub fn asset_scene_of(
         let surface = &template.surfaces[k];
         let start = Instant::now();
         let part = &asset.parts[i];
-        let mut name = part.label(asset.primitives(i));
-        // a scene file's surfaces keep their names: `<surface>_<part>`
-        if template.path.is_some() {
-            name = format!("{}_{name}", surface.name);
-        }
-        let stem = name.clone();
-        let mut k = 1;
-        while !taken_names.insert(name.to_ascii_lowercase()) {
-            k += 1;
-            name = format!("{stem}_{k}");
-        }
+        let label = part.label(asset.primitives(i));
+        let name = part_surface_name(template, surface, label, &mut taken_names);
         names.push(name.clone());
         let mut s = surface.clone();
         s.name = name;
-        if part.skin.is_some() && graft {
-            s.params.pack.quantize = pack::Quantize::None;
-        }
-        // an instanced part's fur is drawn instanced too (its layer nodes carry the node's
-        // instances, `graft`), which three.js cannot do for a mesh with morph targets: the
-        // layers store their own positions, unless the wind sways them (its fur is copied to
-        // each instance then)
-        let instanced = graft && !part.instances.is_empty() && part.skin.is_none();
-        if instanced
-            && s.params.pack.layout == pack::Layout::Compact
-            && !s.asks(crate::scene::Effect::Wind)
-        {
-            s.params.pack.layout = pack::Layout::Layers;
-        }
+        part_storage(&mut s, part, graft);
         // the part's own warnings (its UVs, its texture) with its surface; the group's other
         // parts share its frame and material: their meshes join its scene
-        let mut geometry = part.scene.clone();
-        // one paint a material (parts of materials alike but for their names share one), and
-        // each mesh says which when there are several
-        let mut paints: Vec<crate::model::paint::Paint> = Vec::new();
-        let mut painted: std::collections::HashMap<Option<String>, usize> = Default::default();
-        let mut ids = Vec::with_capacity(members.len());
-        for &j in &members {
-            let other = &asset.parts[j];
-            let material = other.material_key(&asset.doc.json);
-            let id = *painted.entry(material).or_insert_with(|| {
-                let (paint, warning) = asset.paint(j);
-                geometry.warnings.extend(warning);
-                paints.extend(paint);
-                paints.len().saturating_sub(1)
-            });
-            // the first part's meshes and warnings are the scene's already (`members[0]` is
-            // `i`)
-            if j != i {
-                geometry
-                    .warnings
-                    .extend(other.scene.warnings.iter().cloned());
-                geometry.meshes.extend(other.scene.meshes.iter().cloned());
-            }
-            ids.extend(std::iter::repeat_n(id, other.scene.meshes.len()));
-        }
+        let (mut geometry, paints, ids) = group_geometry(asset, i, &members);
         // a part of a character whose fur cannot join the character's says why: it costs a
         // draw a layer of its own
-        let apart = (keys[..n].iter().zip(&names))
-            .find_map(|(other, name)| Some((name, other.as_ref()?.apart(keys[n].as_ref()?)?)));
-        if let Some((other, why)) = apart {
-            geometry.warnings.push(format!(
-                "{}: part '{}' (material '{}') is a fur apart from '{}' of the same character: \
-                 {why}; it draws its own layers",
-                asset.doc.path.display(),
-                crate::input::escape(&part.label(asset.primitives(i))),
-                crate::input::escape(&part.names.material),
-                crate::input::escape(other),
-            ));
-        }
+        (geometry.warnings).extend(fur_apart(asset, i, (n, &keys), &names));
         if paints.len() > 1 {
             for (m, &id) in geometry.meshes.iter_mut().zip(&ids) {
                 m.paint_ids = Some(vec![id as u32; m.vertex_count()]);
@@ -266,18 +209,9 @@ pub fn asset_scene_of(
         let size = shared.unwrap_or_else(|| geometry.diagonal());
         // a skinned part is read in its bind space, whose unit the armature may scale
         if s.params.shells.height.is_none() && part.skin.is_none() {
-            let height = s.params.resolved_height(size);
-            let tallest = surface.preset.tallest();
-            if height > tallest {
-                geometry.warnings.push(format!(
-                    "{}: part '{}' takes a default height of {height:.3} m (a fraction of its \
-                     size), taller than {} grows ({tallest} m at most); glTF's lengths are \
-                     metres: give --height (and --density) for what you mean",
-                    asset.doc.path.display(),
-                    crate::input::escape(&s.name),
-                    surface.preset.name(),
-                ));
-            }
+            geometry
+                .warnings
+                .extend(tall_default(asset, &s, surface, size));
         }
         // one fur across a character: the height and density it defaults to are its own
         if shared.is_some() {
@@ -285,29 +219,9 @@ pub fn asset_scene_of(
             p.shells.height = Some(p.shells.height.unwrap_or(p.resolved_height(size)));
             p.strands.density = Some(p.strands.density.unwrap_or(p.resolved_density(size)));
         }
-        // the fur is no shinier than the part it grows from (a matte, 0.9, part under the fur
-        // preset's 0.75 grew grey, glossy fur over near-black skin), unless the surface sets
-        // its own roughness
-        let preset_roughness = BakeParams::preset(surface.preset).shade.roughness;
-        let own = s.params.shade.roughness != preset_roughness;
-        // (a fur of several parts is as rough as the roughest, [`input::asset::FurKey`])
-        let part_roughness = paints.iter().filter_map(|p| p.roughness).reduce(f32::max);
-        if let (false, Some(r)) = (own, part_roughness) {
-            s.params.shade.roughness = s.params.shade.roughness.max(r);
-        }
-        let required = asset.doc.json["extensionsRequired"].as_array();
-        let quantized = required.is_some_and(|r| r.iter().any(|e| e == "KHR_mesh_quantization"));
-        if graft
-            && quantized
-            && surface.params.pack.quantize == pack::Quantize::None
-            && names.len() == 1
-        {
-            geometry.warnings.push(format!(
-                "{}: the asset's own meshes are quantized (it requires KHR_mesh_quantization), \
-                 and the file still does: --quantize none stores the fur's streams as floats, not \
-                 the asset's",
-                asset.doc.path.display()
-            ));
+        part_roughness(&mut s, surface, &paints);
+        if graft && surface.params.pack.quantize == pack::Quantize::None && names.len() == 1 {
+            geometry.warnings.extend(float_in_quantized(asset));
         }
         // the fur follows the shape keys only in the asset that has them
         let (shape_rest, shape_names, shape_key_clips) = match (&part.shape_keys, graft) {
@@ -344,6 +258,153 @@ pub fn asset_scene_of(
         });
     }
     Ok((scene, loaded))
+}
+
+/// The warning of part `i`, the fur `keys[n]`, when it cannot join the fur of an earlier
+/// surface (`keys[..n]`, named `names`) of the same character.
+fn fur_apart(
+    asset: &crate::input::asset::Asset,
+    i: usize,
+    (n, keys): (usize, &[Option<crate::input::asset::FurKey>]),
+    names: &[String],
+) -> Option<String> {
+    let part = &asset.parts[i];
+    let apart = (keys[..n].iter().zip(names))
+        .find_map(|(other, name)| Some((name, other.as_ref()?.apart(keys[n].as_ref()?)?)));
+    let (other, why) = apart?;
+    Some(format!(
+        "{}: part '{}' (material '{}') is a fur apart from '{}' of the same character: \
+         {why}; it draws its own layers",
+        asset.doc.path.display(),
+        crate::input::escape(&part.label(asset.primitives(i))),
+        crate::input::escape(&part.names.material),
+        crate::input::escape(other),
+    ))
+}
+
+/// The name of a part's surface: the part's `label`; a scene file's surfaces keep their names
+/// (`<surface>_<part>`); a name `taken` already (in any case) gets a number (`_2`, `_3`, …).
+fn part_surface_name(
+    template: &SceneFile,
+    surface: &Surface,
+    label: String,
+    taken: &mut std::collections::HashSet<String>,
+) -> String {
+    let mut name = label;
+    // a scene file's surfaces keep their names: `<surface>_<part>`
+    if template.path.is_some() {
+        name = format!("{}_{name}", surface.name);
+    }
+    let stem = name.clone();
+    let mut k = 1;
+    while !taken.insert(name.to_ascii_lowercase()) {
+        k += 1;
+        name = format!("{stem}_{k}");
+    }
+    name
+}
+
+/// How a part's fur is stored: a skinned part grafted into the asset stores float positions;
+/// an instanced part's grafted fur, the layers layout.
+fn part_storage(s: &mut Surface, part: &crate::input::asset::Part, graft: bool) {
+    if part.skin.is_some() && graft {
+        s.params.pack.quantize = pack::Quantize::None;
+    }
+    // an instanced part's fur is drawn instanced too (its layer nodes carry the node's
+    // instances, `graft`), which three.js cannot do for a mesh with morph targets: the
+    // layers store their own positions, unless the wind sways them (its fur is copied to
+    // each instance then)
+    let instanced = graft && !part.instances.is_empty() && part.skin.is_none();
+    if instanced
+        && s.params.pack.layout == pack::Layout::Compact
+        && !s.asks(crate::scene::Effect::Wind)
+    {
+        s.params.pack.layout = pack::Layout::Layers;
+    }
+}
+
+/// The scene of a group of parts, `members` (the first is part `i`): part `i`'s, with the other
+/// parts' meshes and warnings; the paints of their materials, and each mesh's paint.
+fn group_geometry(
+    asset: &crate::input::asset::Asset,
+    i: usize,
+    members: &[usize],
+) -> (Scene, Vec<crate::model::paint::Paint>, Vec<usize>) {
+    let mut geometry = asset.parts[i].scene.clone();
+    // one paint a material (parts of materials alike but for their names share one), and
+    // each mesh says which when there are several
+    let mut paints: Vec<crate::model::paint::Paint> = Vec::new();
+    let mut painted: std::collections::HashMap<Option<String>, usize> = Default::default();
+    let mut ids = Vec::with_capacity(members.len());
+    for &j in members {
+        let other = &asset.parts[j];
+        let material = other.material_key(&asset.doc.json);
+        let id = *painted.entry(material).or_insert_with(|| {
+            let (paint, warning) = asset.paint(j);
+            geometry.warnings.extend(warning);
+            paints.extend(paint);
+            paints.len().saturating_sub(1)
+        });
+        // the first part's meshes and warnings are the scene's already (`members[0]` is
+        // `i`)
+        if j != i {
+            geometry
+                .warnings
+                .extend(other.scene.warnings.iter().cloned());
+            geometry.meshes.extend(other.scene.meshes.iter().cloned());
+        }
+        ids.extend(std::iter::repeat_n(id, other.scene.meshes.len()));
+    }
+    (geometry, paints, ids)
+}
+
+/// The warning of a part whose default height (a fraction of its `size`) is taller than its
+/// surface's preset grows.
+fn tall_default(
+    asset: &crate::input::asset::Asset,
+    s: &Surface,
+    surface: &Surface,
+    size: f32,
+) -> Option<String> {
+    let height = s.params.resolved_height(size);
+    let tallest = surface.preset.tallest();
+    (height > tallest).then(|| {
+        format!(
+            "{}: part '{}' takes a default height of {height:.3} m (a fraction of its \
+             size), taller than {} grows ({tallest} m at most); glTF's lengths are \
+             metres: give --height (and --density) for what you mean",
+            asset.doc.path.display(),
+            crate::input::escape(&s.name),
+            surface.preset.name(),
+        )
+    })
+}
+
+/// The fur is no shinier than the part it grows from (a matte, 0.9, part under the fur
+/// preset's 0.75 grew grey, glossy fur over near-black skin), unless the surface sets its own
+/// roughness.
+fn part_roughness(s: &mut Surface, surface: &Surface, paints: &[crate::model::paint::Paint]) {
+    let preset_roughness = BakeParams::preset(surface.preset).shade.roughness;
+    let own = s.params.shade.roughness != preset_roughness;
+    // (a fur of several parts is as rough as the roughest, [`input::asset::FurKey`])
+    let part_roughness = paints.iter().filter_map(|p| p.roughness).reduce(f32::max);
+    if let (false, Some(r)) = (own, part_roughness) {
+        s.params.shade.roughness = s.params.shade.roughness.max(r);
+    }
+}
+
+/// The warning of float fur streams grafted into an asset whose own meshes are quantized.
+fn float_in_quantized(asset: &crate::input::asset::Asset) -> Option<String> {
+    let required = asset.doc.json["extensionsRequired"].as_array();
+    let quantized = required.is_some_and(|r| r.iter().any(|e| e == "KHR_mesh_quantization"));
+    quantized.then(|| {
+        format!(
+            "{}: the asset's own meshes are quantized (it requires KHR_mesh_quantization), \
+             and the file still does: --quantize none stores the fur's streams as floats, not \
+             the asset's",
+            asset.doc.path.display()
+        )
+    })
 }
 
 /// The chosen parts (indices into `chosen`) grouped into one fur each: the parts of one
@@ -1304,27 +1365,9 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
     };
     if let Some(lost) = paint.and_then(|p| p.detail_lost(&mesh, coarser_than)) {
         if lost > DETAIL_WARNING {
-            let how = if params.colour.detail == colour::Detail::Vertex {
-                "--set colour.detail=strand follows it".to_string()
-            } else if refined.budget_hit {
-                format!(
-                    "the colour stage stopped at {}x the triangles: --set colour.max_growth=N \
-                     follows more of it",
-                    params.colour.max_growth
-                )
-            } else {
-                format!(
-                    "its detail is finer than the strands ({:.4} apart): --density or \
-                     --set colour.spacing=0.5 follows more of it",
-                    refined.spacing
-                )
-            };
-            run.report.warnings.push(format!(
-                "the fur's colour differs from the texture (ΔE76 over {}) on {:.0}% of this \
-                 surface; {how}",
-                crate::model::paint::DETAIL_DELTA_E,
-                100.0 * lost,
-            ));
+            run.report
+                .warnings
+                .push(detail_lost(params, &refined, lost));
         }
     }
     let retopologise = tessellated.is_some() || refined.triangles_after != refined.triangles_before;
@@ -1354,6 +1397,32 @@ fn shape(run: &mut Run, scene: &Scene, colour: merge::FurColour) -> Shape {
         boxed,
         shade,
     }
+}
+
+/// The warning of a fur whose colour differs from the texture on a share `lost` of the surface,
+/// with what follows more of it.
+fn detail_lost(params: &BakeParams, refined: &colour::Refined, lost: f64) -> String {
+    let how = if params.colour.detail == colour::Detail::Vertex {
+        "--set colour.detail=strand follows it".to_string()
+    } else if refined.budget_hit {
+        format!(
+            "the colour stage stopped at {}x the triangles: --set colour.max_growth=N \
+             follows more of it",
+            params.colour.max_growth
+        )
+    } else {
+        format!(
+            "its detail is finer than the strands ({:.4} apart): --density or \
+             --set colour.spacing=0.5 follows more of it",
+            refined.spacing
+        )
+    };
+    format!(
+        "the fur's colour differs from the texture (ΔE76 over {}) on {:.0}% of this \
+         surface; {how}",
+        crate::model::paint::DETAIL_DELTA_E,
+        100.0 * lost,
+    )
 }
 
 /// The heights phase's result: the clamp's per-vertex scale and directions, the maps read per
@@ -1439,16 +1508,7 @@ fn heights(
         .unwrap_or_default();
     run.report.tell(Stage::Collision, &collision);
     // the parts left bare: the fur yields to them, within the inversion bound like any other
-    let slope = params.clamp.bare_slope;
-    let yielded = if !bare.is_empty() && slope > 0.0 {
-        let origin = mesh.origin;
-        let bare: Vec<[glam::Vec3; 3]> = (bare.iter())
-            .map(|t| t.map(|p| (p - origin).as_vec3()))
-            .collect();
-        clamp::bare_bound(&welded.positions, &bare, height / slope, slope)
-    } else {
-        None
-    };
+    let yielded = bare_bound(mesh, welded, bare, (height, params.clamp.bare_slope));
     let by_bare =
         (yielded.as_ref()).map_or(0, |b| b.iter().filter(|&&b| b < height as f64).count());
     let combined: Vec<f64>;
@@ -1463,28 +1523,7 @@ fn heights(
     let mut clamp = run.report.run(Stage::Clamp.name(), || {
         clamp::clamp_heights(welded, smoothed, height, &params.clamp, bound)
     });
-    // an image map is read through the UVs the strands follow: a box projection the bake chose
-    // over the mesh's own puts it elsewhere
-    let image = matches!(maps.density, Some(crate::input::maps::Map::Image(_)))
-        || matches!(maps.length, Some(crate::input::maps::Map::Image(_)))
-        || matches!(maps.comb, Some(crate::input::maps::Flow::Image(_)));
-    if height <= 0.0 || params.shells.layers <= 1 {
-        run.report.warnings.push(format!(
-            "{}: no shells to draw; the surface is written bare",
-            if params.shells.layers <= 1 {
-                "one layer is the base alone"
-            } else {
-                "the height is 0"
-            }
-        ));
-    }
-    if image && *boxed {
-        run.report.warnings.push(
-            "the strands follow a box projection, and the density, length or comb image map is \
-             read through it, not through the mesh's UVs; --fur-uv mesh keeps the mesh's UVs"
-                .into(),
-        );
-    }
+    (run.report.warnings).extend(surface_warnings(params, maps, *boxed, height));
     let length = maps.length.as_ref().map(|m| m.per_vertex(mesh));
     if let Some(length) = &length {
         for (s, &l) in clamp.scale.iter_mut().zip(length) {
@@ -1530,6 +1569,59 @@ fn heights(
         density,
         outline_width,
     }
+}
+
+/// Where the fur yields to the parts left `bare` (world triangles), within the inversion bound
+/// like any other: each welded vertex's bound, or `None` without bare parts or slope.
+fn bare_bound(
+    mesh: &Mesh,
+    welded: &weld::Welded,
+    bare: &[[glam::DVec3; 3]],
+    (height, slope): (f32, f32),
+) -> Option<Vec<f64>> {
+    if !bare.is_empty() && slope > 0.0 {
+        let origin = mesh.origin;
+        let bare: Vec<[glam::Vec3; 3]> = (bare.iter())
+            .map(|t| t.map(|p| (p - origin).as_vec3()))
+            .collect();
+        clamp::bare_bound(&welded.positions, &bare, height / slope, slope)
+    } else {
+        None
+    }
+}
+
+/// The surface's warnings before its strands grow: no shells to draw, and image maps read
+/// through a box projection (`boxed`).
+fn surface_warnings(
+    params: &BakeParams,
+    maps: &SurfaceMaps,
+    boxed: bool,
+    height: f32,
+) -> Vec<String> {
+    let mut warnings = Vec::new();
+    // an image map is read through the UVs the strands follow: a box projection the bake chose
+    // over the mesh's own puts it elsewhere
+    let image = matches!(maps.density, Some(crate::input::maps::Map::Image(_)))
+        || matches!(maps.length, Some(crate::input::maps::Map::Image(_)))
+        || matches!(maps.comb, Some(crate::input::maps::Flow::Image(_)));
+    if height <= 0.0 || params.shells.layers <= 1 {
+        warnings.push(format!(
+            "{}: no shells to draw; the surface is written bare",
+            if params.shells.layers <= 1 {
+                "one layer is the base alone"
+            } else {
+                "the height is 0"
+            }
+        ));
+    }
+    if image && boxed {
+        warnings.push(
+            "the strands follow a box projection, and the density, length or comb image map is \
+             read through it, not through the mesh's UVs; --fur-uv mesh keeps the mesh's UVs"
+                .into(),
+        );
+    }
+    warnings
 }
 
 /// The look phase's result: the mask, its tiling, the shells with their effects, fins and

@@ -143,7 +143,25 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             path.display()
         ));
     }
-    // one skin for every mesh, or none
+    let skin = one_skin(path, &jobs)?;
+    if let Some(s) = skin {
+        scene.skeleton = Some(super::skin::read_skeleton(&doc, &buffers, s)?);
+    }
+    let joints = scene.skeleton.as_ref().map_or(0, |s| s.joints.len());
+    for job in &jobs {
+        scene.meshes.push(read_primitive(
+            &doc,
+            &job.element,
+            job.prim,
+            &buffers,
+            (job.world, joints),
+        )?);
+    }
+    Ok(scene)
+}
+
+/// The one skin every mesh the jobs read is bound to, or none: a surface bakes one skin.
+fn one_skin(path: &Path, jobs: &[Job]) -> Result<Option<usize>> {
     let skin = jobs.first().and_then(|j| j.skin);
     if let Some(other) = jobs.iter().find(|j| j.skin != skin) {
         let what = |s: Option<usize>| s.map_or("no skin".to_string(), |s| format!("skin {s}"));
@@ -159,20 +177,7 @@ pub(super) fn load(path: &Path, bytes: &[u8]) -> Result<Scene> {
             ),
         ));
     }
-    if let Some(s) = skin {
-        scene.skeleton = Some(super::skin::read_skeleton(&doc, &buffers, s)?);
-    }
-    let joints = scene.skeleton.as_ref().map_or(0, |s| s.joints.len());
-    for job in &jobs {
-        scene.meshes.push(read_primitive(
-            &doc,
-            &job.element,
-            job.prim,
-            &buffers,
-            (job.world, joints),
-        )?);
-    }
-    Ok(scene)
+    Ok(skin)
 }
 
 /// Whether a primitive mode is made of triangles (a list, a strip or a fan).

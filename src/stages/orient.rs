@@ -180,9 +180,51 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
             (b - a).cross(c - a).length()
         })
         .collect();
-    // Components: triangles joined across their links, in parallel; a component's root is its
-    // lowest triangle, where the walk below starts (as a walk over every triangle in order would).
-    let classes = Classes::new(nt);
+    let root = component_roots(&links);
+    let mut flip = walk(&links, &root, &mut out);
+
+    // Per component, in triangle order: the area kept and changed by the walk's flips, their
+    // count, the signed volume under them (about the root's first corner) and whether every
+    // edge has its neighbour. The terms in parallel, the sums in order.
+    let volume: Vec<f64> = (0..nt)
+        .into_par_iter()
+        .with_min_len(PAR_MIN_LEN)
+        .map(|t| {
+            let origin = pos(tris[root[t] as usize][0]);
+            let [a, b, c] = tris[t].map(|i| pos(i) - origin);
+            let v = a.dot(b.cross(c)) / 6.0;
+            if flip[t] {
+                -v
+            } else {
+                v
+            }
+        })
+        .collect();
+    let mut sums = vec![Sums::default(); nt];
+    for t in (0..nt).filter(|&t| !collapsed(t)) {
+        let s = &mut sums[root[t] as usize];
+        match flip[t] {
+            true => (s.changed, s.flipped) = (s.changed + area[t], s.flipped + 1),
+            false => s.kept += area[t],
+        }
+        s.members += 1;
+        s.volume += volume[t];
+        s.area += area[t] * 0.5;
+        s.closed &= links[t].iter().all(|l| l.0 != u32::MAX);
+    }
+    let turn = turns(&sums, &root, collapsed, &mut out);
+    (flip.par_iter_mut().zip(&root))
+        .with_min_len(PAR_MIN_LEN)
+        .for_each(|(f, &r)| *f ^= turn[r as usize]);
+    apply(mesh, &flip, &mut out);
+    out
+}
+
+/// Components: triangles joined across their `links`, in parallel; a component's root is its
+/// lowest triangle, where [`walk`] starts (as a walk over every triangle in order would).
+/// Returns each triangle's root.
+fn component_roots(links: &[[(u32, bool); 3]]) -> Vec<u32> {
+    let classes = Classes::new(links.len());
     (links.par_iter().enumerate())
         .with_min_len(PAR_MIN_LEN)
         .for_each(|(t, l)| {
@@ -190,9 +232,14 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
                 classes.join(t as u32, n);
             }
         });
-    let root = classes.roots();
-    // A component none of whose links asks for a flip is consistent as it is; the others are
-    // walked breadth first from their root, the first decision winning in a non-orientable one.
+    classes.roots()
+}
+
+/// The walk's flips: a component none of whose links asks for a flip is consistent as it is;
+/// the others are walked breadth first from their root, the first decision winning in a
+/// non-orientable one (counted in `out.conflicts`).
+fn walk(links: &[[(u32, bool); 3]], root: &[u32], out: &mut Orientation) -> Vec<bool> {
+    let nt = links.len();
     let disagrees: Vec<bool> = {
         let mark: Vec<AtomicBool> = (0..nt).map(|_| AtomicBool::new(false)).collect();
         (links.par_iter().enumerate())
@@ -220,35 +267,25 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
             }
         }
     }
+    flip
+}
 
-    // Per component, in triangle order: the area kept and changed by the walk's flips, their
-    // count, the signed volume under them (about the root's first corner) and whether every
-    // edge has its neighbour. The terms in parallel, the sums in order.
-    let volume: Vec<f64> = (0..nt)
-        .into_par_iter()
-        .with_min_len(PAR_MIN_LEN)
-        .map(|t| {
-            let origin = pos(tris[root[t] as usize][0]);
-            let [a, b, c] = tris[t].map(|i| pos(i) - origin);
-            let v = a.dot(b.cross(c)) / 6.0;
-            if flip[t] {
-                -v
-            } else {
-                v
-            }
-        })
-        .collect();
-    #[derive(Clone, Copy)]
-    struct Sums {
-        kept: f64,
-        changed: f64,
-        members: usize,
-        flipped: usize,
-        volume: f64,
-        area: f64,
-        closed: bool,
-    }
-    let mut sums = vec![
+/// One component's sums over its triangles, at its root: the area kept and changed by the
+/// walk's flips, its members and how many the walk flipped, the signed volume, the area, and
+/// whether every edge has its neighbour.
+#[derive(Clone, Copy)]
+struct Sums {
+    kept: f64,
+    changed: f64,
+    members: usize,
+    flipped: usize,
+    volume: f64,
+    area: f64,
+    closed: bool,
+}
+
+impl Default for Sums {
+    fn default() -> Sums {
         Sums {
             kept: 0.0,
             changed: 0.0,
@@ -257,22 +294,19 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
             volume: 0.0,
             area: 0.0,
             closed: true,
-        };
-        nt
-    ];
-    for t in (0..nt).filter(|&t| !collapsed(t)) {
-        let s = &mut sums[root[t] as usize];
-        match flip[t] {
-            true => (s.changed, s.flipped) = (s.changed + area[t], s.flipped + 1),
-            false => s.kept += area[t],
         }
-        s.members += 1;
-        s.volume += volume[t];
-        s.area += area[t] * 0.5;
-        s.closed &= links[t].iter().all(|l| l.0 != u32::MAX);
     }
-    // Per component: keep the orientation under which more area keeps its winding; closed parts
-    // face outward.
+}
+
+/// Per component: keep the orientation under which more area keeps its winding; closed parts
+/// face outward. Returns whether each root's component turns whole.
+fn turns(
+    sums: &[Sums],
+    root: &[u32],
+    collapsed: impl Fn(usize) -> bool,
+    out: &mut Orientation,
+) -> Vec<bool> {
+    let nt = sums.len();
     let mut turn = vec![false; nt];
     for r in (0..nt).filter(|&t| root[t] == t as u32 && !collapsed(t)) {
         let s = sums[r];
@@ -295,11 +329,7 @@ pub fn orient_on(mesh: &mut Mesh, topo: &Topology, params: &OrientParams) -> Ori
         }
         turn[r] = whole;
     }
-    (flip.par_iter_mut().zip(&root))
-        .with_min_len(PAR_MIN_LEN)
-        .for_each(|(f, &r)| *f ^= turn[r as usize]);
-    apply(mesh, &flip, &mut out);
-    out
+    turn
 }
 
 /// Swaps two corners of every flagged triangle and makes shading normals follow.

@@ -173,31 +173,8 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
     let nv = topo.ids.len();
     let tris = topo.tris(indices);
 
-    // Corners (3 per triangle) joined across continuing edges, the edges in parallel into one
-    // shared union-find (a class's root is its smallest corner, whatever the order).
     let corners = 3 * tris.len();
-    let classes = Classes::new(corners);
-    let sides = topo.sides(&tris);
-    (sides.par_chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))).for_each(|group| {
-        continuations(group, &tris, &topo.positions, &mut |i, j| {
-            let (ti, ki) = (group[i].t, group[i].k);
-            let (tj, kj) = (group[j].t, group[j].k);
-            for end in [group[0].a, group[0].b] {
-                let corner = |t: u32, k: u8| {
-                    let tri = tris[t as usize];
-                    let k = if tri[k as usize] == end {
-                        k
-                    } else {
-                        (k + 1) % 3
-                    };
-                    3 * t + k as u32
-                };
-                classes.join(corner(ti, ki), corner(tj, kj));
-            }
-        });
-    });
-    drop(sides);
-    let root = classes.roots();
+    let root = corner_roots(topo, &tris);
     let kept: Vec<bool> = (tris.par_iter())
         .with_min_len(PAR_MIN_LEN)
         .map(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
@@ -265,9 +242,43 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
         .with_min_len(PAR_MIN_LEN)
         .flat_map_iter(|&t| (3 * t as usize..3 * t as usize + 3).map(|c| (welded(c), render[c])))
         .unzip();
-    // Render vertices no kept triangle uses: one welded vertex per position.
+    weld_unused(topo, &mut out);
+    out
+}
+
+/// Corners (3 per triangle) joined across continuing edges, the edges in parallel into one
+/// shared union-find (a class's root is its smallest corner, whatever the order). Returns each
+/// corner's root.
+fn corner_roots(topo: &Topology, tris: &[[u32; 3]]) -> Vec<u32> {
+    let corners = 3 * tris.len();
+    let classes = Classes::new(corners);
+    let sides = topo.sides(tris);
+    (sides.par_chunk_by(|x, y| (x.a, x.b) == (y.a, y.b))).for_each(|group| {
+        continuations(group, tris, &topo.positions, &mut |i, j| {
+            let (ti, ki) = (group[i].t, group[i].k);
+            let (tj, kj) = (group[j].t, group[j].k);
+            for end in [group[0].a, group[0].b] {
+                let corner = |t: u32, k: u8| {
+                    let tri = tris[t as usize];
+                    let k = if tri[k as usize] == end {
+                        k
+                    } else {
+                        (k + 1) % 3
+                    };
+                    3 * t + k as u32
+                };
+                classes.join(corner(ti, ki), corner(tj, kj));
+            }
+        });
+    });
+    drop(sides);
+    classes.roots()
+}
+
+/// Render vertices no kept triangle uses: one welded vertex per position, after the others.
+fn weld_unused(topo: &Topology, out: &mut Welded) {
     let mut unused_at: IdMap<u32, u32> = IdMap::default();
-    for v in 0..nv {
+    for v in 0..topo.ids.len() {
         if out.remap[v] == u32::MAX {
             let next = out.positions.len() as u32;
             let w = *unused_at.entry(topo.ids[v]).or_insert(next);
@@ -277,7 +288,6 @@ pub fn weld_on(topo: &Topology, indices: &[u32]) -> Welded {
             out.remap[v] = w;
         }
     }
-    out
 }
 
 impl Welded {
