@@ -319,7 +319,7 @@ fn skinned_fur_has_its_true_bounds_in_babylon_and_three_js() {
 
 /// A rigid part's fur in Babylon.js, which bounds a mesh by its `POSITION` accessor's `min` and
 /// `max` and adds no morph target: the layers' box was the bare blob's, the fur sticking out of
-/// it by its whole height. The box vertices (`pack::BOX_VERTICES`) put the fur inside it.
+/// it by its whole height. The box vertices (`pack::streams::BOX_VERTICES`) put the fur inside it.
 #[test]
 fn a_rigid_part_s_fur_is_inside_its_bounds_in_babylon() {
     let dir = scratch("asset-rigid-bounds");
@@ -2458,7 +2458,7 @@ fn an_instanced_part_grows_fur_on_every_instance() {
             let prim = &out["meshes"][nodes[n]["mesh"].as_u64().unwrap() as usize]["primitives"][0];
             let a = &out["accessors"][prim["attributes"]["POSITION"].as_u64().unwrap() as usize];
             // the centre of the card's own vertices: the accessor's box is the fur's
-            // (`pack::BOX_VERTICES`, the last two vertices), which reaches past the card
+            // (`pack::streams::BOX_VERTICES`, the last two vertices), which reaches past the card
             let view = &out["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
             let at = |v: &Value| v.as_u64().unwrap_or(0) as usize;
             let (start, stride) = (

@@ -481,7 +481,7 @@ pub(super) fn look(
 /// Why `stage`, asked for, cannot run on a surface (`None`: it can): a skinned surface takes no
 /// fins or outline (neither is skinned); an instanced part no LOD chain (its fur is drawn at
 /// every instance: instanced, or copied, `output/graft.rs`). A skinned surface's chain is carried by its layer nodes themselves
-/// (`pack::skinned_switches`). The bake skips the stage with this reason and a warning;
+/// (`pack::place::skinned_switches`). The bake skips the stage with this reason and a warning;
 /// `shellbake plan` shows the same.
 pub fn blocked(stage: Stage, skinned: bool, instanced: bool) -> Option<&'static str> {
     match stage {

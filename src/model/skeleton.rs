@@ -27,7 +27,7 @@
 //! skinned and rigid meshes mixed, are refused naming the nodes — bake them as separate
 //! surfaces); a vertex's weights are normalised to sum to 1; a skinned surface's LOD chain
 //! is carried by its layer nodes themselves (`MSFT_lod` switches a node's subtree, and a skinned
-//! mesh node must be a root: `pack::skinned_switches`);
+//! mesh node must be a root: `pack::place::skinned_switches`);
 //! the inversion guard checks the bind pose only — a pose that folds the skin folds its fur too,
 //! as it would with the runtime technique. Each clip loops over its own length, as three.js's
 //! `AnimationMixer` plays it (within a channel, time is clamped to its keys, as glTF asks); `verify` compares the rest (bind) pose and a quarter and three quarters of the

@@ -856,7 +856,7 @@ impl Asset {
 
     /// World-space bounds of everything drawn at LOD 0, morph targets applied with their weights
     /// (and the base), as an axis-aligned box: of the vertices the primitives' triangles use (a
-    /// baked file's box vertices, `pack::BOX_VERTICES`, are drawn by none).
+    /// baked file's box vertices, `pack::streams::BOX_VERTICES`, are drawn by none).
     pub fn bounds(&self) -> Result<Option<(DVec3, DVec3)>> {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);

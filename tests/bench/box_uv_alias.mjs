@@ -42,7 +42,7 @@ const one = (name) => {
 };
 const indices = views('indices').map((v) => new Uint32Array(bytes(v)));
 // the vertices triangles use: the streams end with the box vertices no triangle draws
-// (`pack::BOX_VERTICES`), which no layout would change
+// (`pack::streams::BOX_VERTICES`), which no layout would change
 const nv = 1 + indices.reduce((m, ix) => ix.reduce((a, i) => Math.max(a, i), m), 0);
 const pos = new Int16Array(one('position')).slice(0, 4 * nv);
 const nrm = new Int8Array(one('normal')).slice(0, 4 * nv);

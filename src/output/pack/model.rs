@@ -296,7 +296,7 @@ pub struct NodeLod {
     /// Geometric error per level, world units.
     pub errors: Vec<f64>,
     /// Where the distances are measured from, world units, when the node's own content does
-    /// not say: a skinned chunk's layer nodes, which switch as one (`pack::skinned_switches`).
+    /// not say: a skinned chunk's layer nodes, which switch as one (`pack::place::skinned_switches`).
     pub centre: Option<DVec3>,
 }
 
