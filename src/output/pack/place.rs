@@ -321,8 +321,8 @@ pub(super) fn skinned_switches(
 /// `<=` (three.js), where two masked layers lie at exactly the same depth the inner one now
 /// shows instead of the outer. The node indices keep the layers' order, so a reader numbers a
 /// layer by its index among its siblings.
-pub(super) fn draw_order(b: &Builder, nodes: &[usize]) -> Vec<usize> {
-    let (masked, opaque): (Vec<usize>, Vec<usize>) = nodes.iter().partition(|&&n| masked(b, n));
+fn draw_order(b: &Builder, nodes: &[usize]) -> Vec<usize> {
+    let (opaque, masked) = split_masked(b, nodes);
     opaque.into_iter().chain(masked.into_iter().rev()).collect()
 }
 
@@ -335,27 +335,25 @@ pub(super) fn draw_order(b: &Builder, nodes: &[usize]) -> Vec<usize> {
 /// fails). The innermost masked layer has a mesh at every level that has fur, so listed first
 /// its chain asks for the shared streams at the coarsest level. That one layer is drawn before
 /// the outer ones.
-pub(super) fn chained_draw_order(b: &Builder, lod0: &[usize]) -> Vec<usize> {
-    let mut order = draw_order(b, lod0);
-    if let Some(&inner) = lod0.iter().find(|&&n| masked(b, n)) {
-        let at = order
-            .iter()
-            .position(|&n| n == inner)
-            .expect("a layer node");
-        let first = order
-            .iter()
-            .position(|&n| masked(b, n))
-            .expect("a masked layer");
-        order[first..=at].rotate_right(1);
-    }
-    order
+fn chained_draw_order(b: &Builder, lod0: &[usize]) -> Vec<usize> {
+    let (opaque, masked) = split_masked(b, lod0);
+    let (inner, outer) = masked
+        .split_first()
+        .map_or((None, &[][..]), |(i, o)| (Some(i), o));
+    (opaque.iter().chain(inner).chain(outer.iter().rev()))
+        .copied()
+        .collect()
 }
 
-/// Whether node `n` draws a masked material.
-pub(super) fn masked(b: &Builder, n: usize) -> bool {
-    let mesh = b.out.nodes[n].mesh.map(|m| &b.out.meshes[m]);
-    (mesh.into_iter().flat_map(|m| &m.primitives))
-        .any(|p| matches!(b.out.materials[p.material].alpha, Alpha::Mask(_)))
+/// `nodes`' opaque and masked nodes (those that draw a masked material), each in the order
+/// given.
+fn split_masked(b: &Builder, nodes: &[usize]) -> (Vec<usize>, Vec<usize>) {
+    let masked = |n: usize| {
+        let mesh = b.out.nodes[n].mesh.map(|m| &b.out.meshes[m]);
+        (mesh.into_iter().flat_map(|m| &m.primitives))
+            .any(|p| matches!(b.out.materials[p.material].alpha, Alpha::Mask(_)))
+    };
+    nodes.iter().partition(|&&n| !masked(n))
 }
 
 /// The node transform that dequantizes: stored value → world.
