@@ -63,12 +63,17 @@
 //! Skinned fur has no stage of its own: the load stage's facts say what the file keeps
 //! ([`model::skeleton`]); [`blocked`] names the stages a skinned surface cannot take.
 //!
-//! **Adding an effect** touches, today: its file in [`effects`] (its parameters, its work, its
-//! [`facts::Reported`]) and, where it leaves something on the layers, a field of
-//! [`effects::laws::Laws`]; the plan table ([`scene::Effect`], [`scene::Stage`]); its gated
-//! line in the look phase ([`bake`](mod@bake)); its parameters in [`params::BakeParams`] and
-//! its flag in the binary; the writer's stream model ([`output::pack`]); and the runtime
-//! reference that `verify` holds it against ([`view::reference`]).
+//! **Adding an effect** touches four places, one edit each: its file in [`effects`] (its
+//! parameters, its work, its [`facts::Reported`]); its parameters' field in
+//! [`params::BakeParams`] (scene files' `[surface.<name>]` and `--set` read the sections from
+//! the struct itself, [`params::BakeParams::sections`]); its rows in the plan table
+//! (`scene/table.rs`: its name and other names, its stage where it runs; scene files'
+//! `effects`, the binary's `--effect NAME`, the plan and the report take the names from there);
+//! and its gated line in the look phase ([`bake`](mod@bake)). Where it leaves something the
+//! others do not, also: a field of [`effects::laws::Laws`] (on the layers), the writer's stream
+//! model ([`output::pack`], streams of its own) and the runtime reference that `verify` holds
+//! it against ([`view::reference`]). A flag of its own in the binary is a shorthand, not a
+//! need.
 //!
 //! Modules import only from their own floor or below, and no module reaches itself through its
 //! imports (`tests/architecture.rs` checks both, each file its own module, and lists by name

@@ -113,6 +113,14 @@ pub(crate) fn named<T: Clone + Send + Sync + 'static>(
     })
 }
 
+/// A clap value parser for an effect: its name or another name of it ([`Effect::from_name`]).
+fn effect_name(name: &str) -> Result<Effect, String> {
+    Effect::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = Effect::ALL.iter().map(|e| e.name()).collect();
+        format!("unknown effect (expected one of {})", names.join(", "))
+    })
+}
+
 /// Flags shared by every command that bakes.
 #[derive(Args, Clone, Debug)]
 struct BakeArgs {
@@ -185,6 +193,14 @@ struct BakeArgs {
     /// strength, period).
     #[arg(long)]
     wind: bool,
+    /// Ask for an effect by its name, as a scene file's `effects` list names it (`--effect wind`;
+    /// repeatable): every effect of `shellbake plan`, the ones without a flag of their own
+    /// included; `[surface.<name>]` or `--set <name>.<key>=…` sets its parameters.
+    #[arg(long = "effect", value_name = "NAME", value_parser = effect_name)]
+    effect: Vec<Effect>,
+    /// Turn an effect off by its name (`--no-effect lod`; repeatable).
+    #[arg(long = "no-effect", value_name = "NAME", value_parser = effect_name)]
+    no_effect: Vec<Effect>,
     /// Drop layer triangles on which no strand can survive (the effect `cull`; changes no pixel).
     #[arg(long, overrides_with = "no_cull")]
     cull: bool,
@@ -295,7 +311,7 @@ impl BakeArgs {
         if let Some(w) = self.layer_weights {
             p.pack.layer_weights = w;
         }
-        for (on, effect) in [
+        let shorthands = [
             (self.clamp, Effect::Collision),
             (self.gravity, Effect::Gravity),
             (self.occlusion, Effect::Occlusion),
@@ -304,26 +320,24 @@ impl BakeArgs {
             (self.tessellate, Effect::Tessellation),
             (self.fins, Effect::Fins),
             (self.outline, Effect::Outline),
-        ] {
-            if on && !effects.contains(&effect) {
+            (self.cull, Effect::Cull),
+            (self.lod, Effect::Lod),
+        ];
+        let asked = shorthands.into_iter().filter_map(|(on, e)| on.then_some(e));
+        for effect in asked.chain(self.effect.iter().copied()) {
+            if !effects.contains(&effect) {
                 effects.push(effect);
                 effects.sort();
             }
         }
-        for (on, effect) in [(self.cull, Effect::Cull), (self.lod, Effect::Lod)] {
-            if on && !effects.contains(&effect) {
-                effects.push(effect);
-                effects.sort();
-            }
-        }
-        for (off, effect) in [
+        let off = [
             (self.no_cull, Effect::Cull),
             (self.no_lod, Effect::Lod),
             (self.no_clamp, Effect::Collision),
-        ] {
-            if off {
-                effects.retain(|&e| e != effect);
-            }
+        ];
+        let dropped = off.into_iter().filter_map(|(off, e)| off.then_some(e));
+        for effect in dropped.chain(self.no_effect.iter().copied()) {
+            effects.retain(|&e| e != effect);
         }
     }
 

@@ -131,6 +131,41 @@ fn merge(base: &mut toml::Table, over: toml::Table) {
 }
 
 impl BakeParams {
+    /// The sections a scene file's surface and `--set` may name, in declaration order: the
+    /// struct's own field list, as serde reads it, so a section added to the struct is a
+    /// section of scene files with no list to keep beside it.
+    pub fn sections() -> &'static [&'static str] {
+        use serde::de::{value::Error, Error as _, Visitor};
+        /// A deserializer that only records the field list of the struct asked of it.
+        struct Fields<'a>(&'a std::cell::Cell<&'static [&'static str]>);
+        impl<'de> serde::Deserializer<'de> for Fields<'_> {
+            type Error = Error;
+            fn deserialize_any<V: Visitor<'de>>(self, _: V) -> Result<V::Value, Error> {
+                Err(Error::custom("a struct's field list only"))
+            }
+            fn deserialize_struct<V: Visitor<'de>>(
+                self,
+                _: &'static str,
+                fields: &'static [&'static str],
+                _: V,
+            ) -> Result<V::Value, Error> {
+                self.0.set(fields);
+                Err(Error::custom("field list recorded"))
+            }
+            serde::forward_to_deserialize_any! {
+                bool i8 i16 i32 i64 i128 u8 u16 u32 u64 u128 f32 f64 char str string bytes
+                byte_buf option unit unit_struct newtype_struct seq tuple tuple_struct map enum
+                identifier ignored_any
+            }
+        }
+        static SECTIONS: std::sync::OnceLock<&'static [&'static str]> = std::sync::OnceLock::new();
+        SECTIONS.get_or_init(|| {
+            let fields = std::cell::Cell::new(&[][..]);
+            let _ = BakeParams::deserialize(Fields(&fields));
+            fields.get()
+        })
+    }
+
     /// The named preset: the stage defaults with the preset's overrides.
     pub fn preset(preset: Preset) -> BakeParams {
         let over: toml::Table = toml::from_str(preset.overrides())

@@ -134,6 +134,41 @@ fn bad_parameters_exit_with_usage_code() {
 }
 
 #[test]
+fn effects_by_name_are_the_shorthand_flags() {
+    // `--effect NAME` / `--no-effect NAME` reach every effect with no flag of its own, and give
+    // the bytes the shorthands give
+    let dir = scratch("effect_by_name");
+    let cube = fixture("cube.obj");
+    let bake = |name: &str, flags: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "bake",
+            cube.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "-q",
+        ];
+        args.extend_from_slice(flags);
+        let (ok, _, err) = shellbake(&args);
+        assert!(ok, "{err}");
+        std::fs::read(out).unwrap()
+    };
+    let named = bake(
+        "named.glb",
+        &["--effect", "wind", "--effect", "comb", "--no-effect", "lod"],
+    );
+    let flags = bake("flags.glb", &["--wind", "--gravity", "--no-lod"]);
+    let plain = bake("plain.glb", &[]);
+    assert_eq!(named, flags);
+    assert_ne!(named, plain);
+    let (ok, _, err) = shellbake(&["bake", cube.to_str().unwrap(), "--effect", "wnd", "-q"]);
+    assert!(
+        !ok && err.contains("wnd") && err.contains("outline"),
+        "{err}"
+    );
+}
+
+#[test]
 fn cli_bakes_with_report_and_summary() {
     let dir = scratch("cli_bake");
     let out = dir.join("cube.glb");

@@ -50,11 +50,13 @@
 //! stages for every surface, an effect's stage only for the surfaces that ask for it. A stage
 //! no surface asks for runs nothing and builds nothing (no BVH without `collision` or
 //! `occlusion`). The report
-//! lists every stage as run or skipped with the reason. Adding an effect is one [`Effect`]
-//! variant with its stage; `lod` and `cull` are listed as stages already (skipped: nothing can
-//! ask for them yet).
+//! lists every stage as run or skipped with the reason. The stages and the effects, with their
+//! names, are the rows of one table (`table.rs`): adding an effect is a row there.
 
 mod reader;
+mod table;
+
+pub use table::{Effect, Stage};
 
 use std::path::{Path, PathBuf};
 
@@ -62,87 +64,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::params::{BakeParams, Preset};
 
-/// An effect a surface can ask for; each one is a stage that runs only when asked.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Effect {
-    /// Shorten shells where they would pass through another part of the mesh (a BVH ray per
-    /// vertex; `--clamp`).
-    Collision,
-    /// Drop the layer triangles on which no strand survives (on by default; `--no-cull`,
-    /// `"no-cull"`).
-    Cull,
-    /// Distance LOD levels and chunks (on by default; `--no-lod`, `"no-lod"`).
-    Lod,
-    /// Bend the strands toward a direction (world gravity or a comb field), a second morph
-    /// target weighted `t^k` (`--gravity`, `[surface.gravity]`, `comb_map`; also named `comb`).
-    #[serde(alias = "comb")]
-    Gravity,
-    /// Ambient occlusion of the base surface folded into each layer's shade, `COLOR_0` (rays
-    /// against the BVH the collision bound shares; `--occlusion`, `[surface.occlusion]`).
-    Occlusion,
-    /// `KHR_materials_sheen` on the layer materials, stronger toward the tips (`--sheen`,
-    /// `[surface.sheen]`).
-    Sheen,
-    /// Strands sway: two morph targets and a looping animation of the layer weights (`--wind`,
-    /// `[surface.wind]`).
-    Wind,
-    /// Subdivide the base before shelling, Phong-smoothed (`--tessellate`,
-    /// `[surface.tessellation]`; also named `tessellate`).
-    #[serde(alias = "tessellate")]
-    Tessellation,
-    /// Fin quads on mesh edges, textured from the strand model (`--fins`, `[surface.fins]`).
-    Fins,
-    /// An inverted hull in one unlit colour (`--outline`, `[surface.outline]`).
-    Outline,
-}
-
 impl Effect {
-    pub const ALL: [Effect; 10] = [
-        Effect::Collision,
-        Effect::Cull,
-        Effect::Lod,
-        Effect::Gravity,
-        Effect::Occlusion,
-        Effect::Sheen,
-        Effect::Wind,
-        Effect::Tessellation,
-        Effect::Fins,
-        Effect::Outline,
-    ];
     /// The effects every surface has unless its effect list says `no-<name>` (`--no-cull`,
     /// `--no-lod`).
     pub const DEFAULT: [Effect; 2] = [Effect::Cull, Effect::Lod];
-    /// Other names of effects: `comb` is the `gravity` effect (docs/how-it-works.md#the-plan).
-    pub const ALIASES: [(&'static str, Effect); 2] = [
-        ("comb", Effect::Gravity),
-        ("tessellate", Effect::Tessellation),
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Effect::Collision => "collision",
-            Effect::Cull => "cull",
-            Effect::Lod => "lod",
-            Effect::Gravity => "gravity",
-            Effect::Occlusion => "occlusion",
-            Effect::Sheen => "sheen",
-            Effect::Wind => "wind",
-            Effect::Tessellation => "tessellation",
-            Effect::Fins => "fins",
-            Effect::Outline => "outline",
-        }
-    }
-
-    /// The effect named `name`, or the effect it is another name of ([`Effect::ALIASES`]).
-    pub fn from_name(name: &str) -> Option<Effect> {
-        let name = Effect::ALIASES
-            .iter()
-            .find(|(alias, _)| *alias == name)
-            .map_or(name, |(_, e)| e.name());
-        Effect::ALL.into_iter().find(|e| e.name() == name)
-    }
-
     /// The effects a surface asks for without naming them: `gravity` when it combs (a
     /// `comb_map`, or `[surface.gravity] comb`).
     pub fn implied(params: &BakeParams, comb_map: bool) -> Vec<Effect> {
@@ -153,113 +78,9 @@ impl Effect {
             .filter_map(|(asked, e)| asked.then_some(e))
             .collect()
     }
-
-    /// The stage that computes the effect.
-    pub fn stage(self) -> Stage {
-        match self {
-            Effect::Collision => Stage::Collision,
-            Effect::Cull => Stage::Cull,
-            Effect::Lod => Stage::Lod,
-            Effect::Gravity => Stage::Gravity,
-            Effect::Occlusion => Stage::Occlusion,
-            Effect::Sheen => Stage::Sheen,
-            Effect::Wind => Stage::Wind,
-            Effect::Tessellation => Stage::Tessellation,
-            Effect::Fins => Stage::Fins,
-            Effect::Outline => Stage::Outline,
-        }
-    }
-}
-
-/// The stages of a bake, in the order they run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Stage {
-    Load,
-    Merge,
-    Orient,
-    Tessellation,
-    Colour,
-    Weld,
-    Frames,
-    Smooth,
-    Collision,
-    Clamp,
-    Occlusion,
-    Strands,
-    Tiling,
-    Shells,
-    Gravity,
-    Wind,
-    Sheen,
-    Fins,
-    Outline,
-    Cull,
-    Lod,
-    Pack,
-    Write,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 23] = [
-        Stage::Load,
-        Stage::Merge,
-        Stage::Orient,
-        Stage::Tessellation,
-        Stage::Colour,
-        Stage::Weld,
-        Stage::Frames,
-        Stage::Smooth,
-        Stage::Collision,
-        Stage::Clamp,
-        Stage::Occlusion,
-        Stage::Strands,
-        Stage::Tiling,
-        Stage::Shells,
-        Stage::Gravity,
-        Stage::Wind,
-        Stage::Sheen,
-        Stage::Fins,
-        Stage::Outline,
-        Stage::Cull,
-        Stage::Lod,
-        Stage::Pack,
-        Stage::Write,
-    ];
-
-    /// The name in reports and in `shellbake plan`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Stage::Load => "load",
-            Stage::Merge => "merge",
-            Stage::Orient => "orient",
-            Stage::Tessellation => "tessellation",
-            Stage::Colour => "colour",
-            Stage::Weld => "weld",
-            Stage::Frames => "frames",
-            Stage::Smooth => "smooth",
-            Stage::Collision => "collision",
-            Stage::Clamp => "clamp",
-            Stage::Strands => "strands",
-            Stage::Tiling => "tiling",
-            Stage::Shells => "shells",
-            Stage::Gravity => "gravity",
-            Stage::Occlusion => "occlusion",
-            Stage::Wind => "wind",
-            Stage::Sheen => "sheen",
-            Stage::Fins => "fins",
-            Stage::Outline => "outline",
-            Stage::Cull => "cull",
-            Stage::Lod => "lod",
-            Stage::Pack => "pack",
-            Stage::Write => "write",
-        }
-    }
-
-    /// The effect that asks for this stage; `None` for a stage every bake runs.
-    pub fn effect(self) -> Option<Effect> {
-        Effect::ALL.into_iter().find(|e| e.stage() == self)
-    }
-
     /// How a warning names this stage when it is planned and cannot run: an effect on by
     /// default (cull, lod) was not asked for by name.
     pub fn asked(self) -> &'static str {
@@ -629,6 +450,26 @@ mod tests {
         assert!(msg.contains("non-zero"), "{msg}");
         let (_, _, msg) = scene_error("[[surface]]\nmesh = \"a.obj\"\neffects = [\"combs\"]\n");
         assert!(msg.contains("comb,") || msg.contains("comb "), "{msg}");
+    }
+
+    #[test]
+    fn every_parameter_section_is_a_scene_section() {
+        // the sections are BakeParams' own fields: `colour` was missing from a list kept
+        // beside the struct, so `[surface.colour]` was refused while `--set colour.…` worked
+        let sections = BakeParams::sections();
+        assert_eq!(sections.len(), 15, "{sections:?}");
+        let defaults = toml::Table::try_from(BakeParams::default()).unwrap();
+        assert!(defaults.keys().all(|k| sections.contains(&k.as_str())));
+        let s = parse("[[surface]]\nmesh = \"a.glb\"\n[surface.colour]\ndetail = \"vertex\"\n")
+            .unwrap();
+        let detail = s.surfaces[0].params.colour.detail;
+        assert_eq!(detail, crate::stages::colour::Detail::Vertex);
+        let (_, key, message) = scene_error("[[surface]]\nmesh = \"a.glb\"\n[surface.color]\n");
+        assert_eq!(key, "surface[0].color");
+        assert!(
+            message.contains("colour") && message.contains("outline"),
+            "{message}"
+        );
     }
 
     #[test]

@@ -32,24 +32,6 @@ const SURFACE_KEYS: [&str; 10] = [
     "only",
 ];
 
-/// Sections of [`BakeParams`] a surface may override.
-const SECTIONS: [&str; 14] = [
-    "orient",
-    "tessellation",
-    "clamp",
-    "strands",
-    "shells",
-    "shade",
-    "lod",
-    "pack",
-    "gravity",
-    "occlusion",
-    "sheen",
-    "wind",
-    "fins",
-    "outline",
-];
-
 /// One step of a key path inside the scene file.
 #[derive(Clone, Debug)]
 enum Seg {
@@ -257,13 +239,15 @@ impl Reader<'_> {
     /// Refuses a key of the surface `table` that is neither a surface key nor a section.
     fn check_surface_keys(&self, here: &[Seg], table: &toml::Table) -> Result<()> {
         for key in table.keys() {
-            if !SURFACE_KEYS.contains(&key.as_str()) && !SECTIONS.contains(&key.as_str()) {
+            if !SURFACE_KEYS.contains(&key.as_str())
+                && !BakeParams::sections().contains(&key.as_str())
+            {
                 return Err(self.error(
                     &at(here, key),
                     format!(
                         "unknown key (expected one of {}, {})",
                         SURFACE_KEYS.join(", "),
-                        SECTIONS.join(", ")
+                        BakeParams::sections().join(", ")
                     ),
                 ));
             }
@@ -478,7 +462,7 @@ impl Reader<'_> {
     ) -> Result<(BakeParams, toml::Table)> {
         let base = BakeParams::preset(preset);
         let mut over = toml::Table::new();
-        for section in SECTIONS {
+        for &section in BakeParams::sections() {
             let Some(value) = table.get(section) else {
                 continue;
             };
