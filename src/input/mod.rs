@@ -26,6 +26,7 @@ pub mod maps;
 mod obj;
 pub mod skin;
 
+#[cfg(feature = "view")]
 pub(crate) use gltf::triangle_list;
 
 pub(crate) use boundary::escape;
