@@ -291,7 +291,7 @@ pub(super) fn float_in_quantized(asset: &crate::input::asset::Asset) -> Option<S
 /// part by part each seam showed. A part stays alone where its fur must differ: it has shape
 /// keys (the fur follows its own weights), is instanced (the graft draws its fur at each
 /// instance), or its fur material cannot be shared (unlit beside lit, a second UV set)
-/// ([`input::asset::FurKey`]).
+/// ([`crate::input::asset::FurKey`]).
 /// Groups are in the order of their first part; parts in chosen order.
 pub(super) fn fur_groups(
     asset: &crate::input::asset::Asset,

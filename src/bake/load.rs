@@ -63,7 +63,7 @@ pub fn load_surfaces(scene: &SceneFile) -> Result<Vec<Loaded>> {
 }
 
 /// The warning for part `i` of `asset` (described as `what`) when it has bone influences past
-/// four ([`input::asset::Part::more_influences`]).
+/// four (the part's `more_influences` flag, [`crate::input::asset::Part`]).
 pub(super) fn more_influences(
     asset: &crate::input::asset::Asset,
     i: usize,

@@ -40,7 +40,7 @@ pub struct Paint {
     /// grows from. `None` where a texture sets it.
     pub roughness: Option<f32>,
     /// The base-colour `textureInfo` and the element it belongs to, not decoded yet: reading
-    /// an asset decodes no image, [`Asset::paint`] decodes those of the parts the bake furs.
+    /// an asset decodes no image, [`crate::input::asset::Asset::paint`] decodes those of the parts the bake furs.
     pub(crate) pending: Option<(Value, String)>,
 }
 

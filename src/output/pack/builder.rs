@@ -87,7 +87,7 @@ impl Builder<'_> {
             .stream(name, semantic, target, self.tag, (bytes, stride, count))
     }
 
-    /// POSITION stream of `q` ([`Geometry::stored`]: grid levels, or a plain float file's
+    /// POSITION stream of `q` ([`super::input::Geometry::stored`]: grid levels, or a plain float file's
     /// exact positions): normalized i16 centred on the grid (stride 8), or floats (stride 12),
     /// with exact bounds.
     pub(super) fn positions(
