@@ -140,18 +140,7 @@ fn effects_by_name_are_the_shorthand_flags() {
     let dir = scratch("effect_by_name");
     let cube = fixture("cube.obj");
     let bake = |name: &str, flags: &[&str]| {
-        let out = dir.join(name);
-        let mut args = vec![
-            "bake",
-            cube.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "-q",
-        ];
-        args.extend_from_slice(flags);
-        let (ok, _, err) = shellbake(&args);
-        assert!(ok, "{err}");
-        std::fs::read(out).unwrap()
+        std::fs::read(common::bake(&cube, &dir, name, flags).0).unwrap()
     };
     let named = bake(
         "named.glb",
