@@ -326,7 +326,7 @@ fn a_character_made_in_blender_is_one_skinned_fur_with_levels() {
 /// (Babylon.js's import of `MSFT_lod` fails otherwise). Node indices keep the inner-to-outer
 /// order, which is how the viewer numbers layers.
 #[test]
-fn layers_are_listed_opaque_first_then_outermost_first() {
+fn layers_are_listed_opaque_first_then_outermost_first_at_lod_0() {
     let layer = |json: &Value, n: &Value| -> (u64, bool) {
         let node = &json["nodes"][n.as_u64().unwrap() as usize];
         let name = node["name"].as_str().unwrap();
@@ -362,6 +362,17 @@ fn layers_are_listed_opaque_first_then_outermost_first() {
         .map(|&n| layer(&json, &Value::from(n)).0)
         .collect();
     assert_eq!(by_index, (0..32).collect::<Vec<_>>());
+    // a coarser level lists its layers inner to outer (drawn small on screen, outer first cost
+    // more than it saved: `coarse_draw_order`)
+    let lod1 = (json["nodes"].as_array().unwrap().iter())
+        .find(|n| n["name"] == "lod1")
+        .expect("the chunk's LOD 1 node");
+    let order: Vec<(u64, bool)> = (lod1["children"].as_array().unwrap().iter())
+        .map(|n| layer(&json, n))
+        .collect();
+    assert_eq!(order[0], (0, false), "{order:?}");
+    assert!(order.len() > 2 && order[1..].iter().all(|&(_, m)| m), "{order:?}");
+    assert!(order.windows(2).all(|w| w[0].0 < w[1].0), "{order:?}");
 
     let baked = shellbake::bake(&tube(), &params(Layout::Compact));
     let json = Glb::parse(&baked.glb).json;

@@ -230,7 +230,7 @@ pub(super) fn chunk_node(
                 lod: Some(k),
                 ..chunk_tag
             },
-            children: draw_order(b, nodes),
+            children: coarse_draw_order(b, nodes),
             ..Node::default()
         };
         ids.push(Packed::push(&mut b.out.nodes, node));
@@ -311,19 +311,33 @@ pub(super) fn skinned_switches(
     chained_draw_order(b, &lod0)
 }
 
-/// The order a level's layer nodes `nodes` (inner to outer, as their node indices run) are
+/// The order LOD 0's layer nodes `nodes` (inner to outer, as their node indices run) are
 /// listed in, which is the order three.js, Babylon.js and the viewer draw them in: the opaque
-/// layers first, then the masked ones from the outermost in. A masked layer's texels pass the
-/// depth test only where nothing nearer was drawn, and seen from outside the outer layers are
-/// the nearer, so drawn first they hide the inner layers' texels before those are shaded: on
-/// an NVIDIA H100, the close view of a furred cat drew 28 % faster than inner to outer (see
-/// docs/measurements.md). The picture is the same under a `<` depth test, as the viewer's; under
-/// `<=` (three.js), where two masked layers lie at exactly the same depth the inner one now
-/// shows instead of the outer. The node indices keep the layers' order, so a reader numbers a
-/// layer by its index among its siblings.
+/// layers first, then the masked ones from the outermost in ([`coarse_draw_order`] for a
+/// coarser level's). A masked layer's texels pass the depth test only where nothing nearer was
+/// drawn, and seen from outside the outer layers are the nearer, so drawn first they hide the
+/// inner layers' texels before those are shaded: on an NVIDIA H100, the close view of a furred
+/// cat drew in 7.232 ms against 9.625 inner to outer (see docs/measurements.md). The picture is
+/// the same under a `<` depth test, as the viewer's; under `<=` (three.js), where two masked
+/// layers lie at exactly the same depth the inner one now shows instead of the outer. The node
+/// indices keep the layers' order, so a reader numbers a layer by its index among its
+/// siblings.
 fn draw_order(b: &Builder, nodes: &[usize]) -> Vec<usize> {
     let (opaque, masked) = split_masked(b, nodes);
     opaque.into_iter().chain(masked.into_iter().rev()).collect()
+}
+
+/// The order a rigid chunk's coarser level lists its layer nodes in: the opaque layers, then
+/// the masked ones inner to outer, as their indices run. A coarser level is drawn where the
+/// surface is small on screen, with many triangles to a pixel, and there drawing outer first
+/// cost more than it saved: on an NVIDIA H100 the Stanford dragon's side view (its LOD 1,
+/// 3.4 M triangles) drew 4.933 ms outer first against 4.587 inner first, while its close view
+/// (LOD 0) drew 15.673 against 17.587 (docs/measurements.md). A skinned chunk's coarser levels
+/// are drawn in its LOD 0 nodes' order ([`chained_draw_order`]), which measured no slower on
+/// the cat and the critter.
+fn coarse_draw_order(b: &Builder, nodes: &[usize]) -> Vec<usize> {
+    let (opaque, masked) = split_masked(b, nodes);
+    opaque.into_iter().chain(masked).collect()
 }
 
 /// [`draw_order`] for a skinned chunk's LOD 0 layer nodes, which carry `MSFT_lod` chains of
