@@ -371,7 +371,10 @@ fn layers_are_listed_opaque_first_then_outermost_first_at_lod_0() {
         .map(|n| layer(&json, n))
         .collect();
     assert_eq!(order[0], (0, false), "{order:?}");
-    assert!(order.len() > 2 && order[1..].iter().all(|&(_, m)| m), "{order:?}");
+    assert!(
+        order.len() > 2 && order[1..].iter().all(|&(_, m)| m),
+        "{order:?}"
+    );
     assert!(order.windows(2).all(|w| w[0].0 < w[1].0), "{order:?}");
 
     let baked = shellbake::bake(&tube(), &params(Layout::Compact));
