@@ -158,12 +158,9 @@ impl BakeParams {
                 identifier ignored_any
             }
         }
-        static SECTIONS: std::sync::OnceLock<&'static [&'static str]> = std::sync::OnceLock::new();
-        SECTIONS.get_or_init(|| {
-            let fields = std::cell::Cell::new(&[][..]);
-            let _ = BakeParams::deserialize(Fields(&fields));
-            fields.get()
-        })
+        let fields = std::cell::Cell::new(&[][..]);
+        let _ = BakeParams::deserialize(Fields(&fields));
+        fields.get()
     }
 
     /// The named preset: the stage defaults with the preset's overrides.
